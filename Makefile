@@ -1,0 +1,35 @@
+# hairdigi: `make demo` sets up and runs the main job; `make test` sets up and runs the tests.
+SHELL := /bin/bash
+VENV ?= .venv
+PY := $(VENV)/bin/python
+APT_PACKAGES := libllvm19 xvfb xauth libgl1 libegl1 libglx-mesa0 libgl1-mesa-dri libdbus-1-3 \
+	libfontconfig1 libxkbcommon-x11-0 libxcb-icccm4 libxcb-keysyms1 libxcb-cursor0 libxcb-image0 \
+	libxcb-render-util0 libxcb-xkb1 libxcb-randr0 libxcb-shape0 libxcb-xinerama0
+export OMP_WAIT_POLICY := PASSIVE
+
+.PHONY: setup system-deps demo app test bench clean
+
+system-deps:  ## Debian packages: libLLVM 19 for Mitsuba's llvm variant, Xvfb and xcb for Qt/VTK
+	@if dpkg -s $(APT_PACKAGES) >/dev/null 2>&1; then echo "system packages present"; \
+	else apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(APT_PACKAGES); fi
+
+$(VENV)/.installed: pyproject.toml
+	test -x $(PY) || python3 -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e ".[test,train]"
+	touch $@
+
+setup: system-deps $(VENV)/.installed
+
+demo: setup  ## the main job: the app on the simulated rig, or the headless demo without a display
+	$(VENV)/bin/hairdigi demo --out out/demo
+
+test: setup  ## pytest's exit 5 (no tests collected) is turned into a failure
+	@set -o pipefail; QT_QPA_PLATFORM=offscreen $(PY) -m pytest -q tests 2>&1 | tee test-output.log; rc=$$?; \
+	if [ $$rc -eq 5 ]; then echo "no tests were collected: that is a failure" >&2; exit 1; fi; exit $$rc
+
+bench: setup
+	$(VENV)/bin/hairdigi bench render --out render/bench
+
+clean:
+	rm -rf out test-output test-output.log

@@ -1,0 +1,84 @@
+"""Image-comparison metrics: RMSE, L1 on the 0–255 scale, ΔE2000 (colour-science) and MS-SSIM.
+
+Inputs are linear RGB in the renderer's colour space (linear sRGB primaries, D65) unless a
+function says it takes 8-bit sRGB.
+"""
+from __future__ import annotations
+
+import colour
+import numpy as np
+from scipy.ndimage import gaussian_filter
+
+_SRGB = colour.RGB_COLOURSPACES["sRGB"]
+
+
+def linear_rgb_to_lab(rgb: np.ndarray) -> np.ndarray:
+    """Linear sRGB (white = 1) to CIE L*a*b* under D65, through colour-science."""
+    xyz = colour.RGB_to_XYZ(np.asarray(rgb, dtype=float), _SRGB, apply_cctf_decoding=False)
+    return colour.XYZ_to_Lab(xyz, _SRGB.whitepoint)
+
+
+def delta_e2000(rgb_a: np.ndarray, rgb_b: np.ndarray) -> np.ndarray:
+    """ΔE2000 between linear-RGB colours (any shape ending in 3)."""
+    return colour.delta_E(linear_rgb_to_lab(rgb_a), linear_rgb_to_lab(rgb_b), method="CIE 2000")
+
+
+def mean_colour_delta_e(image_a: np.ndarray, image_b: np.ndarray) -> float:
+    """ΔE2000 between the mean linear colours of two images (what a viewer sees from afar)."""
+    return float(delta_e2000(image_a.reshape(-1, 3).mean(0), image_b.reshape(-1, 3).mean(0)))
+
+
+def rmse(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((np.asarray(a, float) - np.asarray(b, float)) ** 2)))
+
+
+def l1_255(srgb_a: np.ndarray, srgb_b: np.ndarray) -> float:
+    """Mean absolute difference of two 8-bit images on the 0–255 scale (the paper's L1)."""
+    return float(np.mean(np.abs(srgb_a.astype(float) - srgb_b.astype(float))))
+
+
+# --- MS-SSIM (Wang, Simoncelli & Bovik 2003) --------------------------------------------------
+MS_SSIM_WEIGHTS = np.array([0.0448, 0.2856, 0.3001, 0.2363, 0.1333])
+_K1, _K2, _SIGMA = 0.01, 0.03, 1.5
+#: 5 scales with an 11-tap window need the smallest scale (size / 16) to be >= 11 px.
+MS_SSIM_MIN_SIZE = 161
+
+
+def _ssim_parts(x: np.ndarray, y: np.ndarray, data_range: float) -> tuple[float, float]:
+    c1, c2 = (_K1 * data_range) ** 2, (_K2 * data_range) ** 2
+    blur = lambda im: gaussian_filter(im, _SIGMA, truncate=3.5, axes=(0, 1))  # noqa: E731  (11-tap window)
+    mx, my = blur(x), blur(y)
+    sxx = blur(x * x) - mx * mx
+    syy = blur(y * y) - my * my
+    sxy = blur(x * y) - mx * my
+    cs = (2 * sxy + c2) / (sxx + syy + c2)
+    lum = (2 * mx * my + c1) / (mx * mx + my * my + c1)
+    crop = (slice(5, -5), slice(5, -5))  # valid region of the 11-tap window
+    return float(np.mean((lum * cs)[crop])), float(np.mean(cs[crop]))
+
+
+def ms_ssim(img_a: np.ndarray, img_b: np.ndarray, data_range: float = 255.0) -> float:
+    """Multi-scale SSIM of two (H, W) or (H, W, C) images, averaged over channels; 1 is identical.
+
+    Needs both sides >= 161 px for its 5 scales; smaller images raise ``ValueError``.
+    """
+    a, b = np.asarray(img_a, dtype=float), np.asarray(img_b, dtype=float)
+    if a.shape != b.shape:
+        raise ValueError(f"MS-SSIM needs images of one shape, got {a.shape} and {b.shape}")
+    if min(a.shape[:2]) < MS_SSIM_MIN_SIZE:
+        raise ValueError(f"MS-SSIM's 5 scales need images of at least {MS_SSIM_MIN_SIZE} px, got {a.shape[:2]}")
+    if a.ndim == 2:
+        a, b = a[..., None], b[..., None]
+    values = []
+    for ch in range(a.shape[2]):
+        x, y = a[..., ch], b[..., ch]
+        mcs = []
+        for scale in range(5):
+            ssim, cs = _ssim_parts(x, y, data_range)
+            if scale < 4:
+                mcs.append(max(cs, 0.0))
+                h, w = (x.shape[0] // 2) * 2, (x.shape[1] // 2) * 2
+                x = x[:h, :w].reshape(h // 2, 2, w // 2, 2).mean((1, 3))
+                y = y[:h, :w].reshape(h // 2, 2, w // 2, 2).mean((1, 3))
+        values.append(np.prod(np.array(mcs) ** MS_SSIM_WEIGHTS[:4]) * max(ssim, 0.0) ** MS_SSIM_WEIGHTS[4])
+    return float(np.mean(values))

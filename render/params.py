@@ -1,0 +1,149 @@
+"""The hair-colour parameters of Kips et al. 2022, Table 1, with validation and a JSON form."""
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+# (name, low, high) for the six normalised components, in vector order.
+VECTOR_FIELDS: tuple[tuple[str, float, float], ...] = (
+    ("dye_r", 0.0, 255.0),
+    ("dye_g", 0.0, 255.0),
+    ("dye_b", 0.0, 255.0),
+    ("dye_concentration", 0.0, 1.0),
+    ("melanin_concentration", 0.0, 1.0),
+    ("melanin_ratio", 0.0, 1.0),
+)
+_LOW = np.array([f[1] for f in VECTOR_FIELDS])
+_SPAN = np.array([f[2] - f[1] for f in VECTOR_FIELDS])
+
+
+class HairParamsError(ValueError):
+    """A hair-parameter value or file is invalid; the message names the field and its range."""
+
+
+@dataclass(frozen=True)
+class HairParams:
+    """Table 1: dye colour (0–255 each), dye concentration, melanin concentration and ratio (0–1).
+
+    ``melanin_ratio`` is the eumelanin share of the melanin: 1 is all eumelanin (brown–black),
+    0 all pheomelanin (red–blond).
+    """
+
+    dye_rgb: tuple[float, float, float] = (255.0, 255.0, 255.0)
+    dye_concentration: float = 0.0
+    melanin_concentration: float = 0.5
+    melanin_ratio: float = 0.8
+
+    def __post_init__(self) -> None:
+        rgb = tuple(float(v) for v in np.asarray(self.dye_rgb, dtype=float).ravel())
+        if len(rgb) != 3:
+            raise HairParamsError(f"dye_rgb must hold 3 values (r, g, b), got {len(rgb)}")
+        object.__setattr__(self, "dye_rgb", rgb)
+        for name, value in zip(("dye_r", "dye_g", "dye_b"), rgb):
+            _check(name, value, 0.0, 255.0)
+        for name in ("dye_concentration", "melanin_concentration", "melanin_ratio"):
+            value = float(getattr(self, name))
+            object.__setattr__(self, name, value)
+            _check(name, value, 0.0, 1.0)
+
+    # --- vector form for the encoder -------------------------------------------------------
+    def to_vector(self) -> np.ndarray:
+        """The six parameters normalised to [0, 1], in ``VECTOR_FIELDS`` order."""
+        raw = np.array([*self.dye_rgb, self.dye_concentration, self.melanin_concentration,
+                        self.melanin_ratio])
+        return ((raw - _LOW) / _SPAN).astype(np.float32)
+
+    @classmethod
+    def from_vector(cls, vector: np.ndarray, clamp: bool = True) -> "HairParams":
+        """Inverse of :meth:`to_vector`; with ``clamp`` values outside [0, 1] are clipped first."""
+        v = np.asarray(vector, dtype=float).ravel()
+        if v.shape != (6,):
+            raise HairParamsError(f"a hair-parameter vector has 6 values, got {v.size}")
+        if not np.all(np.isfinite(v)):
+            raise HairParamsError("a hair-parameter vector contains NaN or Inf")
+        if clamp:
+            v = np.clip(v, 0.0, 1.0)
+        raw = _LOW + v * _SPAN
+        return cls(tuple(raw[:3]), raw[3], raw[4], raw[5])
+
+    # --- dict / JSON ------------------------------------------------------------------------
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "dye_rgb": [round(v, 4) for v in self.dye_rgb],
+            "dye_concentration": round(self.dye_concentration, 6),
+            "melanin_concentration": round(self.melanin_concentration, 6),
+            "melanin_ratio": round(self.melanin_ratio, 6),
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> "HairParams":
+        """Read the parameters from a dict, at its top level or under a ``"hair"`` key."""
+        if not isinstance(data, dict):
+            raise HairParamsError(f"hair parameters must be a JSON object, got {type(data).__name__}")
+        if "hair" in data and isinstance(data["hair"], dict):
+            data = data["hair"]
+        required = ("dye_rgb", "dye_concentration", "melanin_concentration", "melanin_ratio")
+        missing = [k for k in required if k not in data]
+        if missing:
+            raise HairParamsError(
+                f"hair parameters are missing {', '.join(missing)}; expected keys: {', '.join(required)}")
+        try:
+            return cls(tuple(data["dye_rgb"]), data["dye_concentration"],
+                       data["melanin_concentration"], data["melanin_ratio"])
+        except (TypeError, ValueError) as exc:
+            if isinstance(exc, HairParamsError):
+                raise
+            raise HairParamsError(f"hair parameters have a value of the wrong type: {exc}") from exc
+
+
+def _check(name: str, value: float, low: float, high: float) -> None:
+    if not math.isfinite(value) or not low <= value <= high:
+        raise HairParamsError(f"{name} = {value} is outside its range [{low:g}, {high:g}]")
+
+
+def load_params(path: str | os.PathLike) -> HairParams:
+    """Load ``HairParams`` from a JSON file; errors name the file and the problem."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise HairParamsError(f"{path}: no such parameter file") from None
+    except json.JSONDecodeError as exc:
+        raise HairParamsError(f"{path}: not valid JSON ({exc})") from None
+    try:
+        return HairParams.from_dict(data)
+    except HairParamsError as exc:
+        raise HairParamsError(f"{path}: {exc}") from None
+
+
+def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
+    """Write JSON to ``path`` through a temporary file and a rename, so no reader sees half a file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as f:
+            json.dump(data, f, indent=2)
+            f.write("\n")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def save_params(path: str | os.PathLike, params: HairParams, **provenance: Any) -> Path:
+    """Save ``{"hair": {...}, **provenance}`` atomically."""
+    return write_json_atomic(path, {"hair": params.to_dict(), **provenance})
+
+
+def sample_params(rng: np.random.Generator) -> HairParams:
+    """Draw every parameter uniformly over its Table 1 range, as the paper does."""
+    return HairParams.from_vector(rng.uniform(0.0, 1.0, size=6))

@@ -1,0 +1,233 @@
+"""``render(params, scene, size, spp, seed)``: hair parameters and a scene in, a path-traced image out.
+
+Loaded scenes are cached. When only the hair parameters, the camera, the light intensities or (in
+the JIT variants) the strand layout change, the cached scene is updated through ``mi.traverse``
+instead of being rebuilt, which is what makes rendering thousands of dataset swatches cheap.
+"""
+from __future__ import annotations
+
+import tempfile
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Callable, Iterator
+
+import colour
+import numpy as np
+
+from render import scenes
+from render.absorption import hair_bsdf, hair_sigma_a
+from render.params import HairParams
+from render.strands import HAIRSTYLES, Strands, hairstyle_strands, swatch_strands
+from render.variant import is_jit, mi
+
+SCENE_NAMES = ("swatch",) + HAIRSTYLES
+
+
+@dataclass(frozen=True)
+class SceneDefaults:
+    """Per-scene defaults, chosen from ``hairdigi bench render`` (see render/README.md)."""
+
+    strands: int
+    spp: int
+    max_depth: int
+    size: int
+
+
+#: Chosen from the benchmark in render/README.md: the cheapest setting whose error is under the
+#: noise that matters.
+DEFAULTS = {
+    "swatch": SceneDefaults(strands=2000, spp=16, max_depth=16, size=128),
+    "hairstyle": SceneDefaults(strands=4000, spp=16, max_depth=12, size=512),
+}
+
+
+def defaults_for(name: str) -> SceneDefaults:
+    return DEFAULTS["swatch" if name == "swatch" else "hairstyle"]
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """What to render, apart from the hair colour.
+
+    ``name`` is ``"swatch"`` or a hairstyle. ``framing`` (swatch only) is ``"crop"``, all hair, as in
+    the training set, or ``"rig"``, the whole swatch on its holder. ``env`` applies to hairstyles.
+    ``strands``, ``max_depth`` None take the scene's defaults. ``lights`` scales the three rig lights.
+    ``chart`` adds a colour chart of (24, 3) linear reflectances beside the swatch (swatch only).
+    """
+
+    name: str = "swatch"
+    camera: scenes.CameraPose | None = None
+    env: str = "studio"
+    framing: str = "crop"
+    strands: int | None = None
+    strand_seed: int = 0
+    max_depth: int | None = None
+    lights: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    chart: tuple | None = None
+    target: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    half_width: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.name not in SCENE_NAMES:
+            raise ValueError(f"unknown scene {self.name!r}; choose one of {', '.join(SCENE_NAMES)}")
+        if self.name != "swatch" and self.env not in scenes.ENVIRONMENTS:
+            raise ValueError(f"unknown environment {self.env!r}; choose one of {', '.join(scenes.ENVIRONMENTS)}")
+        if self.name == "swatch" and self.framing not in scenes.FRAMING_HALF_WIDTH:
+            raise ValueError(f"unknown framing {self.framing!r}; choose one of "
+                             f"{', '.join(scenes.FRAMING_HALF_WIDTH)}")
+
+    @property
+    def n_strands(self) -> int:
+        return self.strands if self.strands is not None else defaults_for(self.name).strands
+
+    @property
+    def depth(self) -> int:
+        return self.max_depth if self.max_depth is not None else defaults_for(self.name).max_depth
+
+    @property
+    def pose(self) -> scenes.CameraPose:
+        if self.camera is not None:
+            return self.camera
+        return scenes.CameraPose() if self.name == "swatch" else scenes.PORTRAIT_CAMERA
+
+
+@dataclass
+class RenderResult:
+    linear: np.ndarray  # (H, W, 3) float32, linear RGB
+    srgb: np.ndarray    # (H, W, 3) uint8, sRGB-encoded
+    seconds: float
+    spp: int
+
+
+def linear_to_srgb8(linear: np.ndarray) -> np.ndarray:
+    """Clip to [0, 1], apply the sRGB transfer function (colour-science) and quantise to 8 bits."""
+    encoded = colour.cctf_encoding(np.clip(linear, 0.0, 1.0), function="sRGB")
+    return np.round(encoded * 255.0).astype(np.uint8)
+
+
+def strands_for(spec: SceneSpec) -> Strands:
+    if spec.name == "swatch":
+        return swatch_strands(spec.n_strands, seed=spec.strand_seed)
+    return hairstyle_strands(spec.name, spec.n_strands, seed=spec.strand_seed)
+
+
+@dataclass
+class _Loaded:
+    scene: object
+    params: object
+    strand_seed: int
+    camera: scenes.CameraPose
+    keys: dict = field(default_factory=dict)
+
+
+class Renderer:
+    """Holds loaded Mitsuba scenes and re-renders them with new hair parameters, cameras and lights."""
+
+    def __init__(self, max_cached: int = 4) -> None:
+        self.variant = mi.variant()
+        self._cache: dict[tuple, _Loaded] = {}
+        self._max_cached = max_cached
+        self._tmp = tempfile.TemporaryDirectory(prefix="hairdigi-curves-")
+
+    # -- scene cache -------------------------------------------------------------------------
+    def _structure_key(self, spec: SceneSpec, size: int) -> tuple:
+        key = (spec.name, spec.env, spec.framing, spec.n_strands, spec.depth, size, spec.chart,
+               spec.target, spec.half_width)
+        if not is_jit():  # scalar_rgb cannot swap curves in memory: a new layout means a new scene
+            key += (spec.strand_seed,)
+        return key
+
+    def _build(self, spec: SceneSpec, size: int, params: HairParams) -> _Loaded:
+        curve_file = Path(self._tmp.name) / f"curves-{len(self._cache)}-{time.monotonic_ns()}.txt"
+        curve_file.write_text(strands_for(spec).with_dummy().to_curve_text())
+        bsdf = hair_bsdf(params)
+        if spec.name == "swatch":
+            chart = None if spec.chart is None else np.asarray(spec.chart)
+            scene_dict = scenes.swatch_scene(str(curve_file), bsdf, spec.pose, size, spec.framing,
+                                             spec.depth, spec.lights, chart, spec.target, spec.half_width)
+        else:
+            scene_dict = scenes.portrait_scene(str(curve_file), bsdf, size, spec.env, spec.pose, spec.depth)
+        scene = mi.load_dict(scene_dict)
+        curve_file.unlink(missing_ok=True)
+        return _Loaded(scene, mi.traverse(scene), spec.strand_seed, spec.pose)
+
+    def _scene_for(self, spec: SceneSpec, size: int, params: HairParams):
+        key = self._structure_key(spec, size)
+        loaded = self._cache.get(key)
+        if loaded is None:
+            if len(self._cache) >= self._max_cached:
+                self._cache.pop(next(iter(self._cache)))
+            loaded = self._cache[key] = self._build(spec, size, params)
+        self._update(loaded, spec, params)
+        return loaded.scene
+
+    def _update(self, loaded: _Loaded, spec: SceneSpec, params: HairParams) -> None:
+        p = loaded.params
+        p["hair.bsdf.sigma_a.value"] = mi.Color3f(*hair_sigma_a(params).tolist())
+        if spec.name == "swatch":
+            for i, scale in enumerate(spec.lights):
+                p[f"light{i}.emitter.radiance.value"] = mi.Color3f([scenes.LIGHT_RADIANCE * float(scale)] * 3)
+        if spec.pose != loaded.camera:
+            target = spec.target if spec.name == "swatch" else scenes.PORTRAIT_TARGET
+            position = (spec.pose.position(target) if spec.name == "swatch"
+                        else scenes.portrait_camera_position(spec.pose))
+            p["sensor.to_world"] = mi.AffineTransform4f(scenes.look_at(position, np.asarray(target)).matrix)
+            loaded.camera = spec.pose
+        if spec.strand_seed != loaded.strand_seed:
+            strands = strands_for(spec).with_dummy()
+            p["hair.control_point_count"] = int(len(strands.points))
+            p["hair.control_points"] = mi.Float(strands.control_points())
+            p["hair.segment_indices"] = mi.UInt32(strands.segment_indices())
+            loaded.strand_seed = spec.strand_seed
+        p.update()
+
+    # -- rendering ---------------------------------------------------------------------------
+    def render(self, params: HairParams, spec: SceneSpec | str = "swatch", size: int | None = None,
+               spp: int | None = None, seed: int = 0) -> RenderResult:
+        """Path-trace ``params`` in ``spec``; returns linear float32 RGB and an sRGB 8-bit image."""
+        if isinstance(spec, str):
+            spec = SceneSpec(name=spec)
+        size = int(size or defaults_for(spec.name).size)
+        spp = int(spp or defaults_for(spec.name).spp)
+        if size < 8 or spp < 1:
+            raise ValueError(f"size must be >= 8 pixels and spp >= 1, got size={size}, spp={spp}")
+        start = time.perf_counter()
+        scene = self._scene_for(spec, size, params)
+        image = mi.render(scene, spp=spp, seed=int(seed))
+        linear = np.nan_to_num(np.asarray(image, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+        return RenderResult(linear, linear_to_srgb8(linear), time.perf_counter() - start, spp)
+
+    def render_progressive(self, params: HairParams, spec: SceneSpec | str, size: int | None = None,
+                           spp_per_pass: int = 2, passes: int = 8, seed: int = 0,
+                           cancelled: Callable[[], bool] = lambda: False) -> Iterator[RenderResult]:
+        """Render in passes of ``spp_per_pass`` with new seeds, yielding the running mean after each."""
+        total = None
+        start = time.perf_counter()
+        for i in range(passes):
+            if cancelled():
+                return
+            result = self.render(params, spec, size, spp_per_pass, seed=seed * 1_000_003 + i)
+            total = result.linear if total is None else total + result.linear
+            mean = total / (i + 1)
+            yield RenderResult(mean, linear_to_srgb8(mean), time.perf_counter() - start, spp_per_pass * (i + 1))
+
+
+_DEFAULT: Renderer | None = None
+
+
+def default_renderer() -> Renderer:
+    global _DEFAULT
+    if _DEFAULT is None:
+        _DEFAULT = Renderer()
+    return _DEFAULT
+
+
+def render(params: HairParams, scene: SceneSpec | str = "swatch", size: int | None = None,
+           spp: int | None = None, seed: int = 0) -> RenderResult:
+    """Render with the process-wide :class:`Renderer`, reusing its loaded scenes."""
+    return default_renderer().render(params, scene, size, spp, seed)
+
+
+def with_camera(spec: SceneSpec, pose: scenes.CameraPose) -> SceneSpec:
+    return replace(spec, camera=pose)

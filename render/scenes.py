@@ -1,0 +1,228 @@
+"""Mitsuba scene dictionaries: the swatch rig, the white furnace, and portraits of hairstyles.
+
+Every builder returns a plain dict for ``mi.load_dict``. The hair shape is always keyed ``"hair"``,
+its BSDF ``"hair.bsdf"``, the camera ``"sensor"`` and the rig lights ``"light0"``–``"light2"``: the
+renderer updates those through ``mi.traverse`` without reloading the scene.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from render.variant import mi
+
+# The rig: a flat holder in the z = 0 plane, its normal along +z, strands along y.
+HOLDER_SIZE = (2.4, 4.0)      # wider than the 1 x 1.4 swatch; long enough for a chart below it
+HOLDER_ALBEDO = 0.18          # mid grey, like a photographic grey card
+#: Bench light positions: (polar°, azimuth°) around the holder normal, at LIGHT_DISTANCE.
+LIGHT_POSITIONS = ((50.0, 90.0), (50.0, 210.0), (50.0, 330.0))
+LIGHT_DISTANCE = 3.0
+LIGHT_SIZE = 0.8
+LIGHT_RADIANCE = 16.0
+#: Half-width of the view at the holder for each framing. "crop" sees only hair, even at the
+#: steepest training camera (45°: 0.28 / cos 45° = 0.40 < 0.5, the swatch half-width);
+#: "rig" sees the whole swatch on its holder.
+FRAMING_HALF_WIDTH = {"crop": 0.28, "rig": 0.95}
+CAMERA_DISTANCE = 4.0
+
+ENVIRONMENTS = ("studio", "soft")
+SKIN_ALBEDO = (0.55, 0.38, 0.30)
+
+
+@dataclass(frozen=True)
+class CameraPose:
+    """A camera on a sphere around a target: polar angle from the normal (+z), azimuth, distance."""
+
+    polar_deg: float = 0.0
+    azimuth_deg: float = 0.0
+    distance: float = CAMERA_DISTANCE
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.polar_deg < 90.0:
+            raise ValueError(f"camera polar angle {self.polar_deg}° must be in [0, 90)")
+        if not self.distance > 0.0:
+            raise ValueError(f"camera distance {self.distance} must be positive")
+
+    def position(self, target: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
+        return np.asarray(target, float) + self.distance * spherical_direction(self.polar_deg, self.azimuth_deg)
+
+    @classmethod
+    def parse(cls, text: str, default_distance: float = CAMERA_DISTANCE) -> "CameraPose":
+        """From ``"POLAR,AZIMUTH[,DIST]"`` in degrees and scene units."""
+        try:
+            values = [float(v) for v in text.split(",")]
+        except ValueError:
+            raise ValueError(f"camera {text!r} must be POLAR,AZIMUTH[,DIST] numbers, e.g. 20,45") from None
+        if len(values) not in (2, 3):
+            raise ValueError(f"camera {text!r} must be POLAR,AZIMUTH[,DIST], e.g. 20,45 or 20,45,4")
+        return cls(*values) if len(values) == 3 else cls(*values, distance=default_distance)
+
+
+def spherical_direction(polar_deg: float, azimuth_deg: float) -> np.ndarray:
+    """Unit vector at ``polar`` from +z and ``azimuth`` from +x."""
+    t, p = np.radians(polar_deg), np.radians(azimuth_deg)
+    return np.array([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)])
+
+
+def look_at(origin: np.ndarray, target: np.ndarray, up_hint: np.ndarray = np.array([0.0, 1.0, 0.0])):
+    """A ``mi.ScalarTransform4f`` looking from ``origin`` at ``target``; the up hint is made safe."""
+    forward = np.asarray(target, float) - np.asarray(origin, float)
+    forward /= np.linalg.norm(forward)
+    up = np.asarray(up_hint, float)
+    if abs(np.dot(up, forward)) > 0.999:
+        up = np.array([1.0, 0.0, 0.0])
+    return mi.ScalarTransform4f().look_at(origin=origin.tolist(), target=list(map(float, target)),
+                                          up=up.tolist())
+
+
+def sensor(camera_pose: CameraPose, target, size: int | tuple[int, int], fov_deg: float,
+           spp: int = 16) -> dict:
+    width, height = (size, size) if isinstance(size, int) else size
+    return {
+        "type": "perspective",
+        "fov": fov_deg,
+        "fov_axis": "x",
+        "to_world": look_at(camera_pose.position(target), np.asarray(target, float)),
+        "film": {"type": "hdrfilm", "width": width, "height": height, "pixel_format": "rgb",
+                 "rfilter": {"type": "box"}},
+        "sampler": {"type": "independent", "sample_count": spp},
+    }
+
+
+def framing_fov(framing: str, distance: float) -> float:
+    if framing not in FRAMING_HALF_WIDTH:
+        raise ValueError(f"unknown framing {framing!r}; choose one of {', '.join(FRAMING_HALF_WIDTH)}")
+    return float(np.degrees(2 * np.arctan(FRAMING_HALF_WIDTH[framing] / distance)))
+
+
+def area_light(position: np.ndarray, target, size: float, radiance: float | tuple) -> dict:
+    """A square area light (a softbox) at ``position`` facing ``target``."""
+    to_world = look_at(position, np.asarray(target, float)) @ mi.ScalarTransform4f().scale([size / 2, size / 2, 1])
+    value = [radiance] * 3 if np.isscalar(radiance) else list(radiance)
+    return {"type": "rectangle", "to_world": to_world, "flip_normals": False,
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": value}}}
+
+
+def hair_shape(curve_file: str, bsdf: dict) -> dict:
+    return {"type": "bsplinecurve", "filename": curve_file, "bsdf": bsdf}
+
+
+def integrator(max_depth: int) -> dict:
+    """Path tracer; Russian roulette from depth 5 (measured 2.4x faster than none, same mean)."""
+    return {"type": "path", "max_depth": int(max_depth), "rr_depth": 5}
+
+
+def rig_lights(intensities=(1.0, 1.0, 1.0)) -> dict:
+    """The three bench lights, keyed ``light0``–``light2``."""
+    return {f"light{i}": area_light(LIGHT_DISTANCE * spherical_direction(*pos), (0, 0, 0), LIGHT_SIZE,
+                                    LIGHT_RADIANCE * float(intensities[i]))
+            for i, pos in enumerate(LIGHT_POSITIONS)}
+
+
+def chart_patches(reflectances: np.ndarray, center=(0.0, -1.2), patch=0.14, gap=0.03) -> dict:
+    """A 6 x 4 colour chart of diffuse patches lying on the holder, keyed ``chart00``–``chart23``.
+
+    ``reflectances`` is (24, 3) linear RGB in the renderer's colour space, row by row from the top
+    left (brown skin) as on an X-Rite ColorChecker Classic viewed with its dark skin patch top-left.
+    """
+    reflectances = np.clip(np.asarray(reflectances, float).reshape(24, 3), 0.0, 1.0)
+    shapes = {}
+    pitch = patch + gap
+    shapes["chart_board"] = {
+        "type": "rectangle",
+        "to_world": mi.ScalarTransform4f().translate([center[0], center[1], 0.0005])
+        @ mi.ScalarTransform4f().scale([3 * pitch + gap, 2 * pitch + gap, 1]),
+        "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.02, 0.02, 0.02]}},
+    }
+    for i, rgb in enumerate(reflectances):
+        row, col = divmod(i, 6)
+        x = center[0] + (col - 2.5) * pitch
+        y = center[1] + (1.5 - row) * pitch
+        shapes[f"chart{i:02d}"] = {
+            "type": "rectangle",
+            "to_world": mi.ScalarTransform4f().translate([x, y, 0.001])
+            @ mi.ScalarTransform4f().scale([patch / 2, patch / 2, 1]),
+            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": rgb.tolist()}},
+        }
+    return shapes
+
+
+def swatch_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: int, framing: str = "crop",
+                 max_depth: int = 16, lights=(1.0, 1.0, 1.0), chart: np.ndarray | None = None,
+                 target=(0.0, 0.0, 0.0), half_width: float | None = None) -> dict:
+    """The bench: holder, swatch, three lights and a camera on a sphere around the holder's normal."""
+    if half_width is None:
+        fov = framing_fov(framing, camera_pose.distance)
+    else:
+        fov = float(np.degrees(2 * np.arctan(half_width / camera_pose.distance)))
+    scene = {
+        "type": "scene",
+        "integrator": integrator(max_depth),
+        "sensor": sensor(camera_pose, target, size, fov),
+        "holder": {
+            "type": "rectangle",
+            "to_world": mi.ScalarTransform4f().translate([0.0, -0.75, 0.0])
+            @ mi.ScalarTransform4f().scale([HOLDER_SIZE[0] / 2, HOLDER_SIZE[1] / 2, 1]),
+            "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [HOLDER_ALBEDO] * 3}},
+        },
+        "hair": hair_shape(curve_file, bsdf),
+        **rig_lights(lights),
+    }
+    if chart is not None:
+        scene.update(chart_patches(chart))
+    return scene
+
+
+def furnace_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: int, max_depth: int = 256) -> dict:
+    """Hair alone under a uniform white environment of radiance 1: a lossless fibre must look white."""
+    return {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": max_depth, "rr_depth": max_depth},
+        "sensor": sensor(camera_pose, (0, 0, 0), size, framing_fov("crop", camera_pose.distance)),
+        "hair": hair_shape(curve_file, bsdf),
+        "env": {"type": "constant", "radiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
+    }
+
+
+PORTRAIT_CAMERA = CameraPose(polar_deg=0.0, azimuth_deg=90.0, distance=7.5)
+PORTRAIT_TARGET = (0.0, -0.55, 0.0)
+
+
+def portrait_camera_position(pose: CameraPose) -> np.ndarray:
+    """Portrait cameras orbit the head: polar from the face direction (+z), azimuth from +x."""
+    return np.asarray(PORTRAIT_TARGET) + pose.distance * spherical_direction(pose.polar_deg, pose.azimuth_deg)
+
+
+def portrait_lights(env: str) -> dict:
+    if env not in ENVIRONMENTS:
+        raise ValueError(f"unknown environment {env!r}; choose one of {', '.join(ENVIRONMENTS)}")
+    if env == "studio":  # three-point: key front-right-high, fill front-left, rim behind
+        return {
+            "key": area_light(np.array([3.5, 3.0, 5.0]), PORTRAIT_TARGET, 2.0, 9.0),
+            "fill": area_light(np.array([-5.0, 0.5, 4.0]), PORTRAIT_TARGET, 2.5, 2.5),
+            "rim": area_light(np.array([0.0, 0.8, -4.0]), (0.0, 0.3, 0.0), 1.5, 25.0),  # hidden by the head
+            "env": {"type": "constant", "radiance": {"type": "rgb", "value": [0.04, 0.04, 0.045]}},
+        }
+    return {  # soft: overcast, a bright diffuse sky and a broad overhead panel
+        "sky": area_light(np.array([0.0, 6.0, 1.0]), (0, 0, 0), 8.0, 1.2),
+        "env": {"type": "constant", "radiance": {"type": "rgb", "value": [0.42, 0.44, 0.48]}},
+    }
+
+
+def portrait_scene(curve_file: str, bsdf: dict, size: int, env: str = "studio",
+                   camera_pose: CameraPose = PORTRAIT_CAMERA, max_depth: int = 16) -> dict:
+    """A hairstyle on the head proxy, with the camera in front of the face."""
+    position = portrait_camera_position(camera_pose)
+    return {
+        "type": "scene",
+        "integrator": integrator(max_depth),
+        "sensor": {**sensor(camera_pose, PORTRAIT_TARGET, size, 36.0),
+                   "to_world": look_at(position, np.asarray(PORTRAIT_TARGET))},
+        "head": {"type": "sphere", "radius": 0.985,
+                 "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(SKIN_ALBEDO)}}},
+        "neck": {"type": "cylinder", "p0": [0, -2.6, -0.1], "p1": [0, -0.6, -0.1], "radius": 0.45,
+                 "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(SKIN_ALBEDO)}}},
+        "hair": hair_shape(curve_file, bsdf),
+        **portrait_lights(env),
+    }

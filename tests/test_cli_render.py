@@ -1,0 +1,58 @@
+import json
+import subprocess
+import sys
+
+import cv2
+import pytest
+
+from app.cli import main
+
+
+@pytest.fixture
+def params_file(tmp_path):
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps({"hair": {"dye_rgb": [200, 30, 30], "dye_concentration": 0.6,
+                                         "melanin_concentration": 0.3, "melanin_ratio": 0.5}}))
+    return path
+
+
+def test_render_writes_png_and_exr(tmp_path, params_file, capsys):
+    out, exr = tmp_path / "o.png", tmp_path / "o.exr"
+    assert main(["render", "--params", str(params_file), "--scene", "swatch", "--size", "32", "--spp", "2",
+                 "--strands", "200", "--camera", "20,45", "--out", str(out), "--exr", str(exr)]) == 0
+    img = cv2.imread(str(out))
+    assert img.shape == (32, 32, 3) and img.std() > 1
+    assert exr.stat().st_size > 0
+    assert "wrote" in capsys.readouterr().out
+
+
+def test_render_hairstyle(tmp_path, params_file):
+    out = tmp_path / "h.png"
+    assert main(["render", "--params", str(params_file), "--scene", "curly", "--size", "32", "--spp", "1",
+                 "--strands", "100", "--env", "soft", "--out", str(out)]) == 0
+    assert cv2.imread(str(out)).shape == (32, 32, 3)
+
+
+def test_bad_params_file_is_a_one_line_error(tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"dye_rgb": [300, 0, 0], "dye_concentration": 0,
+                               "melanin_concentration": 0, "melanin_ratio": 0}))
+    assert main(["render", "--params", str(bad), "--size", "16", "--out", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err
+    assert "dye_r = 300.0 is outside its range [0, 255]" in err and "Traceback" not in err
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_bad_camera_and_unknown_scene(tmp_path, params_file, capsys):
+    assert main(["render", "--params", str(params_file), "--camera", "abc", "--out", str(tmp_path / "x.png")]) == 2
+    assert "POLAR,AZIMUTH" in capsys.readouterr().err
+    run = subprocess.run([sys.executable, "-m", "app.cli", "render", "--params", str(params_file),
+                          "--scene", "beehive", "--out", "x.png"], capture_output=True, text=True)
+    assert run.returncode == 2 and "invalid choice: 'beehive'" in run.stderr
+
+
+def test_demo_quick(tmp_path, capsys):
+    assert main(["demo", "--quick", "--out", str(tmp_path)]) == 0
+    for name in ("swatch", "straight", "curly"):
+        assert cv2.imread(str(tmp_path / f"{name}.png")).std() > 1
+    assert str(tmp_path) in capsys.readouterr().out
