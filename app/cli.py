@@ -46,6 +46,84 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+# --- dataset, training, export, estimate, evaluate -----------------------------------------
+def cmd_dataset(args: argparse.Namespace) -> int:
+    from inference.dataset import DatasetConfig, generate
+
+    config = DatasetConfig(n=args.n, size=args.size, spp=args.spp, seed=args.seed, strands=args.strands,
+                           max_depth=args.depth, shard_size=args.shard_size)
+    out = Path(args.out) if args.out else _cache_dir() / "datasets" / f"swatch-s{args.seed}-{args.size}px-{args.spp}spp"
+    generate(config, out, workers=args.workers)
+    print(f"dataset complete: {config.n} swatches in {out}")
+    return 0
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from inference.model import EncoderConfig
+    from inference.train import TrainConfig, train
+
+    history = train(args.dataset, args.out, EncoderConfig(args.width, args.blocks, args.input_size),
+                    TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, threads=args.threads,
+                                seed=args.seed), epochs_now=args.epochs_now)
+    last = history["epochs"][-1]
+    print(f"trained {history['parameters']} parameters for {last['epoch']} epochs: validation MSE "
+          f"{last['val_mse']:.5f}; checkpoint and curve in {args.out}")
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from inference.export import export_onnx, parity
+    from inference.train import load_trained
+
+    model, history = load_trained(args.run)
+    size = history["encoder"]["input_size"]
+    path = export_onnx(model, args.out, size)
+    diff = parity(model, path, size)
+    print(f"wrote {path} ({path.stat().st_size / 1024:.0f} KiB); max |torch - onnxruntime| = {diff:.2e}")
+    return 0
+
+
+def cmd_estimate(args: argparse.Namespace) -> int:
+    from inference.encoder import Encoder
+    from inference.estimate import estimate_file
+    from inference.preprocess import Roi
+    from render.params import write_json_atomic
+
+    encoder = Encoder(args.model)
+    roi = Roi.parse(args.roi) if args.roi else None
+    estimate, record, _ = estimate_file(args.image, encoder, roi, args.calibration)
+    write_json_atomic(args.out, record)
+    p = estimate.params
+    print(f"dye rgb {tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
+          f"{p.melanin_concentration:.2f} (ratio {p.melanin_ratio:.2f}); wrote {args.out}")
+    if estimate.at_range_edge:
+        print(f"warning: the estimate reached the edge of the range for {', '.join(estimate.at_range_edge)}: "
+              f"the swatch may be outside what the model was trained on", file=sys.stderr)
+    if args.render:
+        from render.imageio import save_png
+        from render.renderer import SceneSpec, render
+
+        result = render(p, SceneSpec("swatch", framing="rig"), 256, 32, seed=0)
+        save_png(args.render, result.srgb)
+        print(f"wrote {args.render}")
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from inference.encoder import Encoder
+    from inference.evaluate import evaluate
+
+    encoder = Encoder(args.model)
+    summary = evaluate(encoder, args.out, n=args.n, size=args.size, spp=args.spp, workers=args.workers,
+                       data_root=args.data, rerender=args.rerender)
+    a = summary["buckets"]["all"]
+    print(f"{summary['n']} held-out swatches: L1 {a['est_l1']['mean']:.2f} (floor {a['floor_l1']['mean']:.2f}), "
+          f"mean-colour ΔE2000 median {a['est_mean_colour_de2000']['median']:.2f} "
+          f"(floor {a['floor_mean_colour_de2000']['median']:.2f}); encoder "
+          f"{summary['latency_ms_median_1_thread']:.3f} ms; report in {args.out}")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if args.what == "render":
@@ -84,6 +162,57 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="tiny sizes, for tests")
     p.set_defaults(func=cmd_demo)
 
+    p = sub.add_parser("dataset", help="render the synthetic swatch dataset (resumable)")
+    p.add_argument("--n", type=int, default=5000)
+    p.add_argument("--size", type=int, default=96)
+    p.add_argument("--spp", type=int, default=8)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--strands", type=int, default=None)
+    p.add_argument("--depth", type=int, default=None)
+    p.add_argument("--shard-size", type=int, default=100)
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--out", help="dataset folder (default: in the cache, $HAIRDIGI_CACHE or ~/.cache/hairdigi)")
+    p.set_defaults(func=cmd_dataset)
+
+    p = sub.add_parser("train", help="train the encoder on a dataset (resumable; needs the train extra)")
+    p.add_argument("--dataset", required=True)
+    p.add_argument("--out", required=True, help="run folder: checkpoint, history, curve")
+    p.add_argument("--epochs", type=int, default=60)
+    p.add_argument("--batch-size", type=int, default=32)
+    p.add_argument("--lr", type=float, default=2e-3)
+    p.add_argument("--width", type=int, default=16)
+    p.add_argument("--blocks", type=int, default=4)
+    p.add_argument("--input-size", type=int, default=64)
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--epochs-now", type=int, default=None, help="stop after this many epochs; run again to resume")
+    p.set_defaults(func=cmd_train)
+
+    p = sub.add_parser("export-onnx", help="export a trained run to ONNX and check parity")
+    p.add_argument("--run", required=True, help="the training run folder")
+    p.add_argument("--out", default="resources/models/encoder.onnx")
+    p.set_defaults(func=cmd_export)
+
+    p = sub.add_parser("estimate", help="estimate hair parameters from an image")
+    p.add_argument("image")
+    p.add_argument("--roi", help="swatch area x,y,w,h in pixels (default: found automatically)")
+    p.add_argument("--calibration", help="colour calibration profile JSON from the rig")
+    p.add_argument("--model", default=None, help="ONNX encoder (default: the shipped one)")
+    p.add_argument("--out", required=True, help="parameter JSON to write")
+    p.add_argument("--render", help="also render the estimate in the swatch rig to this PNG")
+    p.set_defaults(func=cmd_estimate)
+
+    p = sub.add_parser("evaluate", help="the paper's evaluation on held-out swatches, with the noise floor")
+    p.add_argument("--n", type=int, default=300)
+    p.add_argument("--size", type=int, default=176, help=">= 161 for MS-SSIM's 5 scales")
+    p.add_argument("--spp", type=int, default=8)
+    p.add_argument("--rerender", type=int, default=None, help="re-render only the first N (default: all)")
+    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--data", help="held-out dataset folder (default: OUT/heldout)")
+    p.add_argument("--model", default=None)
+    p.add_argument("--out", required=True)
+    p.set_defaults(func=cmd_evaluate)
+
     p = sub.add_parser("bench", help="speed against error tables and plots")
     p.add_argument("what", choices=("render",))
     p.add_argument("--out", default="out/bench")
@@ -94,12 +223,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    from inference.encoder import ModelError
+    from inference.preprocess import ImageError
     from render.hairfile import HairFileError
     from render.params import HairParamsError
 
+    if getattr(args, "model", "unset") is None:
+        from inference.encoder import DEFAULT_MODEL
+        args.model = DEFAULT_MODEL
     try:
         return args.func(args)
-    except (CliError, HairParamsError, HairFileError, ValueError, FileNotFoundError) as exc:
+    except (CliError, HairParamsError, HairFileError, ImageError, ModelError, ValueError, FileNotFoundError) as exc:
         print(f"hairdigi {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

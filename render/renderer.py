@@ -183,14 +183,18 @@ class Renderer:
         p.update()
 
     # -- rendering ---------------------------------------------------------------------------
-    def render(self, params: HairParams, spec: SceneSpec | str = "swatch", size: int | None = None,
-               spp: int | None = None, seed: int = 0) -> RenderResult:
-        """Path-trace ``params`` in ``spec``; returns linear float32 RGB and an sRGB 8-bit image."""
+    def render(self, params: HairParams, spec: SceneSpec | str = "swatch",
+               size: int | tuple[int, int] | None = None, spp: int | None = None, seed: int = 0) -> RenderResult:
+        """Path-trace ``params`` in ``spec``; returns linear float32 RGB and an sRGB 8-bit image.
+
+        ``size`` is the side of a square image, or (width, height).
+        """
         if isinstance(spec, str):
             spec = SceneSpec(name=spec)
-        size = int(size or defaults_for(spec.name).size)
+        size = size or defaults_for(spec.name).size
+        size = (int(size[0]), int(size[1])) if isinstance(size, (tuple, list)) else int(size)
         spp = int(spp or defaults_for(spec.name).spp)
-        if size < 8 or spp < 1:
+        if min(np.atleast_1d(size)) < 8 or spp < 1:
             raise ValueError(f"size must be >= 8 pixels and spp >= 1, got size={size}, spp={spp}")
         start = time.perf_counter()
         scene = self._scene_for(spec, size, params)

@@ -13,7 +13,8 @@ import numpy as np
 from render.variant import mi
 
 # The rig: a flat holder in the z = 0 plane, its normal along +z, strands along y.
-HOLDER_SIZE = (2.4, 4.0)      # wider than the 1 x 1.4 swatch; long enough for a chart below it
+HOLDER_SIZE = (3.8, 4.0)      # the 1 x 1.4 swatch, with room for the chart on its right
+HOLDER_CENTER = (0.6, -0.75)
 HOLDER_ALBEDO = 0.18          # mid grey, like a photographic grey card
 #: Bench light positions: (polar°, azimuth°) around the holder normal, at LIGHT_DISTANCE.
 LIGHT_POSITIONS = ((50.0, 90.0), (50.0, 210.0), (50.0, 330.0))
@@ -120,7 +121,34 @@ def rig_lights(intensities=(1.0, 1.0, 1.0)) -> dict:
             for i, pos in enumerate(LIGHT_POSITIONS)}
 
 
-def chart_patches(reflectances: np.ndarray, center=(0.0, -1.2), patch=0.14, gap=0.03) -> dict:
+# The bench camera of the (simulated) rig: straight down on the holder, the swatch on the left and
+# a 6 x 4 colour chart on its right, in a 4:3 frame.
+CHART_CENTER = (1.35, 0.0)
+CHART_PATCH = 0.17
+CHART_GAP = 0.03
+RIG_TARGET = (0.725, 0.0, 0.0)
+RIG_HALF_WIDTH = 1.375
+
+
+def rig_pixel(x: np.ndarray, y: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel coordinates of holder-plane points (z = 0) in the rig view, for a camera at polar 0.
+
+    A pinhole camera looking straight at a plane maps it linearly; the image's up is +y.
+    """
+    width, height = size
+    scale = width / (2 * RIG_HALF_WIDTH)
+    return ((np.asarray(x) - RIG_TARGET[0]) * scale + width / 2,
+            (RIG_TARGET[1] - np.asarray(y)) * scale + height / 2)
+
+
+def chart_patch_centres() -> np.ndarray:
+    """(24, 2) holder-plane centres of the chart's patches, row by row from the top left."""
+    pitch = CHART_PATCH + CHART_GAP
+    return np.array([(CHART_CENTER[0] + (col - 2.5) * pitch, CHART_CENTER[1] + (1.5 - row) * pitch)
+                     for row in range(4) for col in range(6)])
+
+
+def chart_patches(reflectances: np.ndarray, center=CHART_CENTER, patch=CHART_PATCH, gap=CHART_GAP) -> dict:
     """A 6 x 4 colour chart of diffuse patches lying on the holder, keyed ``chart00``–``chart23``.
 
     ``reflectances`` is (24, 3) linear RGB in the renderer's colour space, row by row from the top
@@ -162,7 +190,7 @@ def swatch_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: int
         "sensor": sensor(camera_pose, target, size, fov),
         "holder": {
             "type": "rectangle",
-            "to_world": mi.ScalarTransform4f().translate([0.0, -0.75, 0.0])
+            "to_world": mi.ScalarTransform4f().translate([HOLDER_CENTER[0], HOLDER_CENTER[1], 0.0])
             @ mi.ScalarTransform4f().scale([HOLDER_SIZE[0] / 2, HOLDER_SIZE[1] / 2, 1]),
             "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [HOLDER_ALBEDO] * 3}},
         },

@@ -1,0 +1,236 @@
+"""The bench session, free of Qt: lights, exposure, calibration, capture and estimate in one object.
+
+The GUI and ``hairdigi rig`` both drive this; it calls ``hardware/``, ``inference/`` and ``render/``
+and holds no science of its own. Every capture is written to disk before anything reads it.
+"""
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hardware.capture import save_capture
+from hardware.exposure import ExposureReport, check_exposure, dead_lights
+from hardware.lights import LightController, LightError
+from inference.calibration import (CalibrationError, ChartDetection, apply_profile, calibrate, detect_chart,
+                                   load_profile, save_profile, staleness)
+from render.params import HairParams, write_json_atomic
+
+
+@dataclass
+class CaptureResult:
+    capture_id: str
+    image_path: Path
+    meta_path: Path
+    params: HairParams | None = None
+    record: dict = field(default_factory=dict)
+    blocked: list[str] = field(default_factory=list)   # why no estimate was made
+    corrected: np.ndarray | None = None                # the colour-corrected frame that was estimated
+    seconds: float = 0.0
+
+
+def white_patch_box(detection: ChartDetection) -> tuple[int, int, int, int]:
+    """A box inside the chart's white patch, from the chart's corners (patch 19 of 24: row 4, column 1)."""
+    box = detection.box  # tl, tr, br, bl
+    def at(u, v):
+        top = box[0] + (box[1] - box[0]) * u
+        bottom = box[3] + (box[2] - box[3]) * u
+        return top + (bottom - top) * v
+    centre = at((0 + 0.5) / 6, (3 + 0.5) / 4)
+    half = 0.25 * np.linalg.norm(box[1] - box[0]) / 6
+    return int(centre[0] - half), int(centre[1] - half), int(2 * half), int(2 * half)
+
+
+class RigSession:
+    """One camera, one light board, one session folder, and the current calibration profile."""
+
+    def __init__(self, camera, lights: LightController | None, folder: str | Path, swatch_roi=None,
+                 encoder=None, simulated: bool = False) -> None:
+        self.camera = camera
+        self.lights = lights
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.swatch_roi = swatch_roi
+        self._encoder = encoder
+        self.simulated = simulated
+        self.profile_path = self.folder / "calibration.json"
+        self.profile = load_profile(self.profile_path) if self.profile_path.exists() else None
+        self.last_frame = None
+        self._board = None
+
+    # -- construction ------------------------------------------------------------------------
+    @classmethod
+    def simulated_rig(cls, folder: str | Path, hidden: HairParams | None = None, camera_model=None,
+                      dead: set[int] | None = None, spp: int = 32, encoder=None) -> "RigSession":
+        """The bench in software: a pty light board, the rendered rig, and a camera model."""
+        from hardware.sim_lights import SimulatedLightBoard
+        from hardware.sim_rig import DEFAULT_HIDDEN, CameraModel, SimRig
+
+        board = SimulatedLightBoard()
+        lights = LightController(board.port)
+        rig = SimRig(hidden or DEFAULT_HIDDEN, camera_model or CameraModel(), spp=spp,
+                     dead_lights=set(dead or ()), board=board)
+        session = cls(rig, lights, folder, rig.roi, encoder, simulated=True)
+        session._board = board
+        for i in range(3):
+            lights.set_light(i, True, 255)
+        return session
+
+    def close(self) -> None:
+        if self.lights is not None:
+            self.lights.close()
+        if self._board is not None:
+            self._board.close()
+        self.camera.close()
+
+    @property
+    def encoder(self):
+        if self._encoder is None:
+            from inference.encoder import Encoder
+            self._encoder = Encoder()
+        return self._encoder
+
+    # -- lights and frames -------------------------------------------------------------------
+    def set_light(self, index: int, on: bool) -> None:
+        self.lights.set_light(index, on)
+
+    def set_all(self, on: bool) -> None:
+        if on:
+            for i in range(3):
+                self.lights.set_light(i, True)
+        else:
+            self.lights.all_off()
+
+    def light_states(self):
+        return self.lights.status()
+
+    def frame(self):
+        self.last_frame = self.camera.read()
+        return self.last_frame
+
+    def settings(self) -> dict:
+        """Camera and light settings a calibration depends on."""
+        s = {"camera": getattr(self.camera, "name", "camera")}
+        model = getattr(self.camera, "camera", None)
+        if model is not None and hasattr(model, "settings"):
+            s.update({k: v for k, v in model.settings().items() if k in ("exposure_ev", "gain")})
+        try:
+            s["lights"] = [[int(st.on), st.intensity] for st in self.lights.status()]
+        except (LightError, AttributeError):
+            pass
+        return s
+
+    # -- checks ------------------------------------------------------------------------------
+    def exposure(self, image: np.ndarray | None = None) -> list[ExposureReport]:
+        image = self.frame().srgb if image is None else image
+        try:
+            white = white_patch_box(detect_chart(image))
+        except CalibrationError:
+            white = None
+        return check_exposure(image, self._roi(image), white)
+
+    def check_lights(self) -> list[int]:
+        """Switch each light alone and return the ones that do not light the scene; restores the state."""
+        before = self.lights.status()
+        self.lights.all_off()
+        dark = self.frame().srgb
+        singles = []
+        for i in range(3):
+            self.lights.all_off()
+            self.lights.set_light(i, True)
+            singles.append(self.frame().srgb)
+        self.lights.all_off()
+        for i, st in enumerate(before):
+            self.lights.set_light(i, st.on)
+        return dead_lights(dark, singles, self._roi(dark))
+
+    def _roi(self, image: np.ndarray) -> tuple[int, int, int, int]:
+        if self.swatch_roi is not None:
+            return tuple(self.swatch_roi)
+        from inference.preprocess import find_swatch_roi
+        r = find_swatch_roi(image)
+        return r.x, r.y, r.w, r.h
+
+    # -- calibration -------------------------------------------------------------------------
+    def calibrate(self, method: str | None = None, frames: int = 4) -> dict:
+        """Fit a CCM on the mean of a few frames (less noise) and save the profile."""
+        from inference.calibration import DEFAULT_METHOD
+
+        stack = np.mean([self.frame().srgb.astype(np.float32) for _ in range(frames)], axis=0)
+        image = np.round(stack).astype(np.uint8)
+        self.profile = calibrate(image, method or DEFAULT_METHOD, settings=self.settings())
+        save_profile(self.profile_path, self.profile)
+        return self.profile
+
+    def calibration_status(self) -> tuple[str, list[str]]:
+        if self.profile is None:
+            return "uncalibrated", ["the rig is not calibrated: press Calibrate with the chart in view"]
+        reasons = staleness(self.profile, self.settings())
+        return ("stale" if reasons else "ok"), reasons
+
+    # -- capture -----------------------------------------------------------------------------
+    def capture(self, estimate: bool = True) -> CaptureResult:
+        """Save the frame and its metadata first; then check, correct and estimate, or say why not."""
+        start = time.perf_counter()
+        frame = self.frame()
+        meta = {"lights": self.settings().get("lights"), "frame_meta": frame.meta,
+                "calibration_id": None if self.profile is None else self.profile["id"],
+                "simulated": self.simulated, "swatch_roi": list(self._roi(frame.srgb))}
+        image_path, meta_path = save_capture(self.folder / "captures", frame.srgb, meta=meta)
+        result = CaptureResult(image_path.stem, image_path, meta_path)
+        result.blocked = self.blockers(frame.srgb)
+        if estimate and not result.blocked:
+            self._estimate(result, frame.srgb)
+        result.seconds = time.perf_counter() - start
+        record = {"capture": image_path.name, "blocked": result.blocked, **result.record}
+        write_json_atomic(self.folder / "captures" / f"{result.capture_id}.result.json", record)
+        return result
+
+    def blockers(self, image: np.ndarray) -> list[str]:
+        """Reasons not to estimate from this frame; empty when it is fit."""
+        reasons = []
+        status, why = self.calibration_status()
+        if status == "uncalibrated":
+            reasons += why
+        try:
+            detect_chart(image)
+        except CalibrationError as exc:
+            reasons.append(str(exc))
+        swatch = check_exposure(image, self._roi(image))[0]
+        if swatch.status == "over":
+            reasons.append(swatch.message)
+        return reasons
+
+    def _estimate(self, result: CaptureResult, image: np.ndarray) -> None:
+        from inference.encoder import ModelError
+        from inference.estimate import provenance
+        from inference.preprocess import Roi
+
+        try:
+            encoder = self.encoder
+        except ModelError as exc:
+            result.blocked.append(str(exc))
+            return
+        corrected = apply_profile(image, self.profile)
+        x, y, w, h = self._roi(image)
+        est = encoder.estimate(corrected, Roi(x, y, w, h))
+        result.params = est.params
+        result.corrected = corrected
+        result.record = {"hair": est.params.to_dict(),
+                         "provenance": provenance(est, encoder, result.image_path.read_bytes(), result.image_path,
+                                                  {"id": self.profile["id"], "method": self.profile["method"],
+                                                   "delta_e2000_after": self.profile["delta_e2000"]["after"]})}
+
+
+def load_results(folder: str | Path) -> list[dict]:
+    """Every capture's result record in a session folder, oldest first."""
+    out = []
+    for path in sorted((Path(folder) / "captures").glob("*.result.json")):
+        try:
+            out.append({"id": path.name.split(".")[0], **json.loads(path.read_text())})
+        except json.JSONDecodeError:
+            continue
+    return out

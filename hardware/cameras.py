@@ -1,0 +1,139 @@
+"""One small camera interface, several backends: live OpenCV, RAW stills, files, and the simulated rig.
+
+Every backend's ``read()`` returns a :class:`Frame` of 8-bit sRGB (what the encoder takes) and,
+where the source has it, linear RGB. ``close()`` releases the device.
+"""
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol
+
+import cv2
+import numpy as np
+
+IMAGE_EXTENSIONS = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"}
+RAW_EXTENSIONS = {".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2", ".pef", ".srw"}
+
+
+class CameraError(RuntimeError):
+    """The camera cannot deliver a frame; the message says what to check."""
+
+
+@dataclass
+class Frame:
+    srgb: np.ndarray                      # (H, W, 3) uint8, sRGB
+    linear: np.ndarray | None = None      # (H, W, 3) float32 linear RGB where the source has it
+    meta: dict = field(default_factory=dict)
+    time: float = field(default_factory=time.time)
+
+
+class Camera(Protocol):
+    name: str
+
+    def read(self) -> Frame: ...
+
+    def close(self) -> None: ...
+
+
+def _srgb_from_linear(linear: np.ndarray) -> np.ndarray:
+    import colour
+    return np.round(colour.cctf_encoding(np.clip(linear, 0, 1), function="sRGB") * 255).astype(np.uint8)
+
+
+class OpenCVCamera:
+    """A live camera through ``cv2.VideoCapture``: a device index or a stream URL."""
+
+    def __init__(self, source: int | str = 0, width: int | None = None, height: int | None = None,
+                 exposure: float | None = None, gain: float | None = None) -> None:
+        self.name = f"opencv:{source}"
+        self.capture = cv2.VideoCapture(source)
+        if not self.capture.isOpened():
+            self.capture.release()
+            raise CameraError(f"no camera at {source!r}: check that it is plugged in and not used by another "
+                              f"program, or run with --sim for the simulated rig")
+        self.settings = {}
+        for prop, value, key in ((cv2.CAP_PROP_FRAME_WIDTH, width, "width"),
+                                 (cv2.CAP_PROP_FRAME_HEIGHT, height, "height"),
+                                 (cv2.CAP_PROP_EXPOSURE, exposure, "exposure"),
+                                 (cv2.CAP_PROP_GAIN, gain, "gain")):
+            if value is not None:
+                # drivers ignore what they do not support; record what they report back
+                self.capture.set(prop, value)
+                self.settings[key] = self.capture.get(prop)
+
+    def read(self) -> Frame:
+        ok, bgr = self.capture.read()
+        if not ok or bgr is None:
+            raise CameraError(f"{self.name} stopped delivering frames: check the cable")
+        return Frame(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), meta={"camera": self.name, **self.settings})
+
+    def close(self) -> None:
+        self.capture.release()
+
+
+class FileCamera:
+    """Replays a video file (looping) or shows one image file: for replaying sessions."""
+
+    def __init__(self, path: str | os.PathLike, loop: bool = True) -> None:
+        self.path = Path(path)
+        self.name = f"file:{self.path.name}"
+        self.loop = loop
+        if not self.path.exists():
+            raise CameraError(f"{self.path}: no such video or image file")
+        self.image: np.ndarray | None = None
+        self.capture = None
+        if self.path.suffix.lower() in IMAGE_EXTENSIONS:
+            bgr = cv2.imread(str(self.path), cv2.IMREAD_COLOR)
+            if bgr is None:
+                raise CameraError(f"{self.path}: OpenCV cannot read this image")
+            self.image = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+            self.frames = 1
+            return
+        self.capture = cv2.VideoCapture(str(self.path))
+        if not self.capture.isOpened():
+            raise CameraError(f"{self.path}: OpenCV cannot open this file as video")
+        self.frames = int(self.capture.get(cv2.CAP_PROP_FRAME_COUNT))
+
+    def read(self) -> Frame:
+        if self.image is not None:
+            return Frame(self.image.copy(), meta={"camera": self.name, "frame": 0})
+        ok, bgr = self.capture.read()
+        if not ok and self.loop:
+            self.capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+            ok, bgr = self.capture.read()
+        if not ok:
+            raise CameraError(f"{self.path}: no more frames")
+        index = int(self.capture.get(cv2.CAP_PROP_POS_FRAMES)) - 1
+        return Frame(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), meta={"camera": self.name, "frame": index})
+
+    def close(self) -> None:
+        if self.capture is not None:
+            self.capture.release()
+
+
+def read_raw(path: str | os.PathLike) -> Frame:
+    """A RAW still (DNG, CR2, NEF, ...) through rawpy as linear camera RGB, white-balanced as shot.
+
+    No auto-brightening, a linear curve and the camera's own colour space (no matrix to sRGB): the
+    values are proportional to the light on each channel, and the rig's colour calibration (a CCM
+    fitted on the chart) takes them to the renderer's colour space. The file is left untouched.
+    """
+    import rawpy
+
+    path = Path(path)
+    if not path.exists():
+        raise CameraError(f"{path}: no such RAW file")
+    try:
+        with rawpy.imread(str(path)) as raw:
+            rgb16 = raw.postprocess(gamma=(1, 1), no_auto_bright=True, output_bps=16, use_camera_wb=True,
+                                    output_color=rawpy.ColorSpace.raw, user_flip=0)
+            meta = {"camera": f"raw:{path.name}", "raw_pattern": raw.raw_pattern.tolist(),
+                    "black_level": [int(v) for v in raw.black_level_per_channel],
+                    "white_level": int(raw.white_level)}
+    except (rawpy.LibRawError, OSError) as exc:
+        raise CameraError(f"{path}: rawpy cannot read this RAW file ({exc}); is it complete?") from None
+    linear = rgb16.astype(np.float32) / 65535.0
+    return Frame(_srgb_from_linear(linear), linear, meta)

@@ -1,0 +1,62 @@
+"""Saving captures: the untouched frame (or RAW file) first, then its metadata, both atomically."""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+
+def _atomic_bytes(path: Path, data: bytes) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def new_capture_id(now: float | None = None) -> str:
+    t = now or time.time()
+    return time.strftime("%Y%m%d-%H%M%S", time.localtime(t)) + f"-{int((t % 1) * 1000):03d}"
+
+
+def save_capture(folder: str | os.PathLike, srgb: np.ndarray | None = None, raw_path: str | os.PathLike | None = None,
+                 meta: dict | None = None, capture_id: str | None = None) -> tuple[Path, Path]:
+    """Write ``<id>.png`` (lossless, as captured) or a copy of the RAW file, then ``<id>.json``.
+
+    Returns (image path, metadata path). Nothing is processed before both are on disk.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    capture_id = capture_id or new_capture_id()
+    if raw_path is not None:
+        raw_path = Path(raw_path)
+        image_path = folder / f"{capture_id}{raw_path.suffix.lower()}"
+        tmp = folder / f".{image_path.name}.tmp"
+        shutil.copyfile(raw_path, tmp)
+        os.replace(tmp, image_path)
+    elif srgb is not None:
+        ok, png = cv2.imencode(".png", cv2.cvtColor(srgb, cv2.COLOR_RGB2BGR))
+        if not ok:
+            raise OSError("could not encode the frame as PNG")
+        image_path = folder / f"{capture_id}.png"
+        _atomic_bytes(image_path, png.tobytes())
+    else:
+        raise ValueError("a capture needs a frame or a RAW file")
+    digest = hashlib.sha256(image_path.read_bytes()).hexdigest()
+    record = {"id": capture_id, "image": image_path.name, "image_sha256": digest,
+              "captured": time.strftime("%Y-%m-%dT%H:%M:%S%z"), **(meta or {})}
+    meta_path = folder / f"{capture_id}.json"
+    _atomic_bytes(meta_path, (json.dumps(record, indent=2, default=str) + "\n").encode())
+    return image_path, meta_path

@@ -1,0 +1,182 @@
+"""The host side of the light protocol (see PROTOCOL.md): a pyserial client with retries and reconnection."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import serial
+import serial.tools.list_ports
+
+N_LIGHTS = 3
+BAUDRATE = 115200
+IDENT_PREFIX = "OK HAIRDIGI-LIGHTS"
+
+
+class LightError(RuntimeError):
+    """Base of the light-controller errors; each message names the command and the fix."""
+
+
+class LightTimeout(LightError):
+    pass
+
+
+class LightProtocolError(LightError):
+    pass
+
+
+class LightLinkError(LightError):
+    pass
+
+
+class LightCommandError(LightError):
+    """The board answered ``ERR``: the command was understood but refused."""
+
+
+@dataclass(frozen=True)
+class LightState:
+    on: bool
+    intensity: int
+
+
+def parse_status(reply: str) -> tuple[LightState, ...]:
+    """``OK 1:255 0:128 1:200`` to three ``LightState``; raises ``LightProtocolError`` otherwise."""
+    parts = reply.split()
+    if len(parts) != N_LIGHTS + 1 or parts[0] != "OK":
+        raise LightProtocolError(f"malformed STATUS reply {reply!r}")
+    states = []
+    for part in parts[1:]:
+        try:
+            on, intensity = part.split(":")
+            states.append(LightState(on == "1", int(intensity)))
+        except ValueError:
+            raise LightProtocolError(f"malformed STATUS reply {reply!r}") from None
+    return tuple(states)
+
+
+def _is_protocol_line(line: str) -> bool:
+    return line == "OK" or line.startswith(("OK ", "ERR "))
+
+
+class LightController:
+    """Three lights on a serial port. Every call is one command and one reply line."""
+
+    def __init__(self, port: str, timeout: float = 0.5, retries: int = 2, baudrate: int = BAUDRATE) -> None:
+        self.port_name = port
+        self.timeout = timeout
+        self.retries = retries
+        self.baudrate = baudrate
+        self.log: list[tuple[str, str]] = []  # (sent, received) for diagnostics
+        self._serial: serial.Serial | None = None
+        self._open()
+
+    # -- link ----------------------------------------------------------------------------------
+    def _open(self) -> None:
+        try:
+            self._serial = serial.serial_for_url(self.port_name, baudrate=self.baudrate, timeout=self.timeout,
+                                                 write_timeout=self.timeout)
+        except (serial.SerialException, OSError) as exc:
+            raise LightLinkError(f"cannot open the light board on {self.port_name} ({exc}); check the USB "
+                                 f"cable, or run 'hairdigi rig --list-ports' to find the board") from None
+
+    def close(self) -> None:
+        if self._serial is not None:
+            try:
+                self._serial.close()
+            finally:
+                self._serial = None
+
+    def __enter__(self) -> "LightController":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def connected(self) -> bool:
+        return self._serial is not None and self._serial.is_open
+
+    def _exchange(self, command: str) -> str:
+        assert self._serial is not None
+        self._serial.reset_input_buffer()
+        self._serial.write((command + "\n").encode("ascii"))
+        self._serial.flush()
+        raw = self._serial.readline()
+        if not raw:
+            raise LightTimeout(f"no reply to {command!r} within {self.timeout} s")
+        if not raw.endswith(b"\n"):
+            raise LightProtocolError(f"partial reply {raw!r} to {command!r}")
+        try:
+            line = raw.decode("ascii").strip()
+        except UnicodeDecodeError:
+            raise LightProtocolError(f"garbage reply {raw!r} to {command!r}") from None
+        if not _is_protocol_line(line):
+            raise LightProtocolError(f"garbage reply {line!r} to {command!r}")
+        if not line.startswith("ERR") and (line == "OK") == command.endswith("?"):
+            # a query answered with a bare OK, or a setting answered with data: a stale reply
+            raise LightProtocolError(f"reply {line!r} does not answer {command!r}")
+        return line
+
+    def command(self, command: str) -> str:
+        """Send one command; retry lost or garbled replies, reconnect once after a link failure."""
+        reconnected = False
+        last: Exception | None = None
+        attempt = 0
+        while attempt <= self.retries:
+            try:
+                if not self.connected:
+                    self._open()
+                line = self._exchange(command)
+                self.log.append((command, line))
+                if line.startswith("ERR"):
+                    raise LightCommandError(f"the board refused {command!r}: {line}")
+                return line
+            except (LightTimeout, LightProtocolError) as exc:
+                last = exc
+                attempt += 1
+                # let a late reply to this try arrive, so the next try's reset discards it
+                time.sleep(self.timeout / 2)
+            except (serial.SerialException, OSError, LightLinkError) as exc:
+                self.close()
+                if reconnected:
+                    raise LightLinkError(f"lost the light board on {self.port_name} during {command!r} "
+                                         f"({exc}); check the USB cable and power, then reconnect") from None
+                reconnected = True
+                time.sleep(0.05)
+                last = exc
+        raise type(last)(f"{last} (after {self.retries + 1} tries)") if isinstance(last, LightError) else \
+            LightTimeout(f"no valid reply to {command!r} after {self.retries + 1} tries")
+
+    # -- the protocol ----------------------------------------------------------------------------
+    def identify(self) -> str:
+        reply = self.command("ID?")
+        if not reply.startswith(IDENT_PREFIX):
+            raise LightProtocolError(f"{self.port_name} is not a hairdigi light board (it says {reply!r})")
+        return reply[3:]
+
+    def set_light(self, index: int, on: bool | None = None, intensity: int | None = None) -> None:
+        if not 0 <= index < N_LIGHTS:
+            raise ValueError(f"light {index} does not exist; lights are 0, 1 and 2")
+        if intensity is not None:
+            if not 0 <= int(intensity) <= 255:
+                raise ValueError(f"intensity {intensity} must be 0-255")
+            self.command(f"L{index} I {int(intensity)}")
+        if on is not None:
+            self.command(f"L{index} {'ON' if on else 'OFF'}")
+
+    def all_off(self) -> None:
+        self.command("ALL OFF")
+
+    def status(self) -> tuple[LightState, ...]:
+        return parse_status(self.command("STATUS?"))
+
+
+def discover(timeout: float = 0.3) -> list[tuple[str, str]]:
+    """Ports whose device answers ``ID?`` as a hairdigi light board: (port, identity)."""
+    found = []
+    for info in serial.tools.list_ports.comports():
+        try:
+            with LightController(info.device, timeout=timeout, retries=0) as lc:
+                found.append((info.device, lc.identify()))
+        except (LightError, ValueError):
+            continue
+    return found

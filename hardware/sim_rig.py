@@ -1,0 +1,132 @@
+"""The simulated rig: a swatch with hidden "true" hair parameters and a ColorChecker, rendered by Mitsuba.
+
+Each light is rendered alone once (and cached on disk); a frame is the sum of the lights that the
+simulated board has switched on, times their intensity, passed through a camera model (exposure,
+gain, a white-balance cast, shot and read noise, clipping, sRGB and 8 bits). Toggling a light
+changes the feed at once, with no re-render.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import colour
+import numpy as np
+
+from hardware.cameras import Frame
+from render import scenes
+from render.chart import colorchecker_reflectances
+from render.params import HairParams
+from render.renderer import Renderer, SceneSpec
+
+SIM_SIZE = (400, 300)
+#: The hidden swatch of the demo: a copper-dyed light brown.
+DEFAULT_HIDDEN = HairParams((190, 80, 40), 0.5, 0.3, 0.6)
+CACHE_VERSION = 1
+
+
+@dataclass
+class CameraModel:
+    """A simple sensor: linear radiance x 2**exposure_ev x gain x cast, noise, clip, sRGB, 8 bits."""
+
+    exposure_ev: float = 0.0
+    gain: float = 1.0
+    cast: tuple[float, float, float] = (1.0, 1.0, 1.0)   # white-balance error, per channel
+    shot_noise: float = 0.0015   # variance per unit signal (photon noise)
+    read_noise: float = 0.002    # standard deviation, in units of full scale
+
+    def settings(self) -> dict:
+        return asdict(self)
+
+
+def sensor_response(linear: np.ndarray, model: CameraModel, rng: np.random.Generator) -> np.ndarray:
+    """Apply the camera model to linear radiance; returns the 8-bit sRGB frame."""
+    signal = linear * (2.0 ** model.exposure_ev) * model.gain * np.asarray(model.cast, np.float32)
+    noise_sd = np.sqrt(np.maximum(signal, 0) * model.shot_noise + model.read_noise**2)
+    signal = signal + rng.standard_normal(signal.shape, dtype=np.float32) * noise_sd.astype(np.float32)
+    encoded = colour.cctf_encoding(np.clip(signal, 0.0, 1.0), function="sRGB")
+    return np.round(encoded * 255.0).astype(np.uint8)
+
+
+def swatch_roi(size: tuple[int, int] = SIM_SIZE, margin: float = 0.05) -> tuple[int, int, int, int]:
+    """The swatch's visible area in the rig view, as x, y, w, h pixels (inset by ``margin`` units)."""
+    half_w, half_l = 0.5 - margin, 0.58 - margin
+    (x0, x1), (y0, y1) = scenes.rig_pixel(np.array([-half_w, half_w]), np.array([half_l, -half_l]), size)
+    return int(np.ceil(x0)), int(np.ceil(y0)), int(x1 - x0), int(y1 - y0)
+
+
+def _cache_root() -> Path:
+    return Path(os.environ.get("HAIRDIGI_CACHE", Path.home() / ".cache" / "hairdigi")) / "sim-rig"
+
+
+def render_light_images(hidden: HairParams, size=SIM_SIZE, spp: int = 32, strand_seed: int = 0,
+                        cache: bool = True) -> np.ndarray:
+    """(3, H, W, 3) linear images of the rig lit by each light alone, cached by their settings."""
+    key = hashlib.sha256(json.dumps([CACHE_VERSION, hidden.to_dict(), list(size), spp, strand_seed],
+                                    sort_keys=True).encode()).hexdigest()[:16]
+    path = _cache_root() / f"lights-{key}.npy"
+    if cache and path.exists():
+        return np.load(path)
+    renderer = Renderer(max_cached=1)
+    chart = tuple(map(tuple, colorchecker_reflectances()))
+    images = []
+    for i in range(3):
+        lights = tuple(1.0 if j == i else 0.0 for j in range(3))
+        spec = SceneSpec("swatch", framing="rig", chart=chart, target=scenes.RIG_TARGET,
+                         half_width=scenes.RIG_HALF_WIDTH, lights=lights, strand_seed=strand_seed)
+        images.append(renderer.render(hidden, spec, size, spp, seed=17 + i).linear)
+    stack = np.stack(images).astype(np.float32)
+    if cache:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f".{path.name}.{os.getpid()}.npy")
+        np.save(tmp, stack)
+        os.replace(tmp, path)
+    return stack
+
+
+@dataclass
+class SimRig:
+    """The bench in software: light images, a camera model, and the board whose state it follows."""
+
+    hidden: HairParams = DEFAULT_HIDDEN
+    camera: CameraModel = field(default_factory=CameraModel)
+    size: tuple[int, int] = SIM_SIZE
+    spp: int = 32
+    dead_lights: set[int] = field(default_factory=set)
+    seed: int = 0
+    board: object | None = None   # a SimulatedLightBoard; None means all lights on at full power
+
+    def __post_init__(self) -> None:
+        self.light_images = render_light_images(self.hidden, self.size, self.spp)
+        self._rng = np.random.default_rng(self.seed)
+        self.name = "sim-rig"
+        self.frames_served = 0
+
+    def levels(self) -> np.ndarray:
+        levels = np.array(self.board.state.levels() if self.board is not None else (1.0, 1.0, 1.0), np.float32)
+        for i in self.dead_lights:
+            levels[i] = 0.0
+        return levels
+
+    def radiance(self) -> np.ndarray:
+        """Linear radiance reaching the lens for the current light state."""
+        return np.tensordot(self.levels(), self.light_images, axes=1)
+
+    def read(self) -> Frame:
+        linear = self.radiance()
+        srgb = sensor_response(linear, self.camera, self._rng)
+        self.frames_served += 1
+        return Frame(srgb, None, {"camera": self.name, "frame": self.frames_served,
+                                  "lights": self.levels().tolist(), "camera_model": self.camera.settings()},
+                     time.time())
+
+    def close(self) -> None:
+        pass
+
+    @property
+    def roi(self) -> tuple[int, int, int, int]:
+        return swatch_roi(self.size)

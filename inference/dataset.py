@@ -1,0 +1,157 @@
+"""The synthetic swatch dataset: uniform Table 1 parameters, random cameras, rendered in shards.
+
+Sample ``i`` of a dataset with seed ``s`` is drawn from ``np.random.default_rng([s, i])`` alone, so a
+sample is the same whatever the worker count, the shard size, or how often the run was resumed.
+Each shard is one ``.npz`` (sRGB uint8 images, normalised parameters, cameras, seeds) written
+atomically when complete; a restarted run renders only the shards that are missing.
+"""
+from __future__ import annotations
+
+import json
+import multiprocessing as mp
+import os
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from render.params import HairParams, sample_params
+from render.scenes import CAMERA_DISTANCE, CameraPose
+
+MANIFEST = "manifest.json"
+
+
+@dataclass(frozen=True)
+class DatasetConfig:
+    """How a dataset is drawn and rendered; stored in its manifest and checked on resume."""
+
+    n: int
+    size: int = 128
+    spp: int = 8
+    seed: int = 0
+    polar_max_deg: float = 45.0
+    distance_jitter: float = 0.1
+    strands: int | None = None
+    max_depth: int | None = None
+    framing: str = "crop"
+    shard_size: int = 100
+
+    @property
+    def n_shards(self) -> int:
+        return (self.n + self.shard_size - 1) // self.shard_size
+
+
+@dataclass(frozen=True)
+class SampleSpec:
+    index: int
+    params: HairParams
+    camera: CameraPose
+    strand_seed: int
+    render_seed: int
+
+
+def sample_spec(config: DatasetConfig, index: int) -> SampleSpec:
+    """The parameters, camera and seeds of sample ``index``: uniform parameters, camera uniform on the cap."""
+    rng = np.random.default_rng([config.seed, index])
+    params = sample_params(rng)
+    cos_max = np.cos(np.radians(config.polar_max_deg))
+    polar = float(np.degrees(np.arccos(rng.uniform(cos_max, 1.0))))  # uniform over the cap's area
+    azimuth = float(rng.uniform(0.0, 360.0))
+    distance = CAMERA_DISTANCE * float(rng.uniform(1 - config.distance_jitter, 1 + config.distance_jitter))
+    strand_seed, render_seed = (int(v) for v in rng.integers(0, 2**31 - 1, size=2))
+    return SampleSpec(index, params, CameraPose(polar, azimuth, distance), strand_seed, render_seed)
+
+
+def shard_path(root: Path, shard: int) -> Path:
+    return root / f"shard-{shard:05d}.npz"
+
+
+def _render_shard(args: tuple[dict, str, int, int]) -> tuple[int, int, float]:
+    """Render one shard in a worker process and write it atomically; returns (shard, count, seconds)."""
+    config_dict, root, shard, threads = args
+    if threads:
+        import drjit as dr
+        dr.set_thread_count(threads)
+    from render.renderer import SceneSpec, default_renderer
+
+    config = DatasetConfig(**config_dict)
+    start = time.perf_counter()
+    indices = range(shard * config.shard_size, min(config.n, (shard + 1) * config.shard_size))
+    images, vectors, cameras, seeds = [], [], [], []
+    renderer = default_renderer()
+    for i in indices:
+        s = sample_spec(config, i)
+        spec = SceneSpec("swatch", camera=s.camera, framing=config.framing, strands=config.strands,
+                         strand_seed=s.strand_seed, max_depth=config.max_depth)
+        result = renderer.render(s.params, spec, config.size, config.spp, s.render_seed)
+        images.append(result.srgb)
+        vectors.append(s.params.to_vector())
+        cameras.append([s.camera.polar_deg, s.camera.azimuth_deg, s.camera.distance])
+        seeds.append([s.strand_seed, s.render_seed])
+    path = shard_path(Path(root), shard)
+    fd, tmp = tempfile.mkstemp(dir=root, prefix=f".{path.stem}.", suffix=".npz")
+    os.close(fd)
+    np.savez(tmp, images=np.stack(images), params=np.stack(vectors), cameras=np.array(cameras),
+             seeds=np.array(seeds, dtype=np.int64), indices=np.array(list(indices)))
+    os.replace(tmp, path)
+    return shard, len(indices), time.perf_counter() - start
+
+
+def _check_manifest(root: Path, config: DatasetConfig) -> None:
+    path = root / MANIFEST
+    if path.exists():
+        stored = json.loads(path.read_text())["config"]
+        if stored != asdict(config):
+            diff = {k: (stored.get(k), v) for k, v in asdict(config).items() if stored.get(k) != v}
+            raise ValueError(f"{root} holds a dataset made with other settings {diff} (stored, asked); "
+                             f"use another --out or the same settings to resume")
+    else:
+        from render.params import write_json_atomic
+        from render.variant import mi
+        write_json_atomic(path, {"config": asdict(config), "format": "shard-NNNNN.npz: images uint8 "
+                                 "(N,S,S,3) sRGB; params (N,6) normalised Table 1 vector; cameras (N,3) "
+                                 "polar°, azimuth°, distance; seeds (N,2) strand, render; indices (N,)",
+                                 "mitsuba_variant": mi.variant(), "created": time.strftime("%Y-%m-%dT%H:%M:%S")})
+
+
+def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, progress: bool = True) -> Path:
+    """Render every missing shard of the dataset into ``root``; resumable and deterministic."""
+    from tqdm import tqdm
+
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    _check_manifest(root, config)
+    todo = [s for s in range(config.n_shards) if not shard_path(root, s).exists()]
+    done = config.n - sum(len(range(s * config.shard_size, min(config.n, (s + 1) * config.shard_size)))
+                          for s in todo)
+    bar = tqdm(total=config.n, initial=done, unit="swatch", desc="dataset", disable=not progress,
+               smoothing=0.1, dynamic_ncols=True)
+    jobs = [(asdict(config), str(root), s, 1 if workers > 1 else 0) for s in todo]
+    try:
+        if workers <= 1:
+            for job in jobs:
+                _, count, _ = _render_shard(job)
+                bar.update(count)
+        else:
+            with mp.get_context("spawn").Pool(workers) as pool:
+                for _, count, _ in pool.imap_unordered(_render_shard, jobs):
+                    bar.update(count)
+    finally:
+        bar.close()
+    return root
+
+
+def load(root: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+    """All complete shards: images (N,S,S,3) uint8, params (N,6), cameras (N,3), and the manifest."""
+    root = Path(root)
+    if not (root / MANIFEST).exists():
+        raise FileNotFoundError(f"{root} is not a hairdigi dataset (no {MANIFEST}); make one with hairdigi dataset")
+    manifest = json.loads((root / MANIFEST).read_text())
+    shards = sorted(root.glob("shard-*.npz"))
+    if not shards:
+        raise FileNotFoundError(f"{root} has no finished shards yet")
+    parts = [np.load(p) for p in shards]
+    return (np.concatenate([p["images"] for p in parts]), np.concatenate([p["params"] for p in parts]),
+            np.concatenate([p["cameras"] for p in parts]), manifest)

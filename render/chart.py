@@ -1,0 +1,69 @@
+"""The ColorChecker in the rig: reference reflectances (colour-science) and their rendered values.
+
+Calibration maps a camera's view of the chart onto the chart **as the renderer renders it in the
+rig** (:func:`rig_chart_targets`), not onto the chart's published values: the encoder was trained
+on renders, so a corrected capture must land in the renderer's colour space, lighting included.
+The published values (:func:`colorchecker_reflectances`) are the fallback when no rig render is
+available; they agree with the rendered ones up to the rig's irradiance.
+"""
+from __future__ import annotations
+
+import json
+from functools import lru_cache
+from pathlib import Path
+
+import colour
+import numpy as np
+
+from render import scenes
+
+CHART_NAME = "ColorChecker24 - After November 2014"
+TARGETS_FILE = Path(__file__).resolve().parent.parent / "resources" / "charts" / "rig_chart_targets.json"
+PATCH_NAMES = tuple(colour.CCS_COLOURCHECKERS[CHART_NAME].data.keys())
+WHITE_PATCH = 18   # "white 9.5"
+
+
+@lru_cache(maxsize=1)
+def colorchecker_reflectances() -> np.ndarray:
+    """(24, 3) linear sRGB (D65) reflectances of the X-Rite ColorChecker, from colour-science's xyY (D50)."""
+    chart = colour.CCS_COLOURCHECKERS[CHART_NAME]
+    xyy = np.array(list(chart.data.values()))
+    xyz = colour.xyY_to_XYZ(xyy)
+    rgb = colour.XYZ_to_RGB(xyz, colour.RGB_COLOURSPACES["sRGB"], illuminant=chart.illuminant,
+                            chromatic_adaptation_transform="CAT02", apply_cctf_encoding=False)
+    return np.clip(rgb, 0.0, 1.0)
+
+
+def patch_boxes(size: tuple[int, int], inset: float = 0.6) -> list[tuple[int, int, int, int]]:
+    """Pixel boxes (x0, y0, x1, y1) of the central ``inset`` of each patch in the rig view."""
+    half = scenes.CHART_PATCH * inset / 2
+    boxes = []
+    for cx, cy in scenes.chart_patch_centres():
+        (x0, x1), (y1, y0) = scenes.rig_pixel(np.array([cx - half, cx + half]),
+                                              np.array([cy - half, cy + half]), size)
+        boxes.append((int(np.ceil(x0)), int(np.ceil(y0)), int(np.floor(x1)), int(np.floor(y1))))
+    return boxes
+
+
+def patch_means(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """(24, 3) mean of each patch's centre in a rig-view image of ``size``."""
+    return np.array([image[y0:y1, x0:x1].reshape(-1, 3).mean(0) for x0, y0, x1, y1 in patch_boxes(size)])
+
+
+def render_chart_targets(size: tuple[int, int] = (400, 300), spp: int = 256) -> np.ndarray:
+    """Render the rig with the chart under all three lights at full power; (24, 3) linear patch values."""
+    from render.params import HairParams
+    from render.renderer import Renderer, SceneSpec
+
+    spec = SceneSpec("swatch", framing="rig", chart=tuple(map(tuple, colorchecker_reflectances())),
+                     target=scenes.RIG_TARGET, half_width=scenes.RIG_HALF_WIDTH, strands=200)
+    linear = Renderer(max_cached=1).render(HairParams(), spec, size, spp, seed=0).linear
+    return patch_means(linear, size)
+
+
+def rig_chart_targets() -> tuple[np.ndarray, str]:
+    """The rendered chart values (linear RGB) and their source; falls back to the reflectances."""
+    if TARGETS_FILE.exists():
+        data = json.loads(TARGETS_FILE.read_text())
+        return np.array(data["linear_rgb"]), "rendered in the rig (resources/charts/rig_chart_targets.json)"
+    return colorchecker_reflectances(), f"colour-science reference values ({CHART_NAME}), unrendered"

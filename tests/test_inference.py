@@ -1,0 +1,153 @@
+"""Dataset, training, ONNX export, estimate and evaluate, on a tiny dataset and a model trained here."""
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from app.cli import main
+from inference.dataset import DatasetConfig, generate, load, sample_spec, shard_path
+from inference.encoder import Encoder
+from inference.preprocess import ImageError, Roi, find_swatch_roi, read_image, swatch_crop
+from render.params import HairParams
+from render.renderer import SceneSpec, render
+
+TINY = dict(n=8, size=32, spp=2, seed=3, strands=150, shard_size=4)
+
+
+@pytest.fixture(scope="module")
+def tiny_dataset(tmp_path_factory):
+    root = tmp_path_factory.mktemp("ds")
+    generate(DatasetConfig(**TINY), root, workers=1, progress=False)
+    return root
+
+
+@pytest.fixture(scope="module")
+def tiny_model(tiny_dataset, tmp_path_factory):
+    from inference.export import export_onnx, parity
+    from inference.model import EncoderConfig
+    from inference.train import TrainConfig, load_trained, train
+
+    run = tmp_path_factory.mktemp("run")
+    cfg = TrainConfig(epochs=2, batch_size=4, threads=1, val_fraction=0.25)
+    train(tiny_dataset, run, EncoderConfig(width=4, blocks=3, input_size=32), cfg, progress=False)
+    model, _ = load_trained(run)
+    path = export_onnx(model, run / "encoder.onnx", 32)
+    return run, path, parity(model, path, 32)
+
+
+def test_samples_are_deterministic_and_in_range():
+    cfg = DatasetConfig(**TINY)
+    a, b = sample_spec(cfg, 5), sample_spec(cfg, 5)
+    assert a == b and sample_spec(cfg, 6) != a
+    polars = [sample_spec(DatasetConfig(n=400), i).camera.polar_deg for i in range(400)]
+    assert 0 <= min(polars) and max(polars) <= 45 and np.mean(np.array(polars) > 30) > 0.2
+
+
+def test_dataset_is_the_same_whatever_the_sharding(tiny_dataset, tmp_path):
+    other = tmp_path / "other"
+    generate(DatasetConfig(**{**TINY, "shard_size": 3}), other, workers=1, progress=False)
+    # shard size is part of the manifest, so compare content, not files
+    a, pa, _, _ = load(tiny_dataset)
+    b, pb, _, _ = load(other)
+    assert np.array_equal(a, b) and np.array_equal(pa, pb) and a.shape == (8, 32, 32, 3)
+
+
+def test_dataset_resumes_only_missing_shards(tiny_dataset, tmp_path):
+    import shutil
+    root = tmp_path / "copy"
+    shutil.copytree(tiny_dataset, root)
+    kept = shard_path(root, 0).stat().st_mtime_ns
+    before = np.load(shard_path(root, 1))["images"].copy()
+    shard_path(root, 1).unlink()
+    generate(DatasetConfig(**TINY), root, workers=1, progress=False)
+    assert shard_path(root, 0).stat().st_mtime_ns == kept
+    assert np.array_equal(np.load(shard_path(root, 1))["images"], before)
+    with pytest.raises(ValueError, match="other settings"):
+        generate(DatasetConfig(**{**TINY, "spp": 4}), root, workers=1, progress=False)
+
+
+def test_training_resumes_and_onnx_matches_torch(tiny_dataset, tiny_model, tmp_path):
+    from inference.model import EncoderConfig
+    from inference.train import TrainConfig, train
+
+    run, onnx_path, diff = tiny_model
+    assert diff < 1e-4
+    history = json.loads((run / "history.json").read_text())
+    assert [e["epoch"] for e in history["epochs"]] == [1, 2]
+    assert (run / "training_curve.png").stat().st_size > 0
+    # stop after one epoch, then resume: the result equals an uninterrupted run
+    cfg = TrainConfig(epochs=2, batch_size=4, threads=1, val_fraction=0.25)
+    enc = EncoderConfig(width=4, blocks=3, input_size=32)
+    part = train(tiny_dataset, tmp_path / "r", enc, cfg, progress=False, epochs_now=1)
+    assert len(part["epochs"]) == 1
+    resumed = train(tiny_dataset, tmp_path / "r", enc, cfg, progress=False)
+    assert [e["epoch"] for e in resumed["epochs"]] == [1, 2]
+    assert resumed["epochs"][-1]["val_mse"] == pytest.approx(history["epochs"][-1]["val_mse"], rel=1e-5)
+
+
+def test_estimate_writes_params_and_provenance(tiny_model, tmp_path, capsys):
+    _, onnx_path, _ = tiny_model
+    img = render(HairParams((200, 40, 40), 0.8, 0.2, 0.5), SceneSpec("swatch", strands=200), 48, 2).srgb
+    cv2.imwrite(str(tmp_path / "s.png"), img[..., ::-1])
+    out = tmp_path / "p.json"
+    assert main(["estimate", str(tmp_path / "s.png"), "--model", str(onnx_path), "--out", str(out)]) == 0
+    record = json.loads(out.read_text())
+    p = HairParams.from_dict(record)
+    assert all(0 <= v <= 255 for v in p.dye_rgb)
+    prov = record["provenance"]
+    assert len(prov["model"]["sha256"]) == 64 and len(prov["image_sha256"]) == 64 and prov["time"]
+    assert set(prov["uncertainty"]) == {"dye_r", "dye_g", "dye_b", "dye_concentration",
+                                        "melanin_concentration", "melanin_ratio"}
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda p: p.write_text("hello"), "not an image"),
+    (lambda p: p.write_bytes(cv2.imencode(".png", np.random.default_rng(0).integers(0, 255, (64, 64, 3), np.uint8))[1].tobytes()[:-30]), "truncated"),
+    (lambda p: cv2.imwrite(str(p), np.random.default_rng(0).integers(0, 255, (16, 16, 3), np.uint8)), "too small"),
+    (lambda p: cv2.imwrite(str(p), np.full((64, 64, 3), 128, np.uint8)), "flat"),
+    (lambda p: cv2.imwrite(str(p), np.random.default_rng(0).integers(0, 65535, (64, 64, 3)).astype(np.uint16)), "16-bit"),
+])
+def test_estimate_rejects_bad_input_clearly(tiny_model, tmp_path, capsys, make, message):
+    _, onnx_path, _ = tiny_model
+    path = tmp_path / "bad.png"
+    make(path)
+    out = tmp_path / "p.json"
+    assert main(["estimate", str(path), "--model", str(onnx_path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert not out.exists() and path.exists()  # nothing written, the input kept
+
+
+def test_missing_model_names_the_fix(tmp_path, capsys):
+    cv2.imwrite(str(tmp_path / "s.png"), np.random.default_rng(0).integers(0, 255, (64, 64, 3), np.uint8))
+    assert main(["estimate", str(tmp_path / "s.png"), "--model", str(tmp_path / "none.onnx"),
+                 "--out", str(tmp_path / "p.json")]) == 2
+    assert "hairdigi train" in capsys.readouterr().err
+
+
+def test_swatch_area_is_found_in_a_rig_frame_and_crops_are_kept_whole():
+    p = HairParams((120, 60, 30), 0.5, 0.4, 0.6)
+    rig = render(p, SceneSpec("swatch", framing="rig", strands=1500), 128, 8).srgb
+    roi = find_swatch_roi(rig)
+    # the swatch is 1 unit wide in a 1.9-unit view: about 67 px, centred
+    assert 50 < roi.w < 85 and abs(roi.x + roi.w / 2 - 64) < 10, roi
+    crop = render(p, SceneSpec("swatch", framing="crop", strands=1500), 96, 8).srgb
+    assert find_swatch_roi(crop) == Roi(0, 0, 96, 96)
+    region, _ = swatch_crop(rig)
+    assert region.shape[0] == region.shape[1] >= 32
+    with pytest.raises(ImageError, match="--roi"):
+        find_swatch_roi(np.random.default_rng(0).integers(0, 255, (64, 64, 3), np.uint8))
+
+
+def test_evaluate_reports_metrics_beside_the_floor(tiny_model, tmp_path):
+    from inference.evaluate import evaluate
+
+    _, onnx_path, _ = tiny_model
+    summary = evaluate(Encoder(onnx_path), tmp_path / "eval", n=4, size=32, spp=2, workers=1,
+                       rerender=2, progress=False)
+    a = summary["buckets"]["all"]
+    assert a["count"] == 4 and "est_l1" in a and "floor_l1" in a and a["floor_l1"]["mean"] > 0
+    assert "ratio_to_floor_l1" in a and summary["latency_ms_median_1_thread"] > 0
+    assert "not computed" in summary["lpips"]
+    assert (tmp_path / "eval" / "evaluation.json").exists()
