@@ -89,34 +89,49 @@ class Roi:
         return img[self.y:self.y + self.h, self.x:self.x + self.w]
 
 
-def hair_coherence(img: np.ndarray) -> np.ndarray:
-    """Structure-tensor coherence in [0, 1]: high where texture is oriented, as strands are."""
-    gray = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32) / 255.0
-    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3)
-    gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3)
-    sigma = max(2.0, min(img.shape[:2]) / 40.0)
-    jxx = cv2.GaussianBlur(gx * gx, (0, 0), sigma)
-    jyy = cv2.GaussianBlur(gy * gy, (0, 0), sigma)
-    jxy = cv2.GaussianBlur(gx * gy, (0, 0), sigma)
-    return np.sqrt((jxx - jyy) ** 2 + 4 * jxy**2) / (jxx + jyy + 1e-6)
+def _border(values: np.ndarray, share: float = 0.06) -> np.ndarray:
+    h, w = values.shape[:2]
+    bh, bw = max(1, int(h * share)), max(1, int(w * share))
+    return np.concatenate([values[:bh].reshape(-1, *values.shape[2:]), values[-bh:].reshape(-1, *values.shape[2:]),
+                           values[:, :bw].reshape(-1, *values.shape[2:]), values[:, -bw:].reshape(-1, *values.shape[2:])])
 
 
-def find_swatch_roi(img: np.ndarray, threshold: float = 0.35) -> Roi:
-    """The bounding box of the largest region of oriented texture; the whole image if it is all hair."""
-    mask = (hair_coherence(img) > threshold).astype(np.uint8)
-    k = max(3, min(img.shape[:2]) // 40) | 1
-    mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k, k), np.uint8))
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask)
+def swatch_score(img: np.ndarray) -> np.ndarray:
+    """How unlike the holder each pixel's neighbourhood is; the holder is what the frame's border shows.
+
+    Hair differs from the holder in colour, in texture energy, or both (platinum hair on a grey
+    holder differs in texture; a smooth dark swatch in colour). Values above 1 count as swatch.
+    """
+    sigma = max(1.5, min(img.shape[:2]) / 50.0)
+    f = img.astype(np.float32)
+    local = cv2.GaussianBlur(f, (0, 0), sigma)
+    background = np.median(_border(local), axis=0)
+    colour_distance = np.linalg.norm(local - background, axis=2)
+    gray = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    detail = gray - cv2.GaussianBlur(gray, (0, 0), 1.0)
+    energy = np.sqrt(cv2.GaussianBlur(detail * detail, (0, 0), sigma))
+    background_energy = float(np.median(_border(energy)))
+    return np.maximum(colour_distance / 12.0, energy / (1.8 * background_energy + 1.5))
+
+
+def find_swatch_roi(img: np.ndarray) -> Roi:
+    """The bounding box of the largest region unlike the frame's border; the whole image when no
+    such region stands out (an image that is all hair)."""
     h, w = img.shape[:2]
+    mask = (swatch_score(img) > 1.0).astype(np.uint8)
+    k = max(3, min(h, w) // 40) | 1
+    mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k, k), np.uint8))
+    n, _, stats, _ = cv2.connectedComponentsWithStats(mask)
     if n <= 1:
-        raise ImageError("no swatch found (no strand texture in view); pass its area with --roi x,y,w,h")
+        return Roi(0, 0, w, h)
     best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
     x, y, bw, bh, area = (int(v) for v in stats[best])
-    if area < 0.04 * h * w:
-        raise ImageError("no swatch found (the strand texture covers under 4% of the frame); "
-                         "pass its area with --roi x,y,w,h")
-    if bw * bh > 0.85 * h * w:
+    # a swatch on its holder is a large, filled rectangle; streaks inside an all-hair image are not
+    if area < 0.10 * h * w or area < 0.6 * bw * bh or bw * bh > 0.85 * h * w:
         return Roi(0, 0, w, h)
+    if min(bw, bh) < MIN_SIDE:
+        raise ImageError(f"the swatch area found is only {bw}x{bh} px (at least {MIN_SIDE} px a side is "
+                         f"needed): move the camera closer, or pass its area with --roi x,y,w,h")
     return Roi(x, y, bw, bh)
 
 

@@ -121,8 +121,8 @@ def train(dataset_dir: str | os.PathLike, out_dir: str | os.PathLike, encoder_co
             loss.backward()
             opt.step()
             sched.step()
-            total += float(loss) * len(idx)
-            bar.set_postfix(loss=f"{float(loss):.4f}")
+            total += loss.item() * len(idx)
+            bar.set_postfix(loss=f"{loss.item():.4f}")
         model.eval()
         with torch.no_grad():
             val_pred = torch.cat([model(val_x[i:i + 256])[0] for i in range(0, len(val_x), 256)])
