@@ -124,8 +124,43 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_rig(args: argparse.Namespace) -> int:
+    if args.list_ports:
+        from hardware.lights import discover
+        import serial.tools.list_ports
+
+        ports = list(serial.tools.list_ports.comports())
+        print(f"{len(ports)} serial port(s): " + ", ".join(p.device for p in ports))
+        boards = discover()
+        print("light boards: " + (", ".join(f"{p} ({ident})" for p, ident in boards) or "none answered ID?"))
+        return 0
+    from app.rig_cli import open_session, run_chain
+
+    session = open_session(args)
+    try:
+        run_chain(session)
+    finally:
+        session.close()
+    return 0
+
+
+def cmd_app(args: argparse.Namespace) -> int:
+    from app.gui.main import run_app
+
+    return run_app(sim=args.sim, session=args.session)
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     out = Path(args.out)
+    if args.what == "rig":
+        from app.rig_cli import detection_sweep
+
+        rows = detection_sweep(out)
+        found = [r for r in rows if r["detected"]]
+        import numpy as np
+        print(f"chart detected in {len(found)}/{len(rows)} simulated frames; ΔE2000 mean before "
+              f"{np.mean([r['de_before'] for r in found]):.2f}, after {np.mean([r['de_after'] for r in found]):.2f}; "
+              f"wrote {out / 'rig_bench.csv'}")
     if args.what == "render":
         from render.bench import run_render_bench
 
@@ -213,8 +248,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True)
     p.set_defaults(func=cmd_evaluate)
 
+    p = sub.add_parser("rig", help="the capture chain without a window (use --sim without hardware)")
+    p.add_argument("--sim", action="store_true", help="the simulated rig: a pty light board and rendered frames")
+    p.add_argument("--camera", default="0", help="OpenCV camera index or URL (real rig)")
+    p.add_argument("--port", help="serial port of the light board (real rig); see --list-ports")
+    p.add_argument("--roi", help="swatch area x,y,w,h in the camera frame (real rig; default: found)")
+    p.add_argument("--list-ports", action="store_true", help="list serial ports and light boards, then exit")
+    p.add_argument("--session", default="out/session", help="session folder: captures, calibration, results")
+    p.add_argument("--cast", type=float, nargs=3, default=(1.25, 1.0, 0.8), metavar=("R", "G", "B"),
+                   help="simulated white-balance error")
+    p.add_argument("--exposure", type=float, default=0.0, help="simulated exposure error in EV")
+    p.add_argument("--dead", type=int, nargs="*", help="simulated dead light(s)")
+    p.add_argument("--spp", type=int, default=32, help="samples per pixel of the simulated rig's light renders")
+    p.set_defaults(func=cmd_rig)
+
+    p = sub.add_parser("app", help="the desktop app")
+    p.add_argument("--sim", action="store_true", help="use the simulated rig")
+    p.add_argument("--session", default=None, help="session folder (default: from the settings)")
+    p.set_defaults(func=cmd_app)
+
     p = sub.add_parser("bench", help="speed against error tables and plots")
-    p.add_argument("what", choices=("render",))
+    p.add_argument("what", choices=("render", "rig"))
     p.add_argument("--out", default="out/bench")
     p.add_argument("--quick", action="store_true", help="a tiny sweep, for tests")
     p.set_defaults(func=cmd_bench)
@@ -223,6 +277,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    from hardware.cameras import CameraError
+    from hardware.lights import LightError
+    from inference.calibration import CalibrationError
     from inference.encoder import ModelError
     from inference.preprocess import ImageError
     from render.hairfile import HairFileError
@@ -233,7 +290,8 @@ def main(argv: list[str] | None = None) -> int:
         args.model = DEFAULT_MODEL
     try:
         return args.func(args)
-    except (CliError, HairParamsError, HairFileError, ImageError, ModelError, ValueError, FileNotFoundError) as exc:
+    except (CliError, HairParamsError, HairFileError, ImageError, ModelError, CalibrationError, CameraError,
+            LightError, ValueError, FileNotFoundError) as exc:
         print(f"hairdigi {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

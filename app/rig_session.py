@@ -234,3 +234,43 @@ def load_results(folder: str | Path) -> list[dict]:
         except json.JSONDecodeError:
             continue
     return out
+
+
+# --- the synthetic twin and exports (no Qt) ---------------------------------------------------
+def twin_spec(roi: tuple[int, int, int, int], frame_size: tuple[int, int]):
+    """A swatch scene seen by the rig camera over exactly the ROI of a rig-view frame."""
+    from render import scenes
+    from render.renderer import SceneSpec
+
+    width, _ = frame_size
+    scale = width / (2 * scenes.RIG_HALF_WIDTH)       # pixels per holder unit in the rig view
+    x, y, w, h = roi
+    cx = (x + w / 2 - frame_size[0] / 2) / scale + scenes.RIG_TARGET[0]
+    cy = scenes.RIG_TARGET[1] - (y + h / 2 - frame_size[1] / 2) / scale
+    return SceneSpec("swatch", framing="rig", target=(cx, cy, 0.0), half_width=w / 2 / scale), (w, h)
+
+
+def render_twin(params: HairParams, roi, frame_size, spp: int = 16, seed: int = 0, simulated: bool = True):
+    """Render the estimate as the rig camera saw the swatch (simulated geometry), or a crop view."""
+    from render.renderer import SceneSpec, render
+
+    if simulated:
+        spec, size = twin_spec(roi, frame_size)
+        return render(params, spec, size, spp, seed)
+    return render(params, SceneSpec("swatch", framing="crop"), (roi[2], roi[3]), spp, seed)
+
+
+def compare(real_srgb: np.ndarray, synthetic_srgb: np.ndarray) -> tuple[float, np.ndarray]:
+    """Mean-colour ΔE2000 between the real and synthetic swatch, and a difference image (x4)."""
+    from inference.calibration import srgb8_to_linear
+    from render.metrics import mean_colour_delta_e
+
+    de = mean_colour_delta_e(srgb8_to_linear(real_srgb), srgb8_to_linear(synthetic_srgb))
+    diff = np.clip(np.abs(real_srgb.astype(int) - synthetic_srgb.astype(int)) * 4, 0, 255).astype(np.uint8)
+    return de, diff
+
+
+def export_records(records: list[dict], path: str | Path) -> Path:
+    """One record as it is, several as ``{"swatches": [...]}``; written atomically."""
+    data = records[0] if len(records) == 1 else {"swatches": records, "count": len(records)}
+    return write_json_atomic(path, data)

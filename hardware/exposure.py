@@ -8,7 +8,9 @@ import numpy as np
 #: The white patch should sit in this 8-bit band: bright, with headroom before clipping.
 WHITE_BAND = (185.0, 240.0)
 WHITE_TARGET_LINEAR = 0.62    # the middle of the band, linear
-CLIP_LIMIT = 0.005            # more than 0.5 % of a channel at 254+ counts as clipped
+CLIP_LIMIT = 0.005            # white patch: more than 0.5 % of a channel at 254+ counts as clipped
+#: The swatch may clip on specular glints, which carry no dye colour; past 2 % the exposure hides colour.
+SWATCH_CLIP_LIMIT = 0.02
 SWATCH_BAND = (12.0, 235.0)   # loose: black hair is dark, platinum is bright
 
 
@@ -34,7 +36,8 @@ class ExposureReport:
 
 
 def check_region(img: np.ndarray, box: tuple[int, int, int, int], region: str,
-                 band: tuple[float, float] = SWATCH_BAND, target_linear: float | None = None) -> ExposureReport:
+                 band: tuple[float, float] = SWATCH_BAND, target_linear: float | None = None,
+                 clip_limit: float = SWATCH_CLIP_LIMIT) -> ExposureReport:
     """Clipping and level in ``box`` (x, y, w, h); suggests an EV change toward ``target_linear``."""
     x, y, w, h = box
     patch = img[y:y + h, x:x + w].reshape(-1, 3)
@@ -45,7 +48,7 @@ def check_region(img: np.ndarray, box: tuple[int, int, int, int], region: str,
     level = float(luminance8(patch).mean())
     target = target_linear if target_linear is not None else float(_linear(np.mean(band)))
     ev = float(np.log2(target / max(float(_linear(level)), 1e-4)))
-    if max(clipped) > CLIP_LIMIT or level > band[1]:
+    if max(clipped) > clip_limit or level > band[1]:
         status, msg = "over", (f"{region}: over-exposed ({100 * max(clipped):.1f}% clipped, level {level:.0f}); "
                                f"lower the exposure by {abs(min(ev, -0.3)):.1f} EV")
         ev = min(ev, -0.3)
@@ -63,7 +66,7 @@ def check_exposure(img: np.ndarray, swatch_box: tuple[int, int, int, int],
     """The swatch (clipping, loose band) and, when the chart is in view, its white patch (tight band)."""
     reports = [check_region(img, swatch_box, "swatch")]
     if white_box is not None:
-        reports.append(check_region(img, white_box, "white patch", WHITE_BAND, WHITE_TARGET_LINEAR))
+        reports.append(check_region(img, white_box, "white patch", WHITE_BAND, WHITE_TARGET_LINEAR, CLIP_LIMIT))
     return reports
 
 

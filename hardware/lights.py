@@ -1,11 +1,18 @@
 """The host side of the light protocol (see PROTOCOL.md): a pyserial client with retries and reconnection."""
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass
 
 import serial
 import serial.tools.list_ports
+
+try:  # pyserial's POSIX backend lets termios.error (not an OSError) escape from a vanished tty
+    import termios
+    LINK_ERRORS: tuple = (serial.SerialException, OSError, termios.error)
+except ImportError:  # Windows
+    LINK_ERRORS = (serial.SerialException, OSError)
 
 N_LIGHTS = 3
 BAUDRATE = 115200
@@ -67,6 +74,7 @@ class LightController:
         self.baudrate = baudrate
         self.log: list[tuple[str, str]] = []  # (sent, received) for diagnostics
         self._serial: serial.Serial | None = None
+        self._lock = threading.RLock()  # one command and its reply at a time, whatever the thread
         self._open()
 
     # -- link ----------------------------------------------------------------------------------
@@ -82,6 +90,8 @@ class LightController:
         if self._serial is not None:
             try:
                 self._serial.close()
+            except LINK_ERRORS:
+                pass  # the device is already gone
             finally:
                 self._serial = None
 
@@ -118,6 +128,10 @@ class LightController:
 
     def command(self, command: str) -> str:
         """Send one command; retry lost or garbled replies, reconnect once after a link failure."""
+        with self._lock:
+            return self._command(command)
+
+    def _command(self, command: str) -> str:
         reconnected = False
         last: Exception | None = None
         attempt = 0
@@ -135,7 +149,7 @@ class LightController:
                 attempt += 1
                 # let a late reply to this try arrive, so the next try's reset discards it
                 time.sleep(self.timeout / 2)
-            except (serial.SerialException, OSError, LightLinkError) as exc:
+            except (*LINK_ERRORS, LightLinkError) as exc:
                 self.close()
                 if reconnected:
                     raise LightLinkError(f"lost the light board on {self.port_name} during {command!r} "

@@ -84,3 +84,13 @@ def hair_bsdf(params: HairParams, longitudinal_roughness: float = LONGITUDINAL_R
         "longitudinal_roughness": float(np.clip(longitudinal_roughness, lo, hi)),
         "azimuthal_roughness": float(np.clip(azimuthal_roughness, lo, hi)),
     }
+
+
+def approximate_albedo(params: HairParams, azimuthal_roughness: float = AZIMUTHAL_ROUGHNESS) -> np.ndarray:
+    """The fibre's multiple-scattering albedo (linear RGB): Chiang 2016 eq. 9 inverted, for previews.
+
+    ``c = exp(-sqrt(sigma_a) * denominator)``; exact for a lone dye, approximate for the sum.
+    """
+    b = float(np.clip(azimuthal_roughness, *ROUGHNESS_RANGE))
+    denom = 5.969 - 0.215 * b + 2.532 * b**2 - 10.73 * b**3 + 5.574 * b**4 + 0.245 * b**5
+    return np.exp(-np.sqrt(hair_sigma_a(params, azimuthal_roughness)) * denom)

@@ -11,9 +11,37 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 TEST_OUTPUT = Path(os.environ.get("HAIRDIGI_TEST_OUTPUT", Path(__file__).resolve().parent.parent / "test-output"))
 
 
-@pytest.fixture(autouse=True)
-def _private_cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("HAIRDIGI_CACHE", str(tmp_path / "cache"))
+@pytest.fixture(scope="session", autouse=True)
+def _private_cache(tmp_path_factory):
+    """One cache for the whole run (the simulated rig's light renders are made once), never ~/.cache."""
+    os.environ["HAIRDIGI_CACHE"] = str(tmp_path_factory.mktemp("cache"))
+
+
+TINY = dict(n=8, size=32, spp=2, seed=3, strands=150, shard_size=4)
+
+
+@pytest.fixture(scope="session")
+def tiny_dataset(tmp_path_factory):
+    from inference.dataset import DatasetConfig, generate
+
+    root = tmp_path_factory.mktemp("ds")
+    generate(DatasetConfig(**TINY), root, workers=1, progress=False)
+    return root
+
+
+@pytest.fixture(scope="session")
+def tiny_model(tiny_dataset, tmp_path_factory):
+    """A 2-epoch encoder trained here and exported to ONNX: (run folder, onnx path, parity)."""
+    from inference.export import export_onnx, parity
+    from inference.model import EncoderConfig
+    from inference.train import TrainConfig, load_trained, train
+
+    run = tmp_path_factory.mktemp("run")
+    cfg = TrainConfig(epochs=2, batch_size=4, threads=1, val_fraction=0.25)
+    train(tiny_dataset, run, EncoderConfig(width=4, blocks=3, input_size=32), cfg, progress=False)
+    model, _ = load_trained(run)
+    path = export_onnx(model, run / "encoder.onnx", 32)
+    return run, path, parity(model, path, 32)
 
 
 @pytest.fixture

@@ -39,3 +39,11 @@ def test_bsdf_dict_uses_sigma_a_only():
     assert d["sigma_a"]["type"] == "rgb" and len(d["sigma_a"]["value"]) == 3
     assert "eumelanin" not in d and "pheomelanin" not in d
     assert hair_bsdf(HairParams(), longitudinal_roughness=0.0)["longitudinal_roughness"] >= 0.05
+
+
+def test_approximate_albedo_inverts_the_dye_mapping():
+    from render.absorption import approximate_albedo
+    p = HairParams((200, 100, 50), 1.0, 0.0, 0.5)
+    assert np.allclose(approximate_albedo(p), np.array([200, 100, 50]) / 255, atol=1e-6)
+    dark = approximate_albedo(HairParams((255, 255, 255), 0, 1.0, 1.0))
+    assert np.all(dark < 0.01) and np.all(approximate_albedo(HairParams((255, 255, 255), 0, 0, 0)) == 1)

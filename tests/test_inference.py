@@ -12,28 +12,7 @@ from inference.preprocess import ImageError, Roi, find_swatch_roi, read_image, s
 from render.params import HairParams
 from render.renderer import SceneSpec, render
 
-TINY = dict(n=8, size=32, spp=2, seed=3, strands=150, shard_size=4)
-
-
-@pytest.fixture(scope="module")
-def tiny_dataset(tmp_path_factory):
-    root = tmp_path_factory.mktemp("ds")
-    generate(DatasetConfig(**TINY), root, workers=1, progress=False)
-    return root
-
-
-@pytest.fixture(scope="module")
-def tiny_model(tiny_dataset, tmp_path_factory):
-    from inference.export import export_onnx, parity
-    from inference.model import EncoderConfig
-    from inference.train import TrainConfig, load_trained, train
-
-    run = tmp_path_factory.mktemp("run")
-    cfg = TrainConfig(epochs=2, batch_size=4, threads=1, val_fraction=0.25)
-    train(tiny_dataset, run, EncoderConfig(width=4, blocks=3, input_size=32), cfg, progress=False)
-    model, _ = load_trained(run)
-    path = export_onnx(model, run / "encoder.onnx", 32)
-    return run, path, parity(model, path, 32)
+from conftest import TINY
 
 
 def test_samples_are_deterministic_and_in_range():

@@ -1,0 +1,86 @@
+"""``hairdigi app``: open the main window on the rig, or on the simulated rig when none is found."""
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+from PySide6.QtWidgets import QApplication, QDialog, QDialogButtonBox, QFormLayout, QLineEdit
+
+from app.gui.main_window import MainWindow, settings_store
+
+SETTING_DEFAULTS = {"camera": "0", "serial_port": "", "output_folder": str(Path.home() / "hairdigi-sessions" / "default"),
+                    "hairstyle_size": 384, "twin_spp": 16}
+
+
+def read_settings() -> dict:
+    store = settings_store()
+    return {k: type(v)(store.value(k, v)) for k, v in SETTING_DEFAULTS.items()}
+
+
+def write_settings(values: dict) -> None:
+    store = settings_store()
+    for k, v in values.items():
+        store.setValue(k, v)
+
+
+class SettingsDialog(QDialog):
+    """Camera, serial port, output folder and render defaults, kept in QSettings."""
+
+    def __init__(self, parent=None) -> None:
+        super().__init__(parent)
+        self.setWindowTitle("hairdigi settings")
+        form = QFormLayout(self)
+        self.fields = {}
+        for key, value in read_settings().items():
+            self.fields[key] = QLineEdit(str(value))
+            form.addRow(key.replace("_", " "), self.fields[key])
+        buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Save | QDialogButtonBox.StandardButton.Cancel)
+        buttons.accepted.connect(self._save)
+        buttons.rejected.connect(self.reject)
+        form.addRow(buttons)
+
+    def _save(self) -> None:
+        write_settings({k: type(SETTING_DEFAULTS[k])(f.text()) for k, f in self.fields.items()})
+        self.accept()
+
+
+def open_rig(settings: dict, sim: bool, folder: Path):
+    """The real rig when its camera and light board answer; else the simulated rig, and why."""
+    from app.rig_session import RigSession
+
+    if not sim:
+        from hardware.cameras import CameraError, OpenCVCamera
+        from hardware.lights import LightController, LightError, discover
+        try:
+            cam = settings["camera"]
+            camera = OpenCVCamera(int(cam) if cam.isdigit() else cam)
+            port = settings["serial_port"] or next((p for p, _ in discover()), None)
+            if port is None:
+                camera.close()
+                raise LightError("no light board answered on any serial port")
+            return RigSession(camera, LightController(port), folder), None
+        except (CameraError, LightError) as exc:
+            reason = f"{exc}; using the simulated rig"
+    else:
+        reason = None
+    return RigSession.simulated_rig(folder), reason
+
+
+def run_app(sim: bool = False, session: str | None = None) -> int:
+    app = QApplication.instance() or QApplication(sys.argv[:1])
+    settings = read_settings()
+    folder = Path(session or settings["output_folder"])
+    rig, reason = open_rig(settings, sim, folder)
+    offscreen = os.environ.get("QT_QPA_PLATFORM") == "offscreen"
+    window = MainWindow(rig, {"hairstyle_size": settings["hairstyle_size"], "twin_spp": settings["twin_spp"]},
+                        strand_view=not offscreen)
+    menu = window.menuBar().addMenu("&File")
+    menu.addAction("Settings…", lambda: SettingsDialog(window).exec())
+    menu.addAction("Quit", window.close)
+    if reason:
+        window.statusBar().showMessage(f"simulated rig: {reason}")
+    window.show()
+    code = app.exec()
+    rig.close()
+    return code

@@ -1,0 +1,101 @@
+"""A full simulated session through the window (pytest-qt, offscreen): lights, calibrate, capture,
+estimate, twin preview, hairstyle render, export, unplug banner, restart, screenshot."""
+import json
+
+import numpy as np
+import pytest
+
+from app.gui.main_window import MainWindow
+from app.rig_session import RigSession
+from inference.encoder import Encoder
+
+FAST = {"hairstyle_size": 48, "hairstyle_strands": 200, "hairstyle_passes": 2, "hairstyle_spp_per_pass": 1,
+        "twin_spp": 2, "feed_fps": 10}
+
+
+def open_window(qtbot, folder, onnx_path):
+    session = RigSession.simulated_rig(folder, spp=8, encoder=Encoder(onnx_path))
+    win = MainWindow(session, FAST, strand_view=False)
+    qtbot.addWidget(win)
+    win.show()
+    qtbot.waitUntil(lambda: win.last_frame is not None, timeout=20000)
+    return win, session
+
+
+def pixmap_array(pixmap):
+    img = pixmap.toImage().convertToFormat(pixmap.toImage().Format.Format_RGB888)
+    ptr = img.constBits()
+    return np.frombuffer(ptr, np.uint8, img.sizeInBytes()).reshape(img.height(), img.bytesPerLine())[:, :3 * img.width()]
+
+
+def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output):
+    _, onnx_path, _ = tiny_model
+    folder = tmp_path / "session"
+    win, session = open_window(qtbot, folder, onnx_path)
+    board = session._board
+
+    qtbot.waitUntil(lambda: win.light_buttons[1].isChecked(), timeout=10000)
+    win.light_buttons[1].click()                       # light 1 off
+    qtbot.waitUntil(lambda: not board.state.on[1], timeout=10000)
+    win.light_buttons[1].click()                       # and on again
+    qtbot.waitUntil(lambda: board.state.on[1], timeout=10000)
+
+    with qtbot.waitSignal(win.calibrated, timeout=120000) as cal:
+        win.calibrate_button.click()
+    assert cal.args[0]["delta_e2000"]["after"]["mean"] < cal.args[0]["delta_e2000"]["before"]["mean"]
+    assert "ΔE2000" in win.calibration_label.text()
+
+    with qtbot.waitSignal(win.captured, timeout=120000) as cap:
+        win.capture_button.click()
+    result = cap.args[0]
+    assert result.params is not None and not result.blocked
+    assert result.image_path.exists() and result.meta_path.exists()
+    qtbot.waitUntil(lambda: "ΔE2000" in win.match_label.text(), timeout=120000)
+    qtbot.waitUntil(lambda: win.render_progress.value() == FAST["hairstyle_passes"], timeout=120000)
+
+    # a new selection cancels the stale render and starts another
+    old = win.render_task
+    win.style_box.setCurrentText("curly")
+    assert old is None or old.is_cancelled
+    with qtbot.waitSignal(win.hairstyle_done, timeout=120000):
+        pass
+
+    exported = win.export(tmp_path / "all.json")
+    record = json.loads(exported.read_text())
+    assert record["hair"]["dye_rgb"] and record["provenance"]["model"]["sha256"] == Encoder(onnx_path).sha256
+    assert record["provenance"]["calibration"]["id"] == session.profile["id"]
+
+    shot = win.grab()
+    shot.save(str(test_output / "app_after_capture.png"))
+    assert pixmap_array(shot).std() > 10               # not a blank window
+
+    # the light board vanishes: a banner, and nothing captured is lost
+    board.unplug()
+    win.light_buttons[0].click()
+    qtbot.waitUntil(lambda: win.banner.isVisible(), timeout=20000)
+    assert "light board" in win.banner.text() and str(folder) in win.banner.text()
+    assert result.image_path.exists()
+    win.close()
+    session.close()
+
+    # restart: the session, its calibration and its capture come back
+    win2, session2 = open_window(qtbot, folder, onnx_path)
+    assert win2.session_list.count() == 1 and session2.profile["id"] == cal.args[0]["id"]
+    assert "blocked" not in win2.session_list.item(0).text()
+    win2.close()
+    session2.close()
+
+
+def test_uncalibrated_capture_is_kept_and_blocked(qtbot, tiny_model, tmp_path):
+    _, onnx_path, _ = tiny_model
+    win, session = open_window(qtbot, tmp_path / "s", onnx_path)
+    with qtbot.waitSignal(win.captured, timeout=120000) as cap:
+        win.capture_button.click()
+    result = cap.args[0]
+    assert result.params is None and any("not calibrated" in r for r in result.blocked)
+    assert result.image_path.exists()
+    assert "blocked" in win.session_list.item(0).text()
+    with pytest.raises(ValueError, match="nothing to export"):
+        win.export(tmp_path / "x.json")
+    win.close()
+    session.close()
