@@ -22,7 +22,8 @@ $(VENV)/.installed: pyproject.toml
 setup: system-deps $(VENV)/.installed
 
 demo: setup  ## the main job: the app on the simulated rig, or the headless demo without a display
-	$(VENV)/bin/hairdigi demo --out out/demo
+	@if [ -n "$$DISPLAY" ] || [ -n "$$WAYLAND_DISPLAY" ]; then $(VENV)/bin/hairdigi app --sim; \
+	else echo "no display: running the headless demo"; $(VENV)/bin/hairdigi demo --out out/demo; fi
 
 test: setup  ## pytest's exit 5 (no tests collected) is turned into a failure
 	@set -o pipefail; QT_QPA_PLATFORM=offscreen $(PY) -m pytest -q tests 2>&1 | tee test-output.log; rc=$$?; \

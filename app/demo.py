@@ -1,18 +1,33 @@
-"""The headless demo: render the sample swatch and two hairstyles, and say where they are."""
+"""The headless demo: the whole chain on the simulated rig, then renders of the estimate."""
 from __future__ import annotations
 
 from pathlib import Path
 
+from app.rig_cli import run_chain
+from app.rig_session import RigSession
 from render.imageio import save_png
-from render.params import load_params
 from render.renderer import SceneSpec, render
-from resources import SAMPLE_PARAMS
 
 
 def run_demo(out: Path, quick: bool = False) -> list[Path]:
-    """Render the sample hair as a rig frame and as two hairstyles; return the written files."""
-    params = load_params(SAMPLE_PARAMS)
-    print(f"hair parameters ({SAMPLE_PARAMS.name}): {params.to_dict()}")
+    """Lights, exposure, calibration and a capture on the simulated rig; estimate; render the
+    estimate as a rig swatch and two hairstyles. Returns the written images."""
+    from hardware.sim_rig import CameraModel
+
+    out = Path(out)
+    session = RigSession.simulated_rig(out / "session", camera_model=CameraModel(cast=(1.2, 1.0, 0.8)),
+                                       spp=8 if quick else 32)
+    try:
+        figures = run_chain(session)
+        hidden = session.camera.hidden
+    finally:
+        session.close()
+    if "params" in figures:
+        from render.params import HairParams
+        params, source = HairParams.from_dict(figures["params"]), "the estimate"
+    else:
+        params, source = hidden, "the simulated swatch's hidden parameters (no estimate was made)"
+    print(f"rendering {source}")
     jobs = [
         ("swatch", SceneSpec("swatch", framing="rig"), 64 if quick else 256, 4 if quick else 32),
         ("straight", SceneSpec("straight", env="studio", strands=300 if quick else None), 64 if quick else 384, 2 if quick else 16),
@@ -24,5 +39,5 @@ def run_demo(out: Path, quick: bool = False) -> list[Path]:
         path = save_png(out / f"{name}.png", result.srgb)
         print(f"  {path}  ({size}x{size}, {spp} spp, {result.seconds:.1f} s)")
         written.append(path)
-    print(f"demo images are in {out.resolve()}")
+    print(f"demo output is in {out.resolve()}")
     return written

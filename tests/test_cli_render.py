@@ -52,7 +52,10 @@ def test_bad_camera_and_unknown_scene(tmp_path, params_file, capsys):
 
 
 def test_demo_quick(tmp_path, capsys):
+    """The headless main job: the simulated rig's chain, then renders."""
     assert main(["demo", "--quick", "--out", str(tmp_path)]) == 0
     for name in ("swatch", "straight", "curly"):
         assert cv2.imread(str(tmp_path / f"{name}.png")).std() > 1
-    assert str(tmp_path) in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "calibration" in out and "ΔE2000 mean" in out and "capture:" in out and str(tmp_path) in out
+    assert list((tmp_path / "session" / "captures").glob("*.png"))

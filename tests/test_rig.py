@@ -1,0 +1,125 @@
+"""The simulated rig end to end: chart detection, CCM, exposure, dead lights, capture, staleness."""
+import json
+import time
+
+import numpy as np
+import pytest
+
+from app.rig_session import RigSession
+from hardware.cameras import FileCamera
+from hardware.exposure import check_region
+from hardware.sim_rig import CameraModel, SimRig, swatch_roi
+from inference.calibration import (CalibrationError, apply_profile, calibrate, detect_chart, load_profile,
+                                   staleness)
+from render.chart import colorchecker_reflectances, rig_chart_targets
+
+SPP = 8
+
+
+def frame(model=CameraModel(), dead=()):
+    return SimRig(camera=model, spp=SPP, dead_lights=set(dead)).read().srgb
+
+
+def test_chart_is_found_where_the_rig_puts_it():
+    det = detect_chart(frame())
+    assert det.box[:, 0].min() > 180 and det.box[:, 0].max() < 395  # the chart is right of the swatch
+    assert det.patches_srgb8[18].mean() > det.patches_srgb8[23].mean() + 100  # white 9.5 vs black 2
+
+
+def test_ccm_removes_a_colour_cast():
+    img = frame(CameraModel(cast=(1.3, 1.0, 0.7), exposure_ev=-0.4))
+    for method in ("Cheung 2004", "Finlayson 2015", "Vandermonde"):
+        p = calibrate(img, method)
+        assert p["delta_e2000"]["before"]["mean"] > 5
+        assert p["delta_e2000"]["after"]["mean"] <= 2.0, (method, p["delta_e2000"])
+    corrected = apply_profile(img, p)
+    again = calibrate(corrected)   # the corrected frame already matches the targets
+    assert again["delta_e2000"]["before"]["mean"] < 2.5
+
+
+def test_targets_are_the_rendered_chart():
+    targets, source = rig_chart_targets()
+    assert "rendered in the rig" in source
+    reflect = colorchecker_reflectances()
+    lit = reflect > 0.02   # the cyan patch has no red at all
+    ratio = targets[lit] / reflect[lit]
+    assert np.all((ratio > 0.5) & (ratio < 0.9))  # reflectance times the rig's irradiance
+
+
+def test_exposure_check_flags_over_and_under_exposure():
+    roi = swatch_roi()
+    over = check_region(frame(CameraModel(exposure_ev=2.5)), roi, "swatch")
+    under = check_region(frame(CameraModel(exposure_ev=-5.0)), roi, "swatch")
+    fine = check_region(frame(), roi, "swatch")
+    assert over.status == "over" and over.suggested_ev < 0
+    assert under.status == "under" and under.suggested_ev > 0
+    assert fine.status == "ok"
+
+
+def test_dead_light_is_caught(tmp_path):
+    session = RigSession.simulated_rig(tmp_path / "s", spp=SPP, dead={2})
+    try:
+        assert session.check_lights() == [2]
+        assert all(s.on for s in session.light_states())   # the board still says all on
+    finally:
+        session.close()
+    session = RigSession.simulated_rig(tmp_path / "t", spp=SPP)
+    try:
+        assert session.check_lights() == []
+    finally:
+        session.close()
+
+
+def test_toggling_a_light_changes_the_next_frame(tmp_path):
+    session = RigSession.simulated_rig(tmp_path / "s", spp=SPP)
+    try:
+        full = session.frame().srgb.mean()
+        session.set_light(0, False)
+        assert session.frame().srgb.mean() < full - 5
+        session.set_all(False)
+        assert session.frame().srgb.mean() < 8
+    finally:
+        session.close()
+
+
+def test_capture_is_saved_before_processing_and_blocked_when_uncalibrated(tmp_path):
+    session = RigSession.simulated_rig(tmp_path / "s", spp=SPP)
+    try:
+        result = session.capture()
+        assert result.image_path.exists() and result.meta_path.exists()
+        meta = json.loads(result.meta_path.read_text())
+        assert meta["calibration_id"] is None and len(meta["image_sha256"]) == 64 and meta["lights"]
+        assert any("not calibrated" in r for r in result.blocked) and result.params is None
+        record = json.loads((result.image_path.parent / f"{result.capture_id}.result.json").read_text())
+        assert record["blocked"] == result.blocked
+    finally:
+        session.close()
+
+
+def test_no_chart_in_view_blocks_and_explains(tmp_path):
+    img = frame()
+    img[:, 190:] = 90   # cover the chart
+    with pytest.raises(CalibrationError, match="no ColorChecker found"):
+        detect_chart(img)
+
+
+def test_profile_staleness_and_errors(tmp_path):
+    p = calibrate(frame())
+    assert staleness(p, p["settings"]) == []
+    assert "old" in staleness(p, now=time.time() + 9 * 3600)[0]
+    assert "settings changed" in staleness(p, {"camera": "other"})[0]
+    (tmp_path / "bad.json").write_text("{")
+    with pytest.raises(CalibrationError, match="calibrate again"):
+        load_profile(tmp_path / "bad.json")
+    with pytest.raises(CalibrationError, match="calibrate the rig first"):
+        load_profile(tmp_path / "none.json")
+
+
+def test_session_replays_a_recorded_frame(tmp_path):
+    import cv2
+    cv2.imwrite(str(tmp_path / "f.png"), frame()[..., ::-1])
+    session = RigSession(FileCamera(tmp_path / "f.png"), None, tmp_path / "s", swatch_roi())
+    profile = session.calibrate()
+    assert profile["delta_e2000"]["after"]["mean"] < 2
+    result = session.capture(estimate=False)
+    assert result.image_path.exists() and not result.blocked
