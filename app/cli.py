@@ -150,8 +150,36 @@ def cmd_app(args: argparse.Namespace) -> int:
     return run_app(sim=args.sim, session=args.session)
 
 
+def cmd_model_card(args: argparse.Namespace) -> int:
+    import csv
+    import json
+
+    from inference.report import model_card
+
+    evaluation = json.loads(Path(args.evaluation).read_text())
+    variants = None
+    if args.variants:
+        with open(args.variants) as f:
+            variants = [{k: (float(v) if k not in ("model",) else v) for k, v in row.items()}
+                        for row in csv.DictReader(f)]
+    path = model_card(args.model, args.run, evaluation, args.out, variants)
+    print(f"wrote {path} and {path.with_suffix('.json')}")
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     out = Path(args.out)
+    if args.what == "encoder":
+        from inference.report import bench_encoders
+
+        if not args.models:
+            raise CliError("bench encoder needs --models A.onnx B.onnx ...")
+        rows = bench_encoders(args.models, out, n=args.n, rerender=args.rerender, data_root=args.data)
+        for r in rows:
+            print(f"{r['model']}: {r['latency_ms']:.3f} ms, L1 {r['l1']:.2f} (floor {r['l1_floor']:.2f}), "
+                  f"ΔE2000 median {r['mean_colour_de2000_median']:.2f}")
+        print(f"wrote {out / 'encoder_bench.csv'} and {out / 'encoder_bench.png'}")
+        return 0
     if args.what == "rig":
         from app.rig_cli import detection_sweep
 
@@ -267,8 +295,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--session", default=None, help="session folder (default: from the settings)")
     p.set_defaults(func=cmd_app)
 
+    p = sub.add_parser("model-card", help="write the model card from a run and its evaluation")
+    p.add_argument("--run", required=True)
+    p.add_argument("--model", default="resources/models/encoder.onnx")
+    p.add_argument("--evaluation", required=True, help="evaluation.json from hairdigi evaluate")
+    p.add_argument("--variants", help="encoder_bench.csv from hairdigi bench encoder")
+    p.add_argument("--out", default="resources/models/encoder.md")
+    p.set_defaults(func=cmd_model_card)
+
     p = sub.add_parser("bench", help="speed against error tables and plots")
-    p.add_argument("what", choices=("render", "rig"))
+    p.add_argument("what", choices=("render", "rig", "encoder"))
+    p.add_argument("--models", nargs="*", help="encoder: the ONNX models to compare")
+    p.add_argument("--n", type=int, default=300, help="encoder: held-out swatches")
+    p.add_argument("--rerender", type=int, default=60, help="encoder: swatches re-rendered for image metrics")
+    p.add_argument("--data", help="encoder: held-out dataset folder to reuse")
     p.add_argument("--out", default="out/bench")
     p.add_argument("--quick", action="store_true", help="a tiny sweep, for tests")
     p.set_defaults(func=cmd_bench)

@@ -131,3 +131,18 @@ def test_evaluate_reports_metrics_beside_the_floor(tiny_model, tmp_path):
     assert "ratio_to_floor_l1" in a and summary["latency_ms_median_1_thread"] > 0
     assert "not computed" in summary["lpips"]
     assert (tmp_path / "eval" / "evaluation.json").exists()
+
+
+def test_encoder_bench_and_model_card(tiny_model, tmp_path):
+    from inference.report import bench_encoders, model_card
+
+    run, onnx_path, _ = tiny_model
+    rows = bench_encoders([onnx_path], tmp_path / "bench", n=4, size=32, spp=2, rerender=2, workers=1,
+                          progress=False)
+    assert rows[0]["latency_ms"] > 0 and rows[0]["parameters"] > 1000 and rows[0]["l1_floor"] > 0
+    assert (tmp_path / "bench" / "encoder_bench.png").stat().st_size > 0
+    evaluation = json.loads((tmp_path / "bench" / "encoder" / "evaluation.json").read_text())
+    card = model_card(onnx_path, run, evaluation, tmp_path / "encoder.md", rows)
+    text = card.read_text()
+    assert Encoder(onnx_path).sha256 in text and "noise floor" in text and "not computed" in text
+    assert json.loads(card.with_suffix(".json").read_text())["dataset"]["n"] == 8
