@@ -49,9 +49,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
 # --- dataset, training, export, estimate, evaluate -----------------------------------------
 def cmd_dataset(args: argparse.Namespace) -> int:
     from inference.dataset import DatasetConfig, generate
+    from render.renderer import defaults_for
 
-    config = DatasetConfig(n=args.n, size=args.size, spp=args.spp, seed=args.seed, strands=args.strands,
-                           max_depth=args.depth, shard_size=args.shard_size)
+    # record the resolved strand count and depth, so the manifest stays true if the defaults change
+    config = DatasetConfig(n=args.n, size=args.size, spp=args.spp, seed=args.seed,
+                           strands=args.strands or defaults_for("swatch").strands,
+                           max_depth=args.depth or defaults_for("swatch").max_depth, shard_size=args.shard_size)
     out = Path(args.out) if args.out else _cache_dir() / "datasets" / f"swatch-s{args.seed}-{args.size}px-{args.spp}spp"
     generate(config, out, workers=args.workers)
     print(f"dataset complete: {config.n} swatches in {out}")

@@ -68,6 +68,17 @@ def shard_path(root: Path, shard: int) -> Path:
     return root / f"shard-{shard:05d}.npz"
 
 
+def _die_with_parent() -> None:
+    """Pool initializer: on Linux, end this worker when the parent dies, even by SIGKILL, so no
+    orphan keeps rendering for a stopped run."""
+    try:
+        import ctypes
+        import signal
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        pass
+
+
 def _render_shard(args: tuple[dict, str, int, int]) -> tuple[int, int, float]:
     """Render one shard in a worker process and write it atomically; returns (shard, count, seconds)."""
     config_dict, root, shard, threads = args
@@ -123,6 +134,8 @@ def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, p
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
     _check_manifest(root, config)
+    for stray in root.glob(".shard-*.npz"):   # half-written by a killed run
+        stray.unlink(missing_ok=True)
     todo = [s for s in range(config.n_shards) if not shard_path(root, s).exists()]
     done = config.n - sum(len(range(s * config.shard_size, min(config.n, (s + 1) * config.shard_size)))
                           for s in todo)
@@ -135,9 +148,16 @@ def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, p
                 _, count, _ = _render_shard(job)
                 bar.update(count)
         else:
-            with mp.get_context("spawn").Pool(workers) as pool:
-                for _, count, _ in pool.imap_unordered(_render_shard, jobs):
-                    bar.update(count)
+            import signal
+
+            # SIGTERM (kill, a session ending) unwinds through the pool's exit, which ends the workers
+            previous = signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
+            try:
+                with mp.get_context("spawn").Pool(workers, initializer=_die_with_parent) as pool:
+                    for _, count, _ in pool.imap_unordered(_render_shard, jobs):
+                        bar.update(count)
+            finally:
+                signal.signal(signal.SIGTERM, previous)
     finally:
         bar.close()
     return root

@@ -78,7 +78,11 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 176,
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    config = DatasetConfig(n=n, size=size, spp=spp, seed=EVAL_SEED, shard_size=50)
+    from render.renderer import defaults_for
+
+    sw = defaults_for("swatch")
+    config = DatasetConfig(n=n, size=size, spp=spp, seed=EVAL_SEED, strands=sw.strands, max_depth=sw.max_depth,
+                           shard_size=50)
     root = Path(data_root) if data_root else out / "heldout"
     generate(config, root, workers=workers, progress=progress)
     images, vectors, cameras, _ = load(root)

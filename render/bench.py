@@ -85,14 +85,16 @@ def run_render_bench(out_dir: str | os.PathLike, quick: bool = False, repeats: i
         spec = _spec(case.scene, case.strands, case.depth)
         first = renderer.render(BENCH_HAIR[0], spec, case.size, case.spp, seed=1).seconds
         ref_key = next(k for k in refs if k[:2] == (case.scene, case.size))
-        times, errs, des = [], [], []
+        times, cpus, errs, des = [], [], [], []
         for i, hair in enumerate(BENCH_HAIR):
             for r in range(repeats):
                 res = renderer.render(hair, spec, case.size, case.spp, seed=100 + r)
                 times.append(res.seconds)
+                cpus.append(res.cpu_seconds)
             errs.append(rmse(res.linear, references[ref_key][i]))
             des.append(mean_colour_delta_e(res.linear, references[ref_key][i]))
-        rows.append({**asdict(case), "seconds": float(np.median(times)), "first_s": first,
+        rows.append({**asdict(case), "seconds": float(np.median(times)), "cpu_s": float(np.median(cpus)),
+                     "first_s": first,
                      "rmse": float(np.mean(errs)), "mean_delta_e2000": float(np.mean(des)),
                      "max_delta_e2000": float(np.max(des)), "variant": renderer.variant})
     write_csv_atomic(out / "render_bench.csv", rows)

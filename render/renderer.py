@@ -37,8 +37,8 @@ class SceneDefaults:
 #: Chosen from the benchmark in render/README.md: the cheapest setting whose error is under the
 #: noise that matters.
 DEFAULTS = {
-    "swatch": SceneDefaults(strands=2000, spp=16, max_depth=16, size=128),
-    "hairstyle": SceneDefaults(strands=4000, spp=16, max_depth=12, size=512),
+    "swatch": SceneDefaults(strands=2000, spp=16, max_depth=32, size=128),
+    "hairstyle": SceneDefaults(strands=4000, spp=16, max_depth=24, size=512),
 }
 
 
@@ -98,6 +98,7 @@ class RenderResult:
     srgb: np.ndarray    # (H, W, 3) uint8, sRGB-encoded
     seconds: float
     spp: int
+    cpu_seconds: float = 0.0   # core-seconds of this process: robust to other load; ~2x wall on 2 idle cores
 
 
 def linear_to_srgb8(linear: np.ndarray) -> np.ndarray:
@@ -196,11 +197,12 @@ class Renderer:
         spp = int(spp or defaults_for(spec.name).spp)
         if min(np.atleast_1d(size)) < 8 or spp < 1:
             raise ValueError(f"size must be >= 8 pixels and spp >= 1, got size={size}, spp={spp}")
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         scene = self._scene_for(spec, size, params)
         image = mi.render(scene, spp=spp, seed=int(seed))
         linear = np.nan_to_num(np.asarray(image, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
-        return RenderResult(linear, linear_to_srgb8(linear), time.perf_counter() - start, spp)
+        return RenderResult(linear, linear_to_srgb8(linear), time.perf_counter() - start, spp,
+                            time.process_time() - cpu)
 
     def render_progressive(self, params: HairParams, spec: SceneSpec | str, size: int | None = None,
                            spp_per_pass: int = 2, passes: int = 8, seed: int = 0,

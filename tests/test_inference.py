@@ -146,3 +146,29 @@ def test_encoder_bench_and_model_card(tiny_model, tmp_path):
     text = card.read_text()
     assert Encoder(onnx_path).sha256 in text and "noise floor" in text and "not computed" in text
     assert json.loads(card.with_suffix(".json").read_text())["dataset"]["n"] == 8
+
+
+def test_killed_run_leaves_no_orphan_workers_and_resumes(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    root = tmp_path / "ds"
+    cfg = dict(n=40, size=32, spp=2, seed=5, strands=150, shard_size=2)
+    code = ("from inference.dataset import DatasetConfig, generate; "
+            f"generate(DatasetConfig(**{cfg!r}), {str(root)!r}, workers=2, progress=False)")
+    proc = subprocess.Popen([sys.executable, "-c", code])
+    deadline = time.monotonic() + 120
+    while not list(root.glob("shard-*.npz")) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGTERM)
+    proc.wait(30)
+    time.sleep(1.0)
+    written = sorted(p.name for p in root.glob("shard-*.npz"))
+    time.sleep(3.0)
+    assert sorted(p.name for p in root.glob("shard-*.npz")) == written   # nobody renders on
+    assert 0 < len(written) < 20
+    generate(DatasetConfig(**cfg), root, workers=1, progress=False)
+    images, params, _, _ = load(root)
+    assert len(images) == 40 and not list(root.glob(".*.npz"))  # complete, no stray temp files
