@@ -231,7 +231,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("dataset", help="render the synthetic swatch dataset (resumable)")
     p.add_argument("--n", type=int, default=5000)
     p.add_argument("--size", type=int, default=96)
-    p.add_argument("--spp", type=int, default=8)
+    p.add_argument("--spp", type=int, default=4, help="4: the mean colour is converged (bench render)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--strands", type=int, default=None)
     p.add_argument("--depth", type=int, default=None)

@@ -35,11 +35,18 @@ def image_metrics(original: np.ndarray, other: np.ndarray) -> dict[str, float]:
     """Metrics between two 8-bit sRGB renders of one scene."""
     lin_a, lin_b = srgb8_to_linear(original), srgb8_to_linear(other)
     row = {"l1": l1_255(original, other),
+           # the same on 4x4 block means: most of the render noise averages out, the colour error stays
+           "l1_blocks4": l1_255(_blocks(original, 4), _blocks(other, 4)),
            "mean_colour_de2000": mean_colour_delta_e(lin_a, lin_b),
            "pixel_de2000": float(np.mean(delta_e2000(lin_a.reshape(-1, 3), lin_b.reshape(-1, 3))))}
     if min(original.shape[:2]) >= 161:
         row["ms_ssim"] = ms_ssim(original, other)
     return row
+
+
+def _blocks(img: np.ndarray, k: int) -> np.ndarray:
+    h, w = (img.shape[0] // k) * k, (img.shape[1] // k) * k
+    return img[:h, :w].astype(float).reshape(h // k, k, w // k, k, -1).mean((1, 3))
 
 
 def buckets(params: HairParams, polar_deg: float) -> list[str]:
