@@ -37,6 +37,17 @@ def sha256_file(path: str | os.PathLike) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+def median_latency_ms(encoder: "Encoder", batch: np.ndarray, repeats: int = 200) -> float:
+    """Median milliseconds of ``encoder.predict(batch)`` after one warm-up call."""
+    encoder.predict(batch)
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        encoder.predict(batch)
+        times.append(time.perf_counter() - t)
+    return float(np.median(times) * 1000.0)
+
+
 def _views(x: np.ndarray) -> np.ndarray:
     """The 8 flips and quarter turns of a (3, S, S) input: the swatch looks the same in each."""
     out = []

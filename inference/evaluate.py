@@ -139,16 +139,10 @@ def _whole(img):
 
 def _latency(encoder, image: np.ndarray, repeats: int = 200) -> float:
     """Median milliseconds of one encoder call (one view, batch 1) on preprocessed input."""
+    from inference.encoder import median_latency_ms
     from inference.preprocess import encode
 
-    x = encode(image, encoder.input_size)[None]
-    encoder.predict(x)
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        encoder.predict(x)
-        times.append(time.perf_counter() - t)
-    return float(np.median(times) * 1000.0)
+    return median_latency_ms(encoder, encode(image, encoder.input_size)[None], repeats)
 
 
 def summarise(rows: list[dict]) -> dict:

@@ -52,14 +52,9 @@ def _parameter_count(path) -> int:
 
 def _latency_views(encoder, repeats: int = 100) -> float:
     """Median milliseconds for the 8-view estimate the app uses (batch of 8)."""
-    x = np.zeros((8, 3, encoder.input_size, encoder.input_size), np.float32)
-    encoder.predict(x)
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        encoder.predict(x)
-        times.append(time.perf_counter() - t)
-    return float(np.median(times) * 1000)
+    from inference.encoder import median_latency_ms
+
+    return median_latency_ms(encoder, np.zeros((8, 3, encoder.input_size, encoder.input_size), np.float32), repeats)
 
 
 def _plot(rows: list[dict], path: Path) -> None:
