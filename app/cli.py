@@ -114,7 +114,13 @@ def cmd_estimate(args: argparse.Namespace) -> int:
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from inference.encoder import Encoder
-    from inference.evaluate import evaluate
+    from inference.evaluate import evaluate, prepare_heldout
+
+    if args.prepare_only:
+        root = prepare_heldout(args.data or Path(args.out) / "heldout", args.n, args.size, args.spp, args.workers,
+                               floors=args.rerender)
+        print(f"held-out swatches and noise-floor renders ready in {root}")
+        return 0
 
     encoder = Encoder(args.model)
     summary = evaluate(encoder, args.out, n=args.n, size=args.size, spp=args.spp, workers=args.workers,
@@ -271,8 +277,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("evaluate", help="the paper's evaluation on held-out swatches, with the noise floor")
     p.add_argument("--n", type=int, default=300)
     p.add_argument("--size", type=int, default=176, help=">= 161 for MS-SSIM's 5 scales")
-    p.add_argument("--spp", type=int, default=8)
+    p.add_argument("--spp", type=int, default=4)
     p.add_argument("--rerender", type=int, default=None, help="re-render only the first N (default: all)")
+    p.add_argument("--prepare-only", action="store_true",
+                   help="render the held-out set and the noise floor only (no model needed); resumable")
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--data", help="held-out dataset folder (default: OUT/heldout)")
     p.add_argument("--model", default=None)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import json
 import os
 import time
-from dataclasses import asdict, replace
+from dataclasses import asdict
 from pathlib import Path
 
 import colour
@@ -73,10 +73,48 @@ def _rerender(config: DatasetConfig, index: int, params: HairParams):
     return default_renderer().render(params, spec, config.size, config.spp, s.render_seed + 1).srgb
 
 
-def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 176, spp: int = 8,
+def heldout_config(n: int, size: int, spp: int) -> DatasetConfig:
+    from render.renderer import defaults_for
+
+    sw = defaults_for("swatch")
+    return DatasetConfig(n=n, size=size, spp=spp, seed=EVAL_SEED, strands=sw.strands, max_depth=sw.max_depth,
+                         shard_size=50)
+
+
+def prepare_heldout(root: str | os.PathLike, n: int = 300, size: int = 176, spp: int = 4, workers: int = 2,
+                    floors: int | None = None, progress: bool = True) -> Path:
+    """Render the held-out swatches and the noise-floor re-renders of the first ``floors`` of them.
+
+    Neither depends on the encoder, so this can run before training ends. Resumable: the images
+    are dataset shards, the floors are saved to ``floor.npz`` every 10.
+    """
+    from tqdm import tqdm
+
+    root = Path(root)
+    config = heldout_config(n, size, spp)
+    generate(config, root, workers=workers, progress=progress)
+    cache = root / "floor.npz"
+    have = dict(np.load(cache)) if cache.exists() else {}
+    _, vectors, _, _ = load(root)
+    todo = [i for i in range(min(len(vectors), floors if floors is not None else n)) if f"floor_{i}" not in have]
+    for k, i in enumerate(tqdm(todo, desc="noise floor", unit="swatch", disable=not progress)):
+        have[f"floor_{i}"] = _rerender(config, i, HairParams.from_vector(vectors[i]))
+        if k % 10 == 9:
+            _save_npz(cache, have)
+    _save_npz(cache, have)
+    return root
+
+
+def _save_npz(path: Path, arrays: dict) -> None:
+    tmp = path.with_name(f".{path.stem}.tmp.npz")
+    np.savez(tmp, **arrays)
+    os.replace(tmp, path)
+
+
+def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 176, spp: int = 4,
              data_root: str | os.PathLike | None = None, workers: int = 2, rerender: int | None = None,
              progress: bool = True) -> dict:
-    """Run the protocol; write ``evaluation.json``, ``samples.csv`` and return the summary.
+    """Run the protocol; write ``evaluation.json``, ``samples.json`` and return the summary.
 
     ``rerender`` limits the image metrics to the first samples (all when None); the parameter
     errors always use all ``n``.
@@ -85,22 +123,17 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 176,
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    from render.renderer import defaults_for
-
-    sw = defaults_for("swatch")
-    config = DatasetConfig(n=n, size=size, spp=spp, seed=EVAL_SEED, strands=sw.strands, max_depth=sw.max_depth,
-                           shard_size=50)
+    config = heldout_config(n, size, spp)
     root = Path(data_root) if data_root else out / "heldout"
-    generate(config, root, workers=workers, progress=progress)
+    n_img = n if rerender is None else min(rerender, n)
+    prepare_heldout(root, n, size, spp, workers, floors=n_img, progress=progress)
     images, vectors, cameras, _ = load(root)
-    n_img = len(images) if rerender is None else min(rerender, len(images))
+    floors = dict(np.load(root / "floor.npz"))
 
     t0 = time.perf_counter()
     estimates = [encoder.estimate(img, roi=_whole(img), views=True) for img in images]
     latency = _latency(encoder, images[0])
     rows = []
-    floor_cache = root / "floor.npz"
-    floors = dict(np.load(floor_cache)) if floor_cache.exists() else {}
     for i in tqdm(range(len(images)), desc="evaluate", unit="swatch", disable=not progress):
         truth = HairParams.from_vector(vectors[i])
         est = estimates[i]
@@ -109,16 +142,10 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 176,
         for (name, _, _), t, e, span in zip(VECTOR_FIELDS, vectors[i], est.vector, SPANS):
             row[f"abs_err_{name}"] = float(abs(t - e) * span)
         if i < n_img:
-            key = f"floor_{i}"
-            if key not in floors:
-                floors[key] = _rerender(config, i, truth)
-                if i % 10 == 9:
-                    np.savez(floor_cache, **floors)
             rerendered = _rerender(config, i, est.params)
             row.update({f"est_{k}": v for k, v in image_metrics(images[i], rerendered).items()})
-            row.update({f"floor_{k}": v for k, v in image_metrics(images[i], floors[key]).items()})
+            row.update({f"floor_{k}": v for k, v in image_metrics(images[i], floors[f"floor_{i}"]).items()})
         rows.append(row)
-    np.savez(floor_cache, **floors)
     summary = summarise(rows)
     summary.update({"n": len(images), "n_rerendered": n_img, "size": size, "spp": spp, "seed": EVAL_SEED,
                     "model": str(encoder.path), "model_sha256": encoder.sha256,

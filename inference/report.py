@@ -13,7 +13,7 @@ from render.params import VECTOR_FIELDS, write_json_atomic
 
 
 def bench_encoders(onnx_paths: list[str | os.PathLike], out_dir: str | os.PathLike, n: int = 300,
-                   size: int = 176, spp: int = 8, rerender: int = 60, data_root=None, workers: int = 2,
+                   size: int = 176, spp: int = 4, rerender: int = 60, data_root=None, workers: int = 2,
                    progress: bool = True) -> list[dict]:
     """Latency (ONNX, 1 thread, median) against error for several encoders on one held-out set.
 
