@@ -156,7 +156,7 @@ def cmd_rig(args: argparse.Namespace) -> int:
 def cmd_app(args: argparse.Namespace) -> int:
     from app.gui.main import run_app
 
-    return run_app(sim=args.sim, session=args.session)
+    return run_app(sim=args.sim, session=args.session, tour=args.tour)
 
 
 def cmd_model_card(args: argparse.Namespace) -> int:
@@ -304,6 +304,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("app", help="the desktop app")
     p.add_argument("--sim", action="store_true", help="use the simulated rig")
     p.add_argument("--session", default=None, help="session folder (default: from the settings)")
+    p.add_argument("--tour", help="calibrate and capture once, time it, save a screenshot in this folder, quit")
     p.set_defaults(func=cmd_app)
 
     p = sub.add_parser("model-card", help="write the model card from a run and its evaluation")

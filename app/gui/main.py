@@ -67,7 +67,7 @@ def open_rig(settings: dict, sim: bool, folder: Path):
     return RigSession.simulated_rig(folder), reason
 
 
-def run_app(sim: bool = False, session: str | None = None) -> int:
+def run_app(sim: bool = False, session: str | None = None, tour: str | None = None) -> int:
     app = QApplication.instance() or QApplication(sys.argv[:1])
     settings = read_settings()
     folder = Path(session or settings["output_folder"])
@@ -81,6 +81,9 @@ def run_app(sim: bool = False, session: str | None = None) -> int:
     if reason:
         window.statusBar().showMessage(f"simulated rig: {reason}")
     window.show()
+    if tour:
+        from app.gui.tour import run_tour
+        run_tour(window, tour)
     code = app.exec()
     rig.close()
     return code
