@@ -26,7 +26,7 @@ from render.renderer import Renderer, SceneSpec
 SIM_SIZE = (400, 300)
 #: The hidden swatch of the demo: a copper-dyed light brown.
 DEFAULT_HIDDEN = HairParams((190, 80, 40), 0.5, 0.3, 0.6)
-CACHE_VERSION = 1
+CACHE_VERSION = 2  # bumped when the absorption mapping changes
 
 
 @dataclass

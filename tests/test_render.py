@@ -134,3 +134,33 @@ def test_no_eumelanin_bspline_crash_case():
             "assert np.isfinite(r.linear).all(); print('ok')")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0 and "ok" in run.stdout, run.stderr[-2000:]
+
+
+def test_uniform_parameters_span_platinum_to_black_and_many_hues(renderer):
+    import colorsys
+    from render.params import sample_params
+
+    rng = np.random.default_rng(0)
+    means = np.array([mean_rgb(renderer.render(sample_params(rng), swatch(), SIZE, 4, i)) for i in range(24)])
+    lum = means @ np.array([0.2126, 0.7152, 0.0722])
+    assert lum.min() < 0.02 and lum.max() > 8 * lum.min()          # near-black to light
+    hues = {int(colorsys.rgb_to_hsv(*m)[0] * 6) for m in means if np.ptp(m) > 0.3 * m.max()}
+    assert len(hues) >= 3, hues                                      # dyed swatches spread over hues
+
+
+def test_scalar_fallback_renders_the_same_scene():
+    """HAIRDIGI_VARIANT=scalar_rgb (what a machine without libLLVM 19 gets) gives the same mean colour."""
+    import os
+    code = ("import numpy as np; from render.renderer import render, SceneSpec; from render.params import HairParams;"
+            "from render.variant import mi;"
+            "r = render(HairParams((200,90,40), 0.6, 0.3, 0.5), SceneSpec('swatch', strands=300), 24, 16, 0);"
+            "print(mi.variant(), *r.linear.reshape(-1, 3).mean(0))")
+    outs = {}
+    for variant in ("scalar_rgb", "llvm_ad_rgb"):
+        run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                             env={**os.environ, "HAIRDIGI_VARIANT": variant})
+        assert run.returncode == 0, run.stderr[-2000:]
+        name, *values = run.stdout.split()
+        assert name == variant
+        outs[variant] = np.array([float(v) for v in values])
+    assert np.allclose(outs["scalar_rgb"], outs["llvm_ad_rgb"], rtol=0.1), outs
