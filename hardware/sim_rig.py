@@ -25,8 +25,8 @@ from render.renderer import Renderer, SceneSpec
 
 SIM_SIZE = (400, 300)
 #: The hidden swatch of the demo: a copper-dyed light brown.
-DEFAULT_HIDDEN = HairParams((190, 80, 40), 0.5, 0.3, 0.6)
-CACHE_VERSION = 2  # bumped when the absorption mapping changes
+DEFAULT_HIDDEN = HairParams((190, 80, 40), 0.5, 0.5, 0.6)
+CACHE_VERSION = 3  # bumped when the absorption mapping or the light images change
 
 
 @dataclass
@@ -65,6 +65,18 @@ def swatch_roi(size: tuple[int, int] = SIM_SIZE, margin: float = 0.05) -> tuple[
     return int(np.ceil(x0)), int(np.ceil(y0)), int(x1 - x0), int(y1 - y0)
 
 
+def remove_fireflies(linear: np.ndarray, ratio: float = 3.0, margin: float = 0.05) -> np.ndarray:
+    """Replace Monte Carlo outliers (over ``ratio`` x their 3x3 median + ``margin``) by that median.
+
+    Fireflies are render noise, not the scene: a camera would not see them, and they would clip.
+    """
+    import cv2
+
+    img = np.ascontiguousarray(linear, dtype=np.float32)
+    median = cv2.medianBlur(img, 3)
+    return np.where(img > ratio * median + margin, median, img)
+
+
 def _cache_root() -> Path:
     return Path(os.environ.get("HAIRDIGI_CACHE", Path.home() / ".cache" / "hairdigi")) / "sim-rig"
 
@@ -85,7 +97,7 @@ def render_light_images(hidden: HairParams, size=SIM_SIZE, spp: int = 32, strand
         spec = SceneSpec("swatch", framing="rig", chart=chart, target=scenes.RIG_TARGET,
                          half_width=scenes.RIG_HALF_WIDTH, lights=lights, strand_seed=strand_seed)
         images.append(renderer.render(hidden, spec, size, spp, seed=17 + i).linear)
-    stack = np.stack(images).astype(np.float32)
+    stack = np.stack([remove_fireflies(im) for im in images]).astype(np.float32)
     if cache:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(f".{path.name}.{os.getpid()}.npy")

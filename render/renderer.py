@@ -7,6 +7,7 @@ instead of being rebuilt, which is what makes rendering thousands of dataset swa
 from __future__ import annotations
 
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -123,10 +124,15 @@ class _Loaded:
 
 
 class Renderer:
-    """Holds loaded Mitsuba scenes and re-renders them with new hair parameters, cameras and lights."""
+    """Holds loaded Mitsuba scenes and re-renders them with new hair parameters, cameras and lights.
+
+    Thread-safe: renders on one ``Renderer`` take turns (its scenes are updated in place), and a
+    progressive render lets others in between its passes.
+    """
 
     def __init__(self, max_cached: int = 4) -> None:
         self.variant = mi.variant()
+        self._lock = threading.RLock()
         self._cache: dict[tuple, _Loaded] = {}
         self._max_cached = max_cached
         self._tmp = tempfile.TemporaryDirectory(prefix="hairdigi-curves-")
@@ -197,12 +203,13 @@ class Renderer:
         spp = int(spp or defaults_for(spec.name).spp)
         if min(np.atleast_1d(size)) < 8 or spp < 1:
             raise ValueError(f"size must be >= 8 pixels and spp >= 1, got size={size}, spp={spp}")
-        start, cpu = time.perf_counter(), time.process_time()
-        scene = self._scene_for(spec, size, params)
-        image = mi.render(scene, spp=spp, seed=int(seed))
-        linear = np.nan_to_num(np.asarray(image, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
-        return RenderResult(linear, linear_to_srgb8(linear), time.perf_counter() - start, spp,
-                            time.process_time() - cpu)
+        with self._lock:
+            start, cpu = time.perf_counter(), time.process_time()
+            scene = self._scene_for(spec, size, params)
+            image = mi.render(scene, spp=spp, seed=int(seed))
+            linear = np.nan_to_num(np.asarray(image, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+            seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
+        return RenderResult(linear, linear_to_srgb8(linear), seconds, spp, cpu)
 
     def render_progressive(self, params: HairParams, spec: SceneSpec | str, size: int | None = None,
                            spp_per_pass: int = 2, passes: int = 8, seed: int = 0,

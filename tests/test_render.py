@@ -164,3 +164,28 @@ def test_scalar_fallback_renders_the_same_scene():
         assert name == variant
         outs[variant] = np.array([float(v) for v in values])
     assert np.allclose(outs["scalar_rgb"], outs["llvm_ad_rgb"], rtol=0.1), outs
+
+
+def test_renders_from_two_threads_take_turns(renderer):
+    """Two threads render one scene with different hair at once (the app's twin and hairstyle workers
+    share a Renderer): each must get exactly the image a lone render of its own hair gives."""
+    import threading
+    hairs = {"red": HairParams((230, 30, 30), 1.0, 0.0, 0.5), "dark": HairParams((255, 255, 255), 0.0, 0.9, 0.9)}
+    spec = swatch()
+    results, errors = {}, []
+
+    def job(name):
+        try:
+            results[name] = [renderer.render(hairs[name], spec, 48, 4, k).linear for k in range(6)]
+        except Exception as exc:  # noqa: BLE001 — collected and asserted below
+            errors.append(exc)
+
+    threads = [threading.Thread(target=job, args=(name,)) for name in hairs]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(300)
+    assert not errors
+    for name, images in results.items():
+        for k, image in enumerate(images):
+            assert np.array_equal(image, renderer.render(hairs[name], spec, 48, 4, k).linear), (name, k)
