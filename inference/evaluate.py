@@ -130,13 +130,23 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 176,
     images, vectors, cameras, _ = load(root)
     floors = dict(np.load(root / "floor.npz"))
 
+    from inference.preprocess import ImageError
+
     t0 = time.perf_counter()
-    estimates = [encoder.estimate(img, roi=_whole(img), views=True) for img in images]
-    latency = _latency(encoder, images[0])
+    estimates, invalid = [], {}
+    for i, img in enumerate(images):
+        try:
+            estimates.append(encoder.estimate(img, roi=_whole(img), views=True))
+        except ImageError as exc:   # e.g. a camera that looks into the back of a light: a black frame
+            estimates.append(None)
+            invalid[i] = str(exc)
+    latency = _latency(encoder, images[next(i for i, e in enumerate(estimates) if e is not None)])
     rows = []
     for i in tqdm(range(len(images)), desc="evaluate", unit="swatch", disable=not progress):
         truth = HairParams.from_vector(vectors[i])
         est = estimates[i]
+        if est is None:
+            continue
         row = {"index": i, "polar_deg": float(cameras[i][0]), "buckets": buckets(truth, float(cameras[i][0])),
                "at_range_edge": est.at_range_edge}
         for (name, _, _), t, e, span in zip(VECTOR_FIELDS, vectors[i], est.vector, SPANS):
@@ -147,7 +157,8 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 176,
             row.update({f"floor_{k}": v for k, v in image_metrics(images[i], floors[f"floor_{i}"]).items()})
         rows.append(row)
     summary = summarise(rows)
-    summary.update({"n": len(images), "n_rerendered": n_img, "size": size, "spp": spp, "seed": EVAL_SEED,
+    summary.update({"n": len(rows), "n_rerendered": sum(1 for r in rows if "est_l1" in r),
+                    "invalid": {str(k): v for k, v in invalid.items()}, "size": size, "spp": spp, "seed": EVAL_SEED,
                     "model": str(encoder.path), "model_sha256": encoder.sha256,
                     "latency_ms_median_1_thread": latency, "seconds": time.perf_counter() - t0,
                     "dataset": asdict(config), "date": time.strftime("%Y-%m-%d"),

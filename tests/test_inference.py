@@ -172,3 +172,19 @@ def test_killed_run_leaves_no_orphan_workers_and_resumes(tmp_path):
     generate(DatasetConfig(**cfg), root, workers=1, progress=False)
     images, params, _, _ = load(root)
     assert len(images) == 40 and not list(root.glob(".*.npz"))  # complete, no stray temp files
+
+
+def test_evaluate_reports_unusable_swatches_instead_of_aborting(tiny_model, tmp_path):
+    """A held-out render can be unusable (a camera that sees the back of a light renders black)."""
+    from inference.dataset import shard_path
+    from inference.evaluate import evaluate, prepare_heldout
+
+    _, onnx_path, _ = tiny_model
+    root = prepare_heldout(tmp_path / "h", n=4, size=32, spp=2, workers=1, progress=False)
+    shard = dict(np.load(shard_path(root, 0)))
+    shard["images"][1] = 0                      # swatch 1: a black frame
+    np.savez(shard_path(root, 0), **shard)
+    summary = evaluate(Encoder(onnx_path), tmp_path / "e", n=4, size=32, spp=2, data_root=root, workers=1,
+                       progress=False)
+    assert list(summary["invalid"]) == ["1"] and "flat" in summary["invalid"]["1"]
+    assert summary["n"] == 3 and summary["buckets"]["all"]["count"] == 3
