@@ -12,6 +12,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from render.files import publish
+
 
 def _atomic_bytes(path: Path, data: bytes) -> None:
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
@@ -20,7 +22,7 @@ def _atomic_bytes(path: Path, data: bytes) -> None:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
-        os.replace(tmp, path)
+        publish(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -45,7 +47,7 @@ def save_capture(folder: str | os.PathLike, srgb: np.ndarray | None = None, raw_
         image_path = folder / f"{capture_id}{raw_path.suffix.lower()}"
         tmp = folder / f".{image_path.name}.tmp"
         shutil.copyfile(raw_path, tmp)
-        os.replace(tmp, image_path)
+        publish(tmp, image_path)
     elif srgb is not None:
         ok, png = cv2.imencode(".png", cv2.cvtColor(srgb, cv2.COLOR_RGB2BGR))
         if not ok:

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from render.files import publish
+
 from render.params import HairParams, sample_params
 from render.scenes import CAMERA_DISTANCE, CameraPose
 
@@ -106,7 +108,7 @@ def _render_shard(args: tuple[dict, str, int, int]) -> tuple[int, int, float]:
     os.close(fd)
     np.savez(tmp, images=np.stack(images), params=np.stack(vectors), cameras=np.array(cameras),
              seeds=np.array(seeds, dtype=np.int64), indices=np.array(list(indices)))
-    os.replace(tmp, path)
+    publish(tmp, path)
     return shard, len(indices), time.perf_counter() - start
 
 

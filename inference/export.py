@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from render.files import publish
+
 
 def export_onnx(model, path: str | os.PathLike, input_size: int) -> Path:
     """Export with a dynamic batch axis; outputs ``params`` (sigmoid) and ``logits``. Written atomically."""
@@ -22,7 +24,7 @@ def export_onnx(model, path: str | os.PathLike, input_size: int) -> Path:
     torch.onnx.export(model, (dummy,), tmp, dynamo=False, input_names=["image"],
                       output_names=["params", "logits"], opset_version=17,
                       dynamic_axes={"image": {0: "batch"}, "params": {0: "batch"}, "logits": {0: "batch"}})
-    os.replace(tmp, path)
+    publish(tmp, path)
     return path
 
 

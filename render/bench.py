@@ -15,6 +15,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+
+from render.files import publish
 from tqdm import tqdm
 
 from render.metrics import mean_colour_delta_e, rmse
@@ -108,7 +110,7 @@ def write_csv_atomic(path: Path, rows: list[dict]) -> Path:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    os.replace(tmp, path)
+    publish(tmp, path)
     return path
 
 
@@ -143,5 +145,5 @@ def plot_speed_vs_error(rows: list[dict], path: Path) -> Path:
     os.close(fd)
     fig.savefig(tmp, dpi=110)
     plt.close(fig)
-    os.replace(tmp, path)
+    publish(tmp, path)
     return path

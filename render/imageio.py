@@ -8,6 +8,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from render.files import publish
+
 
 def _atomic_target(path: Path, suffix: str) -> str:
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -23,7 +25,7 @@ def save_png(path: str | os.PathLike, srgb: np.ndarray) -> Path:
     if not cv2.imwrite(tmp, cv2.cvtColor(np.ascontiguousarray(srgb), cv2.COLOR_RGB2BGR)):
         Path(tmp).unlink(missing_ok=True)
         raise OSError(f"could not write PNG {path}")
-    os.replace(tmp, path)
+    publish(tmp, path)
     return path
 
 
@@ -34,5 +36,5 @@ def save_exr(path: str | os.PathLike, linear: np.ndarray) -> Path:
     path = Path(path)
     tmp = _atomic_target(path, ".exr")
     mi.Bitmap(np.ascontiguousarray(linear, dtype=np.float32), mi.Bitmap.PixelFormat.RGB).write(tmp)
-    os.replace(tmp, path)
+    publish(tmp, path)
     return path

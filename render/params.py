@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from render.files import publish
+
 # (name, low, high) for the six normalised components, in vector order.
 VECTOR_FIELDS: tuple[tuple[str, float, float], ...] = (
     ("dye_r", 0.0, 255.0),
@@ -132,7 +134,7 @@ def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
         with os.fdopen(fd, "w") as f:
             json.dump(data, f, indent=2)
             f.write("\n")
-        os.replace(tmp, path)
+        publish(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

@@ -55,3 +55,23 @@ def test_bad_files_give_clear_errors(tmp_path):
                                                      "melanin_concentration": 0, "melanin_ratio": 0}))
     with pytest.raises(HairParamsError, match="3 values"):
         load_params(tmp_path / "short.json")
+
+
+def test_atomic_writes_are_readable_by_the_lab(tmp_path):
+    """mkstemp makes owner-only files; published captures, exports and models follow the umask."""
+    import os
+    import stat
+
+    import numpy as np
+
+    from hardware.capture import save_capture
+    from render.imageio import save_png
+
+    old = os.umask(0o022)
+    try:
+        paths = [save_params(tmp_path / "p.json", HairParams()), save_png(tmp_path / "i.png", np.zeros((4, 4, 3), np.uint8)),
+                 *save_capture(tmp_path / "cap", np.zeros((4, 4, 3), np.uint8))]
+    finally:
+        os.umask(old)
+    for p in paths:
+        assert stat.S_IMODE(os.stat(p).st_mode) == 0o644, p
