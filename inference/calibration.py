@@ -22,6 +22,7 @@ import colour
 import cv2
 import numpy as np
 
+from render.files import read_json
 from render.chart import WHITE_PATCH, colorchecker_reflectances, rig_chart_targets
 from render.metrics import delta_e2000
 from render.params import write_json_atomic
@@ -125,12 +126,8 @@ def save_profile(path: str | os.PathLike, profile: dict) -> Path:
 
 def load_profile(path: str | os.PathLike) -> dict:
     path = Path(path)
-    try:
-        profile = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise CalibrationError(f"{path}: no calibration profile; calibrate the rig first") from None
-    except json.JSONDecodeError as exc:
-        raise CalibrationError(f"{path}: not a calibration profile ({exc}); calibrate again") from None
+    profile = read_json(path, CalibrationError, "no calibration profile; calibrate the rig first",
+                        "not a calibration profile ({exc}); calibrate again")
     for key in ("matrix", "method", "time"):
         if key not in profile:
             raise CalibrationError(f"{path}: the profile has no {key!r}; calibrate again")

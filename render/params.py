@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from render.files import publish
+from render.files import publish, read_json
 
 # (name, low, high) for the six normalised components, in vector order.
 VECTOR_FIELDS: tuple[tuple[str, float, float], ...] = (
@@ -113,12 +113,7 @@ def _check(name: str, value: float, low: float, high: float) -> None:
 def load_params(path: str | os.PathLike) -> HairParams:
     """Load ``HairParams`` from a JSON file; errors name the file and the problem."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise HairParamsError(f"{path}: no such parameter file") from None
-    except json.JSONDecodeError as exc:
-        raise HairParamsError(f"{path}: not valid JSON ({exc})") from None
+    data = read_json(path, HairParamsError, "no such parameter file", "not valid JSON ({exc})")
     try:
         return HairParams.from_dict(data)
     except HairParamsError as exc:
