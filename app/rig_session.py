@@ -262,8 +262,8 @@ def render_twin(params: HairParams, roi, frame_size, spp: int = 16, seed: int = 
 
 def compare(real_srgb: np.ndarray, synthetic_srgb: np.ndarray) -> tuple[float, np.ndarray]:
     """Mean-colour ΔE2000 between the real and synthetic swatch, and a difference image (x4)."""
-    from inference.calibration import srgb8_to_linear
     from render.metrics import mean_colour_delta_e
+    from render.srgb import srgb8_to_linear
 
     de = mean_colour_delta_e(srgb8_to_linear(real_srgb), srgb8_to_linear(synthetic_srgb))
     diff = np.clip(np.abs(real_srgb.astype(int) - synthetic_srgb.astype(int)) * 4, 0, 255).astype(np.uint8)

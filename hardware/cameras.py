@@ -14,6 +14,8 @@ from typing import Protocol
 import cv2
 import numpy as np
 
+from render.srgb import linear_to_srgb8
+
 IMAGE_EXTENSIONS = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"}
 RAW_EXTENSIONS = {".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2", ".pef", ".srw"}
 
@@ -36,11 +38,6 @@ class Camera(Protocol):
     def read(self) -> Frame: ...
 
     def close(self) -> None: ...
-
-
-def _srgb_from_linear(linear: np.ndarray) -> np.ndarray:
-    import colour
-    return np.round(colour.cctf_encoding(np.clip(linear, 0, 1), function="sRGB") * 255).astype(np.uint8)
 
 
 class OpenCVCamera:
@@ -136,4 +133,4 @@ def read_raw(path: str | os.PathLike) -> Frame:
     except (rawpy.LibRawError, OSError) as exc:
         raise CameraError(f"{path}: rawpy cannot read this RAW file ({exc}); is it complete?") from None
     linear = rgb16.astype(np.float32) / 65535.0
-    return Frame(_srgb_from_linear(linear), linear, meta)
+    return Frame(linear_to_srgb8(linear), linear, meta)

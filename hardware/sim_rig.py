@@ -14,7 +14,6 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import colour
 import numpy as np
 
 from hardware.cameras import Frame
@@ -22,6 +21,7 @@ from render import scenes
 from render.chart import colorchecker_reflectances
 from render.params import HairParams
 from render.renderer import Renderer, SceneSpec
+from render.srgb import linear_to_srgb8
 
 SIM_SIZE = (400, 300)
 #: The hidden swatch of the demo: a copper-dyed light brown.
@@ -45,7 +45,7 @@ class CameraModel:
 
 #: 12-bit linear code to 8-bit sRGB (colour-science's sRGB curve), so a frame costs one table lookup.
 _LUT_BITS = 4095
-_SRGB_LUT = np.round(colour.cctf_encoding(np.arange(_LUT_BITS + 1) / _LUT_BITS, function="sRGB") * 255).astype(np.uint8)
+_SRGB_LUT = linear_to_srgb8(np.arange(_LUT_BITS + 1) / _LUT_BITS)
 
 
 def sensor_response(linear: np.ndarray, model: CameraModel, rng: np.random.Generator) -> np.ndarray:

@@ -26,6 +26,7 @@ from render.files import read_json
 from render.chart import WHITE_PATCH, colorchecker_reflectances, rig_chart_targets
 from render.metrics import delta_e2000
 from render.params import write_json_atomic
+from render.srgb import linear_to_srgb8, srgb8_to_linear
 
 METHODS = ("Cheung 2004", "Finlayson 2015", "Vandermonde")
 DEFAULT_METHOD = "Finlayson 2015"
@@ -41,14 +42,6 @@ class ChartDetection:
     patches_srgb8: np.ndarray   # (24, 3) mean 8-bit sRGB of each patch, in the standard order
     box: np.ndarray             # (4, 2) corners of the chart in pixels
     cost: float
-
-
-def srgb8_to_linear(values: np.ndarray) -> np.ndarray:
-    return colour.cctf_decoding(np.asarray(values, float) / 255.0, function="sRGB")
-
-
-def linear_to_srgb8(values: np.ndarray) -> np.ndarray:
-    return np.round(colour.cctf_encoding(np.clip(values, 0, 1), function="sRGB") * 255).astype(np.uint8)
 
 
 def detect_chart(image_rgb8: np.ndarray) -> ChartDetection:

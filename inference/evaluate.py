@@ -16,19 +16,15 @@ import time
 from dataclasses import asdict
 from pathlib import Path
 
-import colour
 import numpy as np
 
 from inference.dataset import DatasetConfig, generate, load, sample_spec
 from render.metrics import delta_e2000, l1_255, mean_colour_delta_e, ms_ssim
 from render.params import VECTOR_FIELDS, HairParams, write_json_atomic
+from render.srgb import srgb8_to_linear
 
 EVAL_SEED = 1_000_003  # training datasets use small seeds; this one is disjoint by construction
 SPANS = np.array([hi - lo for _, lo, hi in VECTOR_FIELDS])
-
-
-def srgb8_to_linear(img: np.ndarray) -> np.ndarray:
-    return colour.cctf_decoding(img.astype(np.float64) / 255.0, function="sRGB")
 
 
 def image_metrics(original: np.ndarray, other: np.ndarray) -> dict[str, float]:

@@ -9,16 +9,16 @@ from __future__ import annotations
 import tempfile
 import threading
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
 
-import colour
 import numpy as np
 
 from render import scenes
 from render.absorption import hair_bsdf, hair_sigma_a
 from render.params import HairParams
+from render.srgb import linear_to_srgb8
 from render.strands import HAIRSTYLES, Strands, hairstyle_strands, swatch_strands
 from render.variant import is_jit, mi
 
@@ -102,12 +102,6 @@ class RenderResult:
     cpu_seconds: float = 0.0   # core-seconds of this process: robust to other load; ~2x wall on 2 idle cores
 
 
-def linear_to_srgb8(linear: np.ndarray) -> np.ndarray:
-    """Clip to [0, 1], apply the sRGB transfer function (colour-science) and quantise to 8 bits."""
-    encoded = colour.cctf_encoding(np.clip(linear, 0.0, 1.0), function="sRGB")
-    return np.round(encoded * 255.0).astype(np.uint8)
-
-
 def strands_for(spec: SceneSpec) -> Strands:
     if spec.name == "swatch":
         return swatch_strands(spec.n_strands, seed=spec.strand_seed)
@@ -180,6 +174,9 @@ class Renderer:
             position = (spec.pose.position(target) if spec.name == "swatch"
                         else scenes.portrait_camera_position(spec.pose))
             p["sensor.to_world"] = mi.AffineTransform4f(scenes.look_at(position, np.asarray(target)).matrix)
+            # the field of view follows the distance (the framing is fixed at the holder)
+            p["sensor.x_fov"] = (scenes.swatch_fov(spec.framing, spec.pose.distance, spec.half_width)
+                                 if spec.name == "swatch" else scenes.PORTRAIT_FOV)
             loaded.camera = spec.pose
         if spec.strand_seed != loaded.strand_seed:
             strands = strands_for(spec).with_dummy()
@@ -241,6 +238,3 @@ def render(params: HairParams, scene: SceneSpec | str = "swatch", size: int | No
     """Render with the process-wide :class:`Renderer`, reusing its loaded scenes."""
     return default_renderer().render(params, scene, size, spp, seed)
 
-
-def with_camera(spec: SceneSpec, pose: scenes.CameraPose) -> SceneSpec:
-    return replace(spec, camera=pose)

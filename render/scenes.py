@@ -176,14 +176,21 @@ def chart_patches(reflectances: np.ndarray, center=CHART_CENTER, patch=CHART_PAT
     return shapes
 
 
+def swatch_fov(framing: str, distance: float, half_width: float | None = None) -> float:
+    """Horizontal FOV (degrees) that shows ``half_width`` (or the framing's) at the holder from ``distance``."""
+    if half_width is None:
+        return framing_fov(framing, distance)
+    return float(np.degrees(2 * np.arctan(half_width / distance)))
+
+
+PORTRAIT_FOV = 36.0
+
+
 def swatch_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: int, framing: str = "crop",
                  max_depth: int = 16, lights=(1.0, 1.0, 1.0), chart: np.ndarray | None = None,
                  target=(0.0, 0.0, 0.0), half_width: float | None = None) -> dict:
     """The bench: holder, swatch, three lights and a camera on a sphere around the holder's normal."""
-    if half_width is None:
-        fov = framing_fov(framing, camera_pose.distance)
-    else:
-        fov = float(np.degrees(2 * np.arctan(half_width / camera_pose.distance)))
+    fov = swatch_fov(framing, camera_pose.distance, half_width)
     scene = {
         "type": "scene",
         "integrator": integrator(max_depth),
@@ -245,7 +252,7 @@ def portrait_scene(curve_file: str, bsdf: dict, size: int, env: str = "studio",
     return {
         "type": "scene",
         "integrator": integrator(max_depth),
-        "sensor": {**sensor(camera_pose, PORTRAIT_TARGET, size, 36.0),
+        "sensor": {**sensor(camera_pose, PORTRAIT_TARGET, size, PORTRAIT_FOV),
                    "to_world": look_at(position, np.asarray(PORTRAIT_TARGET))},
         "head": {"type": "sphere", "radius": 0.985,
                  "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(SKIN_ALBEDO)}}},

@@ -23,19 +23,20 @@ def test_samples_are_deterministic_and_in_range():
     assert 0 <= min(polars) and max(polars) <= 45 and np.mean(np.array(polars) > 30) > 0.2
 
 
-def test_dataset_is_the_same_whatever_the_sharding(tiny_dataset, tmp_path):
-    other = tmp_path / "other"
-    generate(DatasetConfig(**{**TINY, "shard_size": 3}), other, workers=1, progress=False)
-    # shard size is part of the manifest, so compare content, not files
-    a, pa, _, _ = load(tiny_dataset)
-    b, pb, _, _ = load(other)
-    assert np.array_equal(a, b) and np.array_equal(pa, pb) and a.shape == (8, 32, 32, 3)
+def test_dataset_is_the_same_whatever_the_sharding(tmp_path):
+    # both made here, back to back: Mitsuba 3.9.1 promises bit-identical images per loaded scene,
+    # not across separate builds (see test_render.py::test_updating_a_loaded_scene_matches_a_fresh_one)
+    generate(DatasetConfig(**TINY), tmp_path / "a", workers=1, progress=False)
+    generate(DatasetConfig(**{**TINY, "shard_size": 3}), tmp_path / "b", workers=1, progress=False)
+    a, pa, ca, _ = load(tmp_path / "a")
+    b, pb, cb, _ = load(tmp_path / "b")
+    assert np.array_equal(pa, pb) and np.array_equal(ca, cb)   # the draws
+    assert np.array_equal(a, b) and a.shape == (8, 32, 32, 3)   # and the renders
 
 
-def test_dataset_resumes_only_missing_shards(tiny_dataset, tmp_path):
-    import shutil
-    root = tmp_path / "copy"
-    shutil.copytree(tiny_dataset, root)
+def test_dataset_resumes_only_missing_shards(tmp_path):
+    root = tmp_path / "ds"
+    generate(DatasetConfig(**TINY), root, workers=1, progress=False)
     kept = shard_path(root, 0).stat().st_mtime_ns
     before = np.load(shard_path(root, 1))["images"].copy()
     shard_path(root, 1).unlink()

@@ -414,7 +414,7 @@ class MainWindow(QMainWindow):
         self.render_progress.setValue(0)
         if self.strand_view is not None:
             from render.absorption import approximate_albedo
-            from inference.calibration import linear_to_srgb8
+            from render.srgb import linear_to_srgb8
             colour = linear_to_srgb8(approximate_albedo(params) * 0.8)
             self.strand_view.show_strands(hairstyle_strands(style, 1500, seed=0), tuple(int(c) for c in colour))
 

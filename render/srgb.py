@@ -1,0 +1,16 @@
+"""8-bit sRGB and linear RGB, both ways, through colour-science's sRGB transfer functions."""
+from __future__ import annotations
+
+import colour
+import numpy as np
+
+
+def linear_to_srgb8(linear: np.ndarray) -> np.ndarray:
+    """Clip to [0, 1], apply the sRGB encoding curve and quantise to 8 bits."""
+    encoded = colour.cctf_encoding(np.clip(linear, 0.0, 1.0), function="sRGB")
+    return np.round(encoded * 255.0).astype(np.uint8)
+
+
+def srgb8_to_linear(srgb8: np.ndarray) -> np.ndarray:
+    """8-bit sRGB values (any shape) to linear RGB in [0, 1]."""
+    return colour.cctf_decoding(np.asarray(srgb8, dtype=np.float64) / 255.0, function="sRGB")
