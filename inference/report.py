@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from inference.evaluate import SPANS, _latency, evaluate
+from inference.evaluate import SPANS, evaluate
 from render.params import VECTOR_FIELDS, write_json_atomic
 
 
