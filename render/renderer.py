@@ -20,7 +20,7 @@ from render.absorption import hair_bsdf, hair_sigma_a
 from render.params import HairParams
 from render.srgb import linear_to_srgb8
 from render.strands import HAIRSTYLES, Strands, hairstyle_strands, swatch_strands
-from render.variant import is_jit, mi
+from render.variant import is_jit, load_scene, mi
 
 SCENE_NAMES = ("swatch",) + HAIRSTYLES
 
@@ -149,7 +149,7 @@ class Renderer:
                                              spec.depth, spec.lights, chart, spec.target, spec.half_width)
         else:
             scene_dict = scenes.portrait_scene(str(curve_file), bsdf, size, spec.env, spec.pose, spec.depth)
-        scene = mi.load_dict(scene_dict)
+        scene = load_scene(scene_dict)
         curve_file.unlink(missing_ok=True)
         return _Loaded(scene, mi.traverse(scene), spec.strand_seed, spec.pose)
 

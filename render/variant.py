@@ -43,3 +43,16 @@ def is_jit() -> bool:
 
 
 select_variant()
+
+
+def load_scene(scene_dict: dict):
+    """``mi.load_dict`` with the scene's objects in the dict's order, so a seed gives one image.
+
+    Mitsuba 3.9.1 orders a scene dict's shapes at random on each load (even with
+    ``parallel=False``), and the order of the emitters decides which light a random number
+    samples: two loads of one dict rendered different (equally valid) images. Objects that are
+    instantiated one by one keep the order in which they are given.
+    """
+    children = {key: value if key == "type" or not isinstance(value, dict) else mi.load_dict(value)
+                for key, value in scene_dict.items()}
+    return mi.load_dict(children)
