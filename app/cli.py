@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # torch's OpenMP spinning starves a 2-core CPU
@@ -65,9 +66,12 @@ def cmd_train(args: argparse.Namespace) -> int:
     from inference.model import EncoderConfig
     from inference.train import TrainConfig, train
 
-    history = train(args.dataset, args.out, EncoderConfig(args.width, args.blocks, args.input_size),
-                    TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, threads=args.threads,
-                                seed=args.seed), epochs_now=args.epochs_now)
+    config = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, threads=args.threads,
+                         seed=args.seed)
+    if args.appearance_weight is not None:
+        config = replace(config, appearance_weight=args.appearance_weight)
+    history = train(args.dataset, args.out, EncoderConfig(args.width, args.blocks, args.input_size), config,
+                    epochs_now=args.epochs_now)
     last = history["epochs"][-1]
     print(f"trained {history['parameters']} parameters for {last['epoch']} epochs: validation MSE "
           f"{last['val_mse']:.5f}; checkpoint and curve in {args.out}")
@@ -257,6 +261,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--input-size", type=int, default=64)
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--appearance-weight", type=float, default=None,
+                   help="weight of the fibre-colour loss term (default 4; 0: L2 on the parameters alone)")
     p.add_argument("--epochs-now", type=int, default=None, help="stop after this many epochs; run again to resume")
     p.set_defaults(func=cmd_train)
 

@@ -20,7 +20,7 @@ import numpy as np
 from render.files import publish
 
 from render.params import HairParams, sample_params
-from render.scenes import CAMERA_DISTANCE, CameraPose
+from render.scenes import CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
 
 MANIFEST = "manifest.json"
 
@@ -55,15 +55,31 @@ class SampleSpec:
 
 
 def sample_spec(config: DatasetConfig, index: int) -> SampleSpec:
-    """The parameters, camera and seeds of sample ``index``: uniform parameters, camera uniform on the cap."""
+    """The parameters, camera and seeds of sample ``index``: uniform parameters, camera uniform on the cap.
+
+    A camera drawn behind one of the rig lights (about 3% of a 45° cap) would see the light's dark
+    back; it is drawn again from a generator of its own, so every other sample is unchanged.
+    """
     rng = np.random.default_rng([config.seed, index])
     params = sample_params(rng)
+    camera = _draw_camera(config, rng)
+    strand_seed, render_seed = (int(v) for v in rng.integers(0, 2**31 - 1, size=2))
+    retry = 0
+    while light_blocks_view(camera, FRAMING_HALF_WIDTH.get(config.framing, FRAMING_HALF_WIDTH["crop"])):
+        retry += 1
+        if retry > 100:
+            raise ValueError(f"polar_max_deg {config.polar_max_deg} leaves almost no camera clear of the "
+                             "rig lights; use a smaller cap (45° is the default)")
+        camera = _draw_camera(config, np.random.default_rng([config.seed, index, retry]))
+    return SampleSpec(index, params, camera, strand_seed, render_seed)
+
+
+def _draw_camera(config: DatasetConfig, rng: np.random.Generator) -> CameraPose:
     cos_max = np.cos(np.radians(config.polar_max_deg))
     polar = float(np.degrees(np.arccos(rng.uniform(cos_max, 1.0))))  # uniform over the cap's area
     azimuth = float(rng.uniform(0.0, 360.0))
     distance = CAMERA_DISTANCE * float(rng.uniform(1 - config.distance_jitter, 1 + config.distance_jitter))
-    strand_seed, render_seed = (int(v) for v in rng.integers(0, 2**31 - 1, size=2))
-    return SampleSpec(index, params, CameraPose(polar, azimuth, distance), strand_seed, render_seed)
+    return CameraPose(polar, azimuth, distance)
 
 
 def shard_path(root: Path, shard: int) -> Path:

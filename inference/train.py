@@ -16,6 +16,7 @@ import numpy as np
 
 from inference.dataset import load
 from inference.preprocess import encode
+from render.scenes import FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
 
 
 @dataclass(frozen=True)
@@ -28,6 +29,7 @@ class TrainConfig:
     seed: int = 0
     threads: int = 2
     crop_min: float = 0.45   # smallest random crop, as a share of the image side
+    appearance_weight: float = 4.0   # weight of the fibre-colour term (inference/losses.py); 0: plain L2
 
 
 def augment(img: np.ndarray, size: int, rng: np.random.Generator, crop_min: float) -> np.ndarray:
@@ -48,6 +50,16 @@ def augment(img: np.ndarray, size: int, rng: np.random.Generator, crop_min: floa
     return encode(np.ascontiguousarray(crop), size)
 
 
+def usable(cameras: np.ndarray, framing: str = "crop") -> np.ndarray:
+    """Mask of samples whose camera sees the swatch, not the back of a rig light.
+
+    Datasets drawn before ``sample_spec`` redrew such cameras hold about 3% of them (black or part
+    black images with arbitrary labels); training skips them.
+    """
+    half_width = FRAMING_HALF_WIDTH.get(framing, FRAMING_HALF_WIDTH["crop"])
+    return np.array([not light_blocks_view(CameraPose(*c), half_width) for c in cameras], dtype=bool)
+
+
 def encode_all(images: np.ndarray, size: int) -> np.ndarray:
     return np.stack([encode(im, size) for im in images])
 
@@ -65,8 +77,9 @@ def train(dataset_dir: str | os.PathLike, out_dir: str | os.PathLike, encoder_co
     ``epochs_now`` stops after that many epochs in this call; calling again resumes.
     """
     import torch
-    from torch import nn
     from tqdm import tqdm
+
+    from inference.losses import appearance, encoder_loss
 
     from inference.model import EncoderConfig, HairEncoder, parameter_count
 
@@ -75,8 +88,10 @@ def train(dataset_dir: str | os.PathLike, out_dir: str | os.PathLike, encoder_co
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(config.threads)
     torch.manual_seed(config.seed)
-    images, params, _, manifest = load(dataset_dir)
+    images, params, cameras, manifest = load(dataset_dir)
     train_idx, val_idx = split(len(images), config.val_fraction, config.seed)
+    clear = usable(cameras, manifest["config"].get("framing", "crop"))
+    train_idx, val_idx = train_idx[clear[train_idx]], val_idx[clear[val_idx]]
     val_x = torch.from_numpy(encode_all(images[val_idx], encoder_config.input_size)).contiguous(
         memory_format=torch.channels_last)
     val_y = torch.from_numpy(params[val_idx])
@@ -87,7 +102,8 @@ def train(dataset_dir: str | os.PathLike, out_dir: str | os.PathLike, encoder_co
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=config.lr, total_steps=config.epochs * steps_per_epoch,
                                                 pct_start=0.15)
     history: dict = {"epochs": [], "encoder": encoder_config.to_dict(), "train": asdict(config),
-                     "dataset": {"path": str(dataset_dir), **manifest["config"], "n_loaded": int(len(images))},
+                     "dataset": {"path": str(dataset_dir), **manifest["config"], "n_loaded": int(len(images)),
+                                 "n_skipped_behind_light": int((~clear).sum())},
                      "parameters": parameter_count(model)}
     ckpt = out / "checkpoint.pt"
     start_epoch = 0
@@ -100,7 +116,6 @@ def train(dataset_dir: str | os.PathLike, out_dir: str | os.PathLike, encoder_co
         sched.load_state_dict(state["scheduler"])
         history = state["history"]
         start_epoch = state["epoch"] + 1
-    loss_fn = nn.MSELoss()
     last_epoch = config.epochs if epochs_now is None else min(config.epochs, start_epoch + epochs_now)
     for epoch in range(start_epoch, last_epoch):
         rng = np.random.default_rng([config.seed, epoch])
@@ -116,7 +131,7 @@ def train(dataset_dir: str | os.PathLike, out_dir: str | os.PathLike, encoder_co
                                            for i in idx])).contiguous(memory_format=torch.channels_last)
             y = torch.from_numpy(params[idx])
             pred, _ = model(x)
-            loss = loss_fn(pred, y)
+            loss = encoder_loss(pred, y, config.appearance_weight)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
@@ -127,12 +142,15 @@ def train(dataset_dir: str | os.PathLike, out_dir: str | os.PathLike, encoder_co
         with torch.no_grad():
             val_pred = torch.cat([model(val_x[i:i + 256])[0] for i in range(0, len(val_x), 256)])
         val_mse = float(((val_pred - val_y) ** 2).mean())
+        val_appearance = float(((appearance(val_pred) - appearance(val_y)) ** 2).mean())
         val_mae = (val_pred - val_y).abs().mean(0).tolist()
-        row = {"epoch": epoch + 1, "train_mse": total / len(train_idx), "val_mse": val_mse,
+        row = {"epoch": epoch + 1, "train_loss": total / len(train_idx), "val_mse": val_mse,
+               "val_appearance_mse": val_appearance,
                "val_mae": val_mae, "seconds": time.perf_counter() - t0, "lr": sched.get_last_lr()[0]}
         history["epochs"].append(row)
         if progress:
-            print(f"epoch {epoch + 1}/{config.epochs}: train {row['train_mse']:.5f}  val {val_mse:.5f}  "
+            print(f"epoch {epoch + 1}/{config.epochs}: train loss {row['train_loss']:.5f}  val MSE {val_mse:.5f}  "
+                  f"val appearance MSE {val_appearance:.5f}  "
                   f"({row['seconds']:.1f} s)", flush=True)
         tmp = ckpt.with_suffix(".tmp")
         torch.save({"model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
@@ -164,10 +182,13 @@ def plot_history(history: dict, path: Path) -> Path:
 
     rows = history["epochs"]
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.semilogy([r["epoch"] for r in rows], [r["train_mse"] for r in rows], label="train MSE (augmented)")
-    ax.semilogy([r["epoch"] for r in rows], [r["val_mse"] for r in rows], label="validation MSE")
+    epochs = [r["epoch"] for r in rows]
+    ax.semilogy(epochs, [r.get("train_loss", r.get("train_mse")) for r in rows], label="training loss (augmented)")
+    ax.semilogy(epochs, [r["val_mse"] for r in rows], label="validation MSE, parameters")
+    if "val_appearance_mse" in rows[-1]:
+        ax.semilogy(epochs, [r["val_appearance_mse"] for r in rows], label="validation MSE, fibre colour")
     ax.set_xlabel("epoch")
-    ax.set_ylabel("L2 loss, normalised parameters")
+    ax.set_ylabel("mean squared error")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()

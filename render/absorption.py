@@ -45,7 +45,7 @@ ROUGHNESS_RANGE = (0.05, 1.0)
 #: measured by rendering the swatch (L*: 64.8 59.3 53.7 48.2 42.6 37.0 31.5 26.0 20.4 14.9 9.3).
 MELANIN_REMAP = ((0.0, 0.0), (0.1, 0.03), (0.2, 0.063), (0.3, 0.097), (0.4, 0.14), (0.5, 0.21),
                  (0.6, 0.32), (0.7, 0.45), (0.8, 0.67), (0.9, 1.1), (1.0, 6.0))
-_MIN_DYE_ALBEDO = 1e-3
+MIN_DYE_ALBEDO = 1e-3
 
 
 def melanin_quantity(concentration: float) -> float:
@@ -60,11 +60,16 @@ def melanin_sigma_a(concentration: float, ratio: float) -> np.ndarray:
     return q * ratio * EUMELANIN_SIGMA_A + q * (1.0 - ratio) * PHEOMELANIN_SIGMA_A
 
 
+def chiang_denominator(azimuthal_roughness: float = AZIMUTHAL_ROUGHNESS) -> float:
+    """The roughness polynomial of Chiang 2016 eq. 9 (``sigma = (ln c / denominator)^2``)."""
+    b = float(np.clip(azimuthal_roughness, *ROUGHNESS_RANGE))
+    return 5.969 - 0.215 * b + 2.532 * b**2 - 10.73 * b**3 + 5.574 * b**4 + 0.245 * b**5
+
+
 def sigma_a_from_albedo(albedo: np.ndarray, azimuthal_roughness: float = AZIMUTHAL_ROUGHNESS) -> np.ndarray:
     """Chiang 2016 eq. 9: the absorption that gives a fibre this multiple-scattering albedo."""
-    b = float(np.clip(azimuthal_roughness, *ROUGHNESS_RANGE))
-    denom = 5.969 - 0.215 * b + 2.532 * b**2 - 10.73 * b**3 + 5.574 * b**4 + 0.245 * b**5
-    c = np.clip(np.asarray(albedo, dtype=float), _MIN_DYE_ALBEDO, 1.0)
+    denom = chiang_denominator(azimuthal_roughness)
+    c = np.clip(np.asarray(albedo, dtype=float), MIN_DYE_ALBEDO, 1.0)
     return (np.log(c) / denom) ** 2
 
 
@@ -97,6 +102,5 @@ def approximate_albedo(params: HairParams, azimuthal_roughness: float = AZIMUTHA
 
     ``c = exp(-sqrt(sigma_a) * denominator)``; exact for a lone dye, approximate for the sum.
     """
-    b = float(np.clip(azimuthal_roughness, *ROUGHNESS_RANGE))
-    denom = 5.969 - 0.215 * b + 2.532 * b**2 - 10.73 * b**3 + 5.574 * b**4 + 0.245 * b**5
+    denom = chiang_denominator(azimuthal_roughness)
     return np.exp(-np.sqrt(hair_sigma_a(params, azimuthal_roughness)) * denom)

@@ -121,6 +121,41 @@ def rig_lights(intensities=(1.0, 1.0, 1.0)) -> dict:
             for i, pos in enumerate(LIGHT_POSITIONS)}
 
 
+def light_corners(index: int) -> np.ndarray:
+    """(4, 3) corners of rig light ``index``, as ``rig_lights`` places it."""
+    position = LIGHT_DISTANCE * spherical_direction(*LIGHT_POSITIONS[index])
+    m = np.asarray(look_at(position, np.zeros(3)).matrix, dtype=float)
+    half = LIGHT_SIZE / 2
+    return np.array([m[:3, 3] + half * (sx * m[:3, 0] + sy * m[:3, 1]) for sx, sy in
+                     ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+
+
+def light_blocks_view(pose: CameraPose, half_width: float = FRAMING_HALF_WIDTH["crop"],
+                      target=(0.0, 0.0, 0.0), samples: int = 5) -> bool:
+    """Whether a rig light stands between the camera and the framed square of the holder.
+
+    The lights are one-sided softboxes at 50° from the normal: a camera behind one sees its dark
+    back (a black or part-black image). Rays go to a ``samples`` x ``samples`` grid over the square.
+    """
+    camera = pose.position(target)
+    grid = np.linspace(-half_width, half_width, samples)
+    ends = np.array([(target[0] + x, target[1] + y, target[2]) for x in grid for y in grid])
+    for i in range(len(LIGHT_POSITIONS)):
+        a, b, _, d = light_corners(i)
+        u, v = b - a, d - a
+        normal = np.cross(u, v)
+        rays = ends - camera
+        denom = rays @ normal
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = ((a - camera) @ normal) / denom
+        hits = camera + t[:, None] * rays
+        s1, s2 = (hits - a) @ u / (u @ u), (hits - a) @ v / (v @ v)
+        inside = (np.abs(denom) > 1e-12) & (t > 0) & (t < 1) & (s1 >= 0) & (s1 <= 1) & (s2 >= 0) & (s2 <= 1)
+        if inside.any():
+            return True
+    return False
+
+
 # The bench camera of the (simulated) rig: straight down on the holder, the swatch on the left and
 # a 6 x 4 colour chart on its right, in a 4:3 frame.
 CHART_CENTER = (1.35, 0.0)

@@ -11,6 +11,7 @@ from inference.encoder import Encoder
 from inference.preprocess import ImageError, Roi, find_swatch_roi, read_image, swatch_crop
 from render.params import HairParams
 from render.renderer import SceneSpec, render
+from render.scenes import CameraPose, light_blocks_view
 
 from conftest import TINY
 
@@ -19,8 +20,43 @@ def test_samples_are_deterministic_and_in_range():
     cfg = DatasetConfig(**TINY)
     a, b = sample_spec(cfg, 5), sample_spec(cfg, 5)
     assert a == b and sample_spec(cfg, 6) != a
-    polars = [sample_spec(DatasetConfig(n=400), i).camera.polar_deg for i in range(400)]
-    assert 0 <= min(polars) and max(polars) <= 45 and np.mean(np.array(polars) > 30) > 0.2
+    cameras = [sample_spec(DatasetConfig(n=400), i).camera for i in range(400)]
+    polars = np.array([c.polar_deg for c in cameras])
+    assert 0 <= min(polars) and max(polars) <= 45 and np.mean(polars > 30) > 0.2
+    assert not any(light_blocks_view(c) for c in cameras)   # about 12 of these 400 were drawn again
+
+
+def test_a_camera_behind_a_light_is_detected_and_skipped_in_training():
+    from inference.train import usable
+
+    behind = CameraPose(50.0, 90.0, 4.0)          # straight behind light 0 (polar 50°, azimuth 90°)
+    beside = CameraPose(50.0, 150.0, 4.0)         # between lights 0 and 1
+    assert light_blocks_view(behind) and not light_blocks_view(beside)
+    assert not light_blocks_view(CameraPose(0.0, 0.0, 4.0)) and not light_blocks_view(CameraPose(45.0, 30.0, 4.0))
+    assert usable(np.array([[50.0, 90.0, 4.0], [50.0, 150.0, 4.0]])).tolist() == [False, True]
+    # and the renderer agrees: the back of the light is what that camera sees
+    dark = render(HairParams((255, 255, 255), 0, 0, 0), SceneSpec("swatch", camera=behind, strands=300), 24, 2)
+    clear = render(HairParams((255, 255, 255), 0, 0, 0), SceneSpec("swatch", camera=beside, strands=300), 24, 2)
+    assert dark.srgb.mean() < 2 < 40 < clear.srgb.mean()
+
+
+def test_torch_absorption_matches_the_renderers():
+    """The appearance loss term must see exactly the ``sigma_a`` the renderer gets."""
+    import torch
+
+    from inference.losses import appearance, sigma_a
+    from render.absorption import approximate_albedo, hair_sigma_a
+
+    v = np.random.default_rng(0).random((300, 6))
+    v[:11, 4] = np.linspace(0, 1, 11)                 # every knot of the melanin remap
+    v[11:20, :3] = 0                                  # black dye: the clamped albedo
+    ref = np.array([hair_sigma_a(HairParams.from_vector(x)) for x in v])
+    assert np.allclose(sigma_a(torch.from_numpy(v)).numpy(), ref, rtol=1e-9, atol=1e-12)
+    albedo = np.array([approximate_albedo(HairParams.from_vector(x)) for x in v])
+    assert np.allclose(appearance(torch.from_numpy(v)).numpy() ** 3, albedo, atol=1e-5)
+    x = torch.from_numpy(v).requires_grad_()
+    appearance(x).sum().backward()
+    assert torch.isfinite(x.grad).all()
 
 
 def test_dataset_is_the_same_whatever_the_sharding(tmp_path):
