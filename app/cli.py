@@ -127,6 +127,17 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         return 0
 
     encoder = Encoder(args.model)
+    if args.noise_sweep:
+        from inference.noise_sweep import noise_sweep
+
+        spps = [int(v) for v in args.noise_sweep.split(",")]
+        data = args.data or prepare_heldout(Path(args.out) / "heldout", args.n, args.size, args.spp, args.workers)
+        for r in noise_sweep(encoder, data, args.out, spps, args.sweep_n):
+            print(f"{r['spp']:5d} spp ({r['render_s']:.2f} s/render): L1 {r['est_l1']:.2f} (floor "
+                  f"{r['floor_l1']:.2f}), mean-colour ΔE2000 {r['est_mean_colour_de2000']:.2f} "
+                  f"(floor {r['floor_mean_colour_de2000']:.2f})")
+        print(f"noise_sweep.csv and noise_sweep.png in {args.out}")
+        return 0
     summary = evaluate(encoder, args.out, n=args.n, size=args.size, spp=args.spp, workers=args.workers,
                        data_root=args.data, rerender=args.rerender)
     a = summary["buckets"]["all"]
@@ -287,6 +298,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rerender", type=int, default=None, help="re-render only the first N (default: all)")
     p.add_argument("--prepare-only", action="store_true",
                    help="render the held-out set and the noise floor only (no model needed); resumable")
+    p.add_argument("--noise-sweep", metavar="SPP,SPP,...",
+                   help="instead: re-render the first --sweep-n swatches at these spp (metrics against spp)")
+    p.add_argument("--sweep-n", type=int, default=10)
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--data", help="held-out dataset folder (default: OUT/heldout)")
     p.add_argument("--model", default=None)

@@ -59,13 +59,15 @@ def buckets(params: HairParams, polar_deg: float) -> list[str]:
     return out
 
 
-def _rerender(config: DatasetConfig, index: int, params: HairParams):
+def _rerender(config: DatasetConfig, index: int, params: HairParams, spp: int | None = None,
+              seed_offset: int = 1):
+    """Sample ``index``'s scene (camera, strand layout) with other hair; a new sampler seed by default."""
     from render.renderer import SceneSpec, default_renderer
 
     s = sample_spec(config, index)
     spec = SceneSpec("swatch", camera=s.camera, framing=config.framing, strands=config.strands,
                      strand_seed=s.strand_seed, max_depth=config.max_depth)
-    return default_renderer().render(params, spec, config.size, config.spp, s.render_seed + 1).srgb
+    return default_renderer().render(params, spec, config.size, spp or config.spp, s.render_seed + seed_offset).srgb
 
 
 def heldout_config(n: int, size: int, spp: int) -> DatasetConfig:

@@ -83,9 +83,21 @@ def _plot(rows: list[dict], path: Path) -> None:
     os.replace(tmp, path)
 
 
+def _loss_text(train: dict) -> str:
+    weight = train.get("appearance_weight", 0.0)
+    if not weight:
+        return "L2 on the normalised Table 1 vector"
+    return (f"L2 on the normalised Table 1 vector + {weight:g} x L2 on the fibre colour it renders "
+            "(cube-rooted Chiang albedo of sigma_a; inference/losses.py)")
+
+
 def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluation: dict,
                out_path: str | os.PathLike, variants: list[dict] | None = None) -> Path:
-    """Write the model card (Markdown) and its JSON twin beside the model."""
+    """Write the model card (Markdown) and its JSON twin beside the model.
+
+    A hand-written ``<card>-notes.md`` beside the card (how to read the figures, known limits) is
+    appended to it, so regenerating the card keeps them.
+    """
     from inference.encoder import sha256_file
 
     history = json.loads((Path(run_dir) / "history.json").read_text())
@@ -118,7 +130,7 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
         f"{history['encoder']['blocks']} blocks, input {history['encoder']['input_size']}² px, "
         f"{history['parameters']:,} parameters.",
         f"- Training: `hairdigi train`, AdamW (one-cycle, max lr {history['train']['lr']}), batch "
-        f"{history['train']['batch_size']}, L2 on the normalised Table 1 vector, {last['epoch']} epochs "
+        f"{history['train']['batch_size']}, {_loss_text(history['train'])}, {last['epoch']} epochs "
         f"({card['training']['seconds'] / 60:.0f} min on {history['train']['threads']} CPU threads); final "
         f"validation MSE {last['val_mse']:.5f}. Augmentation: random square crops ({history['train']['crop_min']}"
         f"–1 of the side), flips, quarter turns; never colour.",
@@ -152,8 +164,11 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
     if variants:
         lines += ["", "## Variants (`hairdigi bench encoder`)", "",
                   "| model | input | parameters | latency ms | L1 | ΔE2000 median |", "|---|---|---|---|---|---|"]
-        lines += [f"| {v['model']} | {v['input_size']}² | {v['parameters']:,} | {v['latency_ms']:.3f} | "
+        lines += [f"| {v['model']} | {int(v['input_size'])}² | {int(v['parameters']):,} | {v['latency_ms']:.3f} | "
                   f"{v['l1']:.2f} | {v['mean_colour_de2000_median']:.2f} |" for v in variants]
+    notes = out_path.with_name(f"{out_path.stem}-notes.md")
+    if notes.exists():
+        lines += ["", notes.read_text().rstrip()]
     tmp = out_path.with_name(f".{out_path.name}")
     tmp.write_text("\n".join(lines) + "\n")
     os.replace(tmp, out_path)

@@ -155,6 +155,19 @@ def test_swatch_area_is_found_in_a_rig_frame_and_crops_are_kept_whole():
     assert find_swatch_roi(noise) == Roi(0, 0, 64, 64)  # one material everywhere: taken as all hair
 
 
+def test_noise_sweep_floor_falls_with_spp(tiny_model, tmp_path):
+    from inference.evaluate import prepare_heldout
+    from inference.noise_sweep import noise_sweep
+
+    _, onnx_path, _ = tiny_model
+    root = prepare_heldout(tmp_path / "h", n=3, size=32, spp=2, workers=1, floors=0, progress=False)
+    rows = noise_sweep(Encoder(onnx_path), root, tmp_path / "sweep", spps=(2, 32), count=3, progress=False)
+    assert [r["spp"] for r in rows] == [2, 32] and rows[0]["swatches"] == 3
+    assert rows[1]["floor_l1"] < 0.6 * rows[0]["floor_l1"]          # 1/sqrt(16) = 0.25 for pure noise
+    assert rows[1]["est_l1"] >= rows[1]["floor_l1"] * 0.9            # an estimate does not beat the floor
+    assert (tmp_path / "sweep" / "noise_sweep.csv").exists() and (tmp_path / "sweep" / "noise_sweep.png").exists()
+
+
 def test_evaluate_reports_metrics_beside_the_floor(tiny_model, tmp_path):
     from inference.evaluate import evaluate
 
