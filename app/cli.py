@@ -262,7 +262,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_dataset)
 
     p = sub.add_parser("train", help="train the encoder on a dataset (resumable; needs the train extra)")
-    p.add_argument("--dataset", required=True)
+    p.add_argument("--dataset", required=True, nargs="+", help="one or more dataset folders (one image size)")
     p.add_argument("--out", required=True, help="run folder: checkpoint, history, curve")
     p.add_argument("--epochs", type=int, default=60)
     p.add_argument("--batch-size", type=int, default=32)

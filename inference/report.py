@@ -101,7 +101,7 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
     from inference.encoder import sha256_file
 
     history = json.loads((Path(run_dir) / "history.json").read_text())
-    ds = history["dataset"]
+    datasets = history.get("datasets") or [history["dataset"]]
     last = history["epochs"][-1]
     a = evaluation["buckets"]["all"]
     card = {
@@ -111,7 +111,7 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
                                         "average pooling, MLP 64, sigmoid over 6 normalised parameters"},
         "training": {**history["train"], "epochs_run": last["epoch"], "final_val_mse": last["val_mse"],
                      "seconds": sum(e["seconds"] for e in history["epochs"])},
-        "dataset": ds,
+        "datasets": datasets,
         "preprocessing": "8-bit sRGB; swatch area found or given; central square (whole image for all-hair "
                          "crops, 70% of the area for rig frames); area-resize to the input size; /255 - 0.5; "
                          "8 flips/quarter turns averaged at inference",
@@ -134,10 +134,14 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
         f"({card['training']['seconds'] / 60:.0f} min on {history['train']['threads']} CPU threads); final "
         f"validation MSE {last['val_mse']:.5f}. Augmentation: random square crops ({history['train']['crop_min']}"
         f"–1 of the side), flips, quarter turns; never colour.",
-        f"- Dataset: `hairdigi dataset --n {ds['n']} --size {ds['size']} --spp {ds['spp']} --seed {ds['seed']}`: "
-        f"uniform Table 1 parameters, cameras uniform on a {ds['polar_max_deg']}° cap (distance ±"
-        f"{100 * ds['distance_jitter']:.0f}%), a new strand layout per swatch, crop framing (all hair). "
-        f"{ds['n_loaded']} swatches loaded; {100 * history['train']['val_fraction']:.0f}% held for validation.",
+        "- Datasets: " + "; ".join(
+            f"`hairdigi dataset --n {ds['n']} --size {ds['size']} --spp {ds['spp']} --seed {ds['seed']}`"
+            for ds in datasets) +
+        f": uniform Table 1 parameters, cameras uniform on a {datasets[0]['polar_max_deg']}° cap (distance ±"
+        f"{100 * datasets[0]['distance_jitter']:.0f}%) clear of the rig lights, a new strand layout per swatch, "
+        f"crop framing (all hair). {sum(ds['n_loaded'] for ds in datasets)} swatches loaded, "
+        f"{history.get('n_skipped_behind_light', 0)} skipped (camera behind a light); "
+        f"{100 * history['train']['val_fraction']:.0f}% held for validation.",
         f"- Preprocessing: {card['preprocessing']}.", "",
         f"## Evaluation (`hairdigi evaluate`, {evaluation['n']} held-out swatches, seed {evaluation['seed']}, "
         f"{evaluation['size']}² at {evaluation['spp']} spp; image metrics on {evaluation['n_rerendered']})", "",

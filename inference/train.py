@@ -70,11 +70,25 @@ def split(n: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return np.sort(order[n_val:]), np.sort(order[:n_val])
 
 
-def train(dataset_dir: str | os.PathLike, out_dir: str | os.PathLike, encoder_config=None,
+def load_datasets(dataset_dirs) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
+    """One or more datasets of one image size, joined: images, parameters, cameras, their manifests' configs."""
+    dirs = [dataset_dirs] if isinstance(dataset_dirs, (str, os.PathLike)) else list(dataset_dirs)
+    parts = [load(d) for d in dirs]
+    sizes = {p[0].shape[1:] for p in parts}
+    if len(sizes) > 1:
+        raise ValueError(f"datasets {', '.join(map(str, dirs))} have different image sizes {sorted(sizes)}; "
+                         "train on datasets rendered at one --size")
+    configs = [{"path": str(d), **p[3]["config"], "n_loaded": int(len(p[0]))} for d, p in zip(dirs, parts)]
+    return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+            np.concatenate([p[2] for p in parts]), configs)
+
+
+def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
           config: TrainConfig = TrainConfig(), progress: bool = True, epochs_now: int | None = None) -> dict:
     """Train (or resume) and return the history; ``out_dir`` gets ``checkpoint.pt``, ``history.json``, a curve.
 
-    ``epochs_now`` stops after that many epochs in this call; calling again resumes.
+    ``dataset_dir`` is one dataset folder or a list of them (one image size; e.g. noisy and clean
+    renders together). ``epochs_now`` stops after that many epochs in this call; calling again resumes.
     """
     import torch
     from tqdm import tqdm
@@ -88,9 +102,9 @@ def train(dataset_dir: str | os.PathLike, out_dir: str | os.PathLike, encoder_co
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(config.threads)
     torch.manual_seed(config.seed)
-    images, params, cameras, manifest = load(dataset_dir)
+    images, params, cameras, datasets = load_datasets(dataset_dir)
     train_idx, val_idx = split(len(images), config.val_fraction, config.seed)
-    clear = usable(cameras, manifest["config"].get("framing", "crop"))
+    clear = usable(cameras, datasets[0].get("framing", "crop"))
     train_idx, val_idx = train_idx[clear[train_idx]], val_idx[clear[val_idx]]
     val_x = torch.from_numpy(encode_all(images[val_idx], encoder_config.input_size)).contiguous(
         memory_format=torch.channels_last)
@@ -102,8 +116,7 @@ def train(dataset_dir: str | os.PathLike, out_dir: str | os.PathLike, encoder_co
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=config.lr, total_steps=config.epochs * steps_per_epoch,
                                                 pct_start=0.15)
     history: dict = {"epochs": [], "encoder": encoder_config.to_dict(), "train": asdict(config),
-                     "dataset": {"path": str(dataset_dir), **manifest["config"], "n_loaded": int(len(images)),
-                                 "n_skipped_behind_light": int((~clear).sum())},
+                     "datasets": datasets, "n_skipped_behind_light": int((~clear).sum()),
                      "parameters": parameter_count(model)}
     ckpt = out / "checkpoint.pt"
     start_epoch = 0

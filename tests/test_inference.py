@@ -81,6 +81,18 @@ def test_dataset_resumes_only_missing_shards(tmp_path):
         generate(DatasetConfig(**{**TINY, "spp": 4}), root, workers=1, progress=False)
 
 
+def test_datasets_are_joined_for_training_and_sizes_must_agree(tiny_dataset, tmp_path):
+    from inference.train import load_datasets
+
+    images, params, cameras, configs = load_datasets([tiny_dataset, tiny_dataset])
+    assert images.shape == (16, 32, 32, 3) and len(params) == len(cameras) == 16
+    assert [c["n_loaded"] for c in configs] == [8, 8]
+    generate(DatasetConfig(**{**TINY, "n": 2, "size": 24, "shard_size": 2}), tmp_path / "small", workers=1,
+             progress=False)
+    with pytest.raises(ValueError, match="different image sizes.*one --size"):
+        load_datasets([tiny_dataset, tmp_path / "small"])
+
+
 def test_training_resumes_and_onnx_matches_torch(tiny_dataset, tiny_model, tmp_path):
     from inference.model import EncoderConfig
     from inference.train import TrainConfig, train
@@ -193,7 +205,7 @@ def test_encoder_bench_and_model_card(tiny_model, tmp_path):
     card = model_card(onnx_path, run, evaluation, tmp_path / "encoder.md", rows)
     text = card.read_text()
     assert Encoder(onnx_path).sha256 in text and "noise floor" in text and "not computed" in text
-    assert json.loads(card.with_suffix(".json").read_text())["dataset"]["n"] == 8
+    assert json.loads(card.with_suffix(".json").read_text())["datasets"][0]["n"] == 8
 
 
 def test_killed_run_leaves_no_orphan_workers_and_resumes(tmp_path):
