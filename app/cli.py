@@ -70,6 +70,8 @@ def cmd_train(args: argparse.Namespace) -> int:
                          seed=args.seed)
     if args.appearance_weight is not None:
         config = replace(config, appearance_weight=args.appearance_weight)
+    if args.blur_max is not None:
+        config = replace(config, blur_max=args.blur_max)
     history = train(args.dataset, args.out, EncoderConfig(args.width, args.blocks, args.input_size), config,
                     epochs_now=args.epochs_now)
     last = history["epochs"][-1]
@@ -274,6 +276,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--appearance-weight", type=float, default=None,
                    help="weight of the fibre-colour loss term (default 4; 0: L2 on the parameters alone)")
+    p.add_argument("--blur-max", type=float, default=None,
+                   help="largest augmentation blur in px (default 1.5; 0: none)")
     p.add_argument("--epochs-now", type=int, default=None, help="stop after this many epochs; run again to resume")
     p.set_defaults(func=cmd_train)
 

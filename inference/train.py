@@ -12,6 +12,7 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from inference.dataset import load
@@ -30,12 +31,17 @@ class TrainConfig:
     threads: int = 2
     crop_min: float = 0.45   # smallest random crop, as a share of the image side
     appearance_weight: float = 4.0   # weight of the fibre-colour term (inference/losses.py); 0: plain L2
+    blur_max: float = 1.5    # largest Gaussian blur (px): stands in for sources of higher resolution
 
 
-def augment(img: np.ndarray, size: int, rng: np.random.Generator, crop_min: float) -> np.ndarray:
-    """A random square crop (scale and position), flips and a quarter turn, encoded for the net.
+def augment(img: np.ndarray, size: int, rng: np.random.Generator, crop_min: float,
+            blur_max: float = 0.0) -> np.ndarray:
+    """A random square crop (scale and position), flips, a quarter turn and a blur, encoded for the net.
 
-    Colour is never augmented: the colour is what the encoder must read.
+    Colour is never augmented: the colour is what the encoder must read. The blur (sigma uniform in
+    [0, ``blur_max``] px) averages the render noise as a larger source image does when it is resized
+    to the input: without it, an encoder trained on 96² renders read 176² renders of the same swatches
+    2.8x worse (fibre-colour MSE 0.0024 against 0.00085) and too dark.
     """
     h = img.shape[0]
     side = int(round(h * rng.uniform(crop_min, 1.0)))
@@ -47,6 +53,9 @@ def augment(img: np.ndarray, size: int, rng: np.random.Generator, crop_min: floa
         crop = crop[::-1]
     if rng.random() < 0.5:
         crop = np.rot90(crop)
+    sigma = rng.uniform(0.0, blur_max) if blur_max else 0.0
+    if sigma > 0.05:
+        crop = cv2.GaussianBlur(np.ascontiguousarray(crop), (0, 0), sigma)
     return encode(np.ascontiguousarray(crop), size)
 
 
@@ -101,6 +110,7 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(config.threads)
+    cv2.setNumThreads(1)   # the augmentation's tiny images: OpenCV's own pool only competes with torch
     torch.manual_seed(config.seed)
     images, params, cameras, datasets = load_datasets(dataset_dir)
     train_idx, val_idx = split(len(images), config.val_fraction, config.seed)
@@ -140,8 +150,9 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
                    leave=False, dynamic_ncols=True)
         for step in bar:
             idx = order[step * config.batch_size:(step + 1) * config.batch_size]
-            x = torch.from_numpy(np.stack([augment(images[i], encoder_config.input_size, rng, config.crop_min)
-                                           for i in idx])).contiguous(memory_format=torch.channels_last)
+            x = torch.from_numpy(np.stack([augment(images[i], encoder_config.input_size, rng, config.crop_min,
+                                                   config.blur_max) for i in idx]))
+            x = x.contiguous(memory_format=torch.channels_last)
             y = torch.from_numpy(params[idx])
             pred, _ = model(x)
             loss = encoder_loss(pred, y, config.appearance_weight)

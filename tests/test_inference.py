@@ -81,6 +81,17 @@ def test_dataset_resumes_only_missing_shards(tmp_path):
         generate(DatasetConfig(**{**TINY, "spp": 4}), root, workers=1, progress=False)
 
 
+def test_blur_augmentation_averages_noise_and_keeps_the_colour():
+    from inference.train import augment
+
+    rng = np.random.default_rng(0)
+    noisy = np.clip(rng.normal([150, 90, 40], 40, (96, 96, 3)), 0, 255).astype(np.uint8)
+    sharp = augment(noisy, 48, np.random.default_rng(1), crop_min=1.0, blur_max=0.0)
+    blurred = [augment(noisy, 48, np.random.default_rng(k), crop_min=1.0, blur_max=1.5) for k in range(8)]
+    assert all(np.allclose(b.mean(axis=(1, 2)), sharp.mean(axis=(1, 2)), atol=1.5 / 255) for b in blurred)
+    assert np.mean([b.std(axis=(1, 2)).mean() for b in blurred]) < 0.8 * sharp.std(axis=(1, 2)).mean()
+
+
 def test_datasets_are_joined_for_training_and_sizes_must_agree(tiny_dataset, tmp_path):
     from inference.train import load_datasets
 
