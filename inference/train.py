@@ -1,4 +1,5 @@
-"""``hairdigi train``: fit the encoder to a synthetic dataset with an L2 loss in parameter space.
+"""``hairdigi train``: fit the encoder to synthetic datasets with an L2 loss in parameter space, plus
+an L2 loss on the fibre colour those parameters render (``inference/losses.py``).
 
 PyTorch on the CPU (the ``train`` extra). Start Python with ``OMP_WAIT_POLICY=PASSIVE``: on two
 cores, OpenMP's default spinning makes training 5-12x slower whenever another process takes a core.

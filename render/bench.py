@@ -21,7 +21,7 @@ from tqdm import tqdm
 
 from render.metrics import mean_colour_delta_e, rmse
 from render.params import HairParams
-from render.renderer import Renderer, SceneSpec
+from render.renderer import Renderer, SceneSpec, defaults_for
 
 
 @dataclass(frozen=True)
@@ -43,28 +43,33 @@ BENCH_HAIR = (
 
 
 def bench_cases(quick: bool = False) -> tuple[list[BenchCase], dict[tuple, tuple[int, int]]]:
-    """The cases, and the reference (spp, depth) for each (scene, size, strands)."""
+    """The cases, and the reference (spp, depth) for each (scene, size, strands).
+
+    Each sweep varies one setting around the scene's defaults (``renderer.DEFAULTS``): spp and
+    strands at the default depth, depth at the default spp.
+    """
     cases: list[BenchCase] = []
     refs: dict[tuple, tuple[int, int]] = {}
+    sw_depth, hs_depth = defaults_for("swatch").max_depth, defaults_for("straight").max_depth
     sw = [("swatch", 128, 2000), ("swatch", 256, 2000)] if not quick else [("swatch", 64, 500)]
     for scene, size, strands in sw:
         refs[(scene, size, strands)] = ((256 if size <= 128 else 128) if not quick else 64, 64)
         spps = (2, 4, 8, 16, 32, 64) if size <= 128 else (4, 16, 32)
         for spp in (spps if not quick else (2, 8)):
-            cases.append(BenchCase(scene, size, strands, spp, 16, "spp"))
-        for depth in (((4, 8, 32) if size <= 128 else (8,)) if not quick else (4,)):
+            cases.append(BenchCase(scene, size, strands, spp, sw_depth, "spp"))
+        for depth in (((4, 8, 16) if size <= 128 else (16,)) if not quick else (4,)):
             cases.append(BenchCase(scene, size, strands, 16 if not quick else 8, depth, "depth"))
         for n in ((250, 500, 1000, 4000) if not quick else (250,)):
             if size == 128 or quick:
-                cases.append(BenchCase(scene, size, n, 16 if not quick else 8, 16, "strands"))
+                cases.append(BenchCase(scene, size, n, 16 if not quick else 8, sw_depth, "strands"))
     hs = ("straight", 512, 4000) if not quick else ("straight", 64, 300)
-    refs[hs] = (48 if not quick else 16, 32)
+    refs[hs] = (48 if not quick else 16, 48)
     for spp in ((1, 2, 4, 16) if not quick else (1,)):
-        cases.append(BenchCase(hs[0], hs[1], hs[2], spp, 12, "spp"))
-    for depth in ((4, 8, 24) if not quick else (4,)):
+        cases.append(BenchCase(hs[0], hs[1], hs[2], spp, hs_depth, "spp"))
+    for depth in ((4, 8, 12) if not quick else (4,)):
         cases.append(BenchCase(hs[0], hs[1], hs[2], 4 if not quick else 1, depth, "depth"))
     for n in ((1000, 2000, 8000) if not quick else (150,)):
-        cases.append(BenchCase(hs[0], hs[1], n, 4 if not quick else 1, 12, "strands"))
+        cases.append(BenchCase(hs[0], hs[1], n, 4 if not quick else 1, hs_depth, "strands"))
     return cases, refs
 
 

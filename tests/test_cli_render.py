@@ -59,3 +59,18 @@ def test_demo_quick(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "calibration" in out and "ΔE2000 mean" in out and "capture:" in out and str(tmp_path) in out
     assert list((tmp_path / "session" / "captures").glob("*.png"))
+
+
+def test_bench_render_quick_writes_a_table_where_depth_matters(tmp_path, capsys):
+    """The benchmark's table and plot; too few bounces (depth 4) must show as colour error."""
+    import csv
+
+    assert main(["bench", "render", "--quick", "--out", str(tmp_path)]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "render_bench.csv")))
+    assert (tmp_path / "render_bench.png").stat().st_size > 0 and "cases" in capsys.readouterr().out
+    swatch = [r for r in rows if r["scene"] == "swatch"]
+    shallow = next(r for r in swatch if r["sweep"] == "depth")
+    deep = next(r for r in swatch if r["sweep"] == "spp" and r["spp"] == shallow["spp"])
+    assert int(shallow["depth"]) < int(deep["depth"])
+    assert float(shallow["mean_delta_e2000"]) > 2 * float(deep["mean_delta_e2000"])
+    assert all(float(r["seconds"]) > 0 for r in rows)
