@@ -188,7 +188,11 @@ def cmd_model_card(args: argparse.Namespace) -> int:
         with open(args.variants) as f:
             variants = [{k: (float(v) if k not in ("model",) else v) for k, v in row.items()}
                         for row in csv.DictReader(f)]
-    path = model_card(args.model, args.run, evaluation, args.out, variants)
+    sweep = None
+    if args.noise_sweep:
+        with open(args.noise_sweep) as f:
+            sweep = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+    path = model_card(args.model, args.run, evaluation, args.out, variants, sweep)
     print(f"wrote {path} and {path.with_suffix('.json')}")
     return 0
 
@@ -336,6 +340,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", default="resources/models/encoder.onnx")
     p.add_argument("--evaluation", required=True, help="evaluation.json from hairdigi evaluate")
     p.add_argument("--variants", help="encoder_bench.csv from hairdigi bench encoder")
+    p.add_argument("--noise-sweep", help="noise_sweep.csv from hairdigi evaluate --noise-sweep")
     p.add_argument("--out", default="resources/models/encoder.md")
     p.set_defaults(func=cmd_model_card)
 

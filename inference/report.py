@@ -92,7 +92,8 @@ def _loss_text(train: dict) -> str:
 
 
 def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluation: dict,
-               out_path: str | os.PathLike, variants: list[dict] | None = None) -> Path:
+               out_path: str | os.PathLike, variants: list[dict] | None = None,
+               noise_sweep: list[dict] | None = None) -> Path:
     """Write the model card (Markdown) and its JSON twin beside the model.
 
     A hand-written ``<card>-notes.md`` beside the card (how to read the figures, known limits) is
@@ -115,7 +116,7 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
         "preprocessing": "8-bit sRGB; swatch area found or given; central square (whole image for all-hair "
                          "crops, 70% of the area for rig frames); area-resize to the input size; /255 - 0.5; "
                          "8 flips/quarter turns averaged at inference",
-        "evaluation": evaluation, "variants": variants or [],
+        "evaluation": evaluation, "variants": variants or [], "noise_sweep": noise_sweep or [],
     }
     out_path = Path(out_path)
     write_json_atomic(out_path.with_suffix(".json"), card)
@@ -170,6 +171,14 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
                   "| model | input | parameters | latency ms | L1 | ΔE2000 median |", "|---|---|---|---|---|---|"]
         lines += [f"| {v['model']} | {int(v['input_size'])}² | {int(v['parameters']):,} | {v['latency_ms']:.3f} | "
                   f"{v['l1']:.2f} | {v['mean_colour_de2000_median']:.2f} |" for v in variants]
+    if noise_sweep:
+        lines += ["", f"## Noise sweep (`hairdigi evaluate --noise-sweep`, {int(noise_sweep[0]['swatches'])} "
+                  "held-out swatches re-rendered at each spp)", "",
+                  "| spp | render s | L1 | L1 floor | mean-colour ΔE2000 | floor | MS-SSIM | floor |",
+                  "|---|---|---|---|---|---|---|---|"]
+        lines += [f"| {int(r['spp'])} | {r['render_s']:.2f} | {r['est_l1']:.2f} | {r['floor_l1']:.2f} | "
+                  f"{r['est_mean_colour_de2000']:.2f} | {r['floor_mean_colour_de2000']:.2f} | "
+                  f"{r['est_ms_ssim']:.3f} | {r['floor_ms_ssim']:.3f} |" for r in noise_sweep]
     notes = out_path.with_name(f"{out_path.stem}-notes.md")
     if notes.exists():
         lines += ["", notes.read_text().rstrip()]

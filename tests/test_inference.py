@@ -213,9 +213,14 @@ def test_encoder_bench_and_model_card(tiny_model, tmp_path):
     assert rows[0]["latency_ms"] > 0 and rows[0]["parameters"] > 1000 and rows[0]["l1_floor"] > 0
     assert (tmp_path / "bench" / "encoder_bench.png").stat().st_size > 0
     evaluation = json.loads((tmp_path / "bench" / "encoder" / "evaluation.json").read_text())
-    card = model_card(onnx_path, run, evaluation, tmp_path / "encoder.md", rows)
+    (tmp_path / "encoder-notes.md").write_text("## Known limits\n- a hand-written note\n")
+    sweep = [{"spp": 4, "swatches": 2, "render_s": 0.1, "est_l1": 9.0, "floor_l1": 8.0, "est_ms_ssim": 0.5,
+              "floor_ms_ssim": 0.6, "est_mean_colour_de2000": 1.5, "floor_mean_colour_de2000": 0.2}]
+    card = model_card(onnx_path, run, evaluation, tmp_path / "encoder.md", rows, sweep)
     text = card.read_text()
     assert Encoder(onnx_path).sha256 in text and "noise floor" in text and "not computed" in text
+    assert "a hand-written note" in text and "| 4 | 0.10 | 9.00 | 8.00 |" in text
+    assert "fibre colour" in text   # the loss is named
     assert json.loads(card.with_suffix(".json").read_text())["datasets"][0]["n"] == 8
 
 
