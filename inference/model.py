@@ -17,7 +17,7 @@ from torch import nn
 class EncoderConfig:
     width: int = 16        # channels of the first block; each block doubles them
     blocks: int = 4        # strided blocks: the input is downsampled by 2**blocks
-    input_size: int = 64   # side of the square input in pixels
+    input_size: int = 48   # side of the square input in pixels
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -23,7 +23,7 @@ from render.scenes import FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
 
 @dataclass(frozen=True)
 class TrainConfig:
-    epochs: int = 60
+    epochs: int = 100
     batch_size: int = 32
     lr: float = 2e-3
     weight_decay: float = 1e-4
