@@ -132,9 +132,9 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
         f"{history['parameters']:,} parameters.",
         f"- Training: `hairdigi train`, AdamW (one-cycle, max lr {history['train']['lr']}), batch "
         f"{history['train']['batch_size']}, {_loss_text(history['train'])}, {last['epoch']} epochs "
-        f"({card['training']['seconds'] / 60:.0f} min on {history['train']['threads']} CPU threads); final "
+        f"({card['training']['seconds'] / 60:.0f} min on {history['train']['threads']} CPU thread(s)); final "
         f"validation MSE {last['val_mse']:.5f}. Augmentation: random square crops ({history['train']['crop_min']}"
-        f"–1 of the side), flips, quarter turns; never colour.",
+        f"–1 of the side), flips, quarter turns, a blur of sigma 0–{history['train'].get('blur_max', 0)} px; never colour.",
         "- Datasets: " + "; ".join(
             f"`hairdigi dataset --n {ds['n']} --size {ds['size']} --spp {ds['spp']} --seed {ds['seed']}`"
             for ds in datasets) +
