@@ -65,13 +65,27 @@ def sample_spec(config: DatasetConfig, index: int) -> SampleSpec:
     camera = _draw_camera(config, rng)
     strand_seed, render_seed = (int(v) for v in rng.integers(0, 2**31 - 1, size=2))
     retry = 0
-    while light_blocks_view(camera, FRAMING_HALF_WIDTH.get(config.framing, FRAMING_HALF_WIDTH["crop"])):
+    while not camera_is_clear(camera, config.framing):
         retry += 1
         if retry > 100:
             raise ValueError(f"polar_max_deg {config.polar_max_deg} leaves almost no camera clear of the "
                              "rig lights; use a smaller cap (45° is the default)")
         camera = _draw_camera(config, np.random.default_rng([config.seed, index, retry]))
     return SampleSpec(index, params, camera, strand_seed, render_seed)
+
+
+def camera_is_clear(camera: CameraPose, framing: str = "crop") -> bool:
+    """Whether the camera sees the framed swatch rather than the back of a rig light."""
+    return not light_blocks_view(camera, FRAMING_HALF_WIDTH.get(framing, FRAMING_HALF_WIDTH["crop"]))
+
+
+def usable(cameras: np.ndarray, framing: str = "crop") -> np.ndarray:
+    """Mask of stored samples (rows of polar°, azimuth°, distance) whose camera is clear of the lights.
+
+    Datasets drawn before ``sample_spec`` redrew blocked cameras hold about 3% of them (black or part
+    black images with arbitrary labels); training skips them.
+    """
+    return np.array([camera_is_clear(CameraPose(*c), framing) for c in cameras], dtype=bool)
 
 
 def _draw_camera(config: DatasetConfig, rng: np.random.Generator) -> CameraPose:

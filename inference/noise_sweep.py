@@ -14,9 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from inference.dataset import load
+from inference.dataset import load, usable
 from inference.evaluate import _rerender, _whole, heldout_config, image_metrics
-from inference.train import usable
 from render.params import HairParams
 
 METRICS = ("l1", "l1_blocks4", "mean_colour_de2000", "pixel_de2000", "ms_ssim")
@@ -31,7 +30,7 @@ def noise_sweep(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLik
 
     images, vectors, cameras, _ = load(data_root)
     config = heldout_config(len(images), images.shape[1], 4)
-    indices = [i for i in np.flatnonzero(usable(cameras))[:count]]
+    indices = np.flatnonzero(usable(cameras))[:count].tolist()
     estimates = {i: encoder.estimate(images[i], roi=_whole(images[i]), views=True).params for i in indices}
     rows = []
     for spp in tqdm(spps, desc="noise sweep", unit="spp", disable=not progress):

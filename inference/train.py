@@ -16,9 +16,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from inference.dataset import load
+from inference.dataset import load, usable
 from inference.preprocess import encode
-from render.scenes import FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
 
 
 @dataclass(frozen=True)
@@ -58,16 +57,6 @@ def augment(img: np.ndarray, size: int, rng: np.random.Generator, crop_min: floa
     if sigma > 0.05:
         crop = cv2.GaussianBlur(np.ascontiguousarray(crop), (0, 0), sigma)
     return encode(np.ascontiguousarray(crop), size)
-
-
-def usable(cameras: np.ndarray, framing: str = "crop") -> np.ndarray:
-    """Mask of samples whose camera sees the swatch, not the back of a rig light.
-
-    Datasets drawn before ``sample_spec`` redrew such cameras hold about 3% of them (black or part
-    black images with arbitrary labels); training skips them.
-    """
-    half_width = FRAMING_HALF_WIDTH.get(framing, FRAMING_HALF_WIDTH["crop"])
-    return np.array([not light_blocks_view(CameraPose(*c), half_width) for c in cameras], dtype=bool)
 
 
 def encode_all(images: np.ndarray, size: int) -> np.ndarray:

@@ -27,7 +27,7 @@ def test_samples_are_deterministic_and_in_range():
 
 
 def test_a_camera_behind_a_light_is_detected_and_skipped_in_training():
-    from inference.train import usable
+    from inference.dataset import usable
 
     behind = CameraPose(50.0, 90.0, 4.0)          # straight behind light 0 (polar 50°, azimuth 90°)
     beside = CameraPose(50.0, 150.0, 4.0)         # between lights 0 and 1
