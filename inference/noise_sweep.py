@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from inference.dataset import load, usable
-from inference.evaluate import _rerender, _whole, heldout_config, image_metrics
+from inference.dataset import DatasetConfig, load, usable
+from inference.evaluate import _rerender, _whole, image_metrics
 from render.params import HairParams
 
 METRICS = ("l1", "l1_blocks4", "mean_colour_de2000", "pixel_de2000", "ms_ssim")
@@ -28,8 +28,8 @@ def noise_sweep(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLik
 
     from render.bench import write_csv_atomic
 
-    images, vectors, cameras, _ = load(data_root)
-    config = heldout_config(len(images), images.shape[1], 4)
+    images, vectors, cameras, manifest = load(data_root)
+    config = DatasetConfig(**manifest["config"])   # the held-out set's own scene settings
     indices = np.flatnonzero(usable(cameras))[:count].tolist()
     estimates = {i: encoder.estimate(images[i], roi=_whole(images[i]), views=True).params for i in indices}
     rows = []

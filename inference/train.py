@@ -77,6 +77,10 @@ def load_datasets(dataset_dirs) -> tuple[np.ndarray, np.ndarray, np.ndarray, lis
     if len(sizes) > 1:
         raise ValueError(f"datasets {', '.join(map(str, dirs))} have different image sizes {sorted(sizes)}; "
                          "train on datasets rendered at one --size")
+    framings = {p[3]["config"].get("framing", "crop") for p in parts}
+    if len(framings) > 1:
+        raise ValueError(f"datasets {', '.join(map(str, dirs))} mix framings {sorted(framings)}; "
+                         "train on datasets of one framing")
     configs = [{"path": str(d), **p[3]["config"], "n_loaded": int(len(p[0]))} for d, p in zip(dirs, parts)]
     return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
             np.concatenate([p[2] for p in parts]), configs)

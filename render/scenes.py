@@ -6,6 +6,7 @@ renderer updates those through ``mi.traverse`` without reloading the scene.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -116,18 +117,24 @@ def integrator(max_depth: int) -> dict:
 
 def rig_lights(intensities=(1.0, 1.0, 1.0)) -> dict:
     """The three bench lights, keyed ``light0``–``light2``."""
-    return {f"light{i}": area_light(LIGHT_DISTANCE * spherical_direction(*pos), (0, 0, 0), LIGHT_SIZE,
-                                    LIGHT_RADIANCE * float(intensities[i]))
-            for i, pos in enumerate(LIGHT_POSITIONS)}
+    return {f"light{i}": area_light(light_position(i), (0, 0, 0), LIGHT_SIZE, LIGHT_RADIANCE * float(intensities[i]))
+            for i in range(len(LIGHT_POSITIONS))}
 
 
+def light_position(index: int) -> np.ndarray:
+    """Centre of rig light ``index`` (it faces the holder's centre)."""
+    return LIGHT_DISTANCE * spherical_direction(*LIGHT_POSITIONS[index])
+
+
+@functools.lru_cache(maxsize=None)
 def light_corners(index: int) -> np.ndarray:
-    """(4, 3) corners of rig light ``index``, as ``rig_lights`` places it."""
-    position = LIGHT_DISTANCE * spherical_direction(*LIGHT_POSITIONS[index])
-    m = np.asarray(look_at(position, np.zeros(3)).matrix, dtype=float)
+    """(4, 3) corners of rig light ``index``, as ``rig_lights`` places it (read-only, cached)."""
+    m = np.asarray(look_at(light_position(index), np.zeros(3)).matrix, dtype=float)
     half = LIGHT_SIZE / 2
-    return np.array([m[:3, 3] + half * (sx * m[:3, 0] + sy * m[:3, 1]) for sx, sy in
-                     ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+    corners = np.array([m[:3, 3] + half * (sx * m[:3, 0] + sy * m[:3, 1]) for sx, sy in
+                        ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+    corners.setflags(write=False)
+    return corners
 
 
 def light_blocks_view(pose: CameraPose, half_width: float = FRAMING_HALF_WIDTH["crop"],

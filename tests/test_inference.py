@@ -102,6 +102,10 @@ def test_datasets_are_joined_for_training_and_sizes_must_agree(tiny_dataset, tmp
              progress=False)
     with pytest.raises(ValueError, match="different image sizes.*one --size"):
         load_datasets([tiny_dataset, tmp_path / "small"])
+    generate(DatasetConfig(**{**TINY, "n": 2, "framing": "rig", "shard_size": 2}), tmp_path / "rig", workers=1,
+             progress=False)
+    with pytest.raises(ValueError, match="mix framings.*one framing"):
+        load_datasets([tiny_dataset, tmp_path / "rig"])
 
 
 def test_training_resumes_and_onnx_matches_torch(tiny_dataset, tiny_model, tmp_path):
