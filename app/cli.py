@@ -10,6 +10,22 @@ from pathlib import Path
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # torch's OpenMP spinning starves a 2-core CPU
 
 
+def _interrupted_at_start(signum, frame) -> None:
+    """Ctrl-C before ``main`` takes over (the program is still importing): one line, exit 130."""
+    try:
+        prog = _prog(sys.argv[1:])
+    except NameError:   # still loading this module
+        prog = "hairdigi"
+    sys.stderr.write(f"{prog}: interrupted\n")
+    os._exit(130)
+
+
+if __name__ == "__main__" or Path((sys.argv or [""])[0]).name == "hairdigi":   # a program, not a library import
+    import signal
+
+    signal.signal(signal.SIGINT, _interrupted_at_start)
+
+
 class CliError(Exception):
     """A user-facing error: printed as one line, exit status 2."""
 
@@ -33,7 +49,10 @@ def cmd_render(args: argparse.Namespace) -> int:
     result = render(params, spec, args.size, args.spp, args.seed)
     save_png(args.out, result.srgb)
     print(f"wrote {args.out} ({result.srgb.shape[1]}x{result.srgb.shape[0]}, {result.spp} spp, "
-          f"{result.seconds:.2f} s)")
+          f"{result.seconds:.2f} s, {result.nonfinite} non-finite values)")
+    if result.nonfinite:
+        print(f"warning: the path tracer returned {result.nonfinite} NaN or Inf values, written as 0 (black); "
+              f"the image may have dark specks", file=sys.stderr)
     if args.exr:
         save_exr(args.exr, result.linear)
         print(f"wrote {args.exr} (linear RGB)")
@@ -55,8 +74,10 @@ def cmd_dataset(args: argparse.Namespace) -> int:
     # record the resolved strand count and depth, so the manifest stays true if the defaults change
     config = DatasetConfig(n=args.n, size=args.size, spp=args.spp, seed=args.seed,
                            strands=args.strands or defaults_for("swatch").strands,
-                           max_depth=args.depth or defaults_for("swatch").max_depth, shard_size=args.shard_size)
-    out = Path(args.out) if args.out else _cache_dir() / "datasets" / f"swatch-s{args.seed}-{args.size}px-{args.spp}spp"
+                           max_depth=args.depth or defaults_for("swatch").max_depth, shard_size=args.shard_size,
+                           store=args.store)
+    out = Path(args.out) if args.out else (_cache_dir() / "datasets" /
+                                           f"swatch-s{args.seed}-{args.size}px-{args.spp}spp-{args.store}")
     generate(config, out, workers=args.workers)
     print(f"dataset complete: {config.n} swatches in {out}")
     return 0
@@ -98,16 +119,22 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     from inference.preprocess import Roi
     from render.params import write_json_atomic
 
+    from render.scenes import RIG_SWATCH_POSE, CameraPose
+
     encoder = Encoder(args.model)
     roi = Roi.parse(args.roi) if args.roi else None
-    estimate, record, _ = estimate_file(args.image, encoder, roi, args.calibration)
+    camera = CameraPose.parse(args.camera, RIG_SWATCH_POSE.distance) if args.camera else RIG_SWATCH_POSE
+    estimate, record, _ = estimate_file(args.image, encoder, roi, args.calibration, camera,
+                                        refine_colour=not args.no_refine)
     write_json_atomic(args.out, record)
     p = estimate.params
+    refined = estimate.refinement
+    how = (f"refined in {refined.seconds:.2f} s, residual ΔE2000 {refined.residual_de2000:.2f}" if refined
+           else "encoder alone")
     print(f"dye rgb {tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
-          f"{p.melanin_concentration:.2f} (ratio {p.melanin_ratio:.2f}); wrote {args.out}")
-    if estimate.at_range_edge:
-        print(f"warning: the estimate reached the edge of the range for {', '.join(estimate.at_range_edge)}: "
-              f"the swatch may be outside what the model was trained on", file=sys.stderr)
+          f"{p.melanin_concentration:.2f} (ratio {p.melanin_ratio:.2f}); {how}; wrote {args.out}")
+    for warning in estimate.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
     if args.render:
         from render.imageio import save_png
         from render.renderer import SceneSpec, render
@@ -115,6 +142,12 @@ def cmd_estimate(args: argparse.Namespace) -> int:
         result = render(p, SceneSpec("swatch", framing="rig"), 256, 32, seed=0)
         save_png(args.render, result.srgb)
         print(f"wrote {args.render}")
+    if args.calibration:
+        from inference.calibration import calibration_warnings
+
+        for warning in calibration_warnings(args.calibration, args.image):
+            if not any(warning.split(";")[0] in said for said in estimate.warnings):   # not said twice
+                print(f"warning: {warning}", file=sys.stderr)
     return 0
 
 
@@ -122,31 +155,35 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from inference.encoder import Encoder
     from inference.evaluate import evaluate, prepare_heldout
 
+    data = Path(args.data) if args.data else _cache_dir() / "datasets" / (
+        f"heldout-s1000003-{args.size}px-{args.spp}spp-linear16")
     if args.prepare_only:
-        root = prepare_heldout(args.data or Path(args.out) / "heldout", args.n, args.size, args.spp, args.workers,
-                               floors=args.rerender)
-        print(f"held-out swatches and noise-floor renders ready in {root}")
+        root = prepare_heldout(data, args.n, args.size, args.spp, args.workers)
+        print(f"held-out swatches and the truth's judge renders ready in {root}")
         return 0
-
     encoder = Encoder(args.model)
-    if args.noise_sweep:
-        from inference.noise_sweep import noise_sweep
+    if args.convergence:
+        from inference.convergence import convergence_sweep
 
-        spps = [int(v) for v in args.noise_sweep.split(",")]
-        data = args.data or prepare_heldout(Path(args.out) / "heldout", args.n, args.size, args.spp, args.workers)
-        for r in noise_sweep(encoder, data, args.out, spps, args.sweep_n):
-            print(f"{r['spp']:5d} spp ({r['render_s']:.2f} s/render): L1 {r['est_l1']:.2f} (floor "
-                  f"{r['floor_l1']:.2f}), mean-colour ΔE2000 {r['est_mean_colour_de2000']:.2f} "
-                  f"(floor {r['floor_mean_colour_de2000']:.2f})")
-        print(f"noise_sweep.csv and noise_sweep.png in {args.out}")
+        prepare_heldout(data, args.n, args.size, args.spp, args.workers)
+        spps = [int(v) for v in args.convergence.split(",")]
+        for r in convergence_sweep(encoder, data, args.out, spps, args.sweep_n):
+            print(f"input {r['spp']:4d} spp ({r['render_s']:.2f} s/render): mean-colour ΔE2000 median encoder "
+                  f"{r['encoder_de_median']:.2f}, refined {r['refined_de_median']:.2f} (p95 "
+                  f"{r['encoder_de_p95']:.2f} / {r['refined_de_p95']:.2f})")
+        print(f"convergence.csv and convergence.png in {args.out}")
         return 0
     summary = evaluate(encoder, args.out, n=args.n, size=args.size, spp=args.spp, workers=args.workers,
-                       data_root=args.data, rerender=args.rerender)
+                       data_root=data, refine_colour=not args.no_refine)
     a = summary["buckets"]["all"]
-    print(f"{summary['n']} held-out swatches: L1 {a['est_l1']['mean']:.2f} (floor {a['floor_l1']['mean']:.2f}), "
-          f"mean-colour ΔE2000 median {a['est_mean_colour_de2000']['median']:.2f} "
-          f"(floor {a['floor_mean_colour_de2000']['median']:.2f}); encoder "
-          f"{summary['latency_ms_median_1_thread']:.3f} ms; report in {args.out}")
+    for who in ("encoder", "refined"):
+        if f"{who}_mean_colour_de2000" in a:
+            de = a[f"{who}_mean_colour_de2000"]
+            print(f"{who}: mean-colour ΔE2000 median {de['median']:.2f}, p95 {de['p95']:.2f}, worst {de['max']:.2f}; "
+                  f"L1 {a[f'{who}_l1']['mean']:.2f}")
+    print(f"{summary['n']} held-out swatches (floor ΔE2000 median {a['floor_mean_colour_de2000']['median']:.2f}, "
+          f"L1 {a['floor_l1']['mean']:.2f}); encoder {summary['latency_ms_median_1_thread']:.3f} ms; "
+          f"68% interval coverage {summary['coverage']}; report in {args.out}")
     return 0
 
 
@@ -179,36 +216,57 @@ def cmd_app(args: argparse.Namespace) -> int:
 def cmd_model_card(args: argparse.Namespace) -> int:
     import csv
     import json
+    import shutil
 
     from inference.report import model_card
 
+    def table(path):
+        if not path:
+            return None
+        with open(path) as f:
+            return [{k: (v if k == "model" else float(v)) for k, v in row.items()} for row in csv.DictReader(f)]
+
     evaluation = json.loads(Path(args.evaluation).read_text())
-    variants = None
-    if args.variants:
-        with open(args.variants) as f:
-            variants = [{k: (float(v) if k not in ("model",) else v) for k, v in row.items()}
-                        for row in csv.DictReader(f)]
-    sweep = None
-    if args.noise_sweep:
-        with open(args.noise_sweep) as f:
-            sweep = [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
-    path = model_card(args.model, args.run, evaluation, args.out, variants, sweep)
+    rig_set = json.loads(Path(args.rig).read_text()) if args.rig else None
+    path = model_card(args.model, args.run, evaluation, args.out, table(args.variants), table(args.convergence),
+                      table(args.refine_bench), rig_set)
+    intervals = Path(args.evaluation).with_name("uncertainty.json")
+    if intervals.exists():   # the measured intervals ship beside the model they were measured for
+        shutil.copyfile(intervals, Path(args.out).with_name("uncertainty.json"))
     print(f"wrote {path} and {path.with_suffix('.json')}")
     return 0
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
     out = Path(args.out)
+    if args.what == "refine":
+        from inference.bench_refine import bench_refine
+        from inference.encoder import Encoder
+
+        data = Path(args.data) if args.data else _cache_dir() / "datasets" / "heldout-s1000003-64px-64spp-linear16"
+        rows = bench_refine(Encoder(args.model), data, out, count=args.n or 10)
+        for r in rows:
+            print(f"{r['size']:3d}² {r['spp']:3d} spp, {r['iterations']} iteration(s): ΔE2000 median "
+                  f"{r['de_median']:.2f} (p95 {r['de_p95']:.2f}); curve {r['curve_s']:.2f} s + {r['polish_s']:.2f} s")
+        print(f"wrote {out / 'refine_bench.csv'} and {out / 'refine_bench.png'}")
+        return 0
     if args.what == "encoder":
         from inference.report import bench_encoders
 
         if not args.models:
             raise CliError("bench encoder needs --models A.onnx B.onnx ...")
-        rows = bench_encoders(args.models, out, n=args.n, rerender=args.rerender, data_root=args.data)
+        rows = bench_encoders(args.models, out, n=args.n or 300, data_root=args.data)
         for r in rows:
             print(f"{r['model']}: {r['latency_ms']:.3f} ms, L1 {r['l1']:.2f} (floor {r['l1_floor']:.2f}), "
                   f"ΔE2000 median {r['mean_colour_de2000_median']:.2f}")
         print(f"wrote {out / 'encoder_bench.csv'} and {out / 'encoder_bench.png'}")
+        return 0
+    if args.what == "rig" and args.estimate:
+        from app.rig_cli import estimate_sweep
+
+        summary = estimate_sweep(out)
+        print(summary["text"])
+        print(f"wrote {out / 'rig_estimates.csv'} and {out / 'rig_estimates.json'}")
         return 0
     if args.what == "rig":
         from app.rig_cli import detection_sweep
@@ -227,25 +285,39 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from render.renderer import SCENE_NAMES
-    from render.scenes import ENVIRONMENTS
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a usage error as one line (what is wrong, and where help is), exit status 2."""
 
-    parser = argparse.ArgumentParser(prog="hairdigi", description=__doc__)
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message}; see {self.prog} --help\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from app import validation as v
+    from render.renderer import (MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH, MIN_SIZE,
+                                 SCENE_NAMES)
+    from render.scenes import ENVIRONMENTS, LIGHT_POSITIONS
+
+    size, spp = v.int_in(MIN_SIZE, MAX_SIZE), v.int_in(1, MAX_SPP)
+    seed, workers = v.int_in(0, v.MAX_SEED), v.int_in(1, v.MAX_WORKERS)
+    strands, depth = v.int_in(1, MAX_STRANDS), v.int_in(MIN_DEPTH, MAX_DEPTH)
+    parser = _Parser(prog="hairdigi", description=__doc__)
+    parser.add_argument("--debug", action="store_true",
+                        help="show the traceback of an error too (anywhere on the command line)")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("render", help="render hair parameters in the swatch rig or a hairstyle")
     p.add_argument("--params", required=True, help="hair parameter JSON (top level or under 'hair')")
     p.add_argument("--scene", default="swatch", choices=SCENE_NAMES)
-    p.add_argument("--size", type=int, default=None, help="image side in pixels (default: the scene's)")
-    p.add_argument("--spp", type=int, default=None, help="samples per pixel (default: the scene's)")
-    p.add_argument("--seed", type=int, default=0, help="sampler and strand-layout seed")
+    p.add_argument("--size", type=size, default=None, help="image side in pixels (default: the scene's)")
+    p.add_argument("--spp", type=spp, default=None, help="samples per pixel (default: the scene's)")
+    p.add_argument("--seed", type=seed, default=0, help="sampler and strand-layout seed")
     p.add_argument("--camera", help="POLAR,AZIMUTH[,DIST] in degrees around the holder normal / the face")
     p.add_argument("--env", default="studio", choices=ENVIRONMENTS, help="lighting for hairstyles")
     p.add_argument("--framing", default="rig", choices=("rig", "crop"),
                    help="swatch: the whole holder (rig) or hair only (crop, as in training)")
-    p.add_argument("--strands", type=int, default=None, help="strand count (default: the scene's)")
-    p.add_argument("--depth", type=int, default=None, help="maximum path depth (default: the scene's)")
+    p.add_argument("--strands", type=strands, default=None, help="strand count (default: the scene's)")
+    p.add_argument("--depth", type=depth, default=None, help="maximum path depth (default: the scene's)")
     p.add_argument("--out", required=True, help="output PNG (sRGB 8-bit)")
     p.add_argument("--exr", help="also write linear RGB as OpenEXR")
     p.set_defaults(func=cmd_render)
@@ -256,33 +328,36 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_demo)
 
     p = sub.add_parser("dataset", help="render the synthetic swatch dataset (resumable)")
-    p.add_argument("--n", type=int, default=5000)
-    p.add_argument("--size", type=int, default=96)
-    p.add_argument("--spp", type=int, default=4, help="4: the mean colour is converged (bench render)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--strands", type=int, default=None)
-    p.add_argument("--depth", type=int, default=None)
-    p.add_argument("--shard-size", type=int, default=100)
-    p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--n", type=v.int_in(1, v.MAX_DATASET_N), default=4000)
+    p.add_argument("--size", type=size, default=64)
+    p.add_argument("--spp", type=spp, default=16,
+                   help="16: the linear mean is within about 1%% of 512 spp (resources/models/encoder-notes.md)")
+    p.add_argument("--store", choices=("linear16", "srgb8"), default="linear16",
+                   help="linear16: linear float16 radiance (the capture chain is applied in training)")
+    p.add_argument("--seed", type=seed, default=0)
+    p.add_argument("--strands", type=strands, default=None)
+    p.add_argument("--depth", type=depth, default=None)
+    p.add_argument("--shard-size", type=v.int_in(1, v.MAX_SHARD_SIZE), default=50)
+    p.add_argument("--workers", type=workers, default=2)
     p.add_argument("--out", help="dataset folder (default: in the cache, $HAIRDIGI_CACHE or ~/.cache/hairdigi)")
     p.set_defaults(func=cmd_dataset)
 
     p = sub.add_parser("train", help="train the encoder on a dataset (resumable; needs the train extra)")
     p.add_argument("--dataset", required=True, nargs="+", help="one or more dataset folders (one image size)")
     p.add_argument("--out", required=True, help="run folder: checkpoint, history, curve")
-    p.add_argument("--epochs", type=int, default=100)
-    p.add_argument("--batch-size", type=int, default=32)
-    p.add_argument("--lr", type=float, default=2e-3)
-    p.add_argument("--width", type=int, default=16)
-    p.add_argument("--blocks", type=int, default=4)
-    p.add_argument("--input-size", type=int, default=48)
-    p.add_argument("--threads", type=int, default=2)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--appearance-weight", type=float, default=None,
+    p.add_argument("--epochs", type=v.int_in(1, v.MAX_EPOCHS), default=100)
+    p.add_argument("--batch-size", type=v.int_in(1, v.MAX_BATCH), default=32)
+    p.add_argument("--lr", type=v.float_in(0.0, 10.0, low_open=True), default=2e-3)
+    p.add_argument("--width", type=v.int_in(1, v.MAX_WIDTH), default=16)
+    p.add_argument("--blocks", type=v.int_in(1, v.MAX_BLOCKS), default=4)
+    p.add_argument("--input-size", type=v.int_in(v.MIN_INPUT_SIZE, v.MAX_INPUT_SIZE), default=48)
+    p.add_argument("--threads", type=v.int_in(1, v.MAX_THREADS), default=2)
+    p.add_argument("--seed", type=seed, default=0)
+    p.add_argument("--appearance-weight", type=v.float_in(0.0, 1e6), default=None,
                    help="weight of the fibre-colour loss term (default 4; 0: L2 on the parameters alone)")
-    p.add_argument("--blur-max", type=float, default=None,
+    p.add_argument("--blur-max", type=v.float_in(0.0, 100.0), default=None,
                    help="largest augmentation blur in px (default 1.5; 0: none)")
-    p.add_argument("--epochs-now", type=int, default=None, help="stop after this many epochs; run again to resume")
+    p.add_argument("--epochs-now", type=v.int_in(1, v.MAX_EPOCHS), default=None, help="stop after this many epochs; run again to resume")
     p.set_defaults(func=cmd_train)
 
     p = sub.add_parser("export-onnx", help="export a trained run to ONNX and check parity")
@@ -297,20 +372,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", default=None, help="ONNX encoder (default: the shipped one)")
     p.add_argument("--out", required=True, help="parameter JSON to write")
     p.add_argument("--render", help="also render the estimate in the swatch rig to this PNG")
+    p.add_argument("--camera", help="POLAR,AZIMUTH[,DIST]: the camera as the swatch's centre sees it "
+                   "(default: the rig's, 10.3,0)")
+    p.add_argument("--no-refine", action="store_true", help="the encoder alone, without refinement by synthesis")
     p.set_defaults(func=cmd_estimate)
 
-    p = sub.add_parser("evaluate", help="the paper's evaluation on held-out swatches, with the noise floor")
-    p.add_argument("--n", type=int, default=300)
-    p.add_argument("--size", type=int, default=176, help=">= 161 for MS-SSIM's 5 scales")
-    p.add_argument("--spp", type=int, default=4)
-    p.add_argument("--rerender", type=int, default=None, help="re-render only the first N (default: all)")
+    p = sub.add_parser("evaluate", help="the estimate on clean held-out swatches, judged against the truth")
+    p.add_argument("--n", type=v.int_in(1, v.MAX_DATASET_N), default=300)
+    p.add_argument("--size", type=size, default=64, help="held-out render side in pixels")
+    p.add_argument("--spp", type=spp, default=64, help="held-out inputs' samples per pixel (clean: >= 64)")
     p.add_argument("--prepare-only", action="store_true",
-                   help="render the held-out set and the noise floor only (no model needed); resumable")
-    p.add_argument("--noise-sweep", metavar="SPP,SPP,...",
-                   help="instead: re-render the first --sweep-n swatches at these spp (metrics against spp)")
-    p.add_argument("--sweep-n", type=int, default=10)
-    p.add_argument("--workers", type=int, default=2)
-    p.add_argument("--data", help="held-out dataset folder (default: OUT/heldout)")
+                   help="render the held-out set and the truth's judge renders only (no model needed); resumable")
+    p.add_argument("--convergence", metavar="SPP,SPP,...", type=v.int_list_in(1, MAX_SPP),
+                   help="instead: estimate the first --sweep-n swatches from inputs rendered at these spp")
+    p.add_argument("--sweep-n", type=v.int_in(1, v.MAX_DATASET_N), default=20)
+    p.add_argument("--no-refine", action="store_true", help="judge the encoder alone")
+    p.add_argument("--workers", type=workers, default=2)
+    p.add_argument("--data", help="held-out dataset folder (default: in the cache)")
     p.add_argument("--model", default=None)
     p.add_argument("--out", required=True)
     p.set_defaults(func=cmd_evaluate)
@@ -322,11 +400,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--roi", help="swatch area x,y,w,h in the camera frame (real rig; default: found)")
     p.add_argument("--list-ports", action="store_true", help="list serial ports and light boards, then exit")
     p.add_argument("--session", default="out/session", help="session folder: captures, calibration, results")
-    p.add_argument("--cast", type=float, nargs=3, default=(1.25, 1.0, 0.8), metavar=("R", "G", "B"),
-                   help="simulated white-balance error")
-    p.add_argument("--exposure", type=float, default=0.0, help="simulated exposure error in EV")
-    p.add_argument("--dead", type=int, nargs="*", help="simulated dead light(s)")
-    p.add_argument("--spp", type=int, default=32, help="samples per pixel of the simulated rig's light renders")
+    p.add_argument("--cast", type=v.float_in(0.0, v.MAX_CAST, low_open=True), nargs=3, default=(1.25, 1.0, 0.8),
+                   metavar=("R", "G", "B"), help="simulated white-balance error")
+    p.add_argument("--exposure", type=v.float_in(-v.MAX_EXPOSURE_EV, v.MAX_EXPOSURE_EV), default=0.0,
+                   help="simulated exposure error in EV")
+    p.add_argument("--dead", type=v.int_in(0, len(LIGHT_POSITIONS) - 1), nargs="*",
+                   help="simulated dead light(s), numbered from 0")
+    p.add_argument("--spp", type=spp, default=32, help="samples per pixel of the simulated rig's light renders")
     p.set_defaults(func=cmd_rig)
 
     p = sub.add_parser("app", help="the desktop app")
@@ -338,46 +418,90 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("model-card", help="write the model card from a run and its evaluation")
     p.add_argument("--run", required=True)
     p.add_argument("--model", default="resources/models/encoder.onnx")
-    p.add_argument("--evaluation", required=True, help="evaluation.json from hairdigi evaluate")
+    p.add_argument("--evaluation", required=True, help="evaluation.json from hairdigi evaluate (its "
+                   "uncertainty.json is copied beside the model)")
     p.add_argument("--variants", help="encoder_bench.csv from hairdigi bench encoder")
-    p.add_argument("--noise-sweep", help="noise_sweep.csv from hairdigi evaluate --noise-sweep")
+    p.add_argument("--convergence", help="convergence.csv from hairdigi evaluate --convergence")
+    p.add_argument("--refine-bench", help="refine_bench.csv from hairdigi bench refine")
+    p.add_argument("--rig", help="rig_estimates.json from hairdigi bench rig --estimate")
     p.add_argument("--out", default="resources/models/encoder.md")
     p.set_defaults(func=cmd_model_card)
 
     p = sub.add_parser("bench", help="speed against error tables and plots")
-    p.add_argument("what", choices=("render", "rig", "encoder"))
+    p.add_argument("what", choices=("render", "rig", "encoder", "refine"))
     p.add_argument("--models", nargs="*", help="encoder: the ONNX models to compare")
-    p.add_argument("--n", type=int, default=300, help="encoder: held-out swatches")
-    p.add_argument("--rerender", type=int, default=60, help="encoder: swatches re-rendered for image metrics")
-    p.add_argument("--data", help="encoder: held-out dataset folder to reuse")
+    p.add_argument("--n", type=int, default=None, help="held-out swatches (encoder: 300, refine: 10)")
+    p.add_argument("--data", help="encoder, refine: held-out dataset folder to reuse")
+    p.add_argument("--model", default=None, help="refine: the encoder giving the prior (default: shipped)")
     p.add_argument("--out", default="out/bench")
     p.add_argument("--quick", action="store_true", help="a tiny sweep, for tests")
+    p.add_argument("--estimate", action="store_true",
+                   help="rig: estimate simulated captures over poses, casts and exposures; real vs twin ΔE")
     p.set_defaults(func=cmd_bench)
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    from hardware.cameras import CameraError
-    from hardware.lights import LightError
-    from inference.calibration import CalibrationError
-    from inference.encoder import ModelError
-    from inference.preprocess import ImageError
-    from render.hairfile import HairFileError
-    from render.params import HairParamsError
+def _prog(argv: list[str]) -> str:
+    """``hairdigi COMMAND`` for messages, from the raw arguments (before they are parsed)."""
+    command = next((a for a in argv if not a.startswith("-")), None)
+    return f"hairdigi {command}" if command else "hairdigi"
 
-    if getattr(args, "model", "unset") is None:
-        from inference.encoder import DEFAULT_MODEL
-        args.model = DEFAULT_MODEL
+
+def _error_line(exc: BaseException) -> str:
+    """What went wrong, on one line, for an expected failure."""
+    from app.validation import describe_os_error, one_line
+
+    if isinstance(exc, MemoryError):
+        return "not enough memory for this job; lower --size, --spp or the image size, or close other programs"
+    if isinstance(exc, OSError):
+        return describe_os_error(exc)
+    return one_line(str(exc) or type(exc).__name__)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one command. An expected failure (bad input, a file that cannot be read or written) is one
+    line on stderr and exit status 2; Ctrl-C at any moment is one line and 130; a bug keeps its
+    traceback. ``--debug`` anywhere on the line shows the traceback of expected failures too."""
+    import signal
+    import traceback
+
+    # Run as a program, Ctrl-C while starting (native libraries load) ends at once, with one line;
+    # once the command runs it raises KeyboardInterrupt, so that files and devices are closed.
+    program = signal.getsignal(signal.SIGINT) is _interrupted_at_start
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
+    prog = _prog(argv)
     try:
-        return args.func(args)
-    except (CliError, HairParamsError, HairFileError, ImageError, ModelError, CalibrationError, CameraError,
-            LightError, ValueError, FileNotFoundError) as exc:
-        print(f"hairdigi {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        args = build_parser().parse_args(argv)
+        from app.validation import check_args
+
+        if getattr(args, "model", "unset") is None:
+            from inference.encoder import DEFAULT_MODEL
+            args.model = DEFAULT_MODEL
+        check_args(args)
+        if program:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+        try:
+            return args.func(args)
+        finally:
+            if program:   # the work is done: a late Ctrl-C must not kill the exit with a traceback
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
     except KeyboardInterrupt:
-        print(f"hairdigi {args.command}: interrupted", file=sys.stderr)
+        print(f"{prog}: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:
+        from app.validation import is_expected
+
+        if not is_expected(exc) and not isinstance(exc, CliError):
+            traceback.print_exc()
+            print(f"{prog}: internal error (a bug in hairdigi): {type(exc).__name__}; please report it with "
+                  f"the traceback above", file=sys.stderr)
+            return 1
+        if debug:
+            traceback.print_exc()
+        print(f"{prog}: error: {_error_line(exc)}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

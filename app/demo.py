@@ -12,7 +12,7 @@ from render.renderer import SceneSpec, render
 def run_demo(out: Path, quick: bool = False) -> list[Path]:
     """Lights, exposure, calibration and a capture on the simulated rig; estimate; render the
     estimate as a rig swatch and two hairstyles. Returns the written images."""
-    from hardware.sim_rig import CameraModel
+    from render.camera_model import CameraModel
 
     out = Path(out)
     session = RigSession.simulated_rig(out / "session", camera_model=CameraModel(cast=(1.2, 1.0, 0.8)),

@@ -9,13 +9,25 @@ import numpy as np
 from app.rig_session import RigSession
 
 
+def check_dead_lights(dead) -> set[int]:
+    """The simulated dead lights as a set of light numbers; ValueError naming ``--dead`` for any other."""
+    from render.scenes import LIGHT_POSITIONS
+
+    n = len(LIGHT_POSITIONS)
+    wrong = [d for d in (dead or ()) if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d < n]
+    if wrong:
+        raise ValueError(f"--dead {' '.join(map(str, wrong))}: the rig has lights 0 to {n - 1}; name only those")
+    return set(dead or ())
+
+
 def open_session(args) -> RigSession:
     """The simulated rig with ``--sim``, else the camera and light board named on the command line."""
     if args.sim:
-        from hardware.sim_rig import CameraModel
+        from render.camera_model import CameraModel
 
+        dead = check_dead_lights(args.dead)
         model = CameraModel(exposure_ev=args.exposure, cast=tuple(args.cast))
-        return RigSession.simulated_rig(args.session, camera_model=model, dead=set(args.dead or ()), spp=args.spp)
+        return RigSession.simulated_rig(args.session, camera_model=model, dead=dead, spp=args.spp)
     from hardware.cameras import OpenCVCamera
     from hardware.lights import LightController
 
@@ -77,7 +89,8 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
 
 def detection_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16) -> list[dict]:
     """``hairdigi bench rig``: chart detection and CCM ΔE over camera poses x noise x casts, and feed fps."""
-    from hardware.sim_rig import DEFAULT_HIDDEN, CameraModel, sensor_response
+    from hardware.sim_rig import DEFAULT_HIDDEN
+    from render.camera_model import CameraModel, sensor_response
     from inference.calibration import CalibrationError, calibrate
     from render import scenes
     from render.bench import write_csv_atomic
@@ -117,3 +130,102 @@ def detection_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16) -> list
     out.mkdir(parents=True, exist_ok=True)
     write_csv_atomic(out / "rig_bench.csv", rows)
     return rows
+
+
+#: The simulated-rig set of ``hairdigi bench rig --estimate``: hidden swatches (a copper-dyed light
+#: brown, a dark ash brown, a pale blonde), bench poses, white-balance casts and exposure errors.
+RIG_SET_HAIRS = (((190, 80, 40), 0.5, 0.5, 0.6), ((120, 110, 100), 0.2, 0.75, 0.9), ((240, 220, 170), 0.3, 0.12, 0.3))
+RIG_SET_POSES = ((0.0, 0.0), (15.0, 60.0))
+RIG_SET_CASTS = ((1.0, 1.0, 1.0), (1.3, 1.0, 0.7), (0.8, 1.0, 1.25))
+RIG_SET_EXPOSURES = (-0.5, 0.0, 0.3)
+
+
+def estimate_sweep(out_dir: str | Path, size=(400, 300), spp: int = 32, twin_size=(200, 150),
+                   progress: bool = True) -> dict:
+    """Simulated-rig captures over poses, casts and exposures, through ``cv2.mcc`` and the CCM, then
+    estimated and refined; each estimate's twin (same scene) against the corrected capture.
+
+    Writes ``rig_estimates.csv`` and ``rig_estimates.json`` (the summary) in ``out_dir``.
+    """
+    from tqdm import tqdm
+
+    from hardware.sim_rig import remove_fireflies
+    from inference.calibration import CalibrationError, apply_profile, calibrate
+    from inference.encoder import Encoder
+    from inference.estimate import estimate_image
+    from inference.preprocess import Roi
+    from render import scenes
+    from render.bench import write_csv_atomic
+    from render.camera_model import CameraModel, sensor_response
+    from render.chart import colorchecker_reflectances
+    from render.metrics import delta_e2000
+    from render.params import HairParams, write_json_atomic
+    from render.renderer import Renderer, SceneSpec
+    from render.srgb import srgb8_to_linear
+
+    renderer = Renderer(max_cached=2)
+    encoder = Encoder()
+    chart = tuple(map(tuple, colorchecker_reflectances()))
+    half_width = scenes.RIG_HALF_WIDTH * 1.1
+    rng = np.random.default_rng(0)
+    rows = []
+    combos = [(h, p) for h in RIG_SET_HAIRS for p in RIG_SET_POSES]
+    for hair_tuple, (polar, azimuth) in tqdm(combos, desc="rig set", unit="scene", disable=not progress):
+        hidden = HairParams(*hair_tuple)
+        pose = scenes.CameraPose(polar, azimuth)
+        spec = SceneSpec("swatch", framing="rig", chart=chart, target=scenes.RIG_TARGET, half_width=half_width,
+                         camera=pose)
+        linear = remove_fireflies(renderer.render(hidden, spec, size, spp, seed=11).linear)
+        corners = np.array([(x, y, 0.0) for x in (-0.3, 0.3) for y in (-0.35, 0.35)])
+        uv = scenes.project(corners, pose, scenes.RIG_TARGET, half_width, size)
+        x0, y0 = np.ceil(uv.min(0)).astype(int)
+        x1, y1 = np.floor(uv.max(0)).astype(int)
+        roi = Roi(int(x0), int(y0), int(x1 - x0), int(y1 - y0))
+        swatch_pose = scenes.seen_from((0.0, 0.0, 0.0), pose, scenes.RIG_TARGET)
+        scale = np.array(twin_size) / np.array(size)
+        twin_roi = (slice(int(y0 * scale[1]), int(y1 * scale[1])), slice(int(x0 * scale[0]), int(x1 * scale[0])))
+        truth_twin = renderer.render(hidden, spec, twin_size, spp, seed=12).linear[twin_roi].reshape(-1, 3).mean(0)
+        for cast in RIG_SET_CASTS:
+            for ev in RIG_SET_EXPOSURES:
+                frame = sensor_response(linear, CameraModel(ev, 1.0, cast), rng)
+                row = {"hair": "/".join(str(v) for v in hair_tuple[0]) + f" {hair_tuple[1]}/{hair_tuple[2]}/"
+                       f"{hair_tuple[3]}", "polar": polar, "azimuth": azimuth,
+                       "cast": "/".join(map(str, cast)), "exposure_ev": ev}
+                try:
+                    profile = calibrate(frame)
+                except CalibrationError as exc:
+                    rows.append({**row, "detected": 0, "error": str(exc)})
+                    continue
+                corrected = apply_profile(frame, profile)
+                real = srgb8_to_linear(corrected[roi.y:roi.y + roi.h, roi.x:roi.x + roi.w]).reshape(-1, 3).mean(0)
+                result = estimate_image(corrected, encoder, roi, camera=swatch_pose, renderer=renderer)
+                twins = {}
+                for who, params in (("encoder", result.encoder.params), ("refined", result.params)):
+                    twin = renderer.render(params, spec, twin_size, spp, seed=12).linear
+                    twins[who] = float(delta_e2000(real, twin[twin_roi].reshape(-1, 3).mean(0)))
+                rows.append({**row, "detected": 1, "ccm_de2000_after": profile["delta_e2000"]["after"]["mean"],
+                             "real_vs_twin_encoder": twins["encoder"], "real_vs_twin_refined": twins["refined"],
+                             "real_vs_truth_twin": float(delta_e2000(real, truth_twin)),
+                             "truth_vs_refined_twin_params": result.params.to_dict(),
+                             "refine_residual": result.refinement.residual_de2000,
+                             "refine_s": result.refinement.seconds, "warnings": len(result.warnings)})
+    found = [r for r in rows if r.get("detected")]
+    summary = {"frames": len(rows), "chart_found": len(found)}
+    for key in ("real_vs_twin_encoder", "real_vs_twin_refined", "real_vs_truth_twin", "ccm_de2000_after"):
+        vals = np.array([r[key] for r in found])
+        summary[key] = {"median": float(np.median(vals)), "p95": float(np.quantile(vals, 0.95)),
+                        "max": float(vals.max())}
+    summary["text"] = (f"{len(rows)} frames ({len(RIG_SET_HAIRS)} hidden swatches x {len(RIG_SET_POSES)} poses x "
+                       f"{len(RIG_SET_CASTS)} casts x {len(RIG_SET_EXPOSURES)} exposures), chart found in "
+                       f"{len(found)}. Real (after the CCM) vs twin, mean-colour ΔE2000 median / p95 / worst: "
+                       "encoder alone {0[median]:.2f} / {0[p95]:.2f} / {0[max]:.2f}; refined {1[median]:.2f} / "
+                       "{1[p95]:.2f} / {1[max]:.2f}; the true parameters' twin {2[median]:.2f} / {2[p95]:.2f} / "
+                       "{2[max]:.2f} (the CCM's residual). CCM ΔE2000 on the chart after: median {3[median]:.2f}."
+                       ).format(summary["real_vs_twin_encoder"], summary["real_vs_twin_refined"],
+                                summary["real_vs_truth_twin"], summary["ccm_de2000_after"])
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv_atomic(out / "rig_estimates.csv", [{k: v for k, v in r.items() if not isinstance(v, dict)}
+                                                  for r in rows])
+    write_json_atomic(out / "rig_estimates.json", summary)
+    return summary

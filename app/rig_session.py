@@ -67,7 +67,8 @@ class RigSession:
                       dead: set[int] | None = None, spp: int = 32, encoder=None) -> "RigSession":
         """The bench in software: a pty light board, the rendered rig, and a camera model."""
         from hardware.sim_lights import SimulatedLightBoard
-        from hardware.sim_rig import DEFAULT_HIDDEN, CameraModel, SimRig
+        from hardware.sim_rig import DEFAULT_HIDDEN, SimRig
+        from render.camera_model import CameraModel
 
         board = SimulatedLightBoard()
         lights = LightController(board.port)
@@ -206,8 +207,9 @@ class RigSession:
 
     def _estimate(self, result: CaptureResult, image: np.ndarray) -> None:
         from inference.encoder import ModelError
-        from inference.estimate import provenance
+        from inference.estimate import calibration_summary, estimate_image, record
         from inference.preprocess import Roi
+        from render.scenes import RIG_SWATCH_POSE
 
         try:
             encoder = self.encoder
@@ -216,13 +218,13 @@ class RigSession:
             return
         corrected = apply_profile(image, self.profile)
         x, y, w, h = self._roi(image)
-        est = encoder.estimate(corrected, Roi(x, y, w, h))
-        result.params = est.params
+        calibration_warnings = [f"calibration: {r}; calibrate again" for r in staleness(self.profile, self.settings())]
+        estimate = estimate_image(corrected, encoder, Roi(x, y, w, h), RIG_SWATCH_POSE,
+                                  extra_warnings=calibration_warnings)
+        result.params = estimate.params
         result.corrected = corrected
-        result.record = {"hair": est.params.to_dict(),
-                         "provenance": provenance(est, encoder, result.image_path.read_bytes(), result.image_path,
-                                                  {"id": self.profile["id"], "method": self.profile["method"],
-                                                   "delta_e2000_after": self.profile["delta_e2000"]["after"]})}
+        result.record = record(estimate, encoder, result.image_path.read_bytes(), result.image_path,
+                               calibration_summary(self.profile), RIG_SWATCH_POSE)
 
 
 def load_results(folder: str | Path) -> list[dict]:

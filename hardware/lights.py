@@ -1,6 +1,7 @@
 """The host side of the light protocol (see PROTOCOL.md): a pyserial client with retries and reconnection."""
 from __future__ import annotations
 
+import numbers
 import threading
 import time
 from dataclasses import dataclass
@@ -37,6 +38,34 @@ class LightLinkError(LightError):
 
 class LightCommandError(LightError):
     """The board answered ``ERR``: the command was understood but refused."""
+
+
+class LightArgumentError(LightError, ValueError):
+    """The host refuses to send a command or an argument the protocol does not allow; nothing was sent."""
+
+
+def check_command(command: str) -> None:
+    """Raise ``LightArgumentError`` unless ``command`` is one line of printable ASCII (PROTOCOL.md)."""
+    if not isinstance(command, str):
+        raise LightArgumentError(f"command must be a str, not {type(command).__name__} {command!r}")
+    if "\n" in command or "\r" in command:
+        raise LightArgumentError(f"command {command!r} contains a line break; send one command per call")
+    if not all(" " <= c <= "~" for c in command):
+        raise LightArgumentError(f"command {command!r} may hold only printable ASCII characters (space to '~')")
+
+
+def check_index(index: int) -> int:
+    """The light index as an int, or ``LightArgumentError`` if it is not an int from 0 to N_LIGHTS - 1."""
+    if isinstance(index, bool) or not isinstance(index, numbers.Integral) or not 0 <= index < N_LIGHTS:
+        raise LightArgumentError(f"light index must be an int from 0 to {N_LIGHTS - 1}, not {index!r}")
+    return int(index)
+
+
+def check_intensity(intensity: float) -> int:
+    """The intensity rounded to a PWM step, or ``LightArgumentError`` if it is not a real number from 0 to 255."""
+    if isinstance(intensity, bool) or not isinstance(intensity, numbers.Real) or not 0 <= intensity <= 255:
+        raise LightArgumentError(f"intensity must be a number from 0 to 255, not {intensity!r}")
+    return round(float(intensity))
 
 
 @dataclass(frozen=True)
@@ -128,10 +157,15 @@ class LightController:
 
     def command(self, command: str) -> str:
         """Send one command; retry lost or garbled replies, reconnect once after a link failure."""
+        check_command(command)
         with self._lock:
-            return self._command(command)
+            line = self._command(command)
+        if line.startswith("ERR"):  # refused: sending it again would be refused again
+            raise LightCommandError(f"the board refused {command!r}: {line}")
+        return line
 
     def _command(self, command: str) -> str:
+        """The board's reply to ``command`` (``OK ...`` or ``ERR ...``), after the retries it needs."""
         reconnected = False
         last: Exception | None = None
         attempt = 0
@@ -141,8 +175,6 @@ class LightController:
                     self._open()
                 line = self._exchange(command)
                 self.log.append((command, line))
-                if line.startswith("ERR"):
-                    raise LightCommandError(f"the board refused {command!r}: {line}")
                 return line
             except (LightTimeout, LightProtocolError) as exc:
                 last = exc
@@ -167,13 +199,13 @@ class LightController:
             raise LightProtocolError(f"{self.port_name} is not a hairdigi light board (it says {reply!r})")
         return reply[3:]
 
-    def set_light(self, index: int, on: bool | None = None, intensity: int | None = None) -> None:
-        if not 0 <= index < N_LIGHTS:
-            raise ValueError(f"light {index} does not exist; lights are 0, 1 and 2")
+    def set_light(self, index: int, on: bool | None = None, intensity: float | None = None) -> None:
+        """Set light ``index``'s intensity (0 to 255), then switch it on or off; None leaves either as it is."""
+        index = check_index(index)
+        if on is not None and not isinstance(on, bool):
+            raise LightArgumentError(f"on must be True, False or None, not {on!r}")
         if intensity is not None:
-            if not 0 <= int(intensity) <= 255:
-                raise ValueError(f"intensity {intensity} must be 0-255")
-            self.command(f"L{index} I {int(intensity)}")
+            self.command(f"L{index} I {check_intensity(intensity)}")
         if on is not None:
             self.command(f"L{index} {'ON' if on else 'OFF'}")
 

@@ -1,13 +1,19 @@
-"""A simulated light board that speaks PROTOCOL.md over a real pseudo-terminal.
+"""Simulated light boards that speak PROTOCOL.md over a real pseudo-terminal.
 
 The host opens ``board.port``, a stable symlink to the pty's slave side (like udev's
-``/dev/serial/by-id/...`` names), through pyserial exactly as it opens the real board. Faults
-can be injected: lost replies, garbage, partial lines, slow replies, and an unplug and replug.
+``/dev/serial/by-id/...`` names), through pyserial exactly as it opens the real board.
+
+``SimulatedLightBoard`` is the protocol in Python; faults can be injected: lost replies, garbage,
+partial lines, slow replies, and an unplug and replug. ``EmulatedFirmwareBoard`` runs the real
+firmware (``firmware/hairdigi_lights``, built for an Arduino Uno) in the simavr AVR emulator.
 """
 from __future__ import annotations
 
 import os
 import select
+import shutil
+import signal
+import subprocess
 import tempfile
 import termios
 import threading
@@ -18,14 +24,16 @@ from pathlib import Path
 
 from hardware.lights import N_LIGHTS
 
-FIRMWARE = "sim-1.0"
+FIRMWARE = "sim-1.1"
 PROTOCOL_VERSION = "1"
+MAX_LINE = 32
 
 
 @dataclass
 class BoardState:
     on: list[bool] = field(default_factory=lambda: [False] * N_LIGHTS)
     intensity: list[int] = field(default_factory=lambda: [255] * N_LIGHTS)
+    fault: list[bool] = field(default_factory=lambda: [False] * N_LIGHTS)  # a driver's fault input
 
     def levels(self) -> tuple[float, float, float]:
         """Light output in [0, 1] for each light: on x intensity / 255."""
@@ -33,9 +41,13 @@ class BoardState:
 
 
 def handle(line: str, state: BoardState, serial_no: str = "SIM0001") -> str:
-    """One protocol command against ``state``; returns the reply line (without newline)."""
-    if len(line) > 32:
+    """One line (its ``\\n`` removed, one character a byte) against ``state``; the reply, without newline."""
+    if line.endswith("\r"):  # a CRLF line ending; any other \r is a stray byte
+        line = line[:-1]
+    if len(line) > MAX_LINE:
         return "ERR E4 line too long"
+    if not all(" " <= c <= "~" for c in line):  # a control character, NUL or 8-bit byte
+        return "ERR E1 unknown command"
     if line == "ID?":
         return f"OK HAIRDIGI-LIGHTS {PROTOCOL_VERSION} {FIRMWARE} {serial_no}"
     if line == "STATUS?":
@@ -43,18 +55,21 @@ def handle(line: str, state: BoardState, serial_no: str = "SIM0001") -> str:
     if line == "ALL OFF":
         state.on = [False] * N_LIGHTS
         return "OK"
-    parts = line.split(" ")
-    if len(parts) >= 2 and len(parts[0]) == 2 and parts[0][0] == "L":
-        if not parts[0][1].isdigit() or int(parts[0][1]) >= N_LIGHTS:
+    if line.startswith("L") and " " in line:  # a light command: the index runs up to the first space
+        index, arg = line[1:].split(" ", 1)
+        if index not in [str(n) for n in range(N_LIGHTS)]:
             return "ERR E2 no such light"
-        n = int(parts[0][1])
-        if parts[1:] == ["ON"] or parts[1:] == ["OFF"]:
-            state.on[n] = parts[1] == "ON"
+        n = int(index)
+        if arg in ("ON", "OFF"):
+            if arg == "ON" and state.fault[n]:
+                return "ERR E5 driver fault"
+            state.on[n] = arg == "ON"
             return "OK"
-        if len(parts) == 3 and parts[1] == "I":
-            if not parts[2].isdigit() or not 0 <= int(parts[2]) <= 255:
+        if arg.startswith("I "):
+            value = arg[2:]  # ASCII digits only: no sign, no space
+            if not value or not all("0" <= c <= "9" for c in value) or int(value) > 255:
                 return "ERR E3 value out of range"
-            state.intensity[n] = int(parts[2])
+            state.intensity[n] = int(value)
             return "OK"
     return "ERR E1 unknown command"
 
@@ -64,6 +79,7 @@ class SimulatedLightBoard:
 
     def __init__(self, link_dir: str | os.PathLike | None = None) -> None:
         self.state = BoardState()
+        self._own_dir = link_dir is None  # made here, removed on close
         self._dir = Path(link_dir or tempfile.mkdtemp(prefix="hairdigi-serial-"))
         self.port = str(self._dir / "ttyHAIRDIGI0")
         self.received: list[str] = []
@@ -109,12 +125,19 @@ class SimulatedLightBoard:
     def close(self) -> None:
         if not self.unplugged:
             self.unplug()
+        if self._own_dir:
+            shutil.rmtree(self._dir, ignore_errors=True)
 
     def __enter__(self) -> "SimulatedLightBoard":
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+    def set_fault(self, light: int, fault: bool) -> None:
+        """Make ``light``'s driver report a fault (its fault input low), or clear it."""
+        with self._lock:
+            self.state.fault[light] = fault
 
     def inject(self, *faults: str) -> None:
         """Queue faults for the next replies: ``drop``, ``garbage``, ``partial``, ``slow``, ``unplug``."""
@@ -137,7 +160,7 @@ class SimulatedLightBoard:
             buffer += chunk
             while b"\n" in buffer:
                 raw, buffer = buffer.split(b"\n", 1)
-                line = raw.decode("ascii", "replace").strip("\r")
+                line = raw.decode("latin-1")  # one character a byte, as the firmware sees them
                 self._reply(master, line)
 
     def _reply(self, master: int, line: str) -> None:
@@ -161,3 +184,113 @@ class SimulatedLightBoard:
             os.write(master, data)
         except OSError:
             pass
+
+
+# -- the real firmware in simavr -------------------------------------------------------------------
+FIRMWARE_DIR = Path(__file__).resolve().parent / "firmware"
+ARDUINO_CORE = Path("/usr/share/arduino/hardware/arduino/avr/cores/arduino")
+FAULT_PINS = (("D", 2), ("D", 3), ("D", 4))  # the Uno's pins 2, 3 and 4 are PD2, PD3 and PD4
+FIRMWARE_PACKAGES = "gcc-avr avr-libc arduino-core-avr simavr libsimavr-dev libelf-dev"
+
+
+def firmware_tools_missing() -> str | None:
+    """Why the firmware and its simavr harness cannot be built here, or None when they can."""
+    tools = ("make", "gcc", "pkg-config", "avr-gcc", "avr-g++", "avr-size")
+    missing = [tool for tool in tools if not shutil.which(tool)]
+    if not (ARDUINO_CORE / "Arduino.h").exists():
+        missing.append(str(ARDUINO_CORE / "Arduino.h"))
+    if shutil.which("pkg-config") and subprocess.run(["pkg-config", "--exists", "simavr", "libelf"]).returncode:
+        missing.append("simavr and libelf for pkg-config")
+    return f"missing {', '.join(missing)}; apt-get install {FIRMWARE_PACKAGES}" if missing else None
+
+
+def build_firmware(build_dir: str | os.PathLike) -> Path:
+    """Build the sketch for an Uno and the simavr harness into ``build_dir`` (with make: only what changed)."""
+    build = Path(build_dir).resolve()
+    done = subprocess.run(["make", "-C", str(FIRMWARE_DIR), f"BUILD={build}", "all"], capture_output=True, text=True)
+    if done.returncode:
+        raise RuntimeError(f"building the firmware failed:\n{done.stdout[-2000:]}{done.stderr[-4000:]}")
+    return build
+
+
+class EmulatedFirmwareBoard:
+    """The firmware built by ``build_firmware`` on an emulated ATmega328P, its UART behind a pty at ``port``."""
+
+    def __init__(self, build_dir: str | os.PathLike, link_dir: str | os.PathLike | None = None) -> None:
+        self.build = Path(build_dir)
+        self._own_dir = link_dir is None  # made here, removed on close
+        self._dir = Path(link_dir or tempfile.mkdtemp(prefix="hairdigi-avr-"))
+        self.port = str(self._dir / "ttyHAIRDIGI0")
+        self._rx_log = self._dir / "received.bin"  # every byte the AVR has received
+        self._proc: subprocess.Popen | None = None
+        self._out = b""  # the harness's stdout not read yet
+        self.plug()
+
+    def plug(self, timeout: float = 10.0) -> None:
+        """Power the board up (a fresh boot, every light off) and wait until its port is there."""
+        self._rx_log.touch()
+        with open(self._dir / "simavr.log", "ab") as log:
+            self._proc = subprocess.Popen(
+                [str(self.build / "simavr_uart"), str(self.build / "hairdigi_lights.elf"), self.port,
+                 str(self._rx_log)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=log)
+        self._out = b""
+        try:
+            self._expect(b"ready ", timeout)
+        except RuntimeError:
+            self.unplug()
+            raise
+
+    def _expect(self, prefix: bytes, timeout: float) -> bytes:
+        """The harness's next stdout line that starts with ``prefix``; raises if it exits or stays silent."""
+        assert self._proc is not None and self._proc.stdout is not None
+        fd, deadline = self._proc.stdout.fileno(), time.monotonic() + timeout
+        while True:
+            while b"\n" in self._out:
+                line, self._out = self._out.split(b"\n", 1)
+                if line.startswith(prefix):
+                    return line
+            wait = deadline - time.monotonic()
+            chunk = os.read(fd, 4096) if wait > 0 and select.select([fd], [], [], wait)[0] else b""
+            if not chunk:
+                log = (self._dir / "simavr.log").read_text(errors="replace")[-2000:]
+                raise RuntimeError(f"no {prefix.decode().strip()!r} from the simavr harness "
+                                   f"(exit status {self._proc.poll()}); its log: {log}")
+            self._out += chunk
+
+    def unplug(self) -> None:
+        """Pull the cable: the emulator stops, its pty and the port's symlink go."""
+        if self._proc is not None:
+            self._proc.send_signal(signal.SIGTERM)
+            try:
+                self._proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self._proc.kill()
+                self._proc.wait()
+            for pipe in (self._proc.stdin, self._proc.stdout):
+                pipe.close()
+            self._proc = None
+        Path(self.port).unlink(missing_ok=True)
+
+    def close(self) -> None:
+        self.unplug()
+        if self._own_dir:
+            shutil.rmtree(self._dir, ignore_errors=True)
+
+    def __enter__(self) -> "EmulatedFirmwareBoard":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    @property
+    def received(self) -> list[str]:
+        """The complete lines the board has received (without their ``\\n``), one character a byte."""
+        return self._rx_log.read_bytes().decode("latin-1").split("\n")[:-1]
+
+    def set_fault(self, light: int, fault: bool) -> None:
+        """Pull the fault input of ``light``'s driver low (a fault) or let it go high."""
+        assert self._proc is not None and self._proc.stdin is not None
+        port, pin = FAULT_PINS[light]
+        self._proc.stdin.write(f"pin {port} {pin} {0 if fault else 1}\n".encode())
+        self._proc.stdin.flush()
+        self._expect(b"ok pin", 5.0)

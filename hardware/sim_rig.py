@@ -2,7 +2,8 @@
 
 Each light is rendered alone once (and cached on disk); a frame is the sum of the lights that the
 simulated board has switched on, times their intensity, passed through a camera model (exposure,
-gain, a white-balance cast, shot and read noise, clipping, sRGB and 8 bits). Toggling a light
+gain, a white-balance cast, shot and read noise, clipping, sRGB and 8 bits: ``render.camera_model``,
+the same model that training applies to its renders). Toggling a light
 changes the feed at once, with no re-render.
 """
 from __future__ import annotations
@@ -11,51 +12,22 @@ import hashlib
 import json
 import os
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from hardware.cameras import Frame
 from render import scenes
+from render.camera_model import CameraModel, sensor_response
 from render.chart import colorchecker_reflectances
 from render.params import HairParams
 from render.renderer import Renderer, SceneSpec
-from render.srgb import linear_to_srgb8
 
 SIM_SIZE = (400, 300)
 #: The hidden swatch of the demo: a copper-dyed light brown.
 DEFAULT_HIDDEN = HairParams((190, 80, 40), 0.5, 0.5, 0.6)
 CACHE_VERSION = 3  # bumped when the absorption mapping or the light images change
-
-
-@dataclass
-class CameraModel:
-    """A simple sensor: linear radiance x 2**exposure_ev x gain x cast, noise, clip, sRGB, 8 bits."""
-
-    exposure_ev: float = 0.0
-    gain: float = 1.0
-    cast: tuple[float, float, float] = (1.0, 1.0, 1.0)   # white-balance error, per channel
-    shot_noise: float = 0.0015   # variance per unit signal (photon noise)
-    read_noise: float = 0.002    # standard deviation, in units of full scale
-
-    def settings(self) -> dict:
-        return asdict(self)
-
-
-#: 12-bit linear code to 8-bit sRGB (colour-science's sRGB curve), so a frame costs one table lookup.
-_LUT_BITS = 4095
-_SRGB_LUT = linear_to_srgb8(np.arange(_LUT_BITS + 1) / _LUT_BITS)
-
-
-def sensor_response(linear: np.ndarray, model: CameraModel, rng: np.random.Generator) -> np.ndarray:
-    """Apply the camera model to linear radiance; returns the 8-bit sRGB frame (12-bit ADC, then sRGB)."""
-    scale = np.float32(2.0 ** model.exposure_ev * model.gain) * np.asarray(model.cast, np.float32)
-    signal = linear.astype(np.float32, copy=False) * scale
-    noise_sd = np.sqrt(np.maximum(signal, 0) * np.float32(model.shot_noise) + np.float32(model.read_noise**2))
-    signal += rng.standard_normal(signal.shape, dtype=np.float32) * noise_sd
-    codes = np.clip(signal * _LUT_BITS + 0.5, 0, _LUT_BITS).astype(np.uint16)
-    return _SRGB_LUT[codes]
 
 
 def swatch_roi(size: tuple[int, int] = SIM_SIZE, margin: float = 0.05) -> tuple[int, int, int, int]:

@@ -105,12 +105,20 @@ def calibrate(image_rgb8: np.ndarray, method: str = DEFAULT_METHOD, degree: int 
     return profile
 
 
+#: Pixels corrected at once: bounds the float64 temporaries of a large frame to about 100 MB.
+APPLY_CHUNK_PIXELS = 1 << 20
+
+
 def apply_profile(image_rgb8: np.ndarray, profile: dict) -> np.ndarray:
-    """Colour-correct an 8-bit sRGB image with a profile: linearise, CCM, re-encode."""
+    """Colour-correct an 8-bit sRGB image with a profile: linearise, CCM, re-encode (in row chunks)."""
     ccm = np.asarray(profile["matrix"])
     lut = srgb8_to_linear(np.arange(256))
-    linear = lut[image_rgb8]
-    return linear_to_srgb8(correct_linear(linear, ccm, profile["method"], profile.get("degree", 1)))
+    out = np.empty_like(image_rgb8)
+    rows = max(1, APPLY_CHUNK_PIXELS // max(1, image_rgb8.shape[1]))
+    for y in range(0, image_rgb8.shape[0], rows):
+        linear = lut[image_rgb8[y:y + rows]]
+        out[y:y + rows] = linear_to_srgb8(correct_linear(linear, ccm, profile["method"], profile.get("degree", 1)))
+    return out
 
 
 def save_profile(path: str | os.PathLike, profile: dict) -> Path:
@@ -118,13 +126,53 @@ def save_profile(path: str | os.PathLike, profile: dict) -> Path:
 
 
 def load_profile(path: str | os.PathLike) -> dict:
+    """Read a saved profile; a missing, malformed or corrupt one raises CalibrationError naming the field."""
     path = Path(path)
     profile = read_json(path, CalibrationError, "no calibration profile; calibrate the rig first",
                         "not a calibration profile ({exc}); calibrate again")
+    try:
+        check_profile(profile)
+    except CalibrationError as exc:
+        raise CalibrationError(f"{path}: {exc}") from None
+    return profile
+
+
+def _is_real(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and bool(np.isfinite(value))
+
+
+def check_profile(profile: dict) -> None:
+    """Raise CalibrationError naming the first field of ``profile`` that is missing or corrupt."""
+    def bad(field: str, what: str) -> CalibrationError:
+        return CalibrationError(f"the profile's {field!r} {what}; calibrate again")
+
+    if not isinstance(profile, dict):
+        raise CalibrationError(f"a calibration profile is a JSON object, not {type(profile).__name__}; "
+                               f"calibrate again")
     for key in ("matrix", "method", "time"):
         if key not in profile:
-            raise CalibrationError(f"{path}: the profile has no {key!r}; calibrate again")
-    return profile
+            raise bad(key, "is missing")
+    if profile["method"] not in METHODS:
+        raise bad("method", f"is {profile['method']!r}, not one of {', '.join(METHODS)}")
+    degree = profile.get("degree", 1)
+    if not isinstance(degree, int) or isinstance(degree, bool) or not 1 <= degree <= 4:
+        raise bad("degree", f"is {degree!r}, not a whole number from 1 to 4")
+    if not _is_real(profile["time"]) or profile["time"] <= 0:
+        raise bad("time", f"is {profile['time']!r}, not a time in seconds since 1970")
+    matrix = profile["matrix"]
+    rows_ok = isinstance(matrix, list) and len(matrix) == 3 and all(
+        isinstance(row, list) and len(row) == len(matrix[0]) and all(_is_real(v) for v in row) for row in matrix)
+    if not rows_ok:
+        raise bad("matrix", "is not 3 rows of finite numbers")
+    try:
+        out = correct_linear(np.full((1, 3), 0.5), np.asarray(matrix, float), profile["method"], degree)
+    except Exception:   # colour-science raises several types for a matrix of the wrong width
+        out = None
+    if out is None or not np.all(np.isfinite(out)):
+        raise bad("matrix", f"does not fit method {profile['method']!r} at degree {degree}")
+    for key, kind in (("settings", dict), ("delta_e2000", dict), ("id", str)):
+        if key in profile and not isinstance(profile[key], kind):
+            raise bad(key, f"is {type(profile[key]).__name__}, not {'an object' if kind is dict else 'a string'}")
 
 
 def staleness(profile: dict, settings: dict | None = None, now: float | None = None,
@@ -140,3 +188,51 @@ def staleness(profile: dict, settings: dict | None = None, now: float | None = N
         if changed:
             reasons.append(f"settings changed since calibration: {', '.join(changed)}")
     return reasons
+
+
+def profile_warnings(profile: dict, current_settings: dict | None = None, now: float | None = None) -> list[str]:
+    """Human-readable warnings for a profile that should be renewed (the rule is ``staleness``), each
+    with the fix; ``now`` is when the image was taken (default: now)."""
+    now = time.time() if now is None else now
+    warnings = [f"calibration: {reason}; calibrate again with the chart in view"
+                for reason in staleness(profile, current_settings, now)]
+    if float(profile["time"]) > now + 300:
+        warnings.append(f"calibration: the profile is dated {(float(profile['time']) - now) / 3600:.1f} h after "
+                        f"the image; check the computer's clock, then calibrate again")
+    return warnings
+
+
+def capture_settings(image_path: str | os.PathLike) -> tuple[dict | None, float | None]:
+    """The settings and time of a rig capture, from the ``<id>.json`` saved beside it (None, None for
+    an image without one): the same keys as ``RigSession.settings``, to compare with a profile's."""
+    import datetime
+    import hashlib
+
+    image_path = Path(image_path)
+    try:
+        record = json.loads(image_path.with_suffix(".json").read_text(encoding="utf-8"))
+        if record.get("image_sha256") != hashlib.sha256(image_path.read_bytes()).hexdigest():
+            return None, None    # not this image's record
+    except (OSError, ValueError, AttributeError):
+        return None, None
+    frame = record.get("frame_meta") or {}
+    settings = {}
+    if isinstance(frame, dict) and "camera" in frame:
+        settings["camera"] = frame["camera"]
+        model = frame.get("camera_model")
+        if isinstance(model, dict):
+            settings.update({k: v for k, v in model.items() if k in ("exposure_ev", "gain")})
+    if record.get("lights") is not None:
+        settings["lights"] = record["lights"]
+    try:
+        taken = datetime.datetime.strptime(record["captured"], "%Y-%m-%dT%H:%M:%S%z").timestamp()
+    except (KeyError, TypeError, ValueError):
+        taken = None
+    return settings or None, taken
+
+
+def calibration_warnings(profile_path: str | os.PathLike, image_path: str | os.PathLike) -> list[str]:
+    """``profile_warnings`` for estimating ``image_path`` with the profile at ``profile_path``: against
+    the capture's own settings and time when a rig record sits beside the image, else against now."""
+    settings, taken = capture_settings(image_path)
+    return profile_warnings(load_profile(profile_path), settings, taken)

@@ -2,8 +2,13 @@
 
 Sample ``i`` of a dataset with seed ``s`` is drawn from ``np.random.default_rng([s, i])`` alone, so a
 sample is the same whatever the worker count, the shard size, or how often the run was resumed.
-Each shard is one ``.npz`` (sRGB uint8 images, normalised parameters, cameras, seeds) written
-atomically when complete; a restarted run renders only the shards that are missing.
+Each shard is one ``.npz`` (images, normalised parameters, cameras, seeds) written atomically when
+complete; a restarted run renders only the shards that are missing.
+
+Images are stored as ``linear16``: linear HDR radiance in float16, as the renderer computes it, so
+that training can apply the capture chain (exposure, colour error, sensor noise, 8-bit sRGB) the
+way a camera does (``render.camera_model``). The older ``srgb8`` store (8-bit sRGB, clipped before
+averaging, and so darker than the scene at low spp) is still read.
 """
 from __future__ import annotations
 
@@ -23,6 +28,9 @@ from render.params import HairParams, sample_params
 from render.scenes import CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
 
 MANIFEST = "manifest.json"
+STORES = ("linear16", "srgb8")
+#: Settings added after datasets were made, with the value those older datasets implicitly used.
+LEGACY_DEFAULTS = {"store": "srgb8"}
 
 
 @dataclass(frozen=True)
@@ -39,6 +47,15 @@ class DatasetConfig:
     max_depth: int | None = None
     framing: str = "crop"
     shard_size: int = 100
+    store: str = "linear16"   # "linear16": linear float16 radiance; "srgb8": 8-bit sRGB (older datasets)
+
+    def __post_init__(self) -> None:
+        if self.store not in STORES:
+            raise ValueError(f"dataset store {self.store!r} is not one of {', '.join(STORES)}")
+        for name, low in (("size", 8), ("spp", 1), ("n", 1), ("shard_size", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"dataset {name} must be a whole number >= {low}, got {value!r}")
 
     @property
     def n_shards(self) -> int:
@@ -129,7 +146,7 @@ def _render_shard(args: tuple[dict, str, int, int]) -> tuple[int, int, float]:
         spec = SceneSpec("swatch", camera=s.camera, framing=config.framing, strands=config.strands,
                          strand_seed=s.strand_seed, max_depth=config.max_depth)
         result = renderer.render(s.params, spec, config.size, config.spp, s.render_seed)
-        images.append(result.srgb)
+        images.append(result.linear.astype(np.float16) if config.store == "linear16" else result.srgb)
         vectors.append(s.params.to_vector())
         cameras.append([s.camera.polar_deg, s.camera.azimuth_deg, s.camera.distance])
         seeds.append([s.strand_seed, s.render_seed])
@@ -145,7 +162,7 @@ def _render_shard(args: tuple[dict, str, int, int]) -> tuple[int, int, float]:
 def _check_manifest(root: Path, config: DatasetConfig) -> None:
     path = root / MANIFEST
     if path.exists():
-        stored = json.loads(path.read_text())["config"]
+        stored = {**LEGACY_DEFAULTS, **json.loads(path.read_text())["config"]}
         if stored != asdict(config):
             diff = {k: (stored.get(k), v) for k, v in asdict(config).items() if stored.get(k) != v}
             raise ValueError(f"{root} holds a dataset made with other settings {diff} (stored, asked); "
@@ -153,8 +170,8 @@ def _check_manifest(root: Path, config: DatasetConfig) -> None:
     else:
         from render.params import write_json_atomic
         from render.variant import mi
-        write_json_atomic(path, {"config": asdict(config), "format": "shard-NNNNN.npz: images uint8 "
-                                 "(N,S,S,3) sRGB; params (N,6) normalised Table 1 vector; cameras (N,3) "
+        write_json_atomic(path, {"config": asdict(config), "format": "shard-NNNNN.npz: images (N,S,S,3) "
+                                 "linear float16 radiance (store linear16) or uint8 sRGB (srgb8); params (N,6) normalised Table 1 vector; cameras (N,3) "
                                  "polar°, azimuth°, distance; seeds (N,2) strand, render; indices (N,)",
                                  "mitsuba_variant": mi.variant(), "created": time.strftime("%Y-%m-%dT%H:%M:%S")})
 
@@ -196,11 +213,16 @@ def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, p
 
 
 def load(root: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
-    """All complete shards: images (N,S,S,3) uint8, params (N,6), cameras (N,3), and the manifest."""
+    """All complete shards: images (N,S,S,3), params (N,6), cameras (N,3), and the manifest.
+
+    Images are float16 linear radiance for ``linear16`` datasets and uint8 sRGB for ``srgb8`` ones;
+    ``manifest["config"]["store"]`` says which (older manifests lack it: ``srgb8``).
+    """
     root = Path(root)
     if not (root / MANIFEST).exists():
         raise FileNotFoundError(f"{root} is not a hairdigi dataset (no {MANIFEST}); make one with hairdigi dataset")
     manifest = json.loads((root / MANIFEST).read_text())
+    manifest["config"] = {**LEGACY_DEFAULTS, **manifest["config"]}
     shards = sorted(root.glob("shard-*.npz"))
     if not shards:
         raise FileNotFoundError(f"{root} has no finished shards yet")

@@ -28,7 +28,7 @@ class Estimate:
     params: HairParams
     vector: np.ndarray                 # the (clamped) normalised 6-vector
     at_range_edge: list[str]           # parameters whose raw output reached the range's edge
-    uncertainty: dict[str, float] = field(default_factory=dict)  # std over flips/turns, in parameter units
+    view_spread: dict[str, float] = field(default_factory=dict)  # std over the 8 flips/turns, normalised 0–1
     roi: Roi | None = None
     seconds: float = 0.0
 
@@ -86,7 +86,8 @@ class Encoder:
     def estimate(self, image: np.ndarray, roi: Roi | None = None, views: bool = True) -> Estimate:
         """Estimate the hair parameters of an 8-bit RGB image: a rig frame or a crop that is all hair.
 
-        With ``views`` the 8 flips and turns are averaged, and their spread is the uncertainty.
+        With ``views`` the 8 flips and turns are averaged. Their spread is a check of the input (a
+        swatch looks alike in each), not an uncertainty: ``inference.uncertainty`` has measured intervals.
         """
         start = time.perf_counter()
         crop, roi = swatch_crop(image, roi)
@@ -95,8 +96,6 @@ class Encoder:
         params, logits = self.predict(batch)
         vector = np.clip(params.mean(0), 0.0, 1.0)
         edge = [VECTOR_FIELDS[i][0] for i in np.flatnonzero(np.abs(logits.mean(0)) > EDGE_LOGIT)]
-        spans = np.array([hi - lo for _, lo, hi in VECTOR_FIELDS])
-        uncertainty = {name: float(s) for (name, _, _), s in zip(VECTOR_FIELDS, params.std(0) * spans)} \
-            if views else {}
-        return Estimate(HairParams.from_vector(vector), vector, edge, uncertainty, roi,
+        spread = {name: round(float(s), 5) for (name, _, _), s in zip(VECTOR_FIELDS, params.std(0))} if views else {}
+        return Estimate(HairParams.from_vector(vector), vector, edge, spread, roi,
                         time.perf_counter() - start)

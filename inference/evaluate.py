@@ -1,47 +1,52 @@
-"""``hairdigi evaluate``: the paper's protocol on held-out swatches, beside the render-noise floor.
+"""``hairdigi evaluate``: the estimate judged on clean inputs, as a calibrated camera delivers them.
 
-1. Render ``n`` held-out swatches (a dataset with a seed disjoint from training: resumable, cached).
-2. Estimate each with the encoder, and re-render the estimate with the same scene (camera, strand
-   layout) and a *new* sampler seed.
-3. Re-render the *true* parameters with that same new seed: the noise floor. No estimator can beat
-   it, and the estimate and the floor differ only in the hair parameters.
-4. Compare each re-render with the original: L1 (0–255), MS-SSIM, ΔE2000 per pixel and of the mean
-   colour; and the error of each parameter. Report per hard-case bucket.
+1. **Inputs.** ``n`` held-out swatches (seed ``EVAL_SEED``, strand layouts and seeds training never
+   used), rendered at 64 spp and stored linear; each is shot through the camera model
+   (``render.camera_model``: sensor noise, 12-bit ADC, 8-bit sRGB) as a capture would be.
+2. **Estimates.** The encoder alone, and the encoder followed by refinement by synthesis at the
+   sample's camera pose (``inference.refine``).
+3. **The judge.** The truth and each estimate are rendered with the sample's camera and strand
+   layout and one *common* new sampler seed (``JUDGE``): their mean-colour ΔE2000 is then free of
+   most render noise. The floor compares the input itself with the truth's judge render: what
+   render noise and the camera alone leave.
+4. **Image metrics** as in the paper, between the judge render and the input: L1 (0–255) and
+   MS-SSIM (3 scales: 64² is too small for the 5-scale version), beside the same for the truth.
+5. **Intervals.** The refined estimates' errors give the 68% intervals of ``inference.uncertainty``,
+   fitted on even rows and checked on odd ones (coverage), then fitted on all and written out.
+
+Inputs and judge renders of the truth do not depend on the model and are cached beside the held-out
+set; the refinement's response curves are cached per pose. A second model's evaluation costs its
+estimates and their judge renders only.
 """
 from __future__ import annotations
 
 import os
 import time
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
 from inference.dataset import DatasetConfig, generate, load, sample_spec
-from render.metrics import delta_e2000, l1_255, mean_colour_delta_e, ms_ssim
+from inference.refine import RefineSettings, mean_linear, refine
+from render.metrics import delta_e2000, l1_255, ms_ssim
 from render.params import VECTOR_FIELDS, HairParams, write_json_atomic
-from render.srgb import srgb8_to_linear
 
 EVAL_SEED = 1_000_003  # training datasets use small seeds; this one is disjoint by construction
 SPANS = np.array([hi - lo for _, lo, hi in VECTOR_FIELDS])
+NAMES = [name for name, _, _ in VECTOR_FIELDS]
 
 
-def image_metrics(original: np.ndarray, other: np.ndarray) -> dict[str, float]:
-    """Metrics between two 8-bit sRGB renders of one scene."""
-    lin_a, lin_b = srgb8_to_linear(original), srgb8_to_linear(other)
-    row = {"l1": l1_255(original, other),
-           # the same on 4x4 block means: most of the render noise averages out, the colour error stays
-           "l1_blocks4": l1_255(_blocks(original, 4), _blocks(other, 4)),
-           "mean_colour_de2000": mean_colour_delta_e(lin_a, lin_b),
-           "pixel_de2000": float(np.mean(delta_e2000(lin_a.reshape(-1, 3), lin_b.reshape(-1, 3))))}
-    if min(original.shape[:2]) >= 161:
-        row["ms_ssim"] = ms_ssim(original, other)
-    return row
+@dataclass(frozen=True)
+class Judge:
+    """How estimates are judged: renders of truth and estimate with one common sampler seed."""
+
+    size: int = 64
+    spp: int = 16
+    seed: int = 424_242
 
 
-def _blocks(img: np.ndarray, k: int) -> np.ndarray:
-    h, w = (img.shape[0] // k) * k, (img.shape[1] // k) * k
-    return img[:h, :w].astype(float).reshape(h // k, k, w // k, k, -1).mean((1, 3))
+JUDGE = Judge()
 
 
 def buckets(params: HairParams, polar_deg: float) -> list[str]:
@@ -59,47 +64,60 @@ def buckets(params: HairParams, polar_deg: float) -> list[str]:
     return out
 
 
-def _rerender(config: DatasetConfig, index: int, params: HairParams, spp: int | None = None,
-              seed_offset: int = 1):
-    """Sample ``index``'s scene (camera, strand layout) with other hair; a new sampler seed by default."""
-    from render.renderer import SceneSpec, default_renderer
-
-    s = sample_spec(config, index)
-    spec = SceneSpec("swatch", camera=s.camera, framing=config.framing, strands=config.strands,
-                     strand_seed=s.strand_seed, max_depth=config.max_depth)
-    return default_renderer().render(params, spec, config.size, spp or config.spp, s.render_seed + seed_offset).srgb
-
-
-def heldout_config(n: int, size: int, spp: int) -> DatasetConfig:
+def heldout_config(n: int, size: int = 64, spp: int = 64) -> DatasetConfig:
     from render.renderer import defaults_for
 
     sw = defaults_for("swatch")
     return DatasetConfig(n=n, size=size, spp=spp, seed=EVAL_SEED, strands=sw.strands, max_depth=sw.max_depth,
-                         shard_size=50)
+                         shard_size=50, store="linear16")
 
 
-def prepare_heldout(root: str | os.PathLike, n: int = 300, size: int = 176, spp: int = 4, workers: int = 2,
-                    floors: int | None = None, progress: bool = True) -> Path:
-    """Render the held-out swatches and the noise-floor re-renders of the first ``floors`` of them.
+def scene_of(config: DatasetConfig, index: int):
+    """Sample ``index``'s scene (camera, strand layout, framing): one home for dataset sample -> scene."""
+    from render.renderer import SceneSpec
 
-    Neither depends on the encoder, so this can run before training ends. Resumable: the images
-    are dataset shards, the floors are saved to ``floor.npz`` every 10.
-    """
+    s = sample_spec(config, index)
+    return SceneSpec("swatch", camera=s.camera, framing=config.framing, strands=config.strands,
+                     strand_seed=s.strand_seed, max_depth=config.max_depth)
+
+
+def judge_render(config: DatasetConfig, index: int, hair, judge: Judge = JUDGE):
+    """Sample ``index``'s scene with other hair (``HairParams`` or ``sigma_a``), at the judge's settings."""
+    from render.renderer import default_renderer
+
+    return default_renderer().render(hair, scene_of(config, index), judge.size, judge.spp, judge.seed)
+
+
+def capture(linear: np.ndarray, index: int) -> np.ndarray:
+    """The 8-bit frame a calibrated camera would give of a linear render (fixed noise seed per sample)."""
+    from render.camera_model import CameraModel, sensor_response
+
+    return sensor_response(np.asarray(linear, np.float32), CameraModel(), np.random.default_rng([EVAL_SEED, index]))
+
+
+def prepare_heldout(root: str | os.PathLike, n: int = 300, size: int = 64, spp: int = 64, workers: int = 2,
+                    judge: Judge = JUDGE, progress: bool = True) -> Path:
+    """Render the held-out swatches and the truth's judge renders (model-independent; resumable)."""
     from tqdm import tqdm
 
     root = Path(root)
     config = heldout_config(n, size, spp)
     generate(config, root, workers=workers, progress=progress)
-    cache = root / "floor.npz"
+    cache = judge_file(root, judge)
     have = dict(np.load(cache)) if cache.exists() else {}
     _, vectors, _, _ = load(root)
-    todo = [i for i in range(min(len(vectors), floors if floors is not None else n)) if f"floor_{i}" not in have]
-    for k, i in enumerate(tqdm(todo, desc="noise floor", unit="swatch", disable=not progress)):
-        have[f"floor_{i}"] = _rerender(config, i, HairParams.from_vector(vectors[i]))
-        if k % 10 == 9:
+    todo = [i for i in range(min(n, len(vectors))) if f"truth_{i}" not in have]
+    for k, i in enumerate(tqdm(todo, desc="judge renders of the truth", unit="swatch", disable=not progress)):
+        have[f"truth_{i}"] = judge_render(config, i, HairParams.from_vector(vectors[i]), judge).linear.astype(np.float16)
+        if k % 20 == 19:
             _save_npz(cache, have)
     _save_npz(cache, have)
     return root
+
+
+def judge_file(root: str | os.PathLike, judge: Judge = JUDGE) -> Path:
+    """Where the truth's judge renders of a held-out set are cached."""
+    return Path(root) / f"judge-{judge.size}px-{judge.spp}spp-{judge.seed}.npz"
 
 
 def _save_npz(path: Path, arrays: dict) -> None:
@@ -108,57 +126,81 @@ def _save_npz(path: Path, arrays: dict) -> None:
     os.replace(tmp, path)
 
 
-def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 176, spp: int = 4,
-             data_root: str | os.PathLike | None = None, workers: int = 2, rerender: int | None = None,
-             progress: bool = True) -> dict:
-    """Run the protocol; write ``evaluation.json``, ``samples.json`` and return the summary.
+def _image_row(prefix: str, rendered: np.ndarray, truth_judge: np.ndarray, input_srgb: np.ndarray) -> dict:
+    from render.srgb import linear_to_srgb8
 
-    ``rerender`` limits the image metrics to the first samples (all when None); the parameter
-    errors always use all ``n``.
-    """
+    srgb = linear_to_srgb8(rendered)
+    row = {f"{prefix}_mean_colour_de2000": float(delta_e2000(rendered.reshape(-1, 3).mean(0),
+                                                            truth_judge.reshape(-1, 3).mean(0))),
+           f"{prefix}_l1": l1_255(input_srgb, srgb)}
+    if min(srgb.shape[:2]) >= 43:
+        row[f"{prefix}_ms_ssim3"] = ms_ssim(input_srgb, srgb, scales=3)
+    return row
+
+
+def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 64, spp: int = 64,
+             data_root: str | os.PathLike | None = None, workers: int = 2,
+             settings: RefineSettings = RefineSettings(), refine_colour: bool = True,
+             judge: Judge = JUDGE, progress: bool = True) -> dict:
+    """Run the protocol; write ``evaluation.json``, ``samples.json``, ``uncertainty.json``; return the summary."""
     from tqdm import tqdm
 
+    from inference.domain import domain_stats, domain_warnings
+    from inference.preprocess import ImageError, Roi
+    from inference.uncertainty import coverage_of, fit_intervals
+
+    if judge.size != size:
+        raise ValueError(f"the judge renders at {judge.size}² but the held-out swatches are {size}²; the paper's "
+                         "image metrics compare the two pixel for pixel: use one size")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     config = heldout_config(n, size, spp)
-    root = Path(data_root) if data_root else out / "heldout"
-    n_img = n if rerender is None else min(rerender, n)
-    prepare_heldout(root, n, size, spp, workers, floors=n_img, progress=progress)
+    root = prepare_heldout(Path(data_root) if data_root else out / "heldout", n, size, spp, workers,
+                           judge, progress)
     images, vectors, cameras, _ = load(root)
-    floors = dict(np.load(root / "floor.npz"))
-
-    from inference.preprocess import ImageError
-
+    truths = dict(np.load(judge_file(root, judge)))
+    rows, invalid = [], {}
     t0 = time.perf_counter()
-    estimates, invalid = [], {}
-    for i, img in enumerate(images):
-        try:
-            estimates.append(encoder.estimate(img, roi=_whole(img), views=True))
-        except ImageError as exc:   # e.g. a camera that looks into the back of a light: a black frame
-            estimates.append(None)
-            invalid[i] = str(exc)
-    latency = _latency(encoder, images[next(i for i, e in enumerate(estimates) if e is not None)])
-    rows = []
-    for i in tqdm(range(len(images)), desc="evaluate", unit="swatch", disable=not progress):
+    for i in tqdm(range(min(n, len(images))), desc="evaluate", unit="swatch", disable=not progress):
         truth = HairParams.from_vector(vectors[i])
-        est = estimates[i]
-        if est is None:
+        pose = sample_spec(config, i).camera
+        frame = capture(images[i], i)
+        try:
+            est = encoder.estimate(frame, roi=Roi(0, 0, frame.shape[1], frame.shape[0]))
+        except ImageError as exc:   # e.g. a black frame: reported, not fatal
+            invalid[str(i)] = str(exc)
             continue
+        truth_judge = truths[f"truth_{i}"].astype(np.float32)
         row = {"index": i, "polar_deg": float(cameras[i][0]), "buckets": buckets(truth, float(cameras[i][0])),
-               "at_range_edge": est.at_range_edge}
-        for (name, _, _), t, e, span in zip(VECTOR_FIELDS, vectors[i], est.vector, SPANS):
-            row[f"abs_err_{name}"] = float(abs(t - e) * span)
-        if i < n_img:
-            rerendered = _rerender(config, i, est.params)
-            row.update({f"est_{k}": v for k, v in image_metrics(images[i], rerendered).items()})
-            row.update({f"floor_{k}": v for k, v in image_metrics(images[i], floors[f"floor_{i}"]).items()})
+               "truth": _named(truth), "encoder": _named(est.params), "encoder_ms": est.seconds * 1000,
+               "floor_mean_colour_de2000": float(delta_e2000(images[i].astype(np.float32).reshape(-1, 3).mean(0),
+                                                             truth_judge.reshape(-1, 3).mean(0))),
+               "warnings": domain_warnings(domain_stats(frame), max(est.view_spread.values()))}
+        row.update(_image_row("floor", truth_judge, truth_judge, frame))
+        row.update(_image_row("encoder", judge_render(config, i, est.params, judge).linear, truth_judge, frame))
+        if refine_colour:
+            r = refine(est.params, mean_linear(frame), pose, settings)
+            row.update({"refined": _named(r.params), "refine_s": r.seconds, "curve_s": r.curve_seconds,
+                        "refine_iterations": r.iterations, "refine_residual_de2000": r.residual_de2000,
+                        "refine_reachable": r.reachable})
+            row.update(_image_row("refined", judge_render(config, i, r.params, judge).linear, truth_judge, frame))
         rows.append(row)
+    best = "refined" if refine_colour else "encoder"
+    fit_rows = [{"estimate": r[best], "truth": r["truth"], "mean_colour_de2000": r[f"{best}_mean_colour_de2000"]}
+                for r in rows]
+    half = fit_intervals(fit_rows[0::2])
+    table = fit_intervals(fit_rows)
+    table["coverage_check"] = {"fitted_on": "even rows", "measured_on": "odd rows",
+                               "coverage": coverage_of(half, fit_rows[1::2])}
+    write_json_atomic(out / "uncertainty.json", table)
     summary = summarise(rows)
-    summary.update({"n": len(rows), "n_rerendered": sum(1 for r in rows if "est_l1" in r),
-                    "invalid": {str(k): v for k, v in invalid.items()}, "size": size, "spp": spp, "seed": EVAL_SEED,
-                    "model": str(encoder.path), "model_sha256": encoder.sha256,
-                    "latency_ms_median_1_thread": latency, "seconds": time.perf_counter() - t0,
-                    "dataset": asdict(config), "date": time.strftime("%Y-%m-%d"),
+    summary.update({"n": len(rows), "invalid": invalid, "size": size, "spp": spp, "seed": EVAL_SEED,
+                    "judge": asdict(judge),
+                    "refine_settings": asdict(settings), "model": str(encoder.path), "model_sha256": encoder.sha256,
+                    "latency_ms_median_1_thread": _latency(encoder, capture(images[rows[0]["index"]], 0)),
+                    "seconds": time.perf_counter() - t0, "dataset": asdict(config), "date": time.strftime("%Y-%m-%d"),
+                    "coverage": table["coverage_check"]["coverage"],
+                    "heldout_flagged_out_of_domain": sum(1 for r in rows if r["warnings"]),
                     "lpips": "not computed: it needs pretrained AlexNet/VGG weights, which no package here ships",
                     "paper_table_2": {"l1": "7.08 ± 11.79", "ms_ssim": "0.20 ± 0.04 (as printed)",
                                       "lpips": "0.12 ± 0.19"}})
@@ -167,36 +209,40 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 176,
     return summary
 
 
-def _whole(img):
-    from inference.preprocess import Roi
-    return Roi(0, 0, img.shape[1], img.shape[0])
+def _named(params: HairParams) -> dict[str, float]:
+    v = params.to_vector() * SPANS
+    return {name: float(x) for name, x in zip(NAMES, v)}
 
 
-def _latency(encoder, image: np.ndarray, repeats: int = 200) -> float:
+def _latency(encoder, frame: np.ndarray, repeats: int = 200) -> float:
     """Median milliseconds of one encoder call (one view, batch 1) on preprocessed input."""
     from inference.encoder import median_latency_ms
     from inference.preprocess import encode
 
-    return median_latency_ms(encoder, encode(image, encoder.input_size)[None], repeats)
+    return median_latency_ms(encoder, encode(frame, encoder.input_size)[None], repeats)
+
+
+def _stats(values) -> dict:
+    v = np.asarray(values, dtype=float)
+    return {"median": float(np.median(v)), "mean": float(v.mean()), "p95": float(np.quantile(v, 0.95)),
+            "max": float(v.max()), "std": float(v.std())}
 
 
 def summarise(rows: list[dict]) -> dict:
-    """Mean ± std of every metric per bucket, and the ratio of each image metric to its floor."""
-    metrics = sorted({k for r in rows for k in r if k.startswith(("abs_err_", "est_", "floor_"))})
+    """Median, mean, p95 and worst of every metric per bucket, and each parameter's mean absolute error."""
+    metrics = sorted({k for r in rows for k in r if k.endswith(("_de2000", "_l1", "_ms_ssim3", "_s"))
+                      and isinstance(r[k], (int, float))})
     out: dict = {"buckets": {}}
     for bucket in sorted({b for r in rows for b in r["buckets"]}):
         rs = [r for r in rows if bucket in r["buckets"]]
         entry: dict = {"count": len(rs)}
         for m in metrics:
-            vals = np.array([r[m] for r in rs if m in r], dtype=float)
-            if len(vals):
-                entry[m] = {"mean": float(vals.mean()), "std": float(vals.std()), "median": float(np.median(vals))}
-        for m in metrics:
-            if m.startswith("est_") and m.replace("est_", "floor_") in entry:
-                est, floor = entry[m]["mean"], entry[m.replace("est_", "floor_")]["mean"]
-                name = m[4:]
-                # MS-SSIM is a similarity: compare its distance 1 - MS-SSIM to the floor's
-                ratio = (1 - est) / max(1 - floor, 1e-9) if name == "ms_ssim" else est / max(floor, 1e-9)
-                entry[f"ratio_to_floor_{name}"] = float(ratio)
+            vals = [r[m] for r in rs if m in r]
+            if vals:
+                entry[m] = _stats(vals)
+        for who in ("encoder", "refined"):
+            if who in rs[0]:
+                entry[f"{who}_abs_err"] = {n: float(np.mean([abs(r[who][n] - r["truth"][n]) for r in rs]))
+                                           for n in NAMES}
         out["buckets"][bucket] = entry
     return out

@@ -1,7 +1,7 @@
 """Capture preprocessing shared by training and inference: read, validate, find the swatch, encode.
 
 The encoder sees sRGB 8-bit colour, as a camera (or the renderer's ``srgb`` output) gives it,
-scaled to [-0.5, 0.5], channels first. Training crops random squares of all-hair renders; at
+resized in linear light and scaled to [-0.5, 0.5], channels first. Training crops random squares of all-hair renders; at
 inference the swatch area is found (or given as a ROI) and its central square is used.
 """
 from __future__ import annotations
@@ -13,8 +13,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from render.srgb import linear_to_srgb, srgb8_to_linear
+
 MIN_SIDE = 32          # smaller images hold too few strands to judge a colour
 ROI_CENTRAL = 0.7      # share of the swatch area's shorter side kept at inference, away from its edges
+#: Largest image decoded: 64 MP (a 61 MP camera's still); 3 bytes a pixel, and a few copies while
+#: finding the swatch, keep that under 1 GB. Larger files are refused from their header, undecoded.
+MAX_IMAGE_PIXELS = 64_000_000
+MAX_IMAGE_BYTES = 512 * 1024 * 1024
+SEARCH_SIDE = 800      # frames are searched for the swatch at most this many pixels on their longer side
 
 
 class ImageError(ValueError):
@@ -28,16 +35,86 @@ def _check_complete(data: bytes, path: Path) -> None:
         raise ImageError(f"{path}: the JPEG is truncated (no end marker); copy the file again")
 
 
+def _jpeg_size(data: bytes) -> tuple[int, int] | None:
+    """Width and height from a JPEG's start-of-frame segment, or None when none is found."""
+    import struct
+
+    i = 2
+    while i + 9 < len(data):
+        if data[i] != 0xFF:
+            return None
+        marker = data[i + 1]
+        if marker == 0xFF:                       # fill byte
+            i += 1
+            continue
+        if marker in (0x01, 0xD8) or 0xD0 <= marker <= 0xD7:
+            i += 2
+            continue
+        length = struct.unpack(">H", data[i + 2:i + 4])[0]
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            h, w = struct.unpack(">HH", data[i + 5:i + 9])
+            return w, h
+        i += 2 + length
+    return None
+
+
+def image_size(data: bytes) -> tuple[int, int] | None:
+    """(width, height) from an image file's header, without decoding it; None when unknown."""
+    import struct
+
+    if data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR":
+        return struct.unpack(">II", data[16:24])
+    if data[:2] == b"\xff\xd8":
+        return _jpeg_size(data)
+    try:   # other formats (TIFF, BMP, WebP, ...): Pillow reads only the header here
+        import io
+        import warnings
+
+        from PIL import Image
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            with Image.open(io.BytesIO(data)) as im:
+                return im.size
+    except Exception as exc:   # not an image Pillow knows, or one it calls a decompression bomb
+        return (MAX_IMAGE_PIXELS + 1, 1) if type(exc).__name__ == "DecompressionBombError" else None
+
+
+def _read_bytes(path: Path) -> bytes:
+    """The file's bytes, with an ImageError naming the path and the fix for every way reading fails."""
+    try:
+        size = path.stat().st_size
+        if path.is_dir():
+            raise ImageError(f"{path}: is a folder; give the path of an image file")
+        if size > MAX_IMAGE_BYTES:
+            raise ImageError(f"{path}: {size / 1e6:.0f} MB is too large for one swatch image (at most "
+                             f"{MAX_IMAGE_BYTES / 1e6:.0f} MB); export a smaller JPEG or PNG")
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise ImageError(f"{path}: no such file") from None
+    except PermissionError:
+        raise ImageError(f"{path}: permission denied; make it readable (chmod +r) or use a copy") from None
+    except OSError as exc:
+        raise ImageError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+
+
 def read_image(path: str | os.PathLike) -> np.ndarray:
-    """Read an 8-bit RGB image; clear errors for missing, non-image, truncated and 16-bit files."""
+    """Read an 8-bit RGB image; clear errors for missing, unreadable, non-image, truncated, 16-bit and
+    oversized files (the size is read from the header, before anything is decoded)."""
     path = Path(path)
-    if not path.exists():
-        raise ImageError(f"{path}: no such file")
-    data = path.read_bytes()
+    data = _read_bytes(path)
     if not data:
         raise ImageError(f"{path}: the file is empty")
     _check_complete(data, path)
+    size = image_size(data)
+    if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
+        raise ImageError(f"{path}: {size[0]}x{size[1]} px is more than hairdigi decodes "
+                         f"({MAX_IMAGE_PIXELS / 1e6:.0f} MP); scale it down or crop it around the swatch "
+                         f"and chart, e.g. to 6000x4000")
     img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    if img is not None and img.shape[0] * img.shape[1] > MAX_IMAGE_PIXELS:
+        raise ImageError(f"{path}: {img.shape[1]}x{img.shape[0]} px is more than hairdigi takes "
+                         f"({MAX_IMAGE_PIXELS / 1e6:.0f} MP); scale it down or crop it around the swatch")
     if img is None:
         raise ImageError(f"{path}: not an image OpenCV can read (PNG, JPEG, TIFF, ...); "
                          f"for RAW files use the capture command")
@@ -60,8 +137,9 @@ def validate_image(img: np.ndarray, name: str = "image") -> np.ndarray:
     if min(img.shape[:2]) < MIN_SIDE:
         raise ImageError(f"{name}: {img.shape[1]}x{img.shape[0]} px is too small; the swatch needs at "
                          f"least {MIN_SIDE}x{MIN_SIDE} px")
-    if float(img.std()) < 1.0:
-        raise ImageError(f"{name}: the image is flat (one grey level): no swatch in view? Check the "
+    step = max(1, int(np.sqrt(img.shape[0] * img.shape[1] / 1e6)))   # about a million pixels decide it
+    if float(img[::step, ::step].reshape(-1, 3).std(axis=0).max()) < 1.0:   # per channel: one colour is flat
+        raise ImageError(f"{name}: the image is flat (one colour): no swatch in view? Check the "
                          f"lens cap, the lights and the exposure")
     return img
 
@@ -114,25 +192,63 @@ def swatch_score(img: np.ndarray) -> np.ndarray:
     return np.maximum(colour_distance / 12.0, energy / (1.8 * background_energy + 1.5))
 
 
-def find_swatch_roi(img: np.ndarray) -> Roi:
-    """The bounding box of the largest region unlike the frame's border; the whole image when no
-    such region stands out (an image that is all hair)."""
+def chart_mask(img: np.ndarray, margin: float) -> np.ndarray | None:
+    """A mask (uint8, 1 inside) over the ColorChecker in view, grown by ``margin`` pixels and by a
+    tenth of its size to take in its board; None when no chart is found (detection as in calibration)."""
+    from inference.calibration import CalibrationError, detect_chart
+
+    try:
+        box = detect_chart(img).box
+    except (CalibrationError, cv2.error):
+        return None
+    centre = box.mean(axis=0)
+    grown = centre + (box - centre) * 1.1
+    grown += np.sign(grown - centre) * margin
     h, w = img.shape[:2]
-    mask = (swatch_score(img) > 1.0).astype(np.uint8)
-    k = max(3, min(h, w) // 40) | 1
+    if cv2.contourArea(grown.astype(np.float32)) > 0.5 * h * w:
+        return None   # a "chart" covering half the frame is a misdetection, not the chart beside a swatch
+    mask = np.zeros((h, w), np.uint8)
+    cv2.fillConvexPoly(mask, np.round(grown).astype(np.int32), 1)
+    return mask
+
+
+def _search_image(img: np.ndarray) -> tuple[np.ndarray, float]:
+    """The frame scaled down (area filter) to at most ``SEARCH_SIDE`` on its longer side, and the scale."""
+    scale = min(1.0, SEARCH_SIDE / max(img.shape[:2]))
+    if scale == 1.0:
+        return img, 1.0
+    size = (max(1, round(img.shape[1] * scale)), max(1, round(img.shape[0] * scale)))
+    return cv2.resize(img, size, interpolation=cv2.INTER_AREA), scale
+
+
+def find_swatch_roi(img: np.ndarray) -> Roi:
+    """The bounding box of the largest filled region unlike the frame's border, the colour chart
+    masked out; the whole image when no such region stands out (an image that is all hair).
+
+    Large frames are searched scaled down to ``SEARCH_SIDE``; the ROI is in the frame's pixels.
+    """
+    h, w = img.shape[:2]
+    small, scale = _search_image(img)
+    sh, sw = small.shape[:2]
+    mask = (swatch_score(small) > 1.0).astype(np.uint8)
+    chart = chart_mask(small, margin=2 * max(1.5, min(sh, sw) / 50.0))
+    if chart is not None:
+        mask[chart > 0] = 0
+    k = max(3, min(sh, sw) // 40) | 1
     mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k, k), np.uint8))
     n, _, stats, _ = cv2.connectedComponentsWithStats(mask)
-    if n <= 1:
-        return Roi(0, 0, w, h)
-    best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    x, y, bw, bh, area = (int(v) for v in stats[best])
     # a swatch on its holder is a large, filled rectangle; streaks inside an all-hair image are not
-    if area < 0.10 * h * w or area < 0.6 * bw * bh or bw * bh > 0.85 * h * w:
+    candidates = [(int(s[4]), i) for i, s in enumerate(stats) if i > 0 and s[4] >= 0.10 * sh * sw
+                  and s[4] >= 0.6 * s[2] * s[3] and s[2] * s[3] <= 0.85 * sh * sw]
+    if not candidates:
         return Roi(0, 0, w, h)
-    if min(bw, bh) < MIN_SIDE:
-        raise ImageError(f"the swatch area found is only {bw}x{bh} px (at least {MIN_SIDE} px a side is "
-                         f"needed): move the camera closer, or pass its area with --roi x,y,w,h")
-    return Roi(x, y, bw, bh)
+    x, y, bw, bh = (int(v) for v in stats[max(candidates)[1], :4])
+    x0, y0 = int(np.floor(x / scale)), int(np.floor(y / scale))
+    x1, y1 = min(w, int(np.ceil((x + bw) / scale))), min(h, int(np.ceil((y + bh) / scale)))
+    if min(x1 - x0, y1 - y0) < MIN_SIDE:
+        raise ImageError(f"the swatch area found is only {x1 - x0}x{y1 - y0} px (at least {MIN_SIDE} px a "
+                         f"side is needed): move the camera closer, or pass its area with --roi x,y,w,h")
+    return Roi(x0, y0, x1 - x0, y1 - y0)
 
 
 def central_square(img: np.ndarray, share: float = ROI_CENTRAL) -> np.ndarray:
@@ -155,8 +271,19 @@ def swatch_crop(img: np.ndarray, roi: Roi | None = None) -> tuple[np.ndarray, Ro
     return central_square(region, 1.0 if full else ROI_CENTRAL), roi
 
 
+#: 8-bit sRGB code to linear light (colour-science's sRGB curve), as a lookup table.
+_LINEAR_LUT = srgb8_to_linear(np.arange(256)).astype(np.float32)
+
+
 def encode(img: np.ndarray, size: int) -> np.ndarray:
-    """Resize (area filter) to ``size``² and encode as float32 (3, size, size) in [-0.5, 0.5]."""
+    """Resize an 8-bit sRGB image to ``size``² in linear light and encode it for the net.
+
+    The area filter averages linear radiance, as a camera with fewer pixels would: the input's
+    mean colour is then the same whatever the source's resolution (averaging sRGB codes would
+    darken textured hair more the larger the source). Returns float32 (3, size, size): sRGB
+    values (unquantised) in [-0.5, 0.5].
+    """
+    linear = _LINEAR_LUT[img]
     if img.shape[0] != size or img.shape[1] != size:
-        img = cv2.resize(img, (size, size), interpolation=cv2.INTER_AREA)
-    return (img.astype(np.float32) / 255.0 - 0.5).transpose(2, 0, 1).copy()
+        linear = cv2.resize(linear, (size, size), interpolation=cv2.INTER_AREA)
+    return (linear_to_srgb(linear) - np.float32(0.5)).transpose(2, 0, 1).copy()

@@ -57,28 +57,33 @@ def _ssim_parts(x: np.ndarray, y: np.ndarray, data_range: float) -> tuple[float,
     return float(np.mean((lum * cs)[crop])), float(np.mean(cs[crop]))
 
 
-def ms_ssim(img_a: np.ndarray, img_b: np.ndarray, data_range: float = 255.0) -> float:
+def ms_ssim(img_a: np.ndarray, img_b: np.ndarray, data_range: float = 255.0, scales: int = 5) -> float:
     """Multi-scale SSIM of two (H, W) or (H, W, C) images, averaged over channels; 1 is identical.
 
-    Needs both sides >= 161 px for its 5 scales; smaller images raise ``ValueError``.
+    The 5 scales of Wang et al. need both sides >= 161 px; smaller images raise ``ValueError``.
+    ``scales`` < 5 uses the first weights, renormalised (3 scales need 43 px: for 64² swatches).
     """
+    if not 1 <= scales <= 5:
+        raise ValueError(f"MS-SSIM has 1 to 5 scales, got {scales}")
+    weights = MS_SSIM_WEIGHTS[:scales] / MS_SSIM_WEIGHTS[:scales].sum()
+    min_size = 11 * 2 ** (scales - 1) - 2 ** (scales - 1) + 1
     a, b = np.asarray(img_a, dtype=float), np.asarray(img_b, dtype=float)
     if a.shape != b.shape:
         raise ValueError(f"MS-SSIM needs images of one shape, got {a.shape} and {b.shape}")
-    if min(a.shape[:2]) < MS_SSIM_MIN_SIZE:
-        raise ValueError(f"MS-SSIM's 5 scales need images of at least {MS_SSIM_MIN_SIZE} px, got {a.shape[:2]}")
+    if min(a.shape[:2]) < min_size:
+        raise ValueError(f"MS-SSIM's {scales} scales need images of at least {min_size} px, got {a.shape[:2]}")
     if a.ndim == 2:
         a, b = a[..., None], b[..., None]
     values = []
     for ch in range(a.shape[2]):
         x, y = a[..., ch], b[..., ch]
         mcs = []
-        for scale in range(5):
+        for scale in range(scales):
             ssim, cs = _ssim_parts(x, y, data_range)
-            if scale < 4:
+            if scale < scales - 1:
                 mcs.append(max(cs, 0.0))
                 h, w = (x.shape[0] // 2) * 2, (x.shape[1] // 2) * 2
                 x = x[:h, :w].reshape(h // 2, 2, w // 2, 2).mean((1, 3))
                 y = y[:h, :w].reshape(h // 2, 2, w // 2, 2).mean((1, 3))
-        values.append(np.prod(np.array(mcs) ** MS_SSIM_WEIGHTS[:4]) * max(ssim, 0.0) ** MS_SSIM_WEIGHTS[4])
+        values.append(np.prod(np.array(mcs) ** weights[:-1]) * max(ssim, 0.0) ** weights[-1])
     return float(np.mean(values))

@@ -44,14 +44,18 @@ class HairParams:
     melanin_ratio: float = 0.8
 
     def __post_init__(self) -> None:
-        rgb = tuple(float(v) for v in np.asarray(self.dye_rgb, dtype=float).ravel())
-        if len(rgb) != 3:
-            raise HairParamsError(f"dye_rgb must hold 3 values (r, g, b), got {len(rgb)}")
+        rgb = self.dye_rgb
+        if isinstance(rgb, np.ndarray):
+            rgb = rgb.tolist() if rgb.ndim == 1 else [rgb.tolist()]
+        if not isinstance(rgb, (tuple, list)) or len(rgb) != 3:
+            count = f"a list of {len(rgb)}" if isinstance(rgb, (tuple, list)) else _describe(rgb)
+            raise HairParamsError(f"dye_rgb must hold 3 values, numbers [r, g, b], got {count}")
+        rgb = tuple(_real(name, v) for name, v in zip(("dye_r", "dye_g", "dye_b"), rgb))
         object.__setattr__(self, "dye_rgb", rgb)
         for name, value in zip(("dye_r", "dye_g", "dye_b"), rgb):
             _check(name, value, 0.0, 255.0)
         for name in ("dye_concentration", "melanin_concentration", "melanin_ratio"):
-            value = float(getattr(self, name))
+            value = _real(name, getattr(self, name))
             object.__setattr__(self, name, value)
             _check(name, value, 0.0, 1.0)
 
@@ -96,13 +100,26 @@ class HairParams:
         if missing:
             raise HairParamsError(
                 f"hair parameters are missing {', '.join(missing)}; expected keys: {', '.join(required)}")
-        try:
-            return cls(tuple(data["dye_rgb"]), data["dye_concentration"],
-                       data["melanin_concentration"], data["melanin_ratio"])
-        except (TypeError, ValueError) as exc:
-            if isinstance(exc, HairParamsError):
-                raise
-            raise HairParamsError(f"hair parameters have a value of the wrong type: {exc}") from exc
+        return cls(data["dye_rgb"], data["dye_concentration"], data["melanin_concentration"],
+                   data["melanin_ratio"])
+
+
+def _describe(value: Any) -> str:
+    """A value's kind and text, for messages: ``the string '0.5'``, ``true``, ``a list``."""
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f"the string {value!r}"
+    if value is None:
+        return "null"
+    return f"{'a list' if isinstance(value, (list, tuple)) else type(value).__name__} {value!r}"[:80]
+
+
+def _real(name: str, value: Any) -> float:
+    """``value`` as a float when it is a real number (not a bool, a string or a list); else an error."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise HairParamsError(f"{name} must be a number, got {_describe(value)}")
+    return float(value)
 
 
 def _check(name: str, value: float, low: float, high: float) -> None:

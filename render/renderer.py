@@ -47,6 +47,49 @@ def defaults_for(name: str) -> SceneDefaults:
     return DEFAULTS["swatch" if name == "swatch" else "hairstyle"]
 
 
+# Bounds on what a render may ask for: outside them the image is black, or the job cannot finish.
+MIN_SIZE = 8                 #: pixels a side; smaller holds too few strands to see
+MAX_SIZE = 4096              #: pixels a side; 4096² linear RGB is already 200 MB, and the film more
+MAX_SPP = 65536              #: samples per pixel
+MAX_SAMPLES = 2 ** 31        #: pixels x spp in one render (Mitsuba's JIT variants stop at 2^32)
+MIN_DEPTH = 2                #: path depth; depth 1 shows only the lights themselves (black for the rig)
+MAX_DEPTH = 1024
+MAX_STRANDS = 200_000
+#: Camera distance from the target in scene units: nearer is inside or against the hair (the
+#: swatch's strands stand 0.04 above the holder; the head's radius is about 1), farther is a speck.
+MIN_CAMERA_DISTANCE = {"swatch": 0.5, "hairstyle": 2.5}
+MAX_CAMERA_DISTANCE = 100.0
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+def check_size_spp(size: int | tuple[int, int], spp: int) -> None:
+    """Raise ValueError naming ``size`` or ``spp`` when a render could not finish or show anything."""
+    sides = tuple(size) if isinstance(size, (tuple, list)) else (size,)
+    if not all(_is_int(s) for s in sides) or not MIN_SIZE <= min(sides) <= max(sides) <= MAX_SIZE:
+        raise ValueError(f"size must be whole pixels between {MIN_SIZE} and {MAX_SIZE}, got {size!r}")
+    if not _is_int(spp) or not 1 <= spp <= MAX_SPP:
+        raise ValueError(f"spp must be a whole number between 1 and {MAX_SPP}, got {spp!r}")
+    pixels = int(sides[0]) * int(sides[-1])
+    if pixels * int(spp) > MAX_SAMPLES:
+        raise ValueError(f"size {size} at {spp} spp is {pixels * int(spp):.3g} samples, over the limit of "
+                         f"{MAX_SAMPLES:.3g} for one render; lower the size or the spp")
+
+
+def check_camera(pose: scenes.CameraPose, scene: str = "swatch") -> None:
+    """Raise ValueError naming the camera when its angles or distance are not finite, or its distance
+    puts it inside the geometry or absurdly far (both give a black image)."""
+    values = (pose.polar_deg, pose.azimuth_deg, pose.distance)
+    if not all(np.isfinite(float(v)) for v in values):
+        raise ValueError(f"camera {values} must be finite numbers (polar, azimuth, distance)")
+    low = MIN_CAMERA_DISTANCE["swatch" if scene == "swatch" else "hairstyle"]
+    if not low <= pose.distance <= MAX_CAMERA_DISTANCE:
+        raise ValueError(f"camera distance {pose.distance:g} must be between {low:g} (nearer is inside or "
+                         f"against the hair) and {MAX_CAMERA_DISTANCE:g} scene units")
+
+
 @dataclass(frozen=True)
 class SceneSpec:
     """What to render, apart from the hair colour.
@@ -54,7 +97,8 @@ class SceneSpec:
     ``name`` is ``"swatch"`` or a hairstyle. ``framing`` (swatch only) is ``"crop"``, all hair, as in
     the training set, or ``"rig"``, the whole swatch on its holder. ``env`` applies to hairstyles.
     ``strands``, ``max_depth`` None take the scene's defaults. ``lights`` scales the three rig lights.
-    ``chart`` adds a colour chart of (24, 3) linear reflectances beside the swatch (swatch only).
+    ``chart`` adds a colour chart of (24, 3) linear reflectances beside the swatch (swatch only), at
+    ``chart_center`` on the holder (x, y; default ``scenes.CHART_CENTER``).
     """
 
     name: str = "swatch"
@@ -68,6 +112,7 @@ class SceneSpec:
     chart: tuple | None = None
     target: tuple[float, float, float] = (0.0, 0.0, 0.0)
     half_width: float | None = None
+    chart_center: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.name not in SCENE_NAMES:
@@ -77,6 +122,16 @@ class SceneSpec:
         if self.name == "swatch" and self.framing not in scenes.FRAMING_HALF_WIDTH:
             raise ValueError(f"unknown framing {self.framing!r}; choose one of "
                              f"{', '.join(scenes.FRAMING_HALF_WIDTH)}")
+        if self.max_depth is not None and (not _is_int(self.max_depth)
+                                           or not MIN_DEPTH <= self.max_depth <= MAX_DEPTH):
+            raise ValueError(f"max_depth must be a whole number between {MIN_DEPTH} and {MAX_DEPTH} (depth 1 "
+                             f"shows only the lights, 0 nothing), got {self.max_depth!r}")
+        if self.strands is not None and (not _is_int(self.strands) or not 1 <= self.strands <= MAX_STRANDS):
+            raise ValueError(f"strands must be a whole number between 1 and {MAX_STRANDS}, got {self.strands!r}")
+        if not all(np.isfinite(float(v)) and v >= 0 for v in self.lights):
+            raise ValueError(f"lights {self.lights} must be finite scales >= 0")
+        if self.camera is not None:
+            check_camera(self.camera, self.name)
 
     @property
     def n_strands(self) -> int:
@@ -100,6 +155,17 @@ class RenderResult:
     seconds: float
     spp: int
     cpu_seconds: float = 0.0   # core-seconds of this process: robust to other load; ~2x wall on 2 idle cores
+    nonfinite: int = 0         # NaN or Inf values the path tracer returned, replaced by 0 in ``linear``
+
+
+def absorption_of(hair: HairParams | np.ndarray) -> np.ndarray:
+    """The RGB ``sigma_a`` to render: mapped from Table 1 parameters, or given directly (3 values >= 0)."""
+    if isinstance(hair, HairParams):
+        return hair_sigma_a(hair)
+    sigma = np.asarray(hair, dtype=float).ravel()
+    if sigma.shape != (3,) or not np.all(np.isfinite(sigma)) or np.any(sigma < 0):
+        raise ValueError(f"sigma_a must be 3 finite values >= 0, got {hair!r}")
+    return sigma
 
 
 def strands_for(spec: SceneSpec) -> Strands:
@@ -134,7 +200,7 @@ class Renderer:
     # -- scene cache -------------------------------------------------------------------------
     def _structure_key(self, spec: SceneSpec, size: int) -> tuple:
         key = (spec.name, spec.env, spec.framing, spec.n_strands, spec.depth, size, spec.chart,
-               spec.target, spec.half_width)
+               spec.target, spec.half_width, spec.chart_center)
         if not is_jit():  # scalar_rgb cannot swap curves in memory: a new layout means a new scene
             key += (spec.strand_seed,)
         return key
@@ -142,11 +208,14 @@ class Renderer:
     def _build(self, spec: SceneSpec, size: int, params: HairParams) -> _Loaded:
         curve_file = Path(self._tmp.name) / f"curves-{len(self._cache)}-{time.monotonic_ns()}.txt"
         curve_file.write_text(strands_for(spec).with_dummy().to_curve_text())
-        bsdf = hair_bsdf(params)
+        bsdf = hair_bsdf(params if isinstance(params, HairParams) else HairParams())  # sigma_a set on update
         if spec.name == "swatch":
             chart = None if spec.chart is None else np.asarray(spec.chart)
-            scene_dict = scenes.swatch_scene(str(curve_file), bsdf, spec.pose, size, spec.framing,
-                                             spec.depth, spec.lights, chart, spec.target, spec.half_width)
+            moved = chart is not None and spec.chart_center is not None
+            scene_dict = scenes.swatch_scene(str(curve_file), bsdf, spec.pose, size, spec.framing, spec.depth,
+                                             spec.lights, None if moved else chart, spec.target, spec.half_width)
+            if moved:
+                scene_dict.update(scenes.chart_patches(chart, center=tuple(spec.chart_center)))
         else:
             scene_dict = scenes.portrait_scene(str(curve_file), bsdf, size, spec.env, spec.pose, spec.depth)
         scene = load_scene(scene_dict)
@@ -165,7 +234,7 @@ class Renderer:
 
     def _update(self, loaded: _Loaded, spec: SceneSpec, params: HairParams) -> None:
         p = loaded.params
-        p["hair.bsdf.sigma_a.value"] = mi.Color3f(*hair_sigma_a(params).tolist())
+        p["hair.bsdf.sigma_a.value"] = mi.Color3f(*absorption_of(params).tolist())
         if spec.name == "swatch":
             for i, scale in enumerate(spec.lights):
                 p[f"light{i}.emitter.radiance.value"] = mi.Color3f([scenes.LIGHT_RADIANCE * float(scale)] * 3)
@@ -191,36 +260,43 @@ class Renderer:
                size: int | tuple[int, int] | None = None, spp: int | None = None, seed: int = 0) -> RenderResult:
         """Path-trace ``params`` in ``spec``; returns linear float32 RGB and an sRGB 8-bit image.
 
+        ``params`` is ``HairParams`` or, for refinement by synthesis, an RGB ``sigma_a`` array.
+
         ``size`` is the side of a square image, or (width, height).
         """
         if isinstance(spec, str):
             spec = SceneSpec(name=spec)
-        size = size or defaults_for(spec.name).size
+        size = defaults_for(spec.name).size if size is None else size
+        spp = defaults_for(spec.name).spp if spp is None else spp
+        check_size_spp(size, spp)
         size = (int(size[0]), int(size[1])) if isinstance(size, (tuple, list)) else int(size)
-        spp = int(spp or defaults_for(spec.name).spp)
-        if min(np.atleast_1d(size)) < 8 or spp < 1:
-            raise ValueError(f"size must be >= 8 pixels and spp >= 1, got size={size}, spp={spp}")
+        spp = int(spp)
         with self._lock:
             start, cpu = time.perf_counter(), time.process_time()
             scene = self._scene_for(spec, size, params)
             image = mi.render(scene, spp=spp, seed=int(seed))
-            linear = np.nan_to_num(np.asarray(image, dtype=np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+            linear = np.array(image, dtype=np.float32)
+            nonfinite = int(linear.size - np.count_nonzero(np.isfinite(linear)))
+            if nonfinite:   # counted, then replaced, so a NaN never reaches a PNG or a mean unseen
+                linear = np.nan_to_num(linear, nan=0.0, posinf=0.0, neginf=0.0)
             seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
-        return RenderResult(linear, linear_to_srgb8(linear), seconds, spp, cpu)
+        return RenderResult(linear, linear_to_srgb8(linear), seconds, spp, cpu, nonfinite)
 
     def render_progressive(self, params: HairParams, spec: SceneSpec | str, size: int | None = None,
                            spp_per_pass: int = 2, passes: int = 8, seed: int = 0,
                            cancelled: Callable[[], bool] = lambda: False) -> Iterator[RenderResult]:
         """Render in passes of ``spp_per_pass`` with new seeds, yielding the running mean after each."""
-        total = None
+        total, nonfinite = None, 0
         start = time.perf_counter()
         for i in range(passes):
             if cancelled():
                 return
             result = self.render(params, spec, size, spp_per_pass, seed=seed * 1_000_003 + i)
             total = result.linear if total is None else total + result.linear
+            nonfinite += result.nonfinite
             mean = total / (i + 1)
-            yield RenderResult(mean, linear_to_srgb8(mean), time.perf_counter() - start, spp_per_pass * (i + 1))
+            yield RenderResult(mean, linear_to_srgb8(mean), time.perf_counter() - start, spp_per_pass * (i + 1),
+                               nonfinite=nonfinite)
 
 
 _DEFAULT: Renderer | None = None

@@ -170,6 +170,10 @@ CHART_PATCH = 0.17
 CHART_GAP = 0.03
 RIG_TARGET = (0.725, 0.0, 0.0)
 RIG_HALF_WIDTH = 1.375
+#: The bench camera as the swatch's centre sees it: above RIG_TARGET at CAMERA_DISTANCE, so 10.3°
+#: off the swatch's normal towards the chart. Refinement renders the swatch from this pose.
+RIG_SWATCH_POSE = CameraPose(float(np.degrees(np.arctan2(RIG_TARGET[0], CAMERA_DISTANCE))), 0.0,
+                             float(np.hypot(RIG_TARGET[0], CAMERA_DISTANCE)))
 
 
 def rig_pixel(x: np.ndarray, y: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
@@ -181,6 +185,36 @@ def rig_pixel(x: np.ndarray, y: np.ndarray, size: tuple[int, int]) -> tuple[np.n
     scale = width / (2 * RIG_HALF_WIDTH)
     return ((np.asarray(x) - RIG_TARGET[0]) * scale + width / 2,
             (RIG_TARGET[1] - np.asarray(y)) * scale + height / 2)
+
+
+def project(points: np.ndarray, pose: CameraPose, target, half_width: float, size: tuple[int, int]) -> np.ndarray:
+    """Pixel coordinates (u, v) of world points seen by the swatch camera at ``pose`` around ``target``.
+
+    The pinhole of ``sensor``: Mitsuba's ``look_at`` frame (camera +x is the image's left, +y its
+    up) and a horizontal field of view showing ``half_width`` at the target. For the bench camera
+    (polar 0) on the holder plane it equals ``rig_pixel``.
+    """
+    width, height = size
+    origin = pose.position(target)
+    forward = np.asarray(target, float) - origin
+    forward /= np.linalg.norm(forward)
+    up = np.array([0.0, 1.0, 0.0]) if abs(forward[1]) < 0.999 else np.array([1.0, 0.0, 0.0])
+    left = np.cross(up, forward)
+    left /= np.linalg.norm(left)
+    new_up = np.cross(forward, left)
+    rel = np.atleast_2d(np.asarray(points, float)) - origin
+    x, y, z = rel @ left, rel @ new_up, rel @ forward
+    focal = (width / 2) / (half_width / pose.distance)
+    return np.column_stack([width / 2 - focal * x / z, height / 2 - focal * y / z])
+
+
+def seen_from(point, pose: CameraPose, target) -> CameraPose:
+    """The pose of the camera at ``pose`` around ``target`` as ``point`` sees it (polar from +z)."""
+    rel = pose.position(target) - np.asarray(point, float)
+    distance = float(np.linalg.norm(rel))
+    polar = float(np.degrees(np.arccos(np.clip(rel[2] / distance, -1, 1))))
+    azimuth = float(np.degrees(np.arctan2(rel[1], rel[0]))) % 360.0
+    return CameraPose(polar, azimuth if polar > 1e-9 else 0.0, distance)
 
 
 def chart_patch_centres() -> np.ndarray:

@@ -14,3 +14,9 @@ def linear_to_srgb8(linear: np.ndarray) -> np.ndarray:
 def srgb8_to_linear(srgb8: np.ndarray) -> np.ndarray:
     """8-bit sRGB values (any shape) to linear RGB in [0, 1]."""
     return colour.cctf_decoding(np.asarray(srgb8, dtype=np.float64) / 255.0, function="sRGB")
+
+
+def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
+    """Linear RGB to sRGB-encoded values in [0, 1], float32 and unquantised (for the encoder's input)."""
+    return colour.cctf_encoding(np.clip(np.asarray(linear, dtype=np.float32), 0.0, 1.0),
+                                function="sRGB").astype(np.float32)

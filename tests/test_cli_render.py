@@ -26,6 +26,39 @@ def test_render_writes_png_and_exr(tmp_path, params_file, capsys):
     assert "wrote" in capsys.readouterr().out
 
 
+def test_render_reports_its_non_finite_count(tmp_path, params_file, capsys):
+    assert main(["render", "--params", str(params_file), "--size", "16", "--spp", "1", "--strands", "100",
+                 "--out", str(tmp_path / "o.png")]) == 0
+    assert "0 non-finite values" in capsys.readouterr().out
+
+
+def test_expected_errors_are_one_line_and_debug_shows_the_traceback(tmp_path, params_file, capsys):
+    args = ["render", "--params", str(params_file), "--size", "16", "--out", str(params_file)]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is also the --params input" in err and "Traceback" not in err
+    assert main(args + ["--debug"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" in err and err.strip().endswith("choose another output name")
+
+
+def test_a_bug_keeps_its_traceback(tmp_path, params_file, capsys, monkeypatch):
+    import app.cli
+
+    def broken(args):
+        raise TypeError("a bug")
+    real = app.cli.build_parser
+
+    def parser():
+        p = real()
+        p._subparsers._group_actions[0].choices["render"].set_defaults(func=broken)
+        return p
+    monkeypatch.setattr(app.cli, "build_parser", parser)
+    assert main(["render", "--params", str(params_file), "--out", str(tmp_path / "o.png")]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "TypeError: a bug" in err and "internal error" in err
+
+
 def test_render_hairstyle(tmp_path, params_file):
     out = tmp_path / "h.png"
     assert main(["render", "--params", str(params_file), "--scene", "curly", "--size", "32", "--spp", "1",

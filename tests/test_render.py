@@ -31,10 +31,55 @@ def test_no_nan_or_inf_over_extremes_and_grazing_cameras(renderer):
                itertools.product([(0, 0, 0), (255, 255, 255), (255, 0, 0)], (0, 1), (0, 1), (0, 1))]
     for p in corners:
         r = renderer.render(p, swatch(), SIZE, SPP, 0)
-        assert np.all(np.isfinite(r.linear)) and r.linear.min() >= 0, p
+        assert r.nonfinite == 0 and r.linear.min() >= 0, p   # counted before they are replaced by 0
     for polar in (75.0, 85.0, 89.0):
         r = renderer.render(HairParams((255, 255, 255), 0, 0, 0), swatch(camera=CameraPose(polar, 30)), SIZE, SPP, 0)
-        assert np.all(np.isfinite(r.linear)) and r.linear.min() >= 0
+        assert r.nonfinite == 0 and r.linear.min() >= 0
+
+
+def test_nonfinite_values_are_counted_not_hidden(monkeypatch):
+    """No scene we could build returns a NaN: Mitsuba's film drops NaN and Inf samples (a NaN
+    absorption, forced below, renders as 0), and the inputs that could overflow are refused. So the
+    film's output is spiked here with NaN and Inf: the result counts them and its images hold 0."""
+    import render.renderer as rr
+
+    monkeypatch.setattr(rr, "hair_sigma_a", lambda params: np.array([np.nan, 0.5, 0.5]))
+    assert Renderer().render(HairParams(), swatch(framing="crop"), 16, 1, 0).nonfinite == 0
+    monkeypatch.undo()
+    real = rr.mi.render
+
+    def spiked(scene, **kw):
+        image = np.array(real(scene, **kw), dtype=np.float32)
+        image[0, :3] = (np.nan, np.inf, -np.inf)
+        return image
+    monkeypatch.setattr(rr.mi, "render", spiked)
+    r = Renderer().render(HairParams(), swatch(framing="crop"), 16, 1, 0)
+    assert r.nonfinite == 9 and np.isfinite(r.linear).all() and (r.linear[0, :3] == 0).all()
+    passes = list(Renderer().render_progressive(HairParams(), swatch(framing="crop"), 16, 1, 2))
+    assert [p.nonfinite for p in passes] == [9, 18]
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    (dict(max_depth=0), "max_depth must be"),
+    (dict(max_depth=1), "max_depth must be"),
+    (dict(strands=0), "strands must be"),
+    (dict(camera=CameraPose(20, float("nan"))), "must be finite"),
+    (dict(camera=CameraPose(20, 30, float("inf"))), "must be finite"),
+    (dict(camera=CameraPose(20, 30, 1e9)), "camera distance"),
+    (dict(camera=CameraPose(0, 0, 0.01)), "camera distance"),
+    (dict(lights=(1.0, float("nan"), 1.0)), "lights"),
+])
+def test_renders_that_would_be_black_are_refused_up_front(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        SceneSpec("swatch", **kwargs)
+
+
+def test_size_and_spp_are_checked_not_defaulted(renderer):
+    for size, spp in ((0, 4), (16, 0), (True, 4), (16.0, 4), (5000, 1), (4096, 65536)):
+        with pytest.raises(ValueError, match="size|spp"):
+            renderer.render(HairParams(), swatch(), size, spp)
+    with pytest.raises(ValueError, match="camera distance"):
+        SceneSpec("bob", camera=CameraPose(0, 90, 1.0))   # inside the head
 
 
 def test_darker_with_more_melanin_and_hue_follows_the_dye(renderer):

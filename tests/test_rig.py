@@ -8,7 +8,8 @@ import pytest
 from app.rig_session import RigSession
 from hardware.cameras import FileCamera
 from hardware.exposure import check_region
-from hardware.sim_rig import CameraModel, SimRig, swatch_roi
+from hardware.sim_rig import SimRig, swatch_roi
+from render.camera_model import CameraModel
 from inference.calibration import (CalibrationError, apply_profile, calibrate, detect_chart, load_profile,
                                    staleness)
 from render.chart import colorchecker_reflectances, rig_chart_targets

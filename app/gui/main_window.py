@@ -142,10 +142,13 @@ class MainWindow(QMainWindow):
             label.setMinimumSize(160, 190)
             row.addWidget(label)
         v.addLayout(row)
-        self.chip = QLabel()
+        self.chip = QLabel("hair")          # the estimated hair's colour: the refined swatch's mean
         self.chip.setFixedSize(60, 60)
+        self.dye_chip = QLabel("dye")       # the dye alone, labelled, so brown hair is not read as pink
+        self.dye_chip.setFixedSize(60, 22)
         grid = QGridLayout()
-        grid.addWidget(self.chip, 0, 0, 3, 1)
+        grid.addWidget(self.chip, 0, 0, 2, 1)
+        grid.addWidget(self.dye_chip, 2, 0, 1, 1)
         self.param_labels = {}
         for i, (name, _, _) in enumerate(VECTOR_FIELDS):
             label = QLabel(f"{name}: –")
@@ -352,25 +355,48 @@ class MainWindow(QMainWindow):
                 self.real_label.size(), Qt.AspectRatioMode.KeepAspectRatio))
             return
         params = HairParams.from_dict(rec)
-        self._show_params(params, rec.get("provenance", {}))
+        self._show_params(params, rec)
         self.preview_twin(params, frame, roi)
         self.render_hairstyle()
 
-    def _show_params(self, p: HairParams, prov: dict) -> None:
-        unc = prov.get("uncertainty", {})
+    def _show_params(self, p: HairParams, rec: dict) -> None:
+        """Parameters with their measured 68% intervals, the hair and dye chips, and the warnings."""
+        prov = rec.get("provenance", {})
+        intervals = (rec.get("uncertainty") or {}).get("parameters", {})
         values = dict(zip([f[0] for f in VECTOR_FIELDS], [*p.dye_rgb, p.dye_concentration,
                                                             p.melanin_concentration, p.melanin_ratio]))
         for name, label in self.param_labels.items():
-            fmt = "{:.0f}" if name.startswith("dye_") and name[-1] in "rgb" else "{:.3f}"
-            u = f" ± {fmt.format(unc[name])}" if name in unc else ""
+            fmt = "{:.0f}" if name.startswith("dye_") and name[-1] in "rgb" else "{:.2f}"
+            iv = intervals.get(name)
+            if iv and not iv["determined"]:
+                u = " (undetermined)"
+            elif iv:
+                u = f" ± {fmt.format(iv['half_width'])}"
+            else:
+                u = ""
             label.setText(f"{name}: {fmt.format(values[name])}{u}")
+        hair = (rec.get("refinement") or {}).get("rendered_linear_rgb")
+        if hair:
+            from render.srgb import linear_to_srgb8
+
+            r, g, b = (int(v) for v in linear_to_srgb8(np.asarray(hair)))
+            text = "#000" if 0.3 * r + 0.6 * g + 0.1 * b > 128 else "#fff"
+            self.chip.setStyleSheet(f"background: rgb({r},{g},{b}); color:{text}; border:1px solid #888")
         r, g, b = (int(round(v)) for v in p.dye_rgb)
-        self.chip.setStyleSheet(f"background: rgb({r},{g},{b}); border:1px solid #888")
-        self.chip.setToolTip(f"dye colour at concentration {p.dye_concentration:.2f}")
-        edge = prov.get("at_range_edge") or []
-        self.result_info.setText(f"model {prov.get('model', {}).get('sha256', '')[:12]}, calibration "
-                                 f"{(prov.get('calibration') or {}).get('id')}" +
-                                 (f" — at the range's edge: {', '.join(edge)}" if edge else ""))
+        text = "#000" if 0.3 * r + 0.6 * g + 0.1 * b > 128 else "#fff"
+        self.dye_chip.setStyleSheet(f"background: rgb({r},{g},{b}); color:{text}; border:1px solid #888")
+        self.dye_chip.setToolTip(f"dye colour alone, at concentration {p.dye_concentration:.2f}")
+        refinement = rec.get("refinement") or {}
+        lines = [f"model {prov.get('model', {}).get('sha256', '')[:12]}, calibration "
+                 f"{(prov.get('calibration') or {}).get('id')}"]
+        if refinement.get("ran"):
+            lines.append(f"refined in {refinement['seconds']:.1f} s: residual ΔE2000 "
+                         f"{refinement['residual_de2000']:.2f}")
+        colour = (rec.get("uncertainty") or {}).get("mean_colour_de2000_p68")
+        if colour is not None:
+            lines.append(f"colour within ΔE2000 {colour:.2f} of the truth in 68% of held-out swatches")
+        lines += [f"⚠ {w}" for w in rec.get("warnings", [])]
+        self.result_info.setText("\n".join(lines))
 
     def preview_twin(self, params: HairParams, frame: np.ndarray, roi) -> Task:
         x, y, w, h = roi

@@ -1,0 +1,356 @@
+"""Checks on a command's arguments, run before any expensive work: numbers in range, paths usable.
+
+Numbers are checked as the command line is parsed (``int_in``, ``float_in``, ...: argparse types
+whose message names the bound). Paths and the checks that need several arguments at once run in
+``check_args`` before the command starts, so that no render or training is thrown away at the end
+because its output cannot be written:
+
+- an input must be a readable file (or folder, where one is asked for);
+- an output must not resolve to an input or to another output, must end in its format's extension
+  (.png, .exr, .json, ...), must not be an existing folder, and its folder must exist or be
+  creatable, be writable, and have some space left.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+from pathlib import Path
+from typing import Callable, Iterable
+
+#: Bounds of the numbers the commands take (render bounds live in ``render.renderer``).
+MAX_SEED = 2 ** 32 - 1           # Mitsuba's and NumPy's seeds are unsigned 32-bit
+MAX_DATASET_N = 10_000_000
+MAX_SHARD_SIZE = 100_000
+MAX_WORKERS = 256
+MAX_EPOCHS = 100_000
+MAX_BATCH = 65_536
+MAX_WIDTH = 1024                 # encoder channels
+MAX_BLOCKS = 64
+MIN_INPUT_SIZE, MAX_INPUT_SIZE = 16, 1024
+MAX_THREADS = 256
+MAX_EXPOSURE_EV = 10.0           # simulated exposure error, either way
+MAX_CAST = 10.0                  # simulated white-balance gain per channel
+MIN_FREE_BYTES = 1 << 20         # an output folder on a disk with less than this left counts as full
+
+
+class ArgumentError(ValueError):
+    """An argument cannot be used; the message names it and says what would work."""
+
+
+# --- numbers, as argparse types --------------------------------------------------------------
+def int_in(low: int, high: int) -> Callable[[str], int]:
+    """An argparse type: a whole number from ``low`` to ``high``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number (use {low} to {high})") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{value} is outside {low} to {high}")
+        return value
+    return parse
+
+
+def float_in(low: float, high: float, low_open: bool = False) -> Callable[[str], float]:
+    """An argparse type: a finite number from ``low`` to ``high`` (above ``low`` when ``low_open``)."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        above = value > low if low_open else value >= low
+        if not math.isfinite(value) or not above or value > high:
+            raise argparse.ArgumentTypeError(f"{text} is outside {'(' if low_open else '['}{low:g}, {high:g}]")
+        return value
+    return parse
+
+
+def int_list_in(low: int, high: int) -> Callable[[str], str]:
+    """An argparse type: comma-separated whole numbers, each from ``low`` to ``high`` (kept as text)."""
+    one = int_in(low, high)
+
+    def parse(text: str) -> str:
+        values = [one(v.strip()) for v in text.split(",") if v.strip()]
+        if not values:
+            raise argparse.ArgumentTypeError(f"{text!r} holds no numbers; give e.g. 4,16,64")
+        return ",".join(map(str, values))
+    return parse
+
+
+# --- paths -------------------------------------------------------------------------------------
+def _same(a: Path, b: Path) -> bool:
+    """Whether two paths name one file: same resolved path, or (both existing) the same inode."""
+    if a.resolve() == b.resolve():
+        return True
+    try:
+        return a.exists() and b.exists() and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_input_file(path: str | os.PathLike, flag: str) -> Path:
+    """``path`` must be a readable regular file; the error names ``flag``."""
+    p = Path(path)
+    if not p.exists():
+        raise ArgumentError(f"{flag} {p}: no such file; check the path")
+    if p.is_dir():
+        raise ArgumentError(f"{flag} {p}: is a folder; give the path of a file")
+    if not p.is_file():
+        raise ArgumentError(f"{flag} {p}: is not a regular file (a pipe or a device?); give a file")
+    try:
+        with open(p, "rb") as f:
+            f.read(1)
+    except OSError as exc:
+        raise ArgumentError(f"{flag} {p}: cannot be read ({exc.strerror}); make it readable (chmod +r) "
+                            f"or use a copy") from None
+    return p
+
+
+def check_input_dir(path: str | os.PathLike, flag: str) -> Path:
+    """``path`` must be an existing folder."""
+    p = Path(path)
+    if not p.is_dir():
+        raise ArgumentError(f"{flag} {p}: {'is a file, not a folder' if p.exists() else 'no such folder'}; "
+                            f"check the path")
+    return p
+
+
+def _writable_folder(folder: Path, flag: str, shown: Path) -> None:
+    """The nearest existing ancestor of ``folder`` must be a writable folder on a disk with room left."""
+    probe = folder
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise ArgumentError(f"{flag} {shown}: {probe} is a file, so no folder can be made there; choose "
+                            f"another path")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise ArgumentError(f"{flag} {shown}: the folder {probe} is not writable; choose another path or "
+                            f"fix its permissions")
+    try:
+        free = shutil.disk_usage(probe).free
+    except OSError:
+        return
+    if free < MIN_FREE_BYTES:
+        raise ArgumentError(f"{flag} {shown}: the disk holding {probe} is full ({free // 1024} kB free); "
+                            f"free some space or write to another disk")
+
+
+def check_output_file(path: str | os.PathLike, flag: str, suffixes: Iterable[str], fmt: str,
+                      inputs: dict[str, str | os.PathLike | None] | None = None) -> Path:
+    """``path`` is where a ``fmt`` file will be written: the right extension, not a folder, not one of
+    ``inputs`` (flag: path), in a folder that exists or can be made, and writable."""
+    text = os.fspath(path)
+    p = Path(text)
+    suffixes = tuple(suffixes)
+    if text.endswith((os.sep, "/")) or p.is_dir():
+        raise ArgumentError(f"{flag} {text}: is a folder; give a file name such as "
+                            f"{p / ('out' + suffixes[0])}")
+    for other_flag, other in (inputs or {}).items():
+        if other is not None and _same(p, Path(other)):
+            raise ArgumentError(f"{flag} {text} is also the {other_flag} input; choose another output name")
+    if p.suffix.lower() not in suffixes:
+        raise ArgumentError(f"{flag} {text}: this writes {fmt}; name it with {' or '.join(suffixes)}, e.g. "
+                            f"{p.with_suffix(suffixes[0]).name}")
+    _writable_folder(p.parent, flag, p)
+    return p
+
+
+def check_output_dir(path: str | os.PathLike, flag: str,
+                     inputs: dict[str, str | os.PathLike | None] | None = None) -> Path:
+    """``path`` is a folder that will be written into: not a file, not an input, creatable, writable."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise ArgumentError(f"{flag} {p}: is a file, not a folder; choose a folder name")
+    for other_flag, other in (inputs or {}).items():
+        if other is not None and _same(p, Path(other)):
+            raise ArgumentError(f"{flag} {p} is also the {other_flag} input; choose another folder")
+    _writable_folder(p, flag, p)
+    return p
+
+
+def check_distinct(outputs: dict[str, str | os.PathLike | None]) -> None:
+    """No two outputs may name the same file."""
+    named = [(flag, Path(p)) for flag, p in outputs.items() if p is not None]
+    for i, (flag_a, a) in enumerate(named):
+        for flag_b, b in named[i + 1:]:
+            if _same(a, b):
+                raise ArgumentError(f"{flag_b} {b} is also the {flag_a} output; give each output its own name")
+
+
+# --- per command ---------------------------------------------------------------------------
+def check_render(args: argparse.Namespace) -> None:
+    """``hairdigi render``: the parameter file, the outputs, and size x spp, depth and camera together."""
+    from render.renderer import check_camera, check_size_spp, defaults_for
+    from render.scenes import CAMERA_DISTANCE, PORTRAIT_CAMERA, CameraPose
+
+    check_input_file(args.params, "--params")
+    inputs = {"--params": args.params}
+    check_distinct({"--out": args.out, "--exr": args.exr})
+    check_output_file(args.out, "--out", (".png",), "an 8-bit PNG", inputs)
+    if args.exr:
+        check_output_file(args.exr, "--exr", (".exr",), "an OpenEXR image", inputs)
+    defaults = defaults_for(args.scene)
+    size = defaults.size if args.size is None else args.size
+    spp = defaults.spp if args.spp is None else args.spp
+    try:
+        check_size_spp(size, spp)
+    except ValueError as exc:
+        raise ArgumentError(f"--size {size} --spp {spp}: {exc}") from None
+    if args.camera:
+        distance = CAMERA_DISTANCE if args.scene == "swatch" else PORTRAIT_CAMERA.distance
+        try:
+            check_camera(CameraPose.parse(args.camera, distance), args.scene)
+        except ValueError as exc:
+            raise ArgumentError(f"--camera {args.camera}: {exc}") from None
+
+
+def check_estimate(args: argparse.Namespace) -> None:
+    """``hairdigi estimate``: the image, profile and model are readable; the outputs are none of them."""
+    check_input_file(args.image, "image")
+    inputs = {"image": args.image, "--calibration": args.calibration, "--model": args.model}
+    if args.calibration:
+        from inference.calibration import load_profile
+
+        check_input_file(args.calibration, "--calibration")
+        load_profile(args.calibration)   # a corrupt profile stops here, before the model is loaded
+    if args.model:
+        check_input_file(args.model, "--model")
+    check_distinct({"--out": args.out, "--render": args.render})
+    check_output_file(args.out, "--out", (".json",), "JSON", inputs)
+    if args.render:
+        check_output_file(args.render, "--render", (".png",), "an 8-bit PNG", inputs)
+
+
+def check_dataset_folder(path: str | os.PathLike) -> None:
+    """An existing dataset folder must hold a readable manifest (``{"config": {...}}``) or none."""
+    manifest = Path(path) / "manifest.json"
+    if not manifest.exists():
+        return
+    from render.files import read_json
+
+    data = read_json(manifest, ArgumentError, "no manifest", "not a hairdigi dataset manifest ({exc})")
+    if not isinstance(data, dict) or not isinstance(data.get("config"), dict):
+        raise ArgumentError(f"{manifest}: not a hairdigi dataset manifest (no \"config\" object); choose "
+                            f"another --out, or move the folder away to start afresh")
+
+
+def check_dataset(args: argparse.Namespace) -> None:
+    """``hairdigi dataset``: the output folder, and its manifest when resuming."""
+    if args.out:
+        check_output_dir(args.out, "--out")
+        check_dataset_folder(args.out)
+
+
+def check_rig(args: argparse.Namespace) -> None:
+    """``hairdigi rig``: the session folder and the swatch area."""
+    check_output_dir(args.session, "--session")
+    if args.roi:
+        _parse_roi(args.roi, "--roi")
+
+
+def _parse_roi(text: str, flag: str) -> tuple[int, int, int, int]:
+    try:
+        x, y, w, h = (int(v) for v in text.split(","))
+    except ValueError:
+        raise ArgumentError(f"{flag} {text!r} must be x,y,w,h in pixels, e.g. 120,80,300,360") from None
+    if x < 0 or y < 0 or w < 1 or h < 1:
+        raise ArgumentError(f"{flag} {text}: x and y must be >= 0 and w, h >= 1 pixels")
+    return x, y, w, h
+
+
+def check_train(args: argparse.Namespace) -> None:
+    """``hairdigi train``: dataset folders exist with readable manifests; the run folder is none of them."""
+    for d in args.dataset:
+        check_input_dir(d, "--dataset")
+        check_dataset_folder(d)
+    check_output_dir(args.out, "--out", {f"--dataset {d}": d for d in args.dataset})
+
+
+def check_export(args: argparse.Namespace) -> None:
+    """``hairdigi export-onnx``: the run folder exists; the model file is new or a model."""
+    check_input_dir(args.run, "--run")
+    check_output_file(args.out, "--out", (".onnx",), "an ONNX model", {"--run": args.run})
+
+
+def check_evaluate(args: argparse.Namespace) -> None:
+    """``hairdigi evaluate``: the model and the output folder."""
+    if args.model and not args.prepare_only:
+        check_input_file(args.model, "--model")
+    check_output_dir(args.out, "--out", {"--model": args.model})
+
+
+def check_model_card(args: argparse.Namespace) -> None:
+    """``hairdigi model-card``: its inputs are readable and neither the card nor its JSON twin is one."""
+    inputs = {"--evaluation": args.evaluation, "--variants": args.variants,
+              "--noise-sweep": args.noise_sweep, "--model": args.model}
+    for flag, path in inputs.items():
+        if path:
+            check_input_file(path, flag)
+    check_input_dir(args.run, "--run")
+    out = check_output_file(args.out, "--out", (".md",), "Markdown", inputs)
+    check_output_file(out.with_suffix(".json"), "--out (its .json twin)", (".json",), "JSON", inputs)
+
+
+def check_bench(args: argparse.Namespace) -> None:
+    """``hairdigi bench``: the models exist and the output folder is usable."""
+    for m in args.models or ():
+        check_input_file(m, "--models")
+    check_output_dir(args.out, "--out")
+
+
+def check_folder_out(args: argparse.Namespace) -> None:
+    """Commands whose only path is an output folder (``demo``)."""
+    check_output_dir(args.out, "--out")
+
+
+CHECKS: dict[str, Callable[[argparse.Namespace], None]] = {
+    "render": check_render, "estimate": check_estimate, "dataset": check_dataset, "rig": check_rig,
+    "train": check_train, "export-onnx": check_export, "evaluate": check_evaluate,
+    "model-card": check_model_card, "bench": check_bench, "demo": check_folder_out,
+}
+
+
+def check_args(args: argparse.Namespace) -> None:
+    """Run the checks of ``args.command``, if it has any; raises ArgumentError naming the argument."""
+    check = CHECKS.get(args.command)
+    if check is not None:
+        check(args)
+
+
+def one_line(text: str) -> str:
+    """A message on one line: newlines and runs of spaces become single spaces."""
+    return " ".join(str(text).split())
+
+
+def describe_os_error(exc: OSError) -> str:
+    """An OSError as ``path: reason; fix``."""
+    import errno
+
+    fixes = {errno.ENOSPC: "free some space or write to another disk",
+             errno.EDQUOT: "free some space or write to another disk",
+             errno.EACCES: "check its permissions or choose another path",
+             errno.EPERM: "check its permissions or choose another path",
+             errno.EROFS: "the disk is read-only; choose another path",
+             errno.EISDIR: "it is a folder; give a file name",
+             errno.ENOTDIR: "part of the path is a file, not a folder; check the path",
+             errno.ENOENT: "check the path",
+             errno.ENAMETOOLONG: "use a shorter name"}
+    if exc.errno is None:
+        return one_line(str(exc))
+    where = f"{exc.filename}: " if exc.filename else ""
+    fix = fixes.get(exc.errno)
+    return one_line(f"{where}{exc.strerror or exc}" + (f"; {fix}" if fix else ""))
+
+
+def is_expected(exc: BaseException) -> bool:
+    """Whether ``exc`` is a failure the user can fix (bad input, a file system problem, hairdigi's own
+    error classes), rather than a bug: those get one line, bugs a traceback."""
+    if isinstance(exc, (ValueError, OSError, MemoryError, json.JSONDecodeError)):
+        return True
+    return any(cls.__module__.split(".")[0] in ("app", "hardware", "inference", "render")
+               and cls.__name__.endswith("Error") for cls in type(exc).__mro__)

@@ -1,0 +1,84 @@
+"""``hairdigi bench refine``: the refinement's speed against its error, to choose its defaults.
+
+For each render size and spp of the refinement, and each number of check-and-polish iterations,
+the first held-out swatches (clean 64-spp inputs) are estimated by the encoder, refined at their
+camera pose, and judged as ``evaluate`` judges (common-seed renders against the truth). A new pose
+pays for its response curve (``curve_s``); the rig's fixed pose pays once (``polish_s`` is then the
+whole cost). Writes ``refine_bench.csv`` and ``refine_bench.png``.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from inference.dataset import DatasetConfig, load, sample_spec
+from inference.evaluate import JUDGE, Judge, capture, judge_file, judge_render
+from inference.refine import RefineSettings, mean_linear, refine
+from render.metrics import delta_e2000
+from render.params import HairParams
+
+
+def bench_refine(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLike,
+                 sizes=(32, 48, 64), spps=(8, 16, 32), iterations=(0, 1, 2), count: int = 10,
+                 judge: Judge = JUDGE, progress: bool = True) -> list[dict]:
+    from tqdm import tqdm
+
+    from inference.preprocess import Roi
+    from render.bench import write_csv_atomic
+
+    images, vectors, _, manifest = load(data_root)
+    config = DatasetConfig(**manifest["config"])
+    cached = judge_file(data_root, judge)
+    truths = dict(np.load(cached)) if cached.exists() else {}
+    indices = list(range(min(count, len(images))))
+    frames = {i: capture(images[i], i) for i in indices}
+    priors = {i: encoder.estimate(frames[i], roi=Roi(0, 0, frames[i].shape[1], frames[i].shape[0])).params
+              for i in indices}
+    truth_mean = {}
+    for i in indices:
+        t = truths.get(f"truth_{i}")
+        t = judge_render(config, i, HairParams.from_vector(vectors[i]), judge).linear if t is None else t
+        truth_mean[i] = np.asarray(t, np.float32).reshape(-1, 3).mean(0)
+    rows = []
+    grid = [(size, spp) for size in sizes for spp in spps]
+    for size, spp in tqdm(grid, desc="refine bench", unit="setting", disable=not progress):
+        for k in iterations:
+            settings = replace(RefineSettings(), size=size, spp=spp, iterations=k, tolerance_de=0.0)
+            de, residual, curve_s, polish_s = [], [], [], []
+            for i in indices:
+                r = refine(priors[i], mean_linear(frames[i]), sample_spec(config, i).camera, settings)
+                judged = judge_render(config, i, r.params, judge).linear.reshape(-1, 3).mean(0)
+                de.append(float(delta_e2000(judged, truth_mean[i])))
+                residual.append(r.residual_de2000)
+                curve_s.append(r.curve_seconds)
+                polish_s.append(r.polish_seconds)
+            rows.append({"size": size, "spp": spp, "iterations": k, "swatches": len(indices),
+                         "de_median": float(np.median(de)), "de_p95": float(np.quantile(de, 0.95)),
+                         "de_max": float(np.max(de)), "residual_median": float(np.median(residual)),
+                         "curve_s": float(np.median(curve_s)), "polish_s": float(np.median(polish_s))})
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv_atomic(out / "refine_bench.csv", rows)
+    _plot(rows, out / "refine_bench.png")
+    return rows
+
+
+def _plot(rows: list[dict], path: Path) -> None:
+    from render.figures import save_figure  # noqa: I001  (selects the headless backend first)
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    for k in sorted({r["iterations"] for r in rows}):
+        rs = [r for r in rows if r["iterations"] == k]
+        ax.scatter([r["curve_s"] + r["polish_s"] for r in rs], [r["de_median"] for r in rs],
+                   label=f"{k} iteration(s)")
+        for r in rs:
+            ax.annotate(f"{r['size']}²/{r['spp']}", (r["curve_s"] + r["polish_s"], r["de_median"]), fontsize=7)
+    ax.set_xlabel("seconds per refinement at a new pose (response curve + polish)")
+    ax.set_ylabel("median mean-colour ΔE2000 against the truth")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    save_figure(fig, path)

@@ -1,0 +1,86 @@
+"""Is this a hair swatch like those the encoder was trained on? Checks that flag inputs outside the domain.
+
+Each check reads the encoder's own input (the swatch crop resized to 48² in linear light, as
+``preprocess.encode`` makes it), so the thresholds do not depend on the source's resolution. They
+were set from 300 clean held-out swatch renders (5th percentile and maximum of each statistic) and
+from inputs that are not hair (noise, flat colours, a white card, a checkerboard, stripes, a
+portrait): see ``THRESHOLDS`` and ``tests/test_domain.py``. A warning never blocks an estimate; it
+says why the numbers should not be trusted.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from inference.preprocess import encode
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Limits on the 48² input (8-bit units). Held-out renders: std 5.0–21, coherence 0.07–0.46,
+    gradient energy 25–116, view spread 0.005–0.13 (the first 100 of the clean held-out set)."""
+
+    min_std: float = 2.0            # below: a flat colour, no strands
+    min_coherence: float = 0.05     # below: no common strand direction (noise, a checkerboard)
+    max_std: float = 45.0           # above: far more contrast than hair (a scene, a picture of something)
+    max_energy: float = 220.0
+    max_view_spread: float = 0.2    # the encoder's eight flips/turns disagree (normalised units)
+    clipped_share: float = 0.15     # share of pixels at 0 or 255 in some channel (held-out: up to 0.09,
+                                    # the glints of pale hair)
+
+
+THRESHOLDS = Thresholds()
+INPUT_SIZE = 48
+
+
+@dataclass(frozen=True)
+class DomainStats:
+    std: float            # luminance standard deviation
+    coherence: float      # strand-direction coherence of the structure tensor, 0 (none) to 1
+    energy: float         # RMS gradient magnitude
+    greyscale: bool       # R = G = B everywhere
+    clipped: float        # share of clipped pixels
+
+    def to_dict(self) -> dict:
+        return {"std": round(self.std, 3), "coherence": round(self.coherence, 4), "energy": round(self.energy, 2),
+                "greyscale": self.greyscale, "clipped_share": round(self.clipped, 4)}
+
+
+def domain_stats(crop: np.ndarray) -> DomainStats:
+    """Texture statistics of an 8-bit RGB swatch crop, on the encoder's 48² input."""
+    x = encode(crop, INPUT_SIZE)
+    luminance = (x + 0.5).mean(0) * 255.0
+    gx = cv2.Sobel(luminance, cv2.CV_32F, 1, 0)
+    gy = cv2.Sobel(luminance, cv2.CV_32F, 0, 1)
+    jxx, jyy, jxy = float((gx * gx).mean()), float((gy * gy).mean()), float((gx * gy).mean())
+    coherence = np.sqrt((jxx - jyy) ** 2 + 4 * jxy**2) / (jxx + jyy + 1e-6)
+    greyscale = bool(np.array_equal(crop[..., 0], crop[..., 1]) and np.array_equal(crop[..., 1], crop[..., 2]))
+    clipped = float(((crop == 0) | (crop == 255)).any(axis=2).mean())
+    return DomainStats(float(luminance.std()), float(coherence), float(np.sqrt(jxx + jyy)), greyscale, clipped)
+
+
+def domain_warnings(stats: DomainStats, view_spread: float | None = None,
+                    limits: Thresholds = THRESHOLDS) -> list[str]:
+    """Human-readable reasons why the crop is not a hair swatch the encoder knows; empty when it is."""
+    out = []
+    if stats.std < limits.min_std:
+        out.append(f"out of domain: the swatch area is a flat colour (contrast {stats.std:.1f} < {limits.min_std}), "
+                   "not hair; check the swatch area (--roi), the lens and the lights")
+    elif stats.coherence < limits.min_coherence:
+        out.append(f"out of domain: no strand direction in the swatch area (coherence {stats.coherence:.3f} < "
+                   f"{limits.min_coherence}): noise or a pattern, not a combed swatch")
+    if stats.std > limits.max_std or stats.energy > limits.max_energy:
+        out.append(f"out of domain: far more contrast than a hair swatch (contrast {stats.std:.0f}, texture "
+                   f"{stats.energy:.0f}); is the swatch area on the swatch?")
+    if stats.greyscale:
+        out.append("out of domain: the image has no colour (R = G = B everywhere), perhaps a greyscale image "
+                   "saved as RGB; capture in colour")
+    if stats.clipped > limits.clipped_share:
+        out.append(f"clipped: {100 * stats.clipped:.1f}% of the swatch area is at 0 or 255; lower or raise "
+                   "the exposure and capture again")
+    if view_spread is not None and view_spread > limits.max_view_spread:
+        out.append(f"out of domain: the encoder's eight views of the swatch disagree (spread {view_spread:.2f} "
+                   f"> {limits.max_view_spread})")
+    return out

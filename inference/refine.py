@@ -1,0 +1,237 @@
+"""Refinement by synthesis: correct the encoder's estimate until the swatch it renders has the capture's
+mean colour.
+
+The fact this rests on (measured, ``shared/reference/inverse-notes.md``): in RGB rendering each
+channel's expected swatch radiance depends on that channel's ``sigma_a`` alone, through one monotone
+curve ``F(sigma; camera pose)`` shared by the three channels (the rig lights are white). So:
+
+1. **Response curve.** Render a ladder of ``sigma`` levels at the capture's pose, three levels per
+   render (one per channel), with one sampler seed (common random numbers). 12 levels cost 4 small
+   renders; the curve is cached on disk per pose and settings, so the rig's fixed camera pays once.
+2. **Invert** the curve per channel (monotone PCHIP in log space) at the capture's mean linear colour.
+3. **Check and polish** (``iterations`` renders): render the swatch with the found ``sigma_a`` (same
+   seed) and measure the residual; while it is above tolerance, shift each channel's goal by the
+   residual and invert again. The curve supplies the slope, so a step cannot leave the monotone
+   curve's range or overshoot as a bare secant does. The result is always the last ``sigma_a``
+   rendered, with its measured residual.
+4. **Back to Table 1.** Six parameters reach the image only through the 3-vector ``sigma_a``, so a
+   3-D family of parameter vectors fits. The rule: the member **nearest the encoder's estimate**
+   (Euclidean distance of the normalised Table 1 vectors) whose fibre colour matches, found by
+   bounded least squares. The encoder's reading of texture and hue stays; only what the colour
+   contradicts moves.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from render.absorption import AZIMUTHAL_ROUGHNESS, chiang_denominator, hair_sigma_a
+from render.metrics import delta_e2000
+from render.params import HairParams
+from render.scenes import CameraPose
+
+#: Ladder of ``sigma_a`` levels (per fibre radius): white fibres to past the blackest Table 1 hair
+#: (melanin 1 gives about 8.2 in blue). 12 levels = 4 renders of three channels each.
+SIGMA_LEVELS = (0.0, 0.03, 0.08, 0.16, 0.3, 0.5, 0.8, 1.3, 2.0, 3.2, 5.5, 12.0)
+_LOG_OFFSET = 0.02
+#: A final residual above this (ΔE2000) means no swatch of Table 1 hair renders the capture's colour.
+REACHABLE_DE = 1.0   # log(sigma + offset): the curve is smooth there down to sigma = 0
+
+
+@dataclass(frozen=True)
+class RefineSettings:
+    """Render settings of the refinement; defaults chosen by ``hairdigi bench refine``."""
+
+    size: int = 64
+    spp: int = 16
+    iterations: int = 1
+    tolerance_de: float = 0.05      # stop polishing once the residual ΔE2000 is below this
+    framing: str = "crop"
+    strand_seed: int = 0
+    seed: int = 7
+    levels: tuple[float, ...] = SIGMA_LEVELS
+
+
+@dataclass
+class ResponseCurve:
+    """Mean linear value of one channel of the swatch against that channel's ``sigma_a``, at one pose."""
+
+    sigma: np.ndarray    # (K,) increasing
+    mean: np.ndarray     # (K,) decreasing
+    seconds: float = 0.0     # what rendering it cost
+    cached: bool = False     # read from the disk cache (so it cost nothing now)
+
+    def __post_init__(self) -> None:
+        # enforce monotonicity against residual render noise (a flat step would make the inverse ambiguous)
+        self.mean = np.minimum.accumulate(np.asarray(self.mean, float))
+        for i in range(1, len(self.mean)):
+            self.mean[i] = min(self.mean[i], self.mean[i - 1] * (1 - 1e-6))
+
+    def __call__(self, sigma: np.ndarray) -> np.ndarray:
+        """F(sigma), interpolated monotonically."""
+        from scipy.interpolate import PchipInterpolator
+
+        f = PchipInterpolator(np.log(self.sigma + _LOG_OFFSET), np.log(self.mean), extrapolate=True)
+        return np.exp(f(np.log(np.clip(sigma, 0, None) + _LOG_OFFSET)))
+
+    def inverse(self, value: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``sigma`` with F(sigma) = value, clipped to the ladder; and a mask of values outside it."""
+        from scipy.interpolate import PchipInterpolator
+
+        value = np.asarray(value, float)
+        x = -np.log(self.mean)                     # increasing
+        g = PchipInterpolator(x, np.log(self.sigma + _LOG_OFFSET), extrapolate=False)
+        v = -np.log(np.clip(value, 1e-9, None))
+        outside = (v < x[0] - 1e-9) | (v > x[-1] + 1e-9)
+        sigma = np.exp(g(np.clip(v, x[0], x[-1]))) - _LOG_OFFSET
+        return np.clip(sigma, 0.0, None), outside
+
+    def to_dict(self) -> dict:
+        return {"sigma": self.sigma.tolist(), "mean": self.mean.tolist(), "seconds": self.seconds}
+
+
+def _cache_root() -> Path:
+    return Path(os.environ.get("HAIRDIGI_CACHE", Path.home() / ".cache" / "hairdigi")) / "response"
+
+
+def _scene(pose: CameraPose, settings: RefineSettings):
+    from render.renderer import SceneSpec
+
+    return SceneSpec("swatch", camera=pose, framing=settings.framing, strand_seed=settings.strand_seed)
+
+
+def response_curve(pose: CameraPose, settings: RefineSettings = RefineSettings(), renderer=None,
+                   cache: bool = True) -> ResponseCurve:
+    """The swatch's response curve at ``pose``: ``len(levels) / 3`` renders, cached on disk."""
+    from render.renderer import default_renderer
+
+    renderer = renderer or default_renderer()
+    spec = _scene(pose, settings)
+    key_data = [1, asdict(settings), asdict(pose), spec.n_strands, spec.depth, renderer.variant]
+    key = hashlib.sha256(json.dumps(key_data, sort_keys=True).encode()).hexdigest()[:16]
+    path = _cache_root() / f"curve-{key}.json"
+    if cache and path.exists():
+        try:
+            data = json.loads(path.read_text())
+            return ResponseCurve(np.array(data["sigma"]), np.array(data["mean"]), data.get("seconds", 0.0), True)
+        except (ValueError, KeyError, OSError):
+            pass   # a damaged cache entry is rebuilt
+    levels = np.asarray(settings.levels, float)
+    if len(levels) % 3:
+        raise ValueError(f"the sigma ladder needs a multiple of 3 levels (one per channel), got {len(levels)}")
+    start = time.perf_counter()
+    means = np.empty_like(levels)
+    # interleave low and high levels in one render, so each render's noise spreads over the curve
+    order = levels.reshape(3, -1).T
+    for triple_idx, triple in enumerate(order):
+        result = renderer.render(triple, spec, settings.size, settings.spp, settings.seed)
+        means[[triple_idx, triple_idx + len(order), triple_idx + 2 * len(order)]] = \
+            result.linear.reshape(-1, 3).mean(0)
+    curve = ResponseCurve(levels, means, time.perf_counter() - start)
+    if cache:
+        from render.params import write_json_atomic
+
+        write_json_atomic(path, {"pose": asdict(pose), "settings": asdict(settings), **curve.to_dict()})
+    return curve
+
+
+@dataclass
+class Refinement:
+    """What refinement did: the parameters, the fitted ``sigma_a``, and how well the colour matches."""
+
+    params: HairParams
+    sigma_a: np.ndarray
+    target: np.ndarray                 # the capture's mean linear colour
+    rendered: np.ndarray               # mean linear colour the result renders (last render, or the curve)
+    residual_de2000: float             # ΔE2000 between the two
+    iterations: int
+    reachable: bool                    # False: no Table 1 hair renders this colour (residual > REACHABLE_DE)
+    seconds: float                     # all of it, the response curve included when it was rendered now
+    curve_seconds: float               # what the response curve cost to render (now or when cached)
+    curve_cached: bool = False
+    history: list[float] = field(default_factory=list)   # residual ΔE2000 after each step
+
+    @property
+    def polish_seconds(self) -> float:
+        """The cost once the pose's response curve is cached: inversion, checks and the Table 1 fit."""
+        return self.seconds - (0.0 if self.curve_cached else self.curve_seconds)
+
+    def to_record(self) -> dict:
+        return {"ran": True, "iterations": self.iterations, "residual_de2000": round(self.residual_de2000, 4),
+                "seconds": round(self.seconds, 3), "curve_seconds": round(self.curve_seconds, 3),
+                "curve_cached": self.curve_cached,
+                "reachable": self.reachable, "sigma_a": [round(float(v), 6) for v in self.sigma_a],
+                "target_linear_rgb": [round(float(v), 6) for v in self.target],
+                "rendered_linear_rgb": [round(float(v), 6) for v in self.rendered],
+                "residual_history": [round(v, 4) for v in self.history]}
+
+
+def fibre_appearance(sigma: np.ndarray) -> np.ndarray:
+    """Cube-rooted Chiang 2016 albedo of ``sigma_a``: a perceptually even scale of fibre colour."""
+    return np.exp(-np.sqrt(np.clip(sigma, 0, None) + 1e-8) * chiang_denominator(AZIMUTHAL_ROUGHNESS) / 3.0)
+
+
+def params_for_sigma(sigma: np.ndarray, prior: HairParams, weight: float = 300.0) -> tuple[HairParams, bool]:
+    """The Table 1 parameters nearest ``prior`` whose ``sigma_a`` matches ``sigma``; and whether one does.
+
+    Bounded least squares on the normalised vector: ``weight`` x the fibre-appearance mismatch (3
+    residuals), and the distance to the prior (6). A ``sigma`` outside what Table 1 can make gives
+    the nearest colour it can, and ``False``.
+    """
+    from scipy.optimize import least_squares
+
+    goal = fibre_appearance(np.asarray(sigma, float))
+    v0 = prior.to_vector().astype(float)
+
+    def residuals(v: np.ndarray) -> np.ndarray:
+        s = hair_sigma_a(HairParams.from_vector(v))
+        return np.concatenate([weight * (fibre_appearance(s) - goal), v - v0])
+
+    fit = least_squares(residuals, v0, bounds=(0.0, 1.0), x_scale=1.0, xtol=1e-10, ftol=1e-10, max_nfev=400)
+    params = HairParams.from_vector(fit.x)
+    mismatch = np.abs(fibre_appearance(hair_sigma_a(params)) - goal).max()
+    return params, bool(mismatch < 2e-3)
+
+
+def mean_linear(srgb8: np.ndarray) -> np.ndarray:
+    """Mean linear RGB of an 8-bit sRGB image (what the swatch's colour is judged by)."""
+    from render.srgb import srgb8_to_linear
+
+    return srgb8_to_linear(srgb8).reshape(-1, 3).mean(0)
+
+
+def refine(prior: HairParams, target: np.ndarray, pose: CameraPose = CameraPose(),
+           settings: RefineSettings = RefineSettings(), renderer=None) -> Refinement:
+    """Refine ``prior`` so that the swatch at ``pose`` renders with mean linear colour ``target``."""
+    from render.renderer import default_renderer
+
+    renderer = renderer or default_renderer()
+    start = time.perf_counter()
+    target = np.asarray(target, float)
+    curve = response_curve(pose, settings, renderer)
+    goal = target.copy()
+    sigma, _ = curve.inverse(goal)
+    rendered = curve(sigma)          # with no iterations, the curve's own prediction
+    history: list[float] = []
+    spec = _scene(pose, settings)
+    for k in range(settings.iterations):
+        rendered = renderer.render(sigma, spec, settings.size, settings.spp, settings.seed).linear.reshape(-1, 3).mean(0)
+        history.append(float(delta_e2000(rendered, target)))
+        if history[-1] < settings.tolerance_de or k == settings.iterations - 1:
+            break   # the returned sigma is always the last one rendered, with its measured residual
+        # shift the goal by the residual and invert again: the curve supplies the slope
+        goal = np.clip(goal + (target - rendered), 1e-6, None)
+        sigma, _ = curve.inverse(goal)
+    params, _ = params_for_sigma(sigma, prior)
+    # the colour the returned parameters render: the last render, moved along the curve by what the
+    # mapping to Table 1 changed (nothing, unless the colour is outside what Table 1 can make)
+    final = rendered + curve(hair_sigma_a(params)) - curve(sigma)
+    residual = float(delta_e2000(np.clip(final, 1e-9, None), target))
+    return Refinement(params, hair_sigma_a(params), target, np.asarray(final, float), residual, len(history),
+                      residual < REACHABLE_DE, time.perf_counter() - start, curve.seconds, curve.cached, history)

@@ -1,0 +1,57 @@
+"""Inputs outside the training domain get warnings; a clean swatch render gets none."""
+import cv2
+import numpy as np
+import pytest
+
+from inference.domain import domain_stats, domain_warnings
+from render.params import HairParams
+from render.renderer import SceneSpec, render
+from render.scenes import CameraPose
+
+RNG = np.random.default_rng(0)
+GARBAGE = {
+    "noise": RNG.integers(0, 256, (200, 200, 3), dtype=np.uint8),
+    "solid colour": np.full((200, 200, 3), (120, 80, 60), np.uint8),
+    "near-white noise": RNG.integers(235, 256, (200, 200, 3), dtype=np.uint8),
+    "near-black noise": RNG.integers(0, 20, (200, 200, 3), dtype=np.uint8),
+    "grey noise as RGB": np.repeat(RNG.integers(0, 256, (200, 200, 1), dtype=np.uint8), 3, 2),
+    "checkerboard": (np.kron(np.indices((8, 8)).sum(0) % 2, np.ones((25, 25)))[..., None] * 200 + 20)
+    .repeat(3, 2).astype(np.uint8),
+    "white card": np.clip(245 + RNG.normal(0, 2, (200, 200, 3)), 0, 255).astype(np.uint8),
+}
+
+
+@pytest.mark.parametrize("name", sorted(GARBAGE))
+def test_garbage_is_flagged(name):
+    warnings = domain_warnings(domain_stats(GARBAGE[name]))
+    assert warnings and all(isinstance(w, str) and len(w) > 20 for w in warnings), name
+
+
+def test_a_portrait_is_flagged():
+    import matplotlib.cbook as cbook
+
+    photo = cv2.imread(str(cbook.get_sample_data("grace_hopper.jpg", asfileobj=False)))[..., ::-1]
+    assert any("contrast" in w for w in domain_warnings(domain_stats(np.ascontiguousarray(photo))))
+
+
+@pytest.mark.parametrize("hair, pose", [(HairParams((200, 60, 40), 0.7, 0.3, 0.4), CameraPose(0, 0)),
+                                        (HairParams((255, 255, 255), 0.0, 0.95, 0.9), CameraPose(40, 200)),
+                                        (HairParams((250, 240, 200), 0.2, 0.03, 0.2), CameraPose(20, 60))])
+def test_clean_swatch_renders_are_not_flagged(hair, pose):
+    img = render(hair, SceneSpec("swatch", camera=pose, strand_seed=5), 64, 32, seed=1).srgb
+    assert domain_warnings(domain_stats(img)) == []
+
+
+def test_the_estimate_record_carries_the_warnings(tiny_model):
+    from inference.encoder import Encoder
+    from inference.estimate import estimate_image, record
+
+    _, onnx_path, _ = tiny_model
+    encoder = Encoder(onnx_path)
+    result = estimate_image(GARBAGE["noise"], encoder, refine_colour=False)
+    rec = record(result, encoder)
+    assert rec["warnings"] and rec["reliable"] is False
+    # a solid colour is refused as flat before any estimate (no confident answer, no zero uncertainty)
+    from inference.preprocess import ImageError
+    with pytest.raises(ImageError, match="flat"):
+        estimate_image(GARBAGE["solid colour"], encoder, refine_colour=False)

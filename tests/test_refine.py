@@ -1,0 +1,71 @@
+"""Refinement by synthesis: the response curve, the inversion, the way back to Table 1, and convergence."""
+import numpy as np
+import pytest
+
+from inference.refine import RefineSettings, mean_linear, params_for_sigma, refine, response_curve
+from render.absorption import hair_sigma_a
+from render.metrics import delta_e2000
+from render.params import HairParams, sample_params
+from render.renderer import Renderer, SceneSpec
+from render.scenes import CameraPose
+
+SMALL = RefineSettings(size=24, spp=8, iterations=2, strand_seed=3)
+
+
+def test_sigma_to_table1_reproduces_sigma_and_stays_near_the_prior():
+    rng = np.random.default_rng(4)
+    for _ in range(12):
+        truth, prior = sample_params(rng), sample_params(rng)
+        sigma = hair_sigma_a(truth)
+        fitted, ok = params_for_sigma(sigma, prior)
+        assert ok
+        # the fibre colour is reproduced (appearance within 2e-3, about 0.3 ΔE at worst)
+        a = lambda s: np.exp(-np.sqrt(s + 1e-8) * 1.87)  # noqa: E731
+        assert np.abs(a(hair_sigma_a(fitted)) - a(sigma)).max() < 2e-3
+        # and it is no farther from the prior than the truth, which is one member of the family
+        assert np.linalg.norm(fitted.to_vector() - prior.to_vector()) <= \
+            np.linalg.norm(truth.to_vector() - prior.to_vector()) + 1e-3
+
+
+def test_a_colour_no_table1_hair_makes_is_reported_unreachable():
+    # far more absorption in red than in blue: melanin absorbs blue most, and a dye saturates at ~1.4
+    fitted, ok = params_for_sigma(np.array([6.0, 0.01, 0.01]), HairParams())
+    assert not ok and isinstance(fitted, HairParams)
+
+
+def test_response_curve_is_monotone_cached_and_channel_independent(tmp_path, monkeypatch):
+    monkeypatch.setenv("HAIRDIGI_CACHE", str(tmp_path))
+    renderer = Renderer(max_cached=2)
+    curve = response_curve(CameraPose(20, 30), SMALL, renderer)
+    assert np.all(np.diff(curve.mean) < 0) and not curve.cached
+    assert curve.mean[0] > 0.2 and curve.mean[-1] < 0.05       # white fibres bright, sigma 12 near black
+    again = response_curve(CameraPose(20, 30), SMALL, renderer)
+    assert again.cached and np.allclose(again.mean, curve.mean)
+    # each channel follows the one curve whatever the other channels absorb (the measured fact)
+    spec = SceneSpec("swatch", camera=CameraPose(20, 30), strand_seed=SMALL.strand_seed)
+    mixed = renderer.render(np.array([0.2, 1.5, 4.0]), spec, 32, 16, seed=9).linear.reshape(-1, 3).mean(0)
+    assert np.allclose(mixed, curve(np.array([0.2, 1.5, 4.0])), rtol=0.08)
+    # inverse of the curve at its own knots gives the knots back
+    sigma, outside = curve.inverse(curve.mean[2:9])
+    assert np.allclose(sigma, curve.sigma[2:9], rtol=1e-6, atol=1e-9) and not outside.any()
+
+
+@pytest.mark.parametrize("truth", [HairParams((200, 60, 40), 0.7, 0.3, 0.4),      # copper, saturated
+                                   HairParams((255, 255, 255), 0.0, 0.95, 0.9),    # black
+                                   HairParams((250, 240, 200), 0.2, 0.05, 0.2)])   # platinum
+def test_refinement_converges_to_the_noise_floor_from_a_poor_prior(truth, tmp_path, monkeypatch):
+    monkeypatch.setenv("HAIRDIGI_CACHE", str(tmp_path))
+    renderer = Renderer(max_cached=2)
+    pose = CameraPose(25, 140)
+    capture = SceneSpec("swatch", camera=pose, strand_seed=11)        # another strand layout than the curve's
+    frame = renderer.render(truth, capture, 32, 32, seed=1).srgb
+    prior = HairParams((120, 120, 120), 0.5, 0.5, 0.5)
+    r = refine(prior, mean_linear(frame), pose, SMALL, renderer)
+    judge = lambda hair, seed: renderer.render(hair, capture, 32, 16, seed).linear.reshape(-1, 3).mean(0)  # noqa: E731
+    floor = float(delta_e2000(judge(truth, 2), judge(truth, 3)))
+    before = float(delta_e2000(judge(prior, 2), judge(truth, 2)))
+    after = float(delta_e2000(judge(r.params, 2), judge(truth, 2)))
+    assert r.reachable and r.iterations >= 1 and len(r.history) == r.iterations
+    assert after < 0.25 * before and after <= 2.0 * floor + 0.6, (before, after, floor, r.history)
+    record = r.to_record()
+    assert record["ran"] and record["residual_de2000"] == pytest.approx(r.residual_de2000, abs=1e-4)
