@@ -27,11 +27,11 @@ demo: setup  ## the main job: the app on the simulated rig, or the headless demo
 	else echo "no display: running the headless demo"; $(VENV)/bin/hairdigi demo --out out/demo; fi
 
 test: setup  ## pytest's exit 5 (no tests collected) is turned into a failure
-	@set -o pipefail; QT_QPA_PLATFORM=offscreen $(PY) -m pytest -q tests 2>&1 | tee test-output.log; rc=$$?; \
+	@set -o pipefail; mkdir -p test-output; QT_QPA_PLATFORM=offscreen $(PY) -m pytest -q tests 2>&1 | tee test-output/pytest.log; rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "no tests were collected: that is a failure" >&2; exit 1; fi; exit $$rc
 
 bench: setup
 	$(VENV)/bin/hairdigi bench render --out render/bench
 
 clean:
-	rm -rf out test-output test-output.log
+	rm -rf out test-output

@@ -142,12 +142,6 @@ def cmd_estimate(args: argparse.Namespace) -> int:
         result = render(p, SceneSpec("swatch", framing="rig"), 256, 32, seed=0)
         save_png(args.render, result.srgb)
         print(f"wrote {args.render}")
-    if args.calibration:
-        from inference.calibration import calibration_warnings
-
-        for warning in calibration_warnings(args.calibration, args.image):
-            if not any(warning.split(";")[0] in said for said in estimate.warnings):   # not said twice
-                print(f"warning: {warning}", file=sys.stderr)
     return 0
 
 
@@ -458,6 +452,17 @@ def _error_line(exc: BaseException) -> str:
     return one_line(str(exc) or type(exc).__name__)
 
 
+def _caused_by_interrupt(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is among the causes of ``exc``."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one command. An expected failure (bad input, a file that cannot be read or written) is one
     line on stderr and exit status 2; Ctrl-C at any moment is one line and 130; a bug keeps its
@@ -493,6 +498,9 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as exc:
         from app.validation import is_expected
 
+        if _caused_by_interrupt(exc):   # native code (Mitsuba, drjit) wraps a Ctrl-C in its own error
+            print(f"{prog}: interrupted", file=sys.stderr)
+            return 130
         if not is_expected(exc) and not isinstance(exc, CliError):
             traceback.print_exc()
             print(f"{prog}: internal error (a bug in hairdigi): {type(exc).__name__}; please report it with "

@@ -137,10 +137,10 @@ def detection_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16) -> list
 RIG_SET_HAIRS = (((190, 80, 40), 0.5, 0.5, 0.6), ((120, 110, 100), 0.2, 0.75, 0.9), ((240, 220, 170), 0.3, 0.12, 0.3))
 RIG_SET_POSES = ((0.0, 0.0), (15.0, 60.0))
 RIG_SET_CASTS = ((1.0, 1.0, 1.0), (1.3, 1.0, 0.7), (0.8, 1.0, 1.25))
-RIG_SET_EXPOSURES = (-0.5, 0.0, 0.3)
+RIG_SET_EXPOSURES = (-0.5, 0.3)
 
 
-def estimate_sweep(out_dir: str | Path, size=(400, 300), spp: int = 32, twin_size=(200, 150),
+def estimate_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16, twin_size=(200, 150),
                    progress: bool = True) -> dict:
     """Simulated-rig captures over poses, casts and exposures, through ``cv2.mcc`` and the CCM, then
     estimated and refined; each estimate's twin (same scene) against the corrected capture.

@@ -16,7 +16,7 @@ from hardware.capture import save_capture
 from hardware.exposure import ExposureReport, check_exposure, dead_lights
 from hardware.lights import LightController, LightError
 from inference.calibration import (CalibrationError, ChartDetection, apply_profile, calibrate, detect_chart,
-                                   load_profile, save_profile, staleness)
+                                   load_profile, profile_warnings, save_profile, staleness)
 from render.params import HairParams, write_json_atomic
 
 
@@ -124,6 +124,13 @@ class RigSession:
             pass
         return s
 
+    def prepare_refinement(self) -> float:
+        """Render (or load) the refinement's response curve for the rig's camera; returns its seconds."""
+        from inference.refine import RefineSettings, response_curve
+        from render.scenes import RIG_SWATCH_POSE
+
+        return response_curve(RIG_SWATCH_POSE, RefineSettings()).seconds
+
     # -- checks ------------------------------------------------------------------------------
     def exposure(self, image: np.ndarray | None = None) -> list[ExposureReport]:
         image = self.frame().srgb if image is None else image
@@ -218,7 +225,7 @@ class RigSession:
             return
         corrected = apply_profile(image, self.profile)
         x, y, w, h = self._roi(image)
-        calibration_warnings = [f"calibration: {r}; calibrate again" for r in staleness(self.profile, self.settings())]
+        calibration_warnings = profile_warnings(self.profile, self.settings())
         estimate = estimate_image(corrected, encoder, Roi(x, y, w, h), RIG_SWATCH_POSE,
                                   extra_warnings=calibration_warnings)
         result.params = estimate.params

@@ -308,10 +308,18 @@ def check_folder_out(args: argparse.Namespace) -> None:
     check_output_dir(args.out, "--out")
 
 
+def check_app(args: argparse.Namespace) -> None:
+    """``hairdigi app``: the session and tour folders, when given."""
+    if args.session:
+        check_output_dir(args.session, "--session")
+    if args.tour:
+        check_output_dir(args.tour, "--tour")
+
+
 CHECKS: dict[str, Callable[[argparse.Namespace], None]] = {
     "render": check_render, "estimate": check_estimate, "dataset": check_dataset, "rig": check_rig,
     "train": check_train, "export-onnx": check_export, "evaluate": check_evaluate,
-    "model-card": check_model_card, "bench": check_bench, "demo": check_folder_out,
+    "model-card": check_model_card, "bench": check_bench, "demo": check_folder_out, "app": check_app,
 }
 
 

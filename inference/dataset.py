@@ -54,7 +54,7 @@ class DatasetConfig:
             raise ValueError(f"dataset store {self.store!r} is not one of {', '.join(STORES)}")
         for name, low in (("size", 8), ("spp", 1), ("n", 1), ("shard_size", 1)):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
                 raise ValueError(f"dataset {name} must be a whole number >= {low}, got {value!r}")
 
     @property

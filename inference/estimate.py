@@ -124,13 +124,14 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
     its JSON record and the corrected image."""
     image_path = Path(image_path)
     image = read_image(image_path)
-    calibration, calibration_warnings = None, []
+    calibration, stale = None, []
     if calibration_path is not None:
-        from inference.calibration import apply_profile, load_profile, staleness
+        from inference.calibration import apply_profile, calibration_warnings, load_profile
 
         profile = load_profile(calibration_path)
         image = apply_profile(image, profile)
         calibration = calibration_summary(profile, calibration_path)
-        calibration_warnings = [f"calibration: {reason}; calibrate again" for reason in staleness(profile)]
-    result = estimate_image(image, encoder, roi, camera, refine_colour, settings, calibration_warnings)
+        # against the capture's own settings and time when the rig's record sits beside the image
+        stale = calibration_warnings(calibration_path, image_path)
+    result = estimate_image(image, encoder, roi, camera, refine_colour, settings, stale)
     return result, record(result, encoder, image_path.read_bytes(), image_path, calibration, camera), image

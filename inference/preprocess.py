@@ -59,7 +59,8 @@ def _jpeg_size(data: bytes) -> tuple[int, int] | None:
 
 
 def image_size(data: bytes) -> tuple[int, int] | None:
-    """(width, height) from an image file's header, without decoding it; None when unknown."""
+    """(width, height) from an image file's header, without decoding it; None when unknown. An image
+    Pillow calls a decompression bomb (over 179 MP) raises ImageError."""
     import struct
 
     if data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR":
@@ -77,7 +78,11 @@ def image_size(data: bytes) -> tuple[int, int] | None:
             with Image.open(io.BytesIO(data)) as im:
                 return im.size
     except Exception as exc:   # not an image Pillow knows, or one it calls a decompression bomb
-        return (MAX_IMAGE_PIXELS + 1, 1) if type(exc).__name__ == "DecompressionBombError" else None
+        if type(exc).__name__ == "DecompressionBombError":
+            raise ImageError(f"the image is larger than {2 * Image.MAX_IMAGE_PIXELS / 1e6:.0f} MP, more than "
+                             f"hairdigi decodes ({MAX_IMAGE_PIXELS / 1e6:.0f} MP); scale it down or crop it "
+                             f"around the swatch and chart") from None
+        return None
 
 
 def _read_bytes(path: Path) -> bytes:
@@ -106,7 +111,10 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     if not data:
         raise ImageError(f"{path}: the file is empty")
     _check_complete(data, path)
-    size = image_size(data)
+    try:
+        size = image_size(data)
+    except ImageError as exc:
+        raise ImageError(f"{path}: {exc}") from None
     if size is not None and size[0] * size[1] > MAX_IMAGE_PIXELS:
         raise ImageError(f"{path}: {size[0]}x{size[1]} px is more than hairdigi decodes "
                          f"({MAX_IMAGE_PIXELS / 1e6:.0f} MP); scale it down or crop it around the swatch "
@@ -231,12 +239,14 @@ def find_swatch_roi(img: np.ndarray) -> Roi:
     small, scale = _search_image(img)
     sh, sw = small.shape[:2]
     mask = (swatch_score(small) > 1.0).astype(np.uint8)
-    chart = chart_mask(small, margin=2 * max(1.5, min(sh, sw) / 50.0))
+    kernel = np.ones((max(3, min(sh, sw) // 40) | 1,) * 2, np.uint8)
+    n, _, stats, _ = cv2.connectedComponentsWithStats(cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel))
+    # masking only shrinks regions: when none is large enough to be a swatch, the chart does not matter
+    chart = (chart_mask(small, margin=2 * max(1.5, min(sh, sw) / 50.0))
+             if n > 1 and stats[1:, cv2.CC_STAT_AREA].max() >= 0.10 * sh * sw else None)
     if chart is not None:
         mask[chart > 0] = 0
-    k = max(3, min(sh, sw) // 40) | 1
-    mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((k, k), np.uint8))
-    n, _, stats, _ = cv2.connectedComponentsWithStats(mask)
+        n, _, stats, _ = cv2.connectedComponentsWithStats(cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel))
     # a swatch on its holder is a large, filled rectangle; streaks inside an all-hair image are not
     candidates = [(int(s[4]), i) for i, s in enumerate(stats) if i > 0 and s[4] >= 0.10 * sh * sw
                   and s[4] >= 0.6 * s[2] * s[3] and s[2] * s[3] <= 0.85 * sh * sw]

@@ -64,6 +64,9 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output):
     record = json.loads(exported.read_text())
     assert record["hair"]["dye_rgb"] and record["provenance"]["model"]["sha256"] == Encoder(onnx_path).sha256
     assert record["provenance"]["calibration"]["id"] == session.profile["id"]
+    # refined after the capture, off the UI thread, and the residual is shown with the warnings list
+    assert record["refinement"]["ran"] and record["refinement"]["residual_de2000"] >= 0
+    assert isinstance(record["warnings"], list) and "residual ΔE2000" in win.result_info.text()
 
     shot = win.grab()
     shot.save(str(test_output / "app_after_capture.png"))

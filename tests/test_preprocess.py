@@ -151,6 +151,18 @@ def test_a_huge_image_is_refused_from_its_header_quickly(tmp_path):
     assert 6000 * 4000 <= MAX_IMAGE_PIXELS < 20000 * 20000   # a camera still is read; this is not
 
 
+def test_other_formats_are_sized_from_their_header_too(tmp_path):
+    def bmp_header(width, height):   # a BMP's 54-byte header alone: enough to read the size
+        return (b"BM" + struct.pack("<IHHI", 54 + width * height * 3, 0, 0, 54)
+                + struct.pack("<IiiHHIIiiII", 40, width, height, 1, 24, 0, width * height * 3, 2835, 2835, 0, 0))
+    (tmp_path / "big.bmp").write_bytes(bmp_header(10000, 10000))     # 100 MP: over the cap
+    with pytest.raises(ImageError, match="10000x10000 px is more than hairdigi decodes"):
+        read_image(tmp_path / "big.bmp")
+    (tmp_path / "bomb.bmp").write_bytes(bmp_header(20000, 20000))    # 400 MP: Pillow's bomb
+    with pytest.raises(ImageError, match="bomb.bmp: the image is larger than .* more than hairdigi decodes"):
+        read_image(tmp_path / "bomb.bmp")
+
+
 def test_read_image_errors_name_the_file_and_the_fix(tmp_path):
     with pytest.raises(ImageError, match="is a folder"):
         read_image(tmp_path)

@@ -65,6 +65,8 @@ class MainWindow(QMainWindow):
         self.reload_session()
         source = "simulated rig (no camera or light board found, or --sim)" if session.simulated else "camera"
         self.statusBar().showMessage(f"{source}; session {session.folder}")
+        # the refinement's response curve for the rig's pose: built once (cached on disk), off the UI thread
+        self.run_task(lambda report, cancelled: session.prepare_refinement(), name="refinement curve")
 
     # -- layout ------------------------------------------------------------------------------
     def _build(self, with_strand_view: bool) -> None:
