@@ -17,7 +17,7 @@ system-deps:  ## Debian packages: libLLVM 19 for Mitsuba's llvm variant, Xvfb an
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e ".[test,train]"
+	$(PY) -m pip install -q -e ".[test,train,cluster]"
 	touch $@
 
 setup: system-deps $(VENV)/.installed

@@ -34,6 +34,14 @@ def _cache_dir() -> Path:
     return Path(os.environ.get("HAIRDIGI_CACHE", Path.home() / ".cache" / "hairdigi"))
 
 
+def _use_variant(name: str | None) -> str:
+    """Switch Mitsuba to ``--variant`` (``auto``: the GPU when there is one). Building the parser
+    imports the render modules, which set a variant; this runs before any scene is loaded."""
+    from render.variant import select_variant
+
+    return select_variant(name)
+
+
 # --- render -----------------------------------------------------------------------------------
 def cmd_render(args: argparse.Namespace) -> int:
     from render.imageio import save_exr, save_png
@@ -41,6 +49,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     from render.renderer import SceneSpec, render
     from render.scenes import CAMERA_DISTANCE, PORTRAIT_CAMERA, CameraPose
 
+    _use_variant(args.variant)
     params = load_params(args.params)
     distance = CAMERA_DISTANCE if args.scene == "swatch" else PORTRAIT_CAMERA.distance
     camera = CameraPose.parse(args.camera, distance) if args.camera else None
@@ -76,9 +85,11 @@ def cmd_dataset(args: argparse.Namespace) -> int:
                            strands=args.strands or defaults_for("swatch").strands,
                            max_depth=args.depth or defaults_for("swatch").max_depth, shard_size=args.shard_size,
                            store=args.store)
+    if args.address and args.backend != "ray":
+        raise CliError("--address names a Ray cluster: use it with --backend ray")
     out = Path(args.out) if args.out else (_cache_dir() / "datasets" /
                                            f"swatch-s{args.seed}-{args.size}px-{args.spp}spp-{args.store}")
-    generate(config, out, workers=args.workers)
+    generate(config, out, workers=args.workers, backend=args.backend, address=args.address, variant=args.variant)
     print(f"dataset complete: {config.n} swatches in {out}")
     return 0
 
@@ -149,6 +160,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from inference.encoder import Encoder
     from inference.evaluate import evaluate, prepare_heldout
 
+    _use_variant(args.variant)   # the held-out set's worker processes are given the same one
     data = Path(args.data) if args.data else _cache_dir() / "datasets" / (
         f"heldout-s1000003-{args.size}px-{args.spp}spp-linear16")
     if args.prepare_only:
@@ -271,6 +283,16 @@ def cmd_bench(args: argparse.Namespace) -> int:
         print(f"chart detected in {len(found)}/{len(rows)} simulated frames; ΔE2000 mean before "
               f"{np.mean([r['de_before'] for r in found]):.2f}, after {np.mean([r['de_after'] for r in found]):.2f}; "
               f"wrote {out / 'rig_bench.csv'}")
+    if args.what == "dataset":
+        from inference.bench_dataset import run_dataset_bench
+
+        rows = run_dataset_bench(out, quick=args.quick, n=args.n)
+        for r in rows:
+            unit = "worker process(es)" if r["backend"] == "local" else "CPU(s) of a local Ray instance"
+            print(f"{r['backend']:5s} {r['workers']} {unit}: {r['swatches_per_s']:.2f} swatches/s "
+                  f"({r['n']} in {r['seconds']:.1f} s, {r['size']}² {r['spp']} spp, {r['variant']})")
+        print(f"wrote {out / 'dataset_bench.csv'} and {out / 'dataset_bench.png'}")
+        return 0
     if args.what == "render":
         from render.bench import run_render_bench
 
@@ -291,8 +313,10 @@ def build_parser() -> argparse.ArgumentParser:
     from render.renderer import (MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH, MIN_SIZE,
                                  SCENE_NAMES)
     from render.scenes import ENVIRONMENTS, LIGHT_POSITIONS
+    from render.variant import CHOICES as VARIANTS
 
     size, spp = v.int_in(MIN_SIZE, MAX_SIZE), v.int_in(1, MAX_SPP)
+    variant_help = "Mitsuba variant (auto: cuda_ad_rgb when Mitsuba finds a GPU, else llvm_ad_rgb, else scalar_rgb)"
     seed, workers = v.int_in(0, v.MAX_SEED), v.int_in(1, v.MAX_WORKERS)
     strands, depth = v.int_in(1, MAX_STRANDS), v.int_in(MIN_DEPTH, MAX_DEPTH)
     parser = _Parser(prog="hairdigi", description=__doc__)
@@ -314,6 +338,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--depth", type=depth, default=None, help="maximum path depth (default: the scene's)")
     p.add_argument("--out", required=True, help="output PNG (sRGB 8-bit)")
     p.add_argument("--exr", help="also write linear RGB as OpenEXR")
+    p.add_argument("--variant", choices=VARIANTS, default="auto", help=variant_help)
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("demo", help="headless demo: render the sample swatch and hairstyles")
@@ -332,8 +357,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--strands", type=strands, default=None)
     p.add_argument("--depth", type=depth, default=None)
     p.add_argument("--shard-size", type=v.int_in(1, v.MAX_SHARD_SIZE), default=50)
-    p.add_argument("--workers", type=workers, default=2)
+    p.add_argument("--workers", type=workers, default=2,
+                   help="local: worker processes; ray without --address: CPUs of the local Ray instance")
     p.add_argument("--out", help="dataset folder (default: in the cache, $HAIRDIGI_CACHE or ~/.cache/hairdigi)")
+    p.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="local: a process pool here; ray: one Ray task per shard (needs hairdigi[cluster])")
+    p.add_argument("--address", help="ray: the cluster to use (auto, HOST:6379, ray://HOST:10001; "
+                   "default: a local Ray instance for this run)")
+    p.add_argument("--variant", choices=VARIANTS, default="auto",
+                   help=variant_help + "; recorded in the manifest, and a resume must use the same")
     p.set_defaults(func=cmd_dataset)
 
     p = sub.add_parser("train", help="train the encoder on a dataset (resumable; needs the train extra)")
@@ -385,6 +417,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--data", help="held-out dataset folder (default: in the cache)")
     p.add_argument("--model", default=None)
     p.add_argument("--out", required=True)
+    p.add_argument("--variant", choices=VARIANTS, default="auto", help=variant_help)
     p.set_defaults(func=cmd_evaluate)
 
     p = sub.add_parser("rig", help="the capture chain without a window (use --sim without hardware)")
@@ -422,9 +455,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_model_card)
 
     p = sub.add_parser("bench", help="speed against error tables and plots")
-    p.add_argument("what", choices=("render", "rig", "encoder", "refine"))
+    p.add_argument("what", choices=("render", "rig", "encoder", "refine", "dataset"))
     p.add_argument("--models", nargs="*", help="encoder: the ONNX models to compare")
-    p.add_argument("--n", type=int, default=None, help="held-out swatches (encoder: 300, refine: 10)")
+    p.add_argument("--n", type=int, default=None, help="held-out swatches (encoder: 300, refine: 10); "
+                   "dataset: swatches per case (16)")
     p.add_argument("--data", help="encoder, refine: held-out dataset folder to reuse")
     p.add_argument("--model", default=None, help="refine: the encoder giving the prior (default: shipped)")
     p.add_argument("--out", default="out/bench")

@@ -3,7 +3,9 @@
 Sample ``i`` of a dataset with seed ``s`` is drawn from ``np.random.default_rng([s, i])`` alone, so a
 sample is the same whatever the worker count, the shard size, or how often the run was resumed.
 Each shard is one ``.npz`` (images, normalised parameters, cameras, seeds) written atomically when
-complete; a restarted run renders only the shards that are missing.
+complete; a restarted run renders only the shards that are missing. Shards are rendered by local
+worker processes or by Ray tasks on a cluster (``inference.cluster``), through one function,
+``render_shard``, so a dataset is bitwise the same on either backend.
 
 Images are stored as ``linear16``: linear HDR radiance in float16, as the renderer computes it, so
 that training can apply the capture chain (exposure, colour error, sensor noise, 8-bit sRGB) the
@@ -128,19 +130,53 @@ def _die_with_parent() -> None:
         pass
 
 
-def _render_shard(args: tuple[dict, str, int, int]) -> tuple[int, int, float]:
-    """Render one shard in a worker process and write it atomically; returns (shard, count, seconds)."""
-    config_dict, root, shard, threads = args
+#: The arrays of a shard file, in the order they are written.
+SHARD_FIELDS = ("images", "params", "cameras", "seeds", "indices")
+#: Where shards are rendered: ``local`` processes, or ``ray`` tasks (``inference.cluster``).
+BACKENDS = ("local", "ray")
+
+
+def shard_indices(config: DatasetConfig, shard: int) -> range:
+    """The sample indices of shard ``shard``."""
+    return range(shard * config.shard_size, min(config.n, (shard + 1) * config.shard_size))
+
+
+_RENDERERS: dict = {}
+
+
+def _renderer():
+    """This process's renderer for the current Mitsuba variant; its loaded scene is reused by every
+    sample of a shard and by the next shard."""
+    from render.renderer import Renderer, default_renderer
+    from render.variant import mi
+
+    renderer = default_renderer()
+    if renderer.variant != mi.variant():   # the variant was switched after the default one was made
+        if mi.variant() not in _RENDERERS:
+            _RENDERERS[mi.variant()] = Renderer()
+        renderer = _RENDERERS[mi.variant()]
+    return renderer
+
+
+def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
+                 threads: int = 0) -> dict[str, np.ndarray]:
+    """Render shard ``shard`` in this process and return its arrays (``SHARD_FIELDS``).
+
+    The one rendering core of every backend: the local pool writes what it returns with
+    ``write_shard`` in the worker, Ray tasks return it to the driver, which writes it. ``variant``
+    sets Mitsuba's variant first (None: the one set); ``threads`` > 0 sets drjit's thread count.
+    """
     if threads:
         import drjit as dr
         dr.set_thread_count(threads)
-    from render.renderer import SceneSpec, default_renderer
+    from render.renderer import SceneSpec
+    from render.variant import select_variant
 
-    config = DatasetConfig(**config_dict)
-    start = time.perf_counter()
-    indices = range(shard * config.shard_size, min(config.n, (shard + 1) * config.shard_size))
+    if variant is not None:
+        select_variant(variant)
+    indices = shard_indices(config, shard)
     images, vectors, cameras, seeds = [], [], [], []
-    renderer = default_renderer()
+    renderer = _renderer()
     for i in indices:
         s = sample_spec(config, i)
         spec = SceneSpec("swatch", camera=s.camera, framing=config.framing, strands=config.strands,
@@ -150,16 +186,32 @@ def _render_shard(args: tuple[dict, str, int, int]) -> tuple[int, int, float]:
         vectors.append(s.params.to_vector())
         cameras.append([s.camera.polar_deg, s.camera.azimuth_deg, s.camera.distance])
         seeds.append([s.strand_seed, s.render_seed])
+    return {"images": np.stack(images), "params": np.stack(vectors), "cameras": np.array(cameras),
+            "seeds": np.array(seeds, dtype=np.int64), "indices": np.array(list(indices))}
+
+
+def write_shard(root: str | os.PathLike, shard: int, arrays: dict[str, np.ndarray]) -> Path:
+    """Write a shard's arrays to ``shard-NNNNN.npz`` in ``root`` atomically (a temporary file, renamed)."""
     path = shard_path(Path(root), shard)
     fd, tmp = tempfile.mkstemp(dir=root, prefix=f".{path.stem}.", suffix=".npz")
     os.close(fd)
-    np.savez(tmp, images=np.stack(images), params=np.stack(vectors), cameras=np.array(cameras),
-             seeds=np.array(seeds, dtype=np.int64), indices=np.array(list(indices)))
-    publish(tmp, path)
-    return shard, len(indices), time.perf_counter() - start
+    np.savez(tmp, **{name: arrays[name] for name in SHARD_FIELDS})
+    return publish(tmp, path)
 
 
-def _check_manifest(root: Path, config: DatasetConfig) -> None:
+def _render_shard(args: tuple) -> tuple[int, int, float]:
+    """Render one shard in a worker process and write it atomically; returns (shard, count, seconds).
+
+    ``args``: (config as a dict, root, shard, threads[, variant]).
+    """
+    config_dict, root, shard, threads, *rest = args
+    start = time.perf_counter()
+    arrays = render_shard(DatasetConfig(**config_dict), shard, rest[0] if rest else None, threads)
+    write_shard(root, shard, arrays)
+    return shard, len(arrays["indices"]), time.perf_counter() - start
+
+
+def _check_manifest(root: Path, config: DatasetConfig, variant: str | None = None) -> None:
     path = root / MANIFEST
     if path.exists():
         stored = {**LEGACY_DEFAULTS, **json.loads(path.read_text())["config"]}
@@ -173,38 +225,92 @@ def _check_manifest(root: Path, config: DatasetConfig) -> None:
         write_json_atomic(path, {"config": asdict(config), "format": "shard-NNNNN.npz: images (N,S,S,3) "
                                  "linear float16 radiance (store linear16) or uint8 sRGB (srgb8); params (N,6) normalised Table 1 vector; cameras (N,3) "
                                  "polar°, azimuth°, distance; seeds (N,2) strand, render; indices (N,)",
-                                 "mitsuba_variant": mi.variant(), "created": time.strftime("%Y-%m-%dT%H:%M:%S")})
+                                 "mitsuba_variant": variant or mi.variant(),
+                                 "created": time.strftime("%Y-%m-%dT%H:%M:%S")})
 
 
-def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, progress: bool = True) -> Path:
-    """Render every missing shard of the dataset into ``root``; resumable and deterministic."""
+def _check_variant(root: Path, variant: str, has_shards: bool) -> None:
+    """Refuse to add shards rendered with another Mitsuba variant than the dataset's (a sample's
+    pixels depend on the variant, so the dataset would no longer be one function of (seed, i)).
+    A dataset with no shard yet takes the new variant."""
+    manifest = json.loads((root / MANIFEST).read_text())
+    stored = manifest.get("mitsuba_variant")
+    if not stored or stored == variant:
+        return
+    if has_shards:
+        raise ValueError(f"{root} was rendered with Mitsuba variant {stored}, not {variant}; resume it with "
+                         f"--variant {stored}, or use another --out")
+    from render.params import write_json_atomic
+    write_json_atomic(root / MANIFEST, {**manifest, "mitsuba_variant": variant})
+
+
+def _resolve_variant(variant: str | None, set_here: bool) -> str:
+    """The variant to render with, by name: None is this process's, ``auto`` is resolved here. A
+    named variant is also set here when this process renders (``set_here``); for Ray it is checked
+    where the tasks run, since the driver may have no GPU."""
+    from render.variant import select_variant
+
+    if variant is None or variant == "auto" or set_here:
+        return select_variant(variant)
+    return variant
+
+
+def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, progress: bool = True,
+             backend: str = "local", address: str | None = None, variant: str | None = None) -> Path:
+    """Render every missing shard of the dataset into ``root``; resumable and deterministic.
+
+    ``backend="local"``: ``workers`` processes on this machine, each writing the shards it renders.
+    ``backend="ray"``: one Ray task per shard (``inference.cluster``) on the cluster at ``address``,
+    or on a local Ray instance with ``workers`` CPUs started for the run; each task returns its
+    shard's arrays and this process writes them, so only this machine needs the dataset folder.
+    Either way a sample is the same (bitwise), as the shards share one core, ``render_shard``.
+    ``variant``: Mitsuba's variant for every shard (None: this process's; ``auto``: resolved here);
+    the manifest records it, and adding shards with another one is refused.
+    """
     from tqdm import tqdm
 
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown dataset backend {backend!r}; choose one of {', '.join(BACKENDS)}")
+    if backend == "ray":
+        from inference.cluster import require_ray
+        require_ray()   # before anything is written: without Ray, one line saying how to install it
+    variant = _resolve_variant(variant, set_here=backend == "local")
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
-    _check_manifest(root, config)
+    _check_manifest(root, config, variant)
     for stray in root.glob(".shard-*.npz"):   # half-written by a killed run
         stray.unlink(missing_ok=True)
     todo = [s for s in range(config.n_shards) if not shard_path(root, s).exists()]
-    done = config.n - sum(len(range(s * config.shard_size, min(config.n, (s + 1) * config.shard_size)))
-                          for s in todo)
+    if todo:
+        _check_variant(root, variant, has_shards=len(todo) < config.n_shards)
+    done = config.n - sum(len(shard_indices(config, s)) for s in todo)
     bar = tqdm(total=config.n, initial=done, unit="swatch", desc="dataset", disable=not progress,
                smoothing=0.1, dynamic_ncols=True)
-    jobs = [(asdict(config), str(root), s, 1 if workers > 1 else 0) for s in todo]
+    jobs = [(asdict(config), str(root), s, 1 if workers > 1 else 0, variant) for s in todo]
     try:
-        if workers <= 1:
+        if backend == "local" and workers <= 1:
             for job in jobs:
                 _, count, _ = _render_shard(job)
                 bar.update(count)
-        else:
+        elif todo:
             import signal
 
             # SIGTERM (kill, a session ending) unwinds through the pool's exit, which ends the workers
+            # (for Ray: cancels the tasks, and stops the instance this run started)
             previous = signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
             try:
-                with mp.get_context("spawn").Pool(workers, initializer=_die_with_parent) as pool:
-                    for _, count, _ in pool.imap_unordered(_render_shard, jobs):
-                        bar.update(count)
+                if backend == "ray":
+                    from inference.cluster import render_shards
+
+                    def arrived(shard: int, arrays: dict) -> None:
+                        write_shard(root, shard, arrays)
+                        bar.update(len(arrays["indices"]))
+
+                    render_shards(config, todo, variant, arrived, address=address, num_cpus=workers)
+                else:
+                    with mp.get_context("spawn").Pool(workers, initializer=_die_with_parent) as pool:
+                        for _, count, _ in pool.imap_unordered(_render_shard, jobs):
+                            bar.update(count)
             finally:
                 signal.signal(signal.SIGTERM, previous)
     finally:

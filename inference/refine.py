@@ -46,11 +46,17 @@ REACHABLE_DE = 1.0   # log(sigma + offset): the curve is smooth there down to si
 
 @dataclass(frozen=True)
 class RefineSettings:
-    """Render settings of the refinement; defaults chosen by ``hairdigi bench refine``."""
+    """Render settings of the refinement; defaults chosen by ``hairdigi bench refine``.
 
-    size: int = 64
-    spp: int = 16
-    iterations: int = 1
+    Measured on 8 clean held-out swatches (resources/models/refine_bench.csv): 48² at 32 spp with 2
+    iterations (one correction, each checked by a render) gave median / p95 ΔE2000 0.16 / 0.30; the
+    next cheaper settings 0.22 / 0.86 (64² at 8 spp) and 0.26 / 0.65 (32² at 32 spp), and one
+    iteration (a check, no correction) 0.20 / 0.62 at the same 48² / 32 spp.
+    """
+
+    size: int = 48
+    spp: int = 32
+    iterations: int = 2
     tolerance_de: float = 0.05      # stop polishing once the residual ΔE2000 is below this
     framing: str = "crop"
     strand_seed: int = 0

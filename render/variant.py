@@ -3,6 +3,10 @@
 ``llvm_ad_rgb`` needs a system libLLVM 19 (Debian's ``libllvm19``); LLVM 14 is refused and 15–16
 abort on curve scenes. ``scalar_rgb`` needs nothing but is about 2x slower, and it cannot replace
 curve geometry in memory. Set ``HAIRDIGI_VARIANT`` to force one.
+
+``select_variant("auto")`` (the command line's ``--variant auto``) tries ``cuda_ad_rgb`` first, with
+a one-float allocation on the GPU to prove that Mitsuba finds one. A variant can be switched only
+while no Mitsuba object exists: the command line switches before it loads any scene.
 """
 from __future__ import annotations
 
@@ -12,26 +16,42 @@ import warnings
 import mitsuba as mi
 
 PREFERRED = ("llvm_ad_rgb", "scalar_rgb")
+#: What ``"auto"`` tries, in order: the GPU when Mitsuba finds one, then as ``PREFERRED``.
+AUTO = ("cuda_ad_rgb",) + PREFERRED
+#: The choices of the command line's ``--variant``.
+CHOICES = ("auto",) + AUTO
+
+
+class VariantError(RuntimeError):
+    """No asked-for Mitsuba variant works on this machine (a one-line message saying why)."""
 
 
 def select_variant(preferred: str | None = None) -> str:
-    """Set and return the first variant that works, warning when it falls back to ``scalar_rgb``."""
-    if mi.variant() is not None and preferred is None:
+    """Set and return the first variant that works, warning when it falls back to ``scalar_rgb``.
+
+    ``preferred`` None keeps the variant already set; ``"auto"`` tries ``AUTO`` (or
+    ``HAIRDIGI_VARIANT`` when set); a variant name sets exactly that one or raises VariantError.
+    """
+    if mi.variant() is not None and (preferred is None or preferred == mi.variant()):
         return mi.variant()
-    wanted = preferred or os.environ.get("HAIRDIGI_VARIANT")
-    candidates = (wanted,) if wanted else PREFERRED
+    env = os.environ.get("HAIRDIGI_VARIANT")
+    wanted = env if preferred in (None, "auto") else preferred
+    candidates = (wanted,) if wanted else AUTO if preferred == "auto" else PREFERRED
     errors = []
     for name in candidates:
         try:
             mi.set_variant(name)
-            if name.startswith("llvm"):
+            if name.startswith(("llvm", "cuda")):
                 import drjit as dr
-                dr.zeros(dr.llvm.Float, 1)  # raises when the LLVM backend is inactive
+                # raises when the backend is inactive (no libLLVM; no GPU or CUDA driver)
+                dr.zeros((dr.cuda if name.startswith("cuda") else dr.llvm).Float, 1)
             break
         except Exception as exc:  # ImportError, or "LLVM backend is inactive"
-            errors.append(f"{name}: {exc}")
+            found = "Mitsuba finds no usable GPU; " if name.startswith("cuda") else ""
+            errors.append(f"{name}: {found}{' '.join(str(exc).split())}")
     else:
-        raise RuntimeError("no Mitsuba variant works: " + "; ".join(errors))
+        raise VariantError("no Mitsuba variant works: " + "; ".join(errors)
+                           + ("; use --variant auto" if preferred not in (None, "auto") else ""))
     if mi.variant() == "scalar_rgb" and not wanted:
         warnings.warn("llvm_ad_rgb is unavailable (install Debian's libllvm19); rendering with "
                       "scalar_rgb, about 2x slower. " + "; ".join(errors), RuntimeWarning, stacklevel=2)
