@@ -286,8 +286,8 @@ def check_evaluate(args: argparse.Namespace) -> None:
 
 def check_model_card(args: argparse.Namespace) -> None:
     """``hairdigi model-card``: its inputs are readable and neither the card nor its JSON twin is one."""
-    inputs = {"--evaluation": args.evaluation, "--variants": args.variants,
-              "--noise-sweep": args.noise_sweep, "--model": args.model}
+    inputs = {"--evaluation": args.evaluation, "--variants": args.variants, "--convergence": args.convergence,
+              "--refine-bench": args.refine_bench, "--rig": args.rig, "--model": args.model}
     for flag, path in inputs.items():
         if path:
             check_input_file(path, flag)

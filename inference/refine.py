@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import threading
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -112,9 +113,17 @@ def _scene(pose: CameraPose, settings: RefineSettings):
     return SceneSpec("swatch", camera=pose, framing=settings.framing, strand_seed=settings.strand_seed)
 
 
+_CURVE_LOCK = threading.Lock()   # one curve at a time: the app's warm-up and a capture must not both render it
+
+
 def response_curve(pose: CameraPose, settings: RefineSettings = RefineSettings(), renderer=None,
                    cache: bool = True) -> ResponseCurve:
     """The swatch's response curve at ``pose``: ``len(levels) / 3`` renders, cached on disk."""
+    with _CURVE_LOCK:
+        return _response_curve(pose, settings, renderer, cache)
+
+
+def _response_curve(pose: CameraPose, settings: RefineSettings, renderer, cache: bool) -> ResponseCurve:
     from render.renderer import default_renderer
 
     renderer = renderer or default_renderer()

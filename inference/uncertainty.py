@@ -19,7 +19,7 @@ from render.params import VECTOR_FIELDS, HairParams
 
 COVERAGE = 0.68
 MELANIN_BANDS = (0.0, 0.4, 0.75, 1.0001)   # pale, mid, dark: the dye is harder to read the darker the hair
-UNDETERMINED_SHARE = 0.35                  # half-width over this share of the range: "undetermined"
+UNDETERMINED_SHARE = 0.25                  # half-width over a quarter of the range: "undetermined"
 NAMES = [name for name, _, _ in VECTOR_FIELDS]
 SPANS = {name: hi - lo for name, lo, hi in VECTOR_FIELDS}
 

@@ -222,6 +222,7 @@ def test_evaluate_judges_clean_inputs_and_measures_interval_coverage(tiny_model,
     for who in ("encoder", "refined", "floor"):
         d = a[f"{who}_mean_colour_de2000"]
         assert d["max"] >= d["p95"] >= d["median"] >= 0
+    assert a["floor_mean_colour_de2000"]["median"] > 0        # input vs the truth's render: never identical
     # a 2-epoch encoder is poor; refinement to the capture's colour must beat it
     assert a["refined_mean_colour_de2000"]["median"] < a["encoder_mean_colour_de2000"]["median"]
     assert set(summary["coverage"]) == {"dye_r", "dye_g", "dye_b", "dye_concentration", "melanin_concentration",
@@ -253,6 +254,12 @@ def test_encoder_bench_and_model_card(tiny_model, tmp_path):
     assert "a hand-written note" in text and "| 4 | 0.10 | 1.50 / 2.00 | 0.30 / 0.60 |" in text
     assert "fibre colour" in text and "camera_model" in text   # the loss and the capture chain are named
     assert json.loads(card.with_suffix(".json").read_text())["datasets"][0]["n"] == 8
+    # and through the command line, which also ships the measured intervals beside the model
+    out = tmp_path / "cli" / "encoder.md"
+    out.parent.mkdir()
+    assert main(["model-card", "--run", str(run), "--model", str(onnx_path), "--out", str(out),
+                 "--evaluation", str(tmp_path / "bench" / "encoder" / "evaluation.json")]) == 0
+    assert out.exists() and (out.parent / "uncertainty.json").exists()
 
 
 def test_killed_run_leaves_no_orphan_workers_and_resumes(tmp_path):
