@@ -27,7 +27,7 @@ def bench_refine(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLi
     from tqdm import tqdm
 
     from inference.preprocess import Roi
-    from render.bench import write_csv_atomic
+    from render.figures import save_table
 
     images, vectors, _, manifest = load(data_root)
     config = DatasetConfig(**manifest["config"])
@@ -59,10 +59,7 @@ def bench_refine(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLi
                          "de_median": float(np.median(de)), "de_p95": float(np.quantile(de, 0.95)),
                          "de_max": float(np.max(de)), "residual_median": float(np.median(residual)),
                          "curve_s": float(np.median(curve_s)), "polish_s": float(np.median(polish_s))})
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    write_csv_atomic(out / "refine_bench.csv", rows)
-    _plot(rows, out / "refine_bench.png")
+    save_table(out_dir, "refine_bench", rows, _plot)
     return rows
 
 

@@ -28,7 +28,7 @@ def convergence_sweep(encoder, data_root: str | os.PathLike, out_dir: str | os.P
     from tqdm import tqdm
 
     from inference.preprocess import Roi
-    from render.bench import write_csv_atomic
+    from render.figures import save_table
     from render.renderer import default_renderer
 
     images, vectors, _, manifest = load(data_root)
@@ -55,10 +55,7 @@ def convergence_sweep(encoder, data_root: str | os.PathLike, out_dir: str | os.P
                      "encoder_de_median": float(np.median(enc_de)), "encoder_de_p95": float(np.quantile(enc_de, .95)),
                      "encoder_de_max": float(np.max(enc_de)), "refined_de_median": float(np.median(ref_de)),
                      "refined_de_p95": float(np.quantile(ref_de, .95)), "refined_de_max": float(np.max(ref_de))})
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    write_csv_atomic(out / "convergence.csv", rows)
-    _plot(rows, out / "convergence.png")
+    save_table(out_dir, "convergence", rows, _plot)
     return rows
 
 

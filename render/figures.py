@@ -23,3 +23,14 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> Path:
         plt.close(fig)
         tmp.unlink(missing_ok=True)
     return path
+
+
+def save_table(out_dir: str | os.PathLike, stem: str, rows: list[dict], plot) -> Path:
+    """A benchmark's results: ``stem.csv`` (atomic) and ``stem.png`` drawn by ``plot(rows, path)``."""
+    from render.bench import write_csv_atomic
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv_atomic(out / f"{stem}.csv", rows)
+    plot(rows, out / f"{stem}.png")
+    return out

@@ -48,3 +48,14 @@ def tiny_model(tiny_dataset, tmp_path_factory):
 def test_output() -> Path:
     TEST_OUTPUT.mkdir(parents=True, exist_ok=True)
     return TEST_OUTPUT
+
+
+@pytest.fixture(scope="session")
+def avr_build(tmp_path_factory):
+    """The light board's firmware and its simavr harness, built once per run (CI must have the tools)."""
+    from hardware.sim_lights import build_firmware, firmware_tools_missing
+
+    reason = firmware_tools_missing()
+    if reason:
+        (pytest.fail if os.environ.get("CI") else pytest.skip)(f"cannot build the AVR firmware: {reason}")
+    return build_firmware(tmp_path_factory.getbasetemp() / "avr-firmware")

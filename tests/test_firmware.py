@@ -12,8 +12,7 @@ import time
 import pytest
 import serial
 
-from hardware.sim_lights import (BoardState, EmulatedFirmwareBoard, SimulatedLightBoard, build_firmware,
-                                 firmware_tools_missing, handle)
+from hardware.sim_lights import BoardState, EmulatedFirmwareBoard, SimulatedLightBoard, handle
 
 UNO_FLASH, UNO_RAM = 32256, 2048  # bytes the Uno's bootloader leaves for a sketch; SRAM
 E1, E2, E3, E4 = "ERR E1 unknown command", "ERR E2 no such light", "ERR E3 value out of range", "ERR E4 line too long"
@@ -34,13 +33,6 @@ CASES = [
 ]
 
 
-@pytest.fixture(scope="session")
-def avr_build(tmp_path_factory):
-    """The firmware and its simavr harness, built once per run (tests/test_lights.py shares the folder)."""
-    reason = firmware_tools_missing()
-    if reason:
-        (pytest.fail if os.environ.get("CI") else pytest.skip)(f"cannot build the AVR firmware: {reason}")
-    return build_firmware(tmp_path_factory.getbasetemp() / "avr-firmware")
 
 
 @pytest.fixture(scope="module")

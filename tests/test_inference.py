@@ -209,6 +209,19 @@ def test_convergence_sweep_reports_each_input_spp(tiny_model, tmp_path):
     assert (tmp_path / "sweep" / "convergence.csv").exists() and (tmp_path / "sweep" / "convergence.png").exists()
 
 
+def test_refine_bench_writes_speed_against_error(tiny_model, tmp_path):
+    from inference.bench_refine import bench_refine
+    from inference.evaluate import Judge, prepare_heldout
+
+    _, onnx_path, _ = tiny_model
+    judge = Judge(**SMALL_JUDGE)
+    root = prepare_heldout(tmp_path / "h", n=2, size=32, spp=4, workers=1, judge=judge, progress=False)
+    rows = bench_refine(Encoder(onnx_path), root, tmp_path / "b", sizes=(16,), spps=(2,), iterations=(0, 2),
+                        count=2, judge=judge, progress=False)
+    assert [r["iterations"] for r in rows] == [0, 2] and all(r["curve_s"] > 0 and r["de_median"] >= 0 for r in rows)
+    assert (tmp_path / "b" / "refine_bench.csv").exists() and (tmp_path / "b" / "refine_bench.png").exists()
+
+
 def test_evaluate_judges_clean_inputs_and_measures_interval_coverage(tiny_model, tmp_path):
     from inference.evaluate import Judge, evaluate
     from inference.refine import RefineSettings

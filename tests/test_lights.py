@@ -4,7 +4,6 @@
 ``EmulatedFirmwareBoard`` (hairdigi_lights.ino built for an Uno, run in the simavr AVR emulator).
 Fault injection (lost, garbled, slow replies; an unplug mid-command) only the Python simulator can do.
 """
-import os
 import time
 from fractions import Fraction
 
@@ -13,19 +12,11 @@ import pytest
 
 from hardware.lights import (LightArgumentError, LightCommandError, LightController, LightError, LightLinkError,
                              LightProtocolError, LightState, LightTimeout, N_LIGHTS, parse_status)
-from hardware.sim_lights import (BoardState, EmulatedFirmwareBoard, SimulatedLightBoard, build_firmware,
-                                 firmware_tools_missing, handle)
+from hardware.sim_lights import BoardState, EmulatedFirmwareBoard, SimulatedLightBoard, handle
 
 BACKENDS = ["python-sim", "avr-firmware"]
 
 
-@pytest.fixture(scope="session")
-def avr_build(tmp_path_factory):
-    """The firmware and its simavr harness, built once per run (tests/test_firmware.py shares the folder)."""
-    reason = firmware_tools_missing()
-    if reason:
-        (pytest.fail if os.environ.get("CI") else pytest.skip)(f"cannot build the AVR firmware: {reason}")
-    return build_firmware(tmp_path_factory.getbasetemp() / "avr-firmware")
 
 
 @pytest.fixture(params=BACKENDS)
