@@ -124,3 +124,33 @@ def test_session_replays_a_recorded_frame(tmp_path):
     assert profile["delta_e2000"]["after"]["mean"] < 2
     result = session.capture(estimate=False)
     assert result.image_path.exists() and not result.blocked
+
+
+def test_estimate_of_a_rig_capture_matches_the_rig_chain(tmp_path, tiny_model):
+    """``hairdigi estimate`` on a saved rig frame (chart in view, swatch found) gives the rig's estimate."""
+    from app.cli import main
+    from inference.encoder import Encoder
+    from render.metrics import delta_e2000
+
+    _, onnx_path, _ = tiny_model
+    session = RigSession.simulated_rig(tmp_path / "s", spp=SPP, encoder=Encoder(onnx_path))
+    try:
+        session.calibrate()
+        result = session.capture()
+    finally:
+        session.close()
+    assert result.params is not None and not result.blocked
+    out = tmp_path / "cli.json"
+    assert main(["estimate", str(result.image_path), "--calibration", str(session.profile_path),
+                 "--model", str(onnx_path), "--out", str(out)]) == 0
+    cli = json.loads(out.read_text())
+    rig = result.record
+    x, y, w, h = cli["provenance"]["roi"]
+    tx, ty, tw, th = session.swatch_roi
+    shared = max(0, min(x + w, tx + tw) - max(x, tx)) * max(0, min(y + h, ty + th) - max(y, ty))
+    assert shared >= 0.85 * tw * th                      # the swatch, not the chart
+    # the same colour: both refine to the swatch's mean colour from the same calibrated frame
+    assert float(delta_e2000(np.array(cli["refinement"]["rendered_linear_rgb"]),
+                             np.array(rig["refinement"]["rendered_linear_rgb"]))) < 0.5
+    assert np.allclose(cli["hair"]["dye_rgb"], rig["hair"]["dye_rgb"], atol=25)
+    assert abs(cli["hair"]["melanin_concentration"] - rig["hair"]["melanin_concentration"]) < 0.05
