@@ -206,7 +206,7 @@ def estimate_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16, twin_siz
                 rows.append({**row, "detected": 1, "ccm_de2000_after": profile["delta_e2000"]["after"]["mean"],
                              "real_vs_twin_encoder": twins["encoder"], "real_vs_twin_refined": twins["refined"],
                              "real_vs_truth_twin": float(delta_e2000(real, truth_twin)),
-                             "truth_vs_refined_twin_params": result.params.to_dict(),
+                             "refined_params": result.params.to_dict(),
                              "refine_residual": result.refinement.residual_de2000,
                              "refine_s": result.refinement.seconds, "warnings": len(result.warnings)})
     found = [r for r in rows if r.get("detected")]
