@@ -114,10 +114,7 @@ class RigSession:
 
     def settings(self) -> dict:
         """Camera and light settings a calibration depends on."""
-        s = {"camera": getattr(self.camera, "name", "camera")}
-        model = getattr(self.camera, "camera", None)
-        if model is not None and hasattr(model, "settings"):
-            s.update({k: v for k, v in model.settings().items() if k in ("exposure_ev", "gain")})
+        s = {"camera": getattr(self.camera, "name", "camera"), **self.camera.settings()}
         try:
             s["lights"] = [[int(st.on), st.intensity] for st in self.lights.status()]
         except (LightError, AttributeError):

@@ -37,6 +37,9 @@ class Camera(Protocol):
 
     def read(self) -> Frame: ...
 
+    def settings(self) -> dict:
+        """What a colour calibration depends on (exposure, gain, ...), as the device reports it now."""
+
     def close(self) -> None: ...
 
 
@@ -51,21 +54,27 @@ class OpenCVCamera:
             self.capture.release()
             raise CameraError(f"no camera at {source!r}: check that it is plugged in and not used by another "
                               f"program, or run with --sim for the simulated rig")
-        self.settings = {}
-        for prop, value, key in ((cv2.CAP_PROP_FRAME_WIDTH, width, "width"),
-                                 (cv2.CAP_PROP_FRAME_HEIGHT, height, "height"),
-                                 (cv2.CAP_PROP_EXPOSURE, exposure, "exposure"),
-                                 (cv2.CAP_PROP_GAIN, gain, "gain")):
+        for prop, value in ((cv2.CAP_PROP_FRAME_WIDTH, width), (cv2.CAP_PROP_FRAME_HEIGHT, height),
+                            (cv2.CAP_PROP_EXPOSURE, exposure), (cv2.CAP_PROP_GAIN, gain)):
             if value is not None:
-                # drivers ignore what they do not support; record what they report back
-                self.capture.set(prop, value)
-                self.settings[key] = self.capture.get(prop)
+                self.capture.set(prop, value)   # drivers ignore what they do not support
+
+    #: The properties a calibration depends on, read back from the driver (what it does, not what was asked).
+    PROPERTIES = (("width", cv2.CAP_PROP_FRAME_WIDTH), ("height", cv2.CAP_PROP_FRAME_HEIGHT),
+                  ("exposure", cv2.CAP_PROP_EXPOSURE), ("gain", cv2.CAP_PROP_GAIN),
+                  ("auto_exposure", cv2.CAP_PROP_AUTO_EXPOSURE), ("wb_temperature", cv2.CAP_PROP_WB_TEMPERATURE),
+                  ("auto_wb", cv2.CAP_PROP_AUTO_WB))
+
+    def settings(self) -> dict:
+        """The driver's current width, height, exposure, gain and white balance (0 where unsupported)."""
+        return {key: float(self.capture.get(prop)) for key, prop in self.PROPERTIES}
 
     def read(self) -> Frame:
         ok, bgr = self.capture.read()
         if not ok or bgr is None:
             raise CameraError(f"{self.name} stopped delivering frames: check the cable")
-        return Frame(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB), meta={"camera": self.name, **self.settings})
+        return Frame(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB),
+                     meta={"camera": self.name, "camera_settings": self.settings()})
 
     def close(self) -> None:
         self.capture.release()
@@ -93,6 +102,10 @@ class FileCamera:
         if not self.capture.isOpened():
             raise CameraError(f"{self.path}: OpenCV cannot open this file as video")
         self.frames = int(self.capture.get(cv2.CAP_PROP_FRAME_COUNT))
+
+    def settings(self) -> dict:
+        """A replayed file has no exposure to change: the file stands for its settings."""
+        return {"file": self.path.name}
 
     def read(self) -> Frame:
         if self.image is not None:

@@ -111,8 +111,14 @@ class SimRig:
         srgb = sensor_response(linear, self.camera, self._rng)
         self.frames_served += 1
         return Frame(srgb, None, {"camera": self.name, "frame": self.frames_served,
-                                  "lights": self.levels().tolist(), "camera_model": self.camera.settings()},
+                                  "lights": self.levels().tolist(), "camera_model": self.camera.settings(),
+                                  "camera_settings": self.settings()},
                      time.time())
+
+    def settings(self) -> dict:
+        """What a calibration depends on: the simulated sensor's exposure and gain."""
+        model = self.camera.settings()
+        return {key: model[key] for key in ("exposure_ev", "gain")}
 
     def close(self) -> None:
         pass

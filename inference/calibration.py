@@ -219,8 +219,11 @@ def capture_settings(image_path: str | os.PathLike) -> tuple[dict | None, float 
     settings = {}
     if isinstance(frame, dict) and "camera" in frame:
         settings["camera"] = frame["camera"]
-        model = frame.get("camera_model")
-        if isinstance(model, dict):
+        camera = frame.get("camera_settings")
+        model = frame.get("camera_model")       # records made before cameras reported their settings
+        if isinstance(camera, dict):
+            settings.update(camera)
+        elif isinstance(model, dict):
             settings.update({k: v for k, v in model.items() if k in ("exposure_ev", "gain")})
     if record.get("lights") is not None:
         settings["lights"] = record["lights"]

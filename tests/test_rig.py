@@ -154,3 +154,38 @@ def test_estimate_of_a_rig_capture_matches_the_rig_chain(tmp_path, tiny_model):
                              np.array(rig["refinement"]["rendered_linear_rgb"]))) < 0.5
     assert np.allclose(cli["hair"]["dye_rgb"], rig["hair"]["dye_rgb"], atol=25)
     assert abs(cli["hair"]["melanin_concentration"] - rig["hair"]["melanin_concentration"]) < 0.05
+
+
+def test_a_changed_camera_exposure_makes_the_profile_stale(tmp_path):
+    """Every camera reports its settings; the simulated sensor's exposure change is seen as stale."""
+    session = RigSession.simulated_rig(tmp_path / "s", spp=SPP)
+    try:
+        session.calibrate()
+        assert staleness(session.profile, session.settings()) == []
+        session.camera.camera.exposure_ev = 0.5            # the operator turns the exposure up
+        reasons = staleness(session.profile, session.settings())
+        assert reasons and "exposure_ev" in reasons[0]
+    finally:
+        session.close()
+
+
+def test_a_real_camera_reports_its_settings(tmp_path):
+    """An OpenCV camera (here a video file through cv2.VideoCapture) reports what the driver does."""
+    import cv2
+
+    from hardware.cameras import OpenCVCamera
+
+    path = tmp_path / "feed.avi"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (96, 64))
+    for k in range(5):
+        writer.write(np.full((64, 96, 3), 40 * k, np.uint8))
+    writer.release()
+    camera = OpenCVCamera(str(path))
+    try:
+        settings = camera.settings()
+        assert settings["width"] == 96 and settings["height"] == 64 and "exposure" in settings
+        assert camera.read().meta["camera_settings"] == settings
+        session = RigSession(camera, None, tmp_path / "s")
+        assert session.settings()["width"] == 96 and session.settings()["camera"] == camera.name
+    finally:
+        camera.close()
