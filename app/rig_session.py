@@ -32,6 +32,23 @@ class CaptureResult:
     seconds: float = 0.0
 
 
+@dataclass
+class LoadedCapture:
+    """A capture read back for review: its frame, swatch area, result record and own calibration."""
+
+    capture_id: str
+    frame: np.ndarray                  # RGB, as captured (before colour correction)
+    roi: tuple[int, int, int, int]
+    record: dict
+    profile: dict | None               # the profile it was corrected with; None if uncalibrated
+
+    def corrected_swatch(self) -> np.ndarray:
+        """The swatch area, colour-corrected with the capture's own profile."""
+        x, y, w, h = self.roi
+        real = self.frame[y:y + h, x:x + w].copy()
+        return real if self.profile is None else apply_profile(real, self.profile)
+
+
 def white_patch_box(detection: ChartDetection) -> tuple[int, int, int, int]:
     """A box inside the chart's white patch, from the chart's corners (patch 19 of 24: row 4, column 1)."""
     box = detection.box  # tl, tr, br, bl
@@ -183,6 +200,7 @@ class RigSession:
         frame = self.frame()
         meta = {"lights": self.settings().get("lights"), "frame_meta": frame.meta,
                 "calibration_id": None if self.profile is None else self.profile["id"],
+                "calibration": self.profile,   # the capture keeps its own profile: a later one replaces the file
                 "simulated": self.simulated, "swatch_roi": list(self._roi(frame.srgb))}
         image_path, meta_path = save_capture(self.folder / "captures", frame.srgb, meta=meta)
         result = CaptureResult(image_path.stem, image_path, meta_path)
@@ -193,6 +211,26 @@ class RigSession:
         record = {"capture": image_path.name, "blocked": result.blocked, **result.record}
         write_json_atomic(self.folder / "captures" / f"{result.capture_id}.result.json", record)
         return result
+
+    def load_capture(self, capture_id: str) -> "LoadedCapture":
+        """A saved capture with what reviewing it needs: the frame, its swatch area, its result record,
+        and the calibration profile it was taken with (not the session's current one)."""
+        import cv2
+
+        folder = self.folder / "captures"
+        meta_path = folder / f"{capture_id}.json"
+        meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+        image = folder / meta.get("image", f"{capture_id}.png")
+        bgr = cv2.imread(str(image))
+        if bgr is None:
+            raise FileNotFoundError(f"{image}: the capture's image is missing or not one OpenCV reads")
+        profile = meta.get("calibration")
+        if profile is None and self.profile is not None and meta.get("calibration_id") == self.profile["id"]:
+            profile = self.profile          # captures saved before profiles were kept with them
+        result_path = folder / f"{capture_id}.result.json"
+        record = json.loads(result_path.read_text()) if result_path.exists() else {}
+        roi = tuple(meta.get("swatch_roi") or self.swatch_roi or (0, 0, bgr.shape[1], bgr.shape[0]))
+        return LoadedCapture(capture_id, bgr[..., ::-1].copy(), roi, record, profile)
 
     def blockers(self, image: np.ndarray) -> list[str]:
         """Reasons not to estimate from this frame; empty when it is fit."""

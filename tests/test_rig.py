@@ -189,3 +189,24 @@ def test_a_real_camera_reports_its_settings(tmp_path):
         assert session.settings()["width"] == 96 and session.settings()["camera"] == camera.name
     finally:
         camera.close()
+
+
+def test_an_old_capture_is_reviewed_with_its_own_calibration(tmp_path):
+    """A later calibration replaces calibration.json; the earlier capture keeps the profile it was taken with."""
+    from inference.calibration import apply_profile
+
+    session = RigSession.simulated_rig(tmp_path / "s", spp=SPP)
+    try:
+        first = session.calibrate()
+        shot = session.capture(estimate=False)
+        session.camera.camera.cast = (1.3, 1.0, 0.7)        # the light or white balance changes
+        second = session.calibrate()
+        assert second["id"] != first["id"] and load_profile(session.profile_path)["id"] == second["id"]
+        loaded = session.load_capture(shot.capture_id)
+    finally:
+        session.close()
+    assert loaded.profile["id"] == first["id"]
+    x, y, w, h = loaded.roi
+    expected = apply_profile(loaded.frame[y:y + h, x:x + w].copy(), first)
+    assert np.array_equal(loaded.corrected_swatch(), expected)
+    assert not np.array_equal(expected, apply_profile(loaded.frame[y:y + h, x:x + w].copy(), second))

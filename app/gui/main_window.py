@@ -340,16 +340,13 @@ class MainWindow(QMainWindow):
         if not 0 <= row < len(self.records):
             return
         rec = self.records[row]
-        import cv2
-        img = cv2.imread(str(self.session.folder / "captures" / rec["capture"]))
-        if img is None:
+        try:
+            loaded = self.session.load_capture(rec["id"])
+        except FileNotFoundError as exc:
+            self.show_banner(str(exc))
             return
-        frame = img[..., ::-1].copy()
-        meta_path = self.session.folder / "captures" / f"{rec['id']}.json"
-        import json
-        meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
-        roi = meta.get("swatch_roi") or self.session.swatch_roi
-        self.current = {"record": rec, "frame": frame, "roi": roi}
+        frame, roi = loaded.frame, loaded.roi
+        self.current = {"record": rec, "frame": frame, "roi": roi, "capture": loaded}
         if rec.get("blocked"):
             self.result_info.setText("no estimate: " + "; ".join(rec["blocked"]))
             x, y, w, h = roi
@@ -358,7 +355,7 @@ class MainWindow(QMainWindow):
             return
         params = HairParams.from_dict(rec)
         self._show_params(params, rec)
-        self.preview_twin(params, frame, roi)
+        self.preview_twin(params, loaded)
         self.render_hairstyle()
 
     def _show_params(self, p: HairParams, rec: dict) -> None:
@@ -400,12 +397,10 @@ class MainWindow(QMainWindow):
         lines += [f"⚠ {w}" for w in rec.get("warnings", [])]
         self.result_info.setText("\n".join(lines))
 
-    def preview_twin(self, params: HairParams, frame: np.ndarray, roi) -> Task:
-        x, y, w, h = roi
-        real = frame[y:y + h, x:x + w].copy()
-        if self.session.profile is not None:
-            from inference.calibration import apply_profile
-            real = apply_profile(real, self.session.profile)
+    def preview_twin(self, params: HairParams, capture: rs.LoadedCapture) -> Task:
+        """The capture (corrected with its own calibration) beside its synthetic twin, off the UI thread."""
+        frame, roi = capture.frame, capture.roi
+        real = capture.corrected_swatch()
         self.real_label.setPixmap(to_pixmap(real).scaled(self.real_label.size(), Qt.AspectRatioMode.KeepAspectRatio))
         frame_size = (frame.shape[1], frame.shape[0])
 
