@@ -79,6 +79,13 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
             f"{tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
             f"{p.melanin_concentration:.2f}, ratio {p.melanin_ratio:.2f}")
         out["params"] = p.to_dict()
+        refinement = result.record.get("refinement", {})
+        if refinement.get("ran"):
+            say(f"refined to the swatch's mean colour: residual ΔE2000 {refinement['residual_de2000']:.2f} "
+                f"in {refinement['seconds']:.2f} s (six parameters reach the image through three absorption "
+                "values, so other parameters can render the same colour: compare colours, not parameters)")
+        for warning in result.record.get("warnings", []):
+            say(f"warning: {warning}")
         hidden = getattr(session.camera, "hidden", None)
         if hidden is not None:
             say(f"hidden truth of the simulated swatch:  dye rgb {tuple(round(v) for v in hidden.dye_rgb)} at "
