@@ -126,13 +126,16 @@ def _save_npz(path: Path, arrays: dict) -> None:
     os.replace(tmp, path)
 
 
-def _image_row(prefix: str, rendered: np.ndarray, truth_judge: np.ndarray, input_srgb: np.ndarray) -> dict:
+def _image_row(prefix: str, rendered: np.ndarray, truth_judge: np.ndarray | None, input_srgb: np.ndarray) -> dict:
+    """The paper's image metrics of a judge render against the input, and its mean colour against the
+    truth's judge render (skipped when ``truth_judge`` is None)."""
     from render.srgb import linear_to_srgb8
 
     srgb = linear_to_srgb8(rendered)
-    row = {f"{prefix}_mean_colour_de2000": float(delta_e2000(rendered.reshape(-1, 3).mean(0),
-                                                            truth_judge.reshape(-1, 3).mean(0))),
-           f"{prefix}_l1": l1_255(input_srgb, srgb)}
+    row = {f"{prefix}_l1": l1_255(input_srgb, srgb)}
+    if truth_judge is not None:
+        row[f"{prefix}_mean_colour_de2000"] = float(delta_e2000(rendered.reshape(-1, 3).mean(0),
+                                                                truth_judge.reshape(-1, 3).mean(0)))
     if min(srgb.shape[:2]) >= 43:
         row[f"{prefix}_ms_ssim3"] = ms_ssim(input_srgb, srgb, scales=3)
     return row
@@ -174,7 +177,7 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 64, 
         row = {"index": i, "polar_deg": float(cameras[i][0]), "buckets": buckets(truth, float(cameras[i][0])),
                "truth": _named(truth), "encoder": _named(est.params), "encoder_ms": est.seconds * 1000,
                "warnings": domain_warnings(domain_stats(frame), max(est.view_spread.values()))}
-        row.update(_image_row("floor", truth_judge, truth_judge, frame))   # L1 and MS-SSIM of the truth's render
+        row.update(_image_row("floor", truth_judge, None, frame))   # L1 and MS-SSIM of the truth's render
         row["floor_mean_colour_de2000"] = floor_de(images[i], truth_judge)
         row.update(_image_row("encoder", judge_render(config, i, est.params, judge).linear, truth_judge, frame))
         if refine_colour:

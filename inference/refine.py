@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from render.absorption import AZIMUTHAL_ROUGHNESS, chiang_denominator, hair_sigma_a
+from render.absorption import albedo_from_sigma_a, hair_sigma_a
 from render.metrics import delta_e2000
 from render.params import HairParams
 from render.scenes import CameraPose
@@ -188,8 +188,9 @@ class Refinement:
 
 
 def fibre_appearance(sigma: np.ndarray) -> np.ndarray:
-    """Cube-rooted Chiang 2016 albedo of ``sigma_a``: a perceptually even scale of fibre colour."""
-    return np.exp(-np.sqrt(np.clip(sigma, 0, None) + 1e-8) * chiang_denominator(AZIMUTHAL_ROUGHNESS) / 3.0)
+    """Cube-rooted Chiang 2016 albedo of ``sigma_a`` (as the training loss uses it): a perceptually
+    even scale of fibre colour."""
+    return albedo_from_sigma_a(np.clip(sigma, 0, None) + 1e-8) ** (1.0 / 3.0)
 
 
 def params_for_sigma(sigma: np.ndarray, prior: HairParams, weight: float = 300.0) -> tuple[HairParams, bool]:

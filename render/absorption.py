@@ -97,10 +97,14 @@ def hair_bsdf(params: HairParams, longitudinal_roughness: float = LONGITUDINAL_R
     }
 
 
-def approximate_albedo(params: HairParams, azimuthal_roughness: float = AZIMUTHAL_ROUGHNESS) -> np.ndarray:
-    """The fibre's multiple-scattering albedo (linear RGB): Chiang 2016 eq. 9 inverted, for previews.
+def albedo_from_sigma_a(sigma_a: np.ndarray, azimuthal_roughness: float = AZIMUTHAL_ROUGHNESS) -> np.ndarray:
+    """Chiang 2016 eq. 9 inverted: ``c = exp(-sqrt(sigma_a) * denominator)``, the fibre's albedo."""
+    return np.exp(-np.sqrt(np.clip(sigma_a, 0.0, None)) * chiang_denominator(azimuthal_roughness))
 
-    ``c = exp(-sqrt(sigma_a) * denominator)``; exact for a lone dye, approximate for the sum.
+
+def approximate_albedo(params: HairParams, azimuthal_roughness: float = AZIMUTHAL_ROUGHNESS) -> np.ndarray:
+    """The fibre's multiple-scattering albedo (linear RGB) of these parameters, for previews.
+
+    Exact for a lone dye, approximate for the sum of dye and melanin.
     """
-    denom = chiang_denominator(azimuthal_roughness)
-    return np.exp(-np.sqrt(hair_sigma_a(params, azimuthal_roughness)) * denom)
+    return albedo_from_sigma_a(hair_sigma_a(params, azimuthal_roughness), azimuthal_roughness)
