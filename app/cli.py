@@ -37,17 +37,17 @@ def _cache_dir() -> Path:
 def _use_variant(name: str | None) -> str:
     """Switch Mitsuba to ``--variant`` (``auto``: the GPU when there is one). Building the parser
     imports the render modules, which set a variant; this runs before any scene is loaded."""
-    from render.variant import select_variant
+    from hairdigi.render.variant import select_variant
 
     return select_variant(name)
 
 
 # --- render -----------------------------------------------------------------------------------
 def cmd_render(args: argparse.Namespace) -> int:
-    from render.imageio import save_exr, save_png
-    from render.params import load_params
-    from render.renderer import SceneSpec, render
-    from render.scenes import CAMERA_DISTANCE, PORTRAIT_CAMERA, CameraPose
+    from hairdigi.render.io.images import save_exr, save_png
+    from hairdigi.render.params import load_params
+    from hairdigi.render.renderer import SceneSpec, render
+    from hairdigi.render.scenes import CAMERA_DISTANCE, PORTRAIT_CAMERA, CameraPose
 
     _use_variant(args.variant)
     params = load_params(args.params)
@@ -69,7 +69,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from app.demo import run_demo
+    from hairdigi.app.demo import run_demo
 
     run_demo(Path(args.out), quick=args.quick)
     return 0
@@ -77,8 +77,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 # --- dataset, training, export, estimate, evaluate -----------------------------------------
 def cmd_dataset(args: argparse.Namespace) -> int:
-    from inference.dataset import DatasetConfig, generate
-    from render.renderer import defaults_for
+    from hairdigi.inference.training.dataset import DatasetConfig, generate
+    from hairdigi.render.renderer import defaults_for
 
     # record the resolved strand count and depth, so the manifest stays true if the defaults change
     config = DatasetConfig(n=args.n, size=args.size, spp=args.spp, seed=args.seed,
@@ -95,8 +95,8 @@ def cmd_dataset(args: argparse.Namespace) -> int:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from inference.model import EncoderConfig
-    from inference.train import TrainConfig, train
+    from hairdigi.inference.training.model import EncoderConfig
+    from hairdigi.inference.training.train import TrainConfig, train
 
     config = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, threads=args.threads,
                          seed=args.seed)
@@ -113,8 +113,8 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from inference.export import export_onnx, parity
-    from inference.train import load_trained
+    from hairdigi.inference.training.export import export_onnx, parity
+    from hairdigi.inference.training.train import load_trained
 
     model, history = load_trained(args.run)
     size = history["encoder"]["input_size"]
@@ -125,12 +125,12 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 
 def cmd_estimate(args: argparse.Namespace) -> int:
-    from inference.encoder import Encoder
-    from inference.estimate import estimate_file
-    from inference.preprocess import Roi
-    from render.params import write_json_atomic
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.inference.estimate import estimate_file
+    from hairdigi.inference.preprocess import Roi
+    from hairdigi.render.params import write_json_atomic
 
-    from render.scenes import RIG_SWATCH_POSE, CameraPose
+    from hairdigi.render.scenes import RIG_SWATCH_POSE, CameraPose
 
     encoder = Encoder(args.model)
     roi = Roi.parse(args.roi) if args.roi else None
@@ -147,8 +147,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     for warning in estimate.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     if args.render:
-        from render.imageio import save_png
-        from render.renderer import SceneSpec, render
+        from hairdigi.render.io.images import save_png
+        from hairdigi.render.renderer import SceneSpec, render
 
         result = render(p, SceneSpec("swatch", framing="rig"), 256, 32, seed=0)
         save_png(args.render, result.srgb)
@@ -157,8 +157,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from inference.encoder import Encoder
-    from inference.evaluate import evaluate, prepare_heldout
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.inference.training.evaluate import evaluate, prepare_heldout
 
     _use_variant(args.variant)   # the held-out set's worker processes are given the same one
     data = Path(args.data) if args.data else _cache_dir() / "datasets" / (
@@ -169,7 +169,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         return 0
     encoder = Encoder(args.model)
     if args.convergence:
-        from inference.convergence import convergence_sweep
+        from hairdigi.inference.training.convergence import convergence_sweep
 
         prepare_heldout(data, args.n, args.size, args.spp, args.workers)
         spps = [int(v) for v in args.convergence.split(",")]
@@ -195,7 +195,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def cmd_rig(args: argparse.Namespace) -> int:
     if args.list_ports:
-        from hardware.lights import discover
+        from hairdigi.hardware.lights import discover
         import serial.tools.list_ports
 
         ports = list(serial.tools.list_ports.comports())
@@ -203,7 +203,7 @@ def cmd_rig(args: argparse.Namespace) -> int:
         boards = discover()
         print("light boards: " + (", ".join(f"{p} ({ident})" for p, ident in boards) or "none answered ID?"))
         return 0
-    from app.rig_cli import open_session, run_chain
+    from hairdigi.app.rig_cli import open_session, run_chain
 
     session = open_session(args)
     try:
@@ -214,7 +214,7 @@ def cmd_rig(args: argparse.Namespace) -> int:
 
 
 def cmd_app(args: argparse.Namespace) -> int:
-    from app.gui.main import run_app
+    from hairdigi.app.gui.main import run_app
 
     return run_app(sim=args.sim, session=args.session, tour=args.tour)
 
@@ -224,7 +224,7 @@ def cmd_model_card(args: argparse.Namespace) -> int:
     import json
     import shutil
 
-    from inference.report import model_card
+    from hairdigi.inference.training.report import model_card
 
     def table(path):
         if not path:
@@ -246,8 +246,8 @@ def cmd_model_card(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if args.what == "refine":
-        from inference.bench_refine import bench_refine
-        from inference.encoder import Encoder
+        from hairdigi.inference.training.bench_refine import bench_refine
+        from hairdigi.inference.encoder import Encoder
 
         data = Path(args.data) if args.data else _cache_dir() / "datasets" / "heldout-s1000003-64px-64spp-linear16"
         rows = bench_refine(Encoder(args.model), data, out, count=args.n or 10)
@@ -257,7 +257,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         print(f"wrote {out / 'refine_bench.csv'} and {out / 'refine_bench.png'}")
         return 0
     if args.what == "encoder":
-        from inference.report import bench_encoders
+        from hairdigi.inference.training.report import bench_encoders
 
         if not args.models:
             raise CliError("bench encoder needs --models A.onnx B.onnx ...")
@@ -268,14 +268,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
         print(f"wrote {out / 'encoder_bench.csv'} and {out / 'encoder_bench.png'}")
         return 0
     if args.what == "rig" and args.estimate:
-        from app.rig_cli import estimate_sweep
+        from hairdigi.app.rig_cli import estimate_sweep
 
         summary = estimate_sweep(out)
         print(summary["text"])
         print(f"wrote {out / 'rig_estimates.csv'} and {out / 'rig_estimates.json'}")
         return 0
     if args.what == "rig":
-        from app.rig_cli import detection_sweep
+        from hairdigi.app.rig_cli import detection_sweep
 
         rows = detection_sweep(out)
         found = [r for r in rows if r["detected"]]
@@ -284,7 +284,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
               f"{np.mean([r['de_before'] for r in found]):.2f}, after {np.mean([r['de_after'] for r in found]):.2f}; "
               f"wrote {out / 'rig_bench.csv'}")
     if args.what == "dataset":
-        from inference.bench_dataset import run_dataset_bench
+        from hairdigi.inference.training.bench_dataset import run_dataset_bench
 
         rows = run_dataset_bench(out, quick=args.quick, n=args.n)
         for r in rows:
@@ -294,7 +294,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         print(f"wrote {out / 'dataset_bench.csv'} and {out / 'dataset_bench.png'}")
         return 0
     if args.what == "render":
-        from render.bench import run_render_bench
+        from hairdigi.render.bench import run_render_bench
 
         rows = run_render_bench(out, quick=args.quick)
         print(f"wrote {out / 'render_bench.csv'} and {out / 'render_bench.png'} ({len(rows)} cases)")
@@ -309,11 +309,11 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from app import validation as v
-    from render.renderer import (MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH, MIN_SIZE,
+    from hairdigi.app import validation as v
+    from hairdigi.render.renderer import (MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH, MIN_SIZE,
                                  SCENE_NAMES)
-    from render.scenes import ENVIRONMENTS, LIGHT_POSITIONS
-    from render.variant import CHOICES as VARIANTS
+    from hairdigi.render.scenes import ENVIRONMENTS, LIGHT_POSITIONS
+    from hairdigi.render.variant import CHOICES as VARIANTS
 
     size, spp = v.int_in(MIN_SIZE, MAX_SIZE), v.int_in(1, MAX_SPP)
     variant_help = "Mitsuba variant (auto: cuda_ad_rgb when Mitsuba finds a GPU, else llvm_ad_rgb, else scalar_rgb)"
@@ -477,7 +477,7 @@ def _prog(argv: list[str]) -> str:
 
 def _error_line(exc: BaseException) -> str:
     """What went wrong, on one line, for an expected failure."""
-    from app.validation import describe_os_error, one_line
+    from hairdigi.app.validation import describe_os_error, one_line
 
     if isinstance(exc, MemoryError):
         return "not enough memory for this job; lower --size, --spp or the image size, or close other programs"
@@ -513,10 +513,10 @@ def main(argv: list[str] | None = None) -> int:
     prog = _prog(argv)
     try:
         args = build_parser().parse_args(argv)
-        from app.validation import check_args
+        from hairdigi.app.validation import check_args
 
         if getattr(args, "model", "unset") is None:
-            from inference.encoder import DEFAULT_MODEL
+            from hairdigi.inference.encoder import DEFAULT_MODEL
             args.model = DEFAULT_MODEL
         check_args(args)
         if program:
@@ -530,7 +530,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:
-        from app.validation import is_expected
+        from hairdigi.app.validation import is_expected
 
         if _caused_by_interrupt(exc):   # native code (Mitsuba, drjit) wraps a Ctrl-C in its own error
             print(f"{prog}: interrupted", file=sys.stderr)

@@ -3,16 +3,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from app.rig_cli import run_chain
-from app.rig_session import RigSession
-from render.imageio import save_png
-from render.renderer import SceneSpec, render
+from hairdigi.app.rig_cli import run_chain
+from hairdigi.app.rig_session import RigSession
+from hairdigi.render.io.images import save_png
+from hairdigi.render.renderer import SceneSpec, render
 
 
 def run_demo(out: Path, quick: bool = False) -> list[Path]:
     """Lights, exposure, calibration and a capture on the simulated rig; estimate; render the
     estimate as a rig swatch and two hairstyles. Returns the written images."""
-    from render.camera_model import CameraModel
+    from hairdigi.render.camera_model import CameraModel
 
     out = Path(out)
     session = RigSession.simulated_rig(out / "session", camera_model=CameraModel(cast=(1.2, 1.0, 0.8)),
@@ -23,7 +23,7 @@ def run_demo(out: Path, quick: bool = False) -> list[Path]:
     finally:
         session.close()
     if "params" in figures:
-        from render.params import HairParams
+        from hairdigi.render.params import HairParams
         params, source = HairParams.from_dict(figures["params"]), "the estimate"
     else:
         params, source = hidden, "the simulated swatch's hidden parameters (no estimate was made)"

@@ -6,12 +6,12 @@ from pathlib import Path
 
 import numpy as np
 
-from app.rig_session import RigSession
+from hairdigi.app.rig_session import RigSession
 
 
 def check_dead_lights(dead) -> set[int]:
     """The simulated dead lights as a set of light numbers; ValueError naming ``--dead`` for any other."""
-    from render.scenes import LIGHT_POSITIONS
+    from hairdigi.render.scenes import LIGHT_POSITIONS
 
     n = len(LIGHT_POSITIONS)
     wrong = [d for d in (dead or ()) if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d < n]
@@ -23,13 +23,13 @@ def check_dead_lights(dead) -> set[int]:
 def open_session(args) -> RigSession:
     """The simulated rig with ``--sim``, else the camera and light board named on the command line."""
     if args.sim:
-        from render.camera_model import CameraModel
+        from hairdigi.render.camera_model import CameraModel
 
         dead = check_dead_lights(args.dead)
         model = CameraModel(exposure_ev=args.exposure, cast=tuple(args.cast))
         return RigSession.simulated_rig(args.session, camera_model=model, dead=dead, spp=args.spp)
-    from hardware.cameras import OpenCVCamera
-    from hardware.lights import LightController
+    from hairdigi.hardware.cameras import OpenCVCamera
+    from hairdigi.hardware.lights import LightController
 
     camera = OpenCVCamera(int(args.camera) if str(args.camera).isdigit() else args.camera)
     lights = LightController(args.port) if args.port else None
@@ -96,13 +96,13 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
 
 def detection_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16) -> list[dict]:
     """``hairdigi bench rig``: chart detection and CCM ΔE over camera poses x noise x casts, and feed fps."""
-    from hardware.sim_rig import DEFAULT_HIDDEN
-    from render.camera_model import CameraModel, sensor_response
-    from inference.calibration import CalibrationError, calibrate
-    from render import scenes
-    from render.bench import write_csv_atomic
-    from render.chart import colorchecker_reflectances
-    from render.renderer import Renderer, SceneSpec
+    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
+    from hairdigi.render.camera_model import CameraModel, sensor_response
+    from hairdigi.inference.calibration import CalibrationError, calibrate
+    from hairdigi.render import scenes
+    from hairdigi.render.bench import write_csv_atomic
+    from hairdigi.render.chart import colorchecker_reflectances
+    from hairdigi.render.renderer import Renderer, SceneSpec
     from tqdm import tqdm
 
     renderer = Renderer(max_cached=1)
@@ -156,19 +156,19 @@ def estimate_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16, twin_siz
     """
     from tqdm import tqdm
 
-    from hardware.sim_rig import remove_fireflies
-    from inference.calibration import CalibrationError, apply_profile, calibrate
-    from inference.encoder import Encoder
-    from inference.estimate import estimate_image
-    from inference.preprocess import Roi
-    from render import scenes
-    from render.bench import write_csv_atomic
-    from render.camera_model import CameraModel, sensor_response
-    from render.chart import colorchecker_reflectances
-    from render.metrics import delta_e2000
-    from render.params import HairParams, write_json_atomic
-    from render.renderer import Renderer, SceneSpec
-    from render.srgb import srgb8_to_linear
+    from hairdigi.hardware.sim_rig import remove_fireflies
+    from hairdigi.inference.calibration import CalibrationError, apply_profile, calibrate
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.inference.estimate import estimate_image
+    from hairdigi.inference.preprocess import Roi
+    from hairdigi.render import scenes
+    from hairdigi.render.bench import write_csv_atomic
+    from hairdigi.render.camera_model import CameraModel, sensor_response
+    from hairdigi.render.chart import colorchecker_reflectances
+    from hairdigi.render.metrics import delta_e2000
+    from hairdigi.render.params import HairParams, write_json_atomic
+    from hairdigi.render.renderer import Renderer, SceneSpec
+    from hairdigi.render.srgb import srgb8_to_linear
 
     renderer = Renderer(max_cached=2)
     encoder = Encoder()

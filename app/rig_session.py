@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 
-from hardware.capture import save_capture
-from hardware.exposure import ExposureReport, check_exposure, dead_lights
-from hardware.lights import LightController, LightError
-from inference.calibration import (CalibrationError, ChartDetection, apply_profile, calibrate, detect_chart,
+from hairdigi.hardware.capture import save_capture
+from hairdigi.hardware.exposure import ExposureReport, check_exposure, dead_lights
+from hairdigi.hardware.lights import LightController, LightError
+from hairdigi.inference.calibration import (CalibrationError, ChartDetection, apply_profile, calibrate, detect_chart,
                                    load_profile, profile_warnings, save_profile, staleness)
-from render.params import HairParams, write_json_atomic
+from hairdigi.render.params import HairParams, write_json_atomic
 
 
 @dataclass
@@ -83,9 +83,9 @@ class RigSession:
     def simulated_rig(cls, folder: str | Path, hidden: HairParams | None = None, camera_model=None,
                       dead: set[int] | None = None, spp: int = 32, encoder=None) -> "RigSession":
         """The bench in software: a pty light board, the rendered rig, and a camera model."""
-        from hardware.sim_lights import SimulatedLightBoard
-        from hardware.sim_rig import DEFAULT_HIDDEN, SimRig
-        from render.camera_model import CameraModel
+        from hairdigi.hardware.sim_lights import SimulatedLightBoard
+        from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SimRig
+        from hairdigi.render.camera_model import CameraModel
 
         board = SimulatedLightBoard()
         lights = LightController(board.port)
@@ -107,7 +107,7 @@ class RigSession:
     @property
     def encoder(self):
         if self._encoder is None:
-            from inference.encoder import Encoder
+            from hairdigi.inference.encoder import Encoder
             self._encoder = Encoder()
         return self._encoder
 
@@ -140,8 +140,8 @@ class RigSession:
 
     def prepare_refinement(self) -> float:
         """Render (or load) the refinement's response curve for the rig's camera; returns its seconds."""
-        from inference.refine import RefineSettings, response_curve
-        from render.scenes import RIG_SWATCH_POSE
+        from hairdigi.inference.refine import RefineSettings, response_curve
+        from hairdigi.render.scenes import RIG_SWATCH_POSE
 
         return response_curve(RIG_SWATCH_POSE, RefineSettings()).seconds
 
@@ -172,14 +172,14 @@ class RigSession:
     def _roi(self, image: np.ndarray) -> tuple[int, int, int, int]:
         if self.swatch_roi is not None:
             return tuple(self.swatch_roi)
-        from inference.preprocess import find_swatch_roi
+        from hairdigi.inference.preprocess import find_swatch_roi
         r = find_swatch_roi(image)
         return r.x, r.y, r.w, r.h
 
     # -- calibration -------------------------------------------------------------------------
     def calibrate(self, method: str | None = None, frames: int = 4) -> dict:
         """Fit a CCM on the mean of a few frames (less noise) and save the profile."""
-        from inference.calibration import DEFAULT_METHOD
+        from hairdigi.inference.calibration import DEFAULT_METHOD
 
         stack = np.mean([self.frame().srgb.astype(np.float32) for _ in range(frames)], axis=0)
         image = np.round(stack).astype(np.uint8)
@@ -248,10 +248,10 @@ class RigSession:
         return reasons
 
     def _estimate(self, result: CaptureResult, image: np.ndarray) -> None:
-        from inference.encoder import ModelError
-        from inference.estimate import calibration_summary, estimate_image, record
-        from inference.preprocess import Roi
-        from render.scenes import RIG_SWATCH_POSE
+        from hairdigi.inference.encoder import ModelError
+        from hairdigi.inference.estimate import calibration_summary, estimate_image, record
+        from hairdigi.inference.preprocess import Roi
+        from hairdigi.render.scenes import RIG_SWATCH_POSE
 
         try:
             encoder = self.encoder
@@ -283,8 +283,8 @@ def load_results(folder: str | Path) -> list[dict]:
 # --- the synthetic twin and exports (no Qt) ---------------------------------------------------
 def twin_spec(roi: tuple[int, int, int, int], frame_size: tuple[int, int]):
     """A swatch scene seen by the rig camera over exactly the ROI of a rig-view frame."""
-    from render import scenes
-    from render.renderer import SceneSpec
+    from hairdigi.render import scenes
+    from hairdigi.render.renderer import SceneSpec
 
     width, _ = frame_size
     scale = width / (2 * scenes.RIG_HALF_WIDTH)       # pixels per holder unit in the rig view
@@ -296,7 +296,7 @@ def twin_spec(roi: tuple[int, int, int, int], frame_size: tuple[int, int]):
 
 def render_twin(params: HairParams, roi, frame_size, spp: int = 16, seed: int = 0, simulated: bool = True):
     """Render the estimate as the rig camera saw the swatch (simulated geometry), or a crop view."""
-    from render.renderer import SceneSpec, render
+    from hairdigi.render.renderer import SceneSpec, render
 
     if simulated:
         spec, size = twin_spec(roi, frame_size)
@@ -306,8 +306,8 @@ def render_twin(params: HairParams, roi, frame_size, spp: int = 16, seed: int = 
 
 def compare(real_srgb: np.ndarray, synthetic_srgb: np.ndarray) -> tuple[float, np.ndarray]:
     """Mean-colour ΔE2000 between the real and synthetic swatch, and a difference image (x4)."""
-    from render.metrics import mean_colour_delta_e
-    from render.srgb import srgb8_to_linear
+    from hairdigi.render.metrics import mean_colour_delta_e
+    from hairdigi.render.srgb import srgb8_to_linear
 
     de = mean_colour_delta_e(srgb8_to_linear(real_srgb), srgb8_to_linear(synthetic_srgb))
     diff = np.clip(np.abs(real_srgb.astype(int) - synthetic_srgb.astype(int)) * 4, 0, 255).astype(np.uint8)

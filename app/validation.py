@@ -185,8 +185,8 @@ def check_distinct(outputs: dict[str, str | os.PathLike | None]) -> None:
 # --- per command ---------------------------------------------------------------------------
 def check_render(args: argparse.Namespace) -> None:
     """``hairdigi render``: the parameter file, the outputs, and size x spp, depth and camera together."""
-    from render.renderer import check_camera, check_size_spp, defaults_for
-    from render.scenes import CAMERA_DISTANCE, PORTRAIT_CAMERA, CameraPose
+    from hairdigi.render.renderer import check_camera, check_size_spp, defaults_for
+    from hairdigi.render.scenes import CAMERA_DISTANCE, PORTRAIT_CAMERA, CameraPose
 
     check_input_file(args.params, "--params")
     inputs = {"--params": args.params}
@@ -214,7 +214,7 @@ def check_estimate(args: argparse.Namespace) -> None:
     check_input_file(args.image, "image")
     inputs = {"image": args.image, "--calibration": args.calibration, "--model": args.model}
     if args.calibration:
-        from inference.calibration import load_profile
+        from hairdigi.inference.calibration import load_profile
 
         check_input_file(args.calibration, "--calibration")
         load_profile(args.calibration)   # a corrupt profile stops here, before the model is loaded
@@ -231,7 +231,7 @@ def check_dataset_folder(path: str | os.PathLike) -> None:
     manifest = Path(path) / "manifest.json"
     if not manifest.exists():
         return
-    from render.files import read_json
+    from hairdigi.render.io.files import read_json
 
     data = read_json(manifest, ArgumentError, "no manifest", "not a hairdigi dataset manifest ({exc})")
     if not isinstance(data, dict) or not isinstance(data.get("config"), dict):
@@ -360,5 +360,5 @@ def is_expected(exc: BaseException) -> bool:
     error classes), rather than a bug: those get one line, bugs a traceback."""
     if isinstance(exc, (ValueError, OSError, MemoryError, json.JSONDecodeError)):
         return True
-    return any(cls.__module__.split(".")[0] in ("app", "hardware", "inference", "render")
-               and cls.__name__.endswith("Error") for cls in type(exc).__mro__)
+    return any(cls.__module__.startswith("hairdigi.") and cls.__name__.endswith("Error")
+               for cls in type(exc).__mro__)

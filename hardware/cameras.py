@@ -14,7 +14,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 
-from render.srgb import linear_to_srgb8
+from hairdigi.render.srgb import linear_to_srgb8
 
 IMAGE_EXTENSIONS = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"}
 RAW_EXTENSIONS = {".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2", ".pef", ".srw"}

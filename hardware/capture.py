@@ -12,7 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from render.files import publish
+from hairdigi.render.io.files import publish
 
 
 def _atomic_bytes(path: Path, data: bytes) -> None:

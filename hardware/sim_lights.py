@@ -20,9 +20,10 @@ import threading
 import time
 import tty
 from dataclasses import dataclass, field
+from importlib.resources import files
 from pathlib import Path
 
-from hardware.lights import N_LIGHTS
+from hairdigi.hardware.lights import N_LIGHTS
 
 FIRMWARE = "sim-1.1"
 PROTOCOL_VERSION = "1"
@@ -187,7 +188,7 @@ class SimulatedLightBoard:
 
 
 # -- the real firmware in simavr -------------------------------------------------------------------
-FIRMWARE_DIR = Path(__file__).resolve().parent / "firmware"
+FIRMWARE_DIR = Path(str(files(__package__))) / "firmware"
 ARDUINO_CORE = Path("/usr/share/arduino/hardware/arduino/avr/cores/arduino")
 FAULT_PINS = (("D", 2), ("D", 3), ("D", 4))  # the Uno's pins 2, 3 and 4 are PD2, PD3 and PD4
 FIRMWARE_PACKAGES = "gcc-avr avr-libc arduino-core-avr simavr libsimavr-dev libelf-dev"

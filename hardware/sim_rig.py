@@ -17,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from hardware.cameras import Frame
-from render import scenes
-from render.camera_model import CameraModel, sensor_response
-from render.chart import colorchecker_reflectances
-from render.params import HairParams
-from render.renderer import Renderer, SceneSpec
+from hairdigi.hardware.cameras import Frame
+from hairdigi.render import scenes
+from hairdigi.render.camera_model import CameraModel, sensor_response
+from hairdigi.render.chart import colorchecker_reflectances
+from hairdigi.render.params import HairParams
+from hairdigi.render.renderer import Renderer, SceneSpec
 
 SIM_SIZE = (400, 300)
 #: The hidden swatch of the demo: a copper-dyed light brown.

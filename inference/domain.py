@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from inference.preprocess import encode
+from hairdigi.inference.preprocess import encode
 
 
 @dataclass(frozen=True)

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from inference.preprocess import Roi, encode, swatch_crop
-from render.params import VECTOR_FIELDS, HairParams
-from resources import MODELS
+from hairdigi.inference.preprocess import Roi, encode, swatch_crop
+from hairdigi.render.params import VECTOR_FIELDS, HairParams
+from hairdigi.resources import MODELS
 
 DEFAULT_MODEL = MODELS / "encoder.onnx"
 #: A logit past this means the sigmoid output is outside [0.001, 0.999]: the encoder presses against

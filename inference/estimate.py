@@ -16,14 +16,14 @@ from pathlib import Path
 
 import numpy as np
 
-from inference.domain import domain_stats, domain_warnings
-from inference.encoder import Encoder, Estimate
-from inference.preprocess import Roi, read_image, swatch_crop
-from inference.refine import Refinement, RefineSettings, mean_linear, refine
-from inference.uncertainty import intervals, load_table
-from render.params import HairParams
-from render.scenes import RIG_SWATCH_POSE, CameraPose
-from resources import MODELS
+from hairdigi.inference.domain import domain_stats, domain_warnings
+from hairdigi.inference.encoder import Encoder, Estimate
+from hairdigi.inference.preprocess import Roi, read_image, swatch_crop
+from hairdigi.inference.refine import Refinement, RefineSettings, mean_linear, refine
+from hairdigi.inference.uncertainty import intervals, load_table
+from hairdigi.render.params import HairParams
+from hairdigi.render.scenes import RIG_SWATCH_POSE, CameraPose
+from hairdigi.resources import MODELS
 
 UNCERTAINTY_TABLE = MODELS / "uncertainty.json"
 
@@ -126,7 +126,7 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
     image = read_image(image_path)
     calibration, stale = None, []
     if calibration_path is not None:
-        from inference.calibration import apply_profile, calibration_warnings, load_profile
+        from hairdigi.inference.calibration import apply_profile, calibration_warnings, load_profile
 
         profile = load_profile(calibration_path)
         image = apply_profile(image, profile)

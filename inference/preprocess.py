@@ -13,7 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from render.srgb import linear_to_srgb, srgb8_to_linear
+from hairdigi.render.srgb import linear_to_srgb, srgb8_to_linear
 
 MIN_SIDE = 32          # smaller images hold too few strands to judge a colour
 ROI_CENTRAL = 0.7      # share of the swatch area's shorter side kept at inference, away from its edges
@@ -203,7 +203,7 @@ def swatch_score(img: np.ndarray) -> np.ndarray:
 def chart_mask(img: np.ndarray, margin: float) -> np.ndarray | None:
     """A mask (uint8, 1 inside) over the ColorChecker in view, grown by ``margin`` pixels and by a
     tenth of its size to take in its board; None when no chart is found (detection as in calibration)."""
-    from inference.calibration import CalibrationError, detect_chart
+    from hairdigi.inference.calibration import CalibrationError, detect_chart
 
     try:
         box = detect_chart(img).box

@@ -32,10 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
-from render.absorption import albedo_from_sigma_a, hair_sigma_a
-from render.metrics import delta_e2000
-from render.params import HairParams
-from render.scenes import CameraPose
+from hairdigi.render.absorption import albedo_from_sigma_a, hair_sigma_a
+from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.params import HairParams
+from hairdigi.render.scenes import CameraPose
 
 #: Ladder of ``sigma_a`` levels (per fibre radius): white fibres to past the blackest Table 1 hair
 #: (melanin 1 gives about 8.2 in blue). 12 levels = 4 renders of three channels each.
@@ -108,7 +108,7 @@ def _cache_root() -> Path:
 
 
 def _scene(pose: CameraPose, settings: RefineSettings):
-    from render.renderer import SceneSpec
+    from hairdigi.render.renderer import SceneSpec
 
     return SceneSpec("swatch", camera=pose, framing=settings.framing, strand_seed=settings.strand_seed)
 
@@ -124,7 +124,7 @@ def response_curve(pose: CameraPose, settings: RefineSettings = RefineSettings()
 
 
 def _response_curve(pose: CameraPose, settings: RefineSettings, renderer, cache: bool) -> ResponseCurve:
-    from render.renderer import default_renderer
+    from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()
     spec = _scene(pose, settings)
@@ -150,7 +150,7 @@ def _response_curve(pose: CameraPose, settings: RefineSettings, renderer, cache:
             result.linear.reshape(-1, 3).mean(0)
     curve = ResponseCurve(levels, means, time.perf_counter() - start)
     if cache:
-        from render.params import write_json_atomic
+        from hairdigi.render.params import write_json_atomic
 
         write_json_atomic(path, {"pose": asdict(pose), "settings": asdict(settings), **curve.to_dict()})
     return curve
@@ -217,7 +217,7 @@ def params_for_sigma(sigma: np.ndarray, prior: HairParams, weight: float = 300.0
 
 def mean_linear(srgb8: np.ndarray) -> np.ndarray:
     """Mean linear RGB of an 8-bit sRGB image (what the swatch's colour is judged by)."""
-    from render.srgb import srgb8_to_linear
+    from hairdigi.render.srgb import srgb8_to_linear
 
     return srgb8_to_linear(srgb8).reshape(-1, 3).mean(0)
 
@@ -225,7 +225,7 @@ def mean_linear(srgb8: np.ndarray) -> np.ndarray:
 def refine(prior: HairParams, target: np.ndarray, pose: CameraPose = CameraPose(),
            settings: RefineSettings = RefineSettings(), renderer=None) -> Refinement:
     """Refine ``prior`` so that the swatch at ``pose`` renders with mean linear colour ``target``."""
-    from render.renderer import default_renderer
+    from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()
     start = time.perf_counter()

@@ -16,12 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from render.files import publish
+from hairdigi.render.io.files import publish
 from tqdm import tqdm
 
-from render.metrics import mean_colour_delta_e, rmse
-from render.params import HairParams
-from render.renderer import Renderer, SceneSpec, defaults_for
+from hairdigi.render.metrics import mean_colour_delta_e, rmse
+from hairdigi.render.params import HairParams
+from hairdigi.render.renderer import Renderer, SceneSpec, defaults_for
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from render.srgb import linear_to_srgb8
+from hairdigi.render.srgb import linear_to_srgb8
 
 ADC_BITS = 12
 

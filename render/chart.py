@@ -15,10 +15,12 @@ from pathlib import Path
 import colour
 import numpy as np
 
-from render import scenes
+from hairdigi.resources import CHARTS
+
+from hairdigi.render import scenes
 
 CHART_NAME = "ColorChecker24 - After November 2014"
-TARGETS_FILE = Path(__file__).resolve().parent.parent / "resources" / "charts" / "rig_chart_targets.json"
+TARGETS_FILE = CHARTS / "rig_chart_targets.json"
 PATCH_NAMES = tuple(colour.CCS_COLOURCHECKERS[CHART_NAME].data.keys())
 WHITE_PATCH = 18   # "white 9.5"
 
@@ -52,8 +54,8 @@ def patch_means(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
 
 def render_chart_targets(size: tuple[int, int] = (400, 300), spp: int = 256) -> np.ndarray:
     """Render the rig with the chart under all three lights at full power; (24, 3) linear patch values."""
-    from render.params import HairParams
-    from render.renderer import Renderer, SceneSpec
+    from hairdigi.render.params import HairParams
+    from hairdigi.render.renderer import Renderer, SceneSpec
 
     spec = SceneSpec("swatch", framing="rig", chart=tuple(map(tuple, colorchecker_reflectances())),
                      target=scenes.RIG_TARGET, half_width=scenes.RIG_HALF_WIDTH, strands=200)

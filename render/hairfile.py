@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from render.strands import Strands
+from hairdigi.render.strands import Strands
 
 _HEADER = struct.Struct("<4sIIIIff3f88s")
 assert _HEADER.size == 128

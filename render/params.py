@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from render.files import publish, read_json
+from hairdigi.render.io.files import publish, read_json
 
 # (name, low, high) for the six normalised components, in vector order.
 VECTOR_FIELDS: tuple[tuple[str, float, float], ...] = (

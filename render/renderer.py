@@ -15,12 +15,12 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from render import scenes
-from render.absorption import hair_bsdf, hair_sigma_a
-from render.params import HairParams
-from render.srgb import linear_to_srgb8
-from render.strands import HAIRSTYLES, Strands, hairstyle_strands, swatch_strands
-from render.variant import is_jit, load_scene, mi
+from hairdigi.render import scenes
+from hairdigi.render.absorption import hair_bsdf, hair_sigma_a
+from hairdigi.render.params import HairParams
+from hairdigi.render.srgb import linear_to_srgb8
+from hairdigi.render.strands import HAIRSTYLES, Strands, hairstyle_strands, swatch_strands
+from hairdigi.render.variant import is_jit, load_scene, mi
 
 SCENE_NAMES = ("swatch",) + HAIRSTYLES
 

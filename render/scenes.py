@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from render.variant import mi
+from hairdigi.render.variant import mi
 
 # The rig: a flat holder in the z = 0 plane, its normal along +z, strands along y.
 HOLDER_SIZE = (3.8, 4.0)      # the 1 x 1.4 swatch, with room for the chart on its right

@@ -1,8 +1,14 @@
 """Shared test setup: headless Qt, a private cache, fixed seeds, and an output folder CI keeps."""
 import os
+import sys
 from pathlib import Path
 
 import pytest
+
+# The code installs as one package, `hairdigi`: the checkout's folders must never also import as
+# top-level `render`, `app`, ... (two copies of one module). Without the checkout on the path they cannot.
+_ROOT = Path(__file__).resolve().parent.parent
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _ROOT]
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
@@ -22,7 +28,7 @@ TINY = dict(n=8, size=32, spp=2, seed=3, strands=150, shard_size=4)
 
 @pytest.fixture(scope="session")
 def tiny_dataset(tmp_path_factory):
-    from inference.dataset import DatasetConfig, generate
+    from hairdigi.inference.training.dataset import DatasetConfig, generate
 
     root = tmp_path_factory.mktemp("ds")
     generate(DatasetConfig(**TINY), root, workers=1, progress=False)
@@ -32,9 +38,9 @@ def tiny_dataset(tmp_path_factory):
 @pytest.fixture(scope="session")
 def tiny_model(tiny_dataset, tmp_path_factory):
     """A 2-epoch encoder trained here and exported to ONNX: (run folder, onnx path, parity)."""
-    from inference.export import export_onnx, parity
-    from inference.model import EncoderConfig
-    from inference.train import TrainConfig, load_trained, train
+    from hairdigi.inference.training.export import export_onnx, parity
+    from hairdigi.inference.training.model import EncoderConfig
+    from hairdigi.inference.training.train import TrainConfig, load_trained, train
 
     run = tmp_path_factory.mktemp("run")
     cfg = TrainConfig(epochs=2, batch_size=4, threads=1, val_fraction=0.25)
@@ -53,7 +59,7 @@ def test_output() -> Path:
 @pytest.fixture(scope="session")
 def avr_build(tmp_path_factory):
     """The light board's firmware and its simavr harness, built once per run (CI must have the tools)."""
-    from hardware.sim_lights import build_firmware, firmware_tools_missing
+    from hairdigi.hardware.sim_lights import build_firmware, firmware_tools_missing
 
     reason = firmware_tools_missing()
     if reason:

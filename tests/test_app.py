@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from app.gui.main_window import MainWindow
-from app.rig_session import RigSession
-from inference.encoder import Encoder
+from hairdigi.app.gui.main_window import MainWindow
+from hairdigi.app.rig_session import RigSession
+from hairdigi.inference.encoder import Encoder
 
 FAST = {"hairstyle_size": 48, "hairstyle_strands": 200, "hairstyle_passes": 2, "hairstyle_spp_per_pass": 1,
         "twin_spp": 2, "feed_fps": 10}

@@ -1,10 +1,10 @@
 """The one camera model: what the simulated rig shoots and what training applies to linear renders."""
 import numpy as np
 
-from inference.preprocess import encode
-from inference.train import augment
-from render.camera_model import CameraModel, CaptureErrors, random_camera, sensor_response
-from render.srgb import linear_to_srgb, srgb8_to_linear
+from hairdigi.inference.preprocess import encode
+from hairdigi.inference.training.train import augment
+from hairdigi.render.camera_model import CameraModel, CaptureErrors, random_camera, sensor_response
+from hairdigi.render.srgb import linear_to_srgb, srgb8_to_linear
 
 
 def _textured(seed=0, size=64):

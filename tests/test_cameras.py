@@ -3,7 +3,7 @@ import cv2
 import numpy as np
 import pytest
 
-from hardware.cameras import CameraError, FileCamera, OpenCVCamera, read_raw
+from hairdigi.hardware.cameras import CameraError, FileCamera, OpenCVCamera, read_raw
 
 
 def write_dng(path, width=64, height=48, level=(0.25, 0.5, 0.125)):

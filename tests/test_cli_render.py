@@ -5,7 +5,7 @@ import sys
 import cv2
 import pytest
 
-from app.cli import main
+from hairdigi.app.cli import main
 
 
 @pytest.fixture
@@ -43,17 +43,17 @@ def test_expected_errors_are_one_line_and_debug_shows_the_traceback(tmp_path, pa
 
 
 def test_a_bug_keeps_its_traceback(tmp_path, params_file, capsys, monkeypatch):
-    import app.cli
+    import hairdigi.app.cli as cli_module
 
     def broken(args):
         raise TypeError("a bug")
-    real = app.cli.build_parser
+    real = cli_module.build_parser
 
     def parser():
         p = real()
         p._subparsers._group_actions[0].choices["render"].set_defaults(func=broken)
         return p
-    monkeypatch.setattr(app.cli, "build_parser", parser)
+    monkeypatch.setattr(cli_module, "build_parser", parser)
     assert main(["render", "--params", str(params_file), "--out", str(tmp_path / "o.png")]) == 1
     err = capsys.readouterr().err
     assert "Traceback" in err and "TypeError: a bug" in err and "internal error" in err
@@ -79,7 +79,7 @@ def test_bad_params_file_is_a_one_line_error(tmp_path, capsys):
 def test_bad_camera_and_unknown_scene(tmp_path, params_file, capsys):
     assert main(["render", "--params", str(params_file), "--camera", "abc", "--out", str(tmp_path / "x.png")]) == 2
     assert "POLAR,AZIMUTH" in capsys.readouterr().err
-    run = subprocess.run([sys.executable, "-m", "app.cli", "render", "--params", str(params_file),
+    run = subprocess.run([sys.executable, "-m", "hairdigi.app.cli", "render", "--params", str(params_file),
                           "--scene", "beehive", "--out", "x.png"], capture_output=True, text=True)
     assert run.returncode == 2 and "invalid choice: 'beehive'" in run.stderr
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from inference.dataset import SHARD_FIELDS, DatasetConfig, generate, load, shard_path
+from hairdigi.inference.training.dataset import SHARD_FIELDS, DatasetConfig, generate, load, shard_path
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = dict(n=6, size=16, spp=1, seed=0, strands=150, shard_size=2)
@@ -87,7 +87,7 @@ def test_ray_dataset_is_bitwise_the_local_one(ray_instance, local_dataset, tmp_p
 
 
 def test_ray_resume_renders_only_the_missing_shard(ray_instance, local_dataset, tmp_path, monkeypatch):
-    import inference.dataset as dataset
+    import hairdigi.inference.training.dataset as dataset
 
     config = DatasetConfig(**TINY)
     generate(config, tmp_path, workers=2, progress=False, backend="ray")
@@ -111,7 +111,7 @@ def test_ray_backend_without_ray_is_one_line(tmp_path):
     fake.mkdir()
     (fake / "ray.py").write_text("raise ImportError('No module named ray (simulated)')\n")
     out = tmp_path / "ds"
-    proc = subprocess.run([sys.executable, "-m", "app.cli", "dataset", "--n", "2", "--size", "16", "--spp", "1",
+    proc = subprocess.run([sys.executable, "-m", "hairdigi.app.cli", "dataset", "--n", "2", "--size", "16", "--spp", "1",
                            "--strands", "150", "--backend", "ray", "--out", str(out)], cwd=REPO,
                           env=_env(PYTHONPATH=os.pathsep.join([str(fake), str(REPO)])),
                           capture_output=True, text=True, timeout=120)
@@ -122,13 +122,13 @@ def test_ray_backend_without_ray_is_one_line(tmp_path):
 
 
 def test_address_needs_the_ray_backend(tmp_path):
-    from app.cli import main
+    from hairdigi.app.cli import main
 
     assert main(["dataset", "--n", "2", "--size", "16", "--address", "auto", "--out", str(tmp_path / "d")]) == 2
 
 
 def test_variant_flag_is_on_render_dataset_and_evaluate():
-    from app.cli import build_parser
+    from hairdigi.app.cli import build_parser
 
     parser = build_parser()
     assert parser.parse_args(["render", "--params", "p.json", "--out", "o.png"]).variant == "auto"
@@ -140,9 +140,9 @@ def test_variant_flag_is_on_render_dataset_and_evaluate():
 
 SCALAR_RUN = """
 import json, sys
-from app.cli import main
-from render.variant import mi
-from render.renderer import default_renderer
+from hairdigi.app.cli import main
+from hairdigi.render.variant import mi
+from hairdigi.render.renderer import default_renderer
 common = ["dataset", "--n", "2", "--size", "16", "--spp", "1", "--strands", "150", "--shard-size", "1",
           "--variant", "scalar_rgb"]
 rc1 = main(common + ["--workers", "1", "--out", sys.argv[1]])     # rendered in this process
@@ -186,7 +186,7 @@ def test_a_resume_with_another_variant_is_refused(local_dataset, tmp_path):
 def test_bench_dataset_quick_writes_csv_and_png(tmp_path):
     pytest.importorskip("ray")
     out = tmp_path / "bench"
-    proc = subprocess.run([sys.executable, "-m", "app.cli", "bench", "dataset", "--quick", "--out", str(out)],
+    proc = subprocess.run([sys.executable, "-m", "hairdigi.app.cli", "bench", "dataset", "--quick", "--out", str(out)],
                           cwd=REPO, env=_env(), capture_output=True, text=True, timeout=240)
     assert proc.returncode == 0, proc.stderr
     import csv

@@ -3,10 +3,10 @@ import cv2
 import numpy as np
 import pytest
 
-from inference.domain import domain_stats, domain_warnings
-from render.params import HairParams
-from render.renderer import SceneSpec, render
-from render.scenes import CameraPose
+from hairdigi.inference.domain import domain_stats, domain_warnings
+from hairdigi.render.params import HairParams
+from hairdigi.render.renderer import SceneSpec, render
+from hairdigi.render.scenes import CameraPose
 
 RNG = np.random.default_rng(0)
 GARBAGE = {
@@ -43,8 +43,8 @@ def test_clean_swatch_renders_are_not_flagged(hair, pose):
 
 
 def test_the_estimate_record_carries_the_warnings(tiny_model):
-    from inference.encoder import Encoder
-    from inference.estimate import estimate_image, record
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.inference.estimate import estimate_image, record
 
     _, onnx_path, _ = tiny_model
     encoder = Encoder(onnx_path)
@@ -52,6 +52,6 @@ def test_the_estimate_record_carries_the_warnings(tiny_model):
     rec = record(result, encoder)
     assert rec["warnings"] and rec["reliable"] is False
     # a solid colour is refused as flat before any estimate (no confident answer, no zero uncertainty)
-    from inference.preprocess import ImageError
+    from hairdigi.inference.preprocess import ImageError
     with pytest.raises(ImageError, match="flat"):
         estimate_image(GARBAGE["solid colour"], encoder, refine_colour=False)

@@ -12,7 +12,7 @@ import time
 import pytest
 import serial
 
-from hardware.sim_lights import BoardState, EmulatedFirmwareBoard, SimulatedLightBoard, handle
+from hairdigi.hardware.sim_lights import BoardState, EmulatedFirmwareBoard, SimulatedLightBoard, handle
 
 UNO_FLASH, UNO_RAM = 32256, 2048  # bytes the Uno's bootloader leaves for a sketch; SRAM
 E1, E2, E3, E4 = "ERR E1 unknown command", "ERR E2 no such light", "ERR E3 value out of range", "ERR E4 line too long"

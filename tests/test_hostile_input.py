@@ -28,9 +28,9 @@ FRESH = dict(PYTHONPATH=str(ROOT), OMP_WAIT_POLICY="PASSIVE", PYTHONDONTWRITEBYT
 def hairdigi(*args: str, cwd: Path, prelude: str | None = None, timeout: float = 180) -> subprocess.CompletedProcess:
     """``python -m app.cli ARGS`` in ``cwd``; with ``prelude``, that Python runs first (a fault to inject)."""
     if prelude is None:
-        cmd = [sys.executable, "-m", "app.cli", *args]
+        cmd = [sys.executable, "-m", "hairdigi.app.cli", *args]
     else:
-        cmd = [sys.executable, "-c", f"{prelude}\nimport sys\nfrom app.cli import main\nsys.exit(main(sys.argv[1:]))",
+        cmd = [sys.executable, "-c", f"{prelude}\nimport sys\nfrom hairdigi.app.cli import main\nsys.exit(main(sys.argv[1:]))",
                *args]
     return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=timeout,
                           env={**os.environ, **FRESH})
@@ -56,12 +56,12 @@ def refused(run: subprocess.CompletedProcess, *needles: str, code: int = 2) -> s
 @pytest.fixture(scope="module")
 def materials(tmp_path_factory):
     """A parameter file, a simulated rig frame with the chart in view, and a calibration profile from it."""
-    from hardware.sim_rig import DEFAULT_HIDDEN, remove_fireflies
-    from inference.calibration import calibrate
-    from render import scenes
-    from render.camera_model import CameraModel, sensor_response
-    from render.chart import colorchecker_reflectances
-    from render.renderer import Renderer, SceneSpec
+    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, remove_fireflies
+    from hairdigi.inference.calibration import calibrate
+    from hairdigi.render import scenes
+    from hairdigi.render.camera_model import CameraModel, sensor_response
+    from hairdigi.render.chart import colorchecker_reflectances
+    from hairdigi.render.renderer import Renderer, SceneSpec
 
     root = tmp_path_factory.mktemp("materials")
     (root / "p.json").write_text(json.dumps({"hair": DEFAULT_HIDDEN.to_dict()}))
@@ -95,7 +95,7 @@ def ws(materials, tmp_path, expect):
 
 def no_refine() -> list[str]:
     """``--no-refine`` where estimate has it (the encoder alone is enough here, and 6 s faster)."""
-    from app.cli import build_parser
+    from hairdigi.app.cli import build_parser
 
     _, unknown = build_parser().parse_known_args(["estimate", "x.png", "--out", "x.json", "--no-refine"])
     return [] if unknown else ["--no-refine"]
@@ -122,7 +122,7 @@ def test_an_output_linked_to_an_input_is_refused(ws):
 
 # --- 2. the swatch, not the chart -----------------------------------------------------------
 def test_estimate_finds_the_swatch_beside_the_chart_and_records_it(ws, expect):
-    from hardware.sim_rig import swatch_roi
+    from hairdigi.hardware.sim_rig import swatch_roi
 
     run = hairdigi("estimate", "photo.png", "--out", "e.json", *no_refine(), cwd=ws)
     expect |= {"e.json"}
@@ -255,7 +255,7 @@ def test_a_disk_that_fills_during_the_render_is_one_line_and_leaves_nothing(ws):
 
 def test_ctrl_c_while_starting_or_working_is_one_line_and_130(ws, expect):
     # while the libraries load
-    proc = subprocess.Popen([sys.executable, "-m", "app.cli", "render", "--params", "p.json", "--out", "o.png"],
+    proc = subprocess.Popen([sys.executable, "-m", "hairdigi.app.cli", "render", "--params", "p.json", "--out", "o.png"],
                             cwd=ws, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, **FRESH})
     time.sleep(1.0)      # Python is up; Mitsuba, drjit and colour-science take about 2 s more to load
@@ -263,7 +263,7 @@ def test_ctrl_c_while_starting_or_working_is_one_line_and_130(ws, expect):
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130 and err.strip() == "hairdigi render: interrupted", err
     # while the command works: a dataset, once its manifest is written
-    proc = subprocess.Popen([sys.executable, "-m", "app.cli", "dataset", "--n", "400", "--size", "16", "--spp", "1",
+    proc = subprocess.Popen([sys.executable, "-m", "hairdigi.app.cli", "dataset", "--n", "400", "--size", "16", "--spp", "1",
                              "--strands", "50", "--shard-size", "400", "--workers", "1", "--out", "ds"],
                             cwd=ws, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, **FRESH})
@@ -303,7 +303,7 @@ def measured(args: list[str], cwd: Path) -> tuple[subprocess.CompletedProcess, f
     """Run the CLI alone under a small parent, so its peak RSS is its own: (run, seconds, peak MB)."""
     probe = ("import json, resource, subprocess, sys, time\n"
              "t = time.perf_counter()\n"
-             "r = subprocess.run([sys.executable, '-m', 'app.cli', *sys.argv[1:]], capture_output=True, text=True)\n"
+             "r = subprocess.run([sys.executable, '-m', 'hairdigi.app.cli', *sys.argv[1:]], capture_output=True, text=True)\n"
              "print(json.dumps({'rc': r.returncode, 'err': r.stderr, 'out': r.stdout, "
              "'s': time.perf_counter() - t, 'mb': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024}))")
     outer = subprocess.run([sys.executable, "-c", probe, *args], cwd=cwd, capture_output=True, text=True,
@@ -346,7 +346,7 @@ def test_the_hairdigi_entry_point_behaves_the_same(ws):
 
 def test_profile_warnings_follow_the_one_staleness_rule(materials):
     """In process: the rule behind the warnings above (``calibration.staleness``), and its edges."""
-    from inference.calibration import STALE_AFTER_S, profile_warnings
+    from hairdigi.inference.calibration import STALE_AFTER_S, profile_warnings
 
     profile = json.loads((materials / "cal.json").read_text())
     now = profile["time"]

@@ -5,13 +5,13 @@ import cv2
 import numpy as np
 import pytest
 
-from app.cli import main
-from inference.dataset import DatasetConfig, generate, load, sample_spec, shard_path
-from inference.encoder import Encoder
-from inference.preprocess import Roi, find_swatch_roi, swatch_crop
-from render.params import HairParams
-from render.renderer import SceneSpec, render
-from render.scenes import CameraPose, light_blocks_view
+from hairdigi.app.cli import main
+from hairdigi.inference.training.dataset import DatasetConfig, generate, load, sample_spec, shard_path
+from hairdigi.inference.encoder import Encoder
+from hairdigi.inference.preprocess import Roi, find_swatch_roi, swatch_crop
+from hairdigi.render.params import HairParams
+from hairdigi.render.renderer import SceneSpec, render
+from hairdigi.render.scenes import CameraPose, light_blocks_view
 
 from conftest import TINY
 
@@ -27,7 +27,7 @@ def test_samples_are_deterministic_and_in_range():
 
 
 def test_a_camera_behind_a_light_is_detected_and_skipped_in_training():
-    from inference.dataset import usable
+    from hairdigi.inference.training.dataset import usable
 
     behind = CameraPose(50.0, 90.0, 4.0)          # straight behind light 0 (polar 50°, azimuth 90°)
     beside = CameraPose(50.0, 150.0, 4.0)         # between lights 0 and 1
@@ -44,8 +44,8 @@ def test_torch_absorption_matches_the_renderers():
     """The appearance loss term must see exactly the ``sigma_a`` the renderer gets."""
     import torch
 
-    from inference.losses import appearance, sigma_a
-    from render.absorption import approximate_albedo, hair_sigma_a
+    from hairdigi.inference.training.losses import appearance, sigma_a
+    from hairdigi.render.absorption import approximate_albedo, hair_sigma_a
 
     v = np.random.default_rng(0).random((300, 6))
     v[:11, 4] = np.linspace(0, 1, 11)                 # every knot of the melanin remap
@@ -82,13 +82,13 @@ def test_dataset_resumes_only_missing_shards(tmp_path):
 
 
 def test_blur_augmentation_averages_noise_and_keeps_the_colour():
-    from inference.train import augment
+    from hairdigi.inference.training.train import augment
 
     rng = np.random.default_rng(0)
     noisy = np.clip(rng.normal([150, 90, 40], 40, (96, 96, 3)), 0, 255).astype(np.uint8)
     sharp = augment(noisy, 48, np.random.default_rng(1), crop_min=1.0, blur_max=0.0)
     blurred = [augment(noisy, 48, np.random.default_rng(k), crop_min=1.0, blur_max=1.5) for k in range(8)]
-    from render.srgb import srgb8_to_linear
+    from hairdigi.render.srgb import srgb8_to_linear
 
     def linear_mean(x):
         return srgb8_to_linear(np.clip((x + 0.5) * 255, 0, 255)).mean(axis=(1, 2))
@@ -98,7 +98,7 @@ def test_blur_augmentation_averages_noise_and_keeps_the_colour():
 
 
 def test_datasets_are_joined_for_training_and_sizes_must_agree(tiny_dataset, tmp_path):
-    from inference.train import load_datasets
+    from hairdigi.inference.training.train import load_datasets
 
     images, params, cameras, configs = load_datasets([tiny_dataset, tiny_dataset])
     assert images.shape == (16, 32, 32, 3) and len(params) == len(cameras) == 16
@@ -114,8 +114,8 @@ def test_datasets_are_joined_for_training_and_sizes_must_agree(tiny_dataset, tmp
 
 
 def test_training_resumes_and_onnx_matches_torch(tiny_dataset, tiny_model, tmp_path):
-    from inference.model import EncoderConfig
-    from inference.train import TrainConfig, train
+    from hairdigi.inference.training.model import EncoderConfig
+    from hairdigi.inference.training.train import TrainConfig, train
 
     run, onnx_path, diff = tiny_model
     assert diff < 1e-4
@@ -195,9 +195,9 @@ SMALL_JUDGE = dict(size=32, spp=4, seed=5)
 
 
 def test_convergence_sweep_reports_each_input_spp(tiny_model, tmp_path):
-    from inference.convergence import convergence_sweep
-    from inference.evaluate import Judge, prepare_heldout
-    from inference.refine import RefineSettings
+    from hairdigi.inference.training.convergence import convergence_sweep
+    from hairdigi.inference.training.evaluate import Judge, prepare_heldout
+    from hairdigi.inference.refine import RefineSettings
 
     _, onnx_path, _ = tiny_model
     judge = Judge(**SMALL_JUDGE)
@@ -210,8 +210,8 @@ def test_convergence_sweep_reports_each_input_spp(tiny_model, tmp_path):
 
 
 def test_refine_bench_writes_speed_against_error(tiny_model, tmp_path):
-    from inference.bench_refine import bench_refine
-    from inference.evaluate import Judge, prepare_heldout
+    from hairdigi.inference.training.bench_refine import bench_refine
+    from hairdigi.inference.training.evaluate import Judge, prepare_heldout
 
     _, onnx_path, _ = tiny_model
     judge = Judge(**SMALL_JUDGE)
@@ -223,8 +223,8 @@ def test_refine_bench_writes_speed_against_error(tiny_model, tmp_path):
 
 
 def test_evaluate_judges_clean_inputs_and_measures_interval_coverage(tiny_model, tmp_path):
-    from inference.evaluate import Judge, evaluate
-    from inference.refine import RefineSettings
+    from hairdigi.inference.training.evaluate import Judge, evaluate
+    from hairdigi.inference.refine import RefineSettings
 
     _, onnx_path, _ = tiny_model
     summary = evaluate(Encoder(onnx_path), tmp_path / "eval", n=6, size=32, spp=4, workers=1,
@@ -247,8 +247,8 @@ def test_evaluate_judges_clean_inputs_and_measures_interval_coverage(tiny_model,
 
 
 def test_encoder_bench_and_model_card(tiny_model, tmp_path):
-    from inference.evaluate import Judge, prepare_heldout
-    from inference.report import bench_encoders, model_card
+    from hairdigi.inference.training.evaluate import Judge, prepare_heldout
+    from hairdigi.inference.training.report import bench_encoders, model_card
 
     run, onnx_path, _ = tiny_model
     prepare_heldout(tmp_path / "bench" / "heldout", n=3, size=32, spp=4, workers=1, judge=Judge(**SMALL_JUDGE),
@@ -283,7 +283,7 @@ def test_killed_run_leaves_no_orphan_workers_and_resumes(tmp_path):
 
     root = tmp_path / "ds"
     cfg = dict(n=40, size=32, spp=2, seed=5, strands=150, shard_size=2)
-    code = ("from inference.dataset import DatasetConfig, generate; "
+    code = ("from hairdigi.inference.training.dataset import DatasetConfig, generate; "
             f"generate(DatasetConfig(**{cfg!r}), {str(root)!r}, workers=2, progress=False)")
     proc = subprocess.Popen([sys.executable, "-c", code])
     deadline = time.monotonic() + 120
@@ -303,8 +303,8 @@ def test_killed_run_leaves_no_orphan_workers_and_resumes(tmp_path):
 
 def test_evaluate_flags_an_unusable_swatch_instead_of_aborting(tiny_model, tmp_path):
     """A held-out render can be unusable (a camera that sees the back of a light renders black)."""
-    from inference.dataset import shard_path
-    from inference.evaluate import Judge, evaluate, prepare_heldout
+    from hairdigi.inference.training.dataset import shard_path
+    from hairdigi.inference.training.evaluate import Judge, evaluate, prepare_heldout
 
     _, onnx_path, _ = tiny_model
     judge = Judge(**SMALL_JUDGE)

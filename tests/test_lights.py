@@ -10,9 +10,9 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from hardware.lights import (LightArgumentError, LightCommandError, LightController, LightError, LightLinkError,
+from hairdigi.hardware.lights import (LightArgumentError, LightCommandError, LightController, LightError, LightLinkError,
                              LightProtocolError, LightState, LightTimeout, N_LIGHTS, parse_status)
-from hardware.sim_lights import BoardState, EmulatedFirmwareBoard, SimulatedLightBoard, handle
+from hairdigi.hardware.sim_lights import BoardState, EmulatedFirmwareBoard, SimulatedLightBoard, handle
 
 BACKENDS = ["python-sim", "avr-firmware"]
 

@@ -4,7 +4,7 @@ import re
 import numpy as np
 import pytest
 
-from render.params import HairParams, HairParamsError, load_params, sample_params, save_params
+from hairdigi.render.params import HairParams, HairParamsError, load_params, sample_params, save_params
 
 
 def test_json_round_trip_top_level_and_under_hair(tmp_path):
@@ -65,8 +65,8 @@ def test_atomic_writes_are_readable_by_the_lab(tmp_path):
 
     import numpy as np
 
-    from hardware.capture import save_capture
-    from render.imageio import save_png
+    from hairdigi.hardware.capture import save_capture
+    from hairdigi.render.io.images import save_png
 
     old = os.umask(0o022)
     try:
@@ -126,7 +126,7 @@ def test_unreadable_parameter_files_name_the_file_and_the_fix(tmp_path):
 
 
 def test_a_failed_image_write_leaves_no_temporary_file(tmp_path):
-    from render.imageio import save_exr, save_png
+    from hairdigi.render.io.images import save_exr, save_png
 
     (tmp_path / "taken.png").mkdir()          # the target is a folder: the final rename fails
     with pytest.raises(OSError):

@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from inference.preprocess import (MAX_IMAGE_PIXELS, ImageError, Roi, find_swatch_roi, image_size, read_image,
+from hairdigi.inference.preprocess import (MAX_IMAGE_PIXELS, ImageError, Roi, find_swatch_roi, image_size, read_image,
                                   swatch_crop)
 
 SIM = (200, 150)   # a small rig frame (the rig's is 400 x 300): the same view, a quarter of the pixels
@@ -36,8 +36,8 @@ def flat_png(path, width: int, height: int, rgb=(120, 80, 40), rows: int = 50) -
 def chart_positions() -> list[tuple[float, float]]:
     """Chart centres the rig allows: the whole chart on the holder, in view, right of the swatch
     (the view is RIG_HALF_WIDTH either side of RIG_TARGET, 4:3), at its corners, edges and default."""
-    from render import scenes
-    from render.strands import SWATCH_WIDTH
+    from hairdigi.render import scenes
+    from hairdigi.render.strands import SWATCH_WIDTH
 
     pitch = scenes.CHART_PATCH + scenes.CHART_GAP
     half_w, half_h = 3 * pitch + scenes.CHART_GAP, 2 * pitch + scenes.CHART_GAP   # the board
@@ -50,7 +50,7 @@ def chart_positions() -> list[tuple[float, float]]:
 
 def chart_box(center, size=SIM) -> tuple[int, int, int, int]:
     """The chart board's pixel box (x, y, w, h) in the rig view."""
-    from render import scenes
+    from hairdigi.render import scenes
 
     pitch = scenes.CHART_PATCH + scenes.CHART_GAP
     half_w, half_h = 3 * pitch + scenes.CHART_GAP, 2 * pitch + scenes.CHART_GAP
@@ -69,11 +69,11 @@ def overlap(a, b) -> int:
 @pytest.fixture(scope="module")
 def rig_frames():
     """{chart centre: simulated rig frame (8-bit sRGB through the camera model)}, tiny renders."""
-    from hardware.sim_rig import DEFAULT_HIDDEN, remove_fireflies
-    from render import scenes
-    from render.camera_model import CameraModel, sensor_response
-    from render.chart import colorchecker_reflectances
-    from render.renderer import Renderer, SceneSpec
+    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, remove_fireflies
+    from hairdigi.render import scenes
+    from hairdigi.render.camera_model import CameraModel, sensor_response
+    from hairdigi.render.chart import colorchecker_reflectances
+    from hairdigi.render.renderer import Renderer, SceneSpec
 
     renderer = Renderer(max_cached=1)
     chart = tuple(map(tuple, colorchecker_reflectances()))
@@ -88,7 +88,7 @@ def rig_frames():
 
 
 def test_chart_positions_cover_the_rig():
-    from hardware.sim_rig import swatch_roi
+    from hairdigi.hardware.sim_rig import swatch_roi
 
     positions = chart_positions()
     assert len(positions) == 7 and len(set(positions)) == 7
@@ -99,7 +99,7 @@ def test_chart_positions_cover_the_rig():
 
 
 def test_the_swatch_is_found_beside_the_chart_wherever_the_chart_is(rig_frames):
-    from hardware.sim_rig import swatch_roi
+    from hairdigi.hardware.sim_rig import swatch_roi
 
     truth = swatch_roi(SIM)
     for centre, frame in rig_frames.items():

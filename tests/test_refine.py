@@ -2,13 +2,13 @@
 import numpy as np
 import pytest
 
-from inference.refine import (RefineSettings, fibre_appearance, mean_linear, params_for_sigma, refine,
+from hairdigi.inference.refine import (RefineSettings, fibre_appearance, mean_linear, params_for_sigma, refine,
                               response_curve)
-from render.absorption import hair_sigma_a
-from render.metrics import delta_e2000
-from render.params import HairParams, sample_params
-from render.renderer import Renderer, SceneSpec
-from render.scenes import CameraPose
+from hairdigi.render.absorption import hair_sigma_a
+from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.params import HairParams, sample_params
+from hairdigi.render.renderer import Renderer, SceneSpec
+from hairdigi.render.scenes import CameraPose
 
 SMALL = RefineSettings(size=24, spp=8, iterations=2, strand_seed=3)
 

@@ -6,9 +6,9 @@ import sys
 import numpy as np
 import pytest
 
-from render.params import HairParams
-from render.renderer import Renderer, SceneSpec
-from render.scenes import CameraPose
+from hairdigi.render.params import HairParams
+from hairdigi.render.renderer import Renderer, SceneSpec
+from hairdigi.render.scenes import CameraPose
 
 SIZE, SPP, STRANDS = 32, 4, 300
 
@@ -41,7 +41,7 @@ def test_nonfinite_values_are_counted_not_hidden(monkeypatch):
     """No scene we could build returns a NaN: Mitsuba's film drops NaN and Inf samples (a NaN
     absorption, forced below, renders as 0), and the inputs that could overflow are refused. So the
     film's output is spiked here with NaN and Inf: the result counts them and its images hold 0."""
-    import render.renderer as rr
+    import hairdigi.render.renderer as rr
 
     monkeypatch.setattr(rr, "hair_sigma_a", lambda params: np.array([np.nan, 0.5, 0.5]))
     assert Renderer().render(HairParams(), swatch(framing="crop"), 16, 1, 0).nonfinite == 0
@@ -95,10 +95,10 @@ def test_darker_with_more_melanin_and_hue_follows_the_dye(renderer):
 
 def test_white_furnace_at_zero_absorption():
     """A lossless fibre under a white environment must come out white; absorption must not."""
-    from render.scenes import furnace_scene
-    from render.strands import swatch_strands
-    from render.absorption import hair_bsdf
-    from render.variant import load_scene, mi
+    from hairdigi.render.scenes import furnace_scene
+    from hairdigi.render.strands import swatch_strands
+    from hairdigi.render.absorption import hair_bsdf
+    from hairdigi.render.variant import load_scene, mi
     import tempfile, os
 
     strands = swatch_strands(150, seed=0).with_dummy()
@@ -187,7 +187,7 @@ def test_invalid_scene_and_size_are_clear(renderer):
 
 def test_no_eumelanin_bspline_crash_case():
     """The case that segfaulted Mitsuba 3.9.1 without the dummy strand: eumelanin 0, 64 spp."""
-    code = ("from render.renderer import render, SceneSpec; from render.params import HairParams;"
+    code = ("from hairdigi.render.renderer import render, SceneSpec; from hairdigi.render.params import HairParams;"
             "import numpy as np;"
             "r = render(HairParams((255,255,255), 0, 0.7, 0.0), SceneSpec('swatch'), 96, 64, 0);"
             "assert np.isfinite(r.linear).all(); print('ok')")
@@ -197,7 +197,7 @@ def test_no_eumelanin_bspline_crash_case():
 
 def test_uniform_parameters_span_platinum_to_black_and_many_hues(renderer):
     import colorsys
-    from render.params import sample_params
+    from hairdigi.render.params import sample_params
 
     rng = np.random.default_rng(0)
     means = np.array([mean_rgb(renderer.render(sample_params(rng), swatch(), SIZE, 4, i)) for i in range(24)])
@@ -210,8 +210,8 @@ def test_uniform_parameters_span_platinum_to_black_and_many_hues(renderer):
 def test_scalar_fallback_renders_the_same_scene():
     """HAIRDIGI_VARIANT=scalar_rgb (what a machine without libLLVM 19 gets) gives the same mean colour."""
     import os
-    code = ("import numpy as np; from render.renderer import render, SceneSpec; from render.params import HairParams;"
-            "from render.variant import mi;"
+    code = ("import numpy as np; from hairdigi.render.renderer import render, SceneSpec; from hairdigi.render.params import HairParams;"
+            "from hairdigi.render.variant import mi;"
             "r = render(HairParams((200,90,40), 0.6, 0.3, 0.5), SceneSpec('swatch', strands=300), 24, 16, 0);"
             "print(mi.variant(), *r.linear.reshape(-1, 3).mean(0))")
     outs = {}

@@ -5,14 +5,14 @@ import time
 import numpy as np
 import pytest
 
-from app.rig_session import RigSession
-from hardware.cameras import FileCamera
-from hardware.exposure import check_region
-from hardware.sim_rig import SimRig, swatch_roi
-from render.camera_model import CameraModel
-from inference.calibration import (CalibrationError, apply_profile, calibrate, detect_chart, load_profile,
+from hairdigi.app.rig_session import RigSession
+from hairdigi.hardware.cameras import FileCamera
+from hairdigi.hardware.exposure import check_region
+from hairdigi.hardware.sim_rig import SimRig, swatch_roi
+from hairdigi.render.camera_model import CameraModel
+from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, detect_chart, load_profile,
                                    staleness)
-from render.chart import colorchecker_reflectances, rig_chart_targets
+from hairdigi.render.chart import colorchecker_reflectances, rig_chart_targets
 
 SPP = 8
 
@@ -128,9 +128,9 @@ def test_session_replays_a_recorded_frame(tmp_path):
 
 def test_estimate_of_a_rig_capture_matches_the_rig_chain(tmp_path, tiny_model):
     """``hairdigi estimate`` on a saved rig frame (chart in view, swatch found) gives the rig's estimate."""
-    from app.cli import main
-    from inference.encoder import Encoder
-    from render.metrics import delta_e2000
+    from hairdigi.app.cli import main
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.render.metrics import delta_e2000
 
     _, onnx_path, _ = tiny_model
     session = RigSession.simulated_rig(tmp_path / "s", spp=SPP, encoder=Encoder(onnx_path))
@@ -173,7 +173,7 @@ def test_a_real_camera_reports_its_settings(tmp_path):
     """An OpenCV camera (here a video file through cv2.VideoCapture) reports what the driver does."""
     import cv2
 
-    from hardware.cameras import OpenCVCamera
+    from hairdigi.hardware.cameras import OpenCVCamera
 
     path = tmp_path / "feed.avi"
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (96, 64))
@@ -193,7 +193,7 @@ def test_a_real_camera_reports_its_settings(tmp_path):
 
 def test_an_old_capture_is_reviewed_with_its_own_calibration(tmp_path):
     """A later calibration replaces calibration.json; the earlier capture keeps the profile it was taken with."""
-    from inference.calibration import apply_profile
+    from hairdigi.inference.calibration import apply_profile
 
     session = RigSession.simulated_rig(tmp_path / "s", spp=SPP)
     try:

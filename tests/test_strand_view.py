@@ -27,8 +27,8 @@ SCRIPT = textwrap.dedent("""
     import sys, numpy as np
     from PySide6.QtWidgets import QApplication
     app = QApplication([])
-    from app.gui.strand_view import StrandView
-    from render.strands import hairstyle_strands
+    from hairdigi.app.gui.strand_view import StrandView
+    from hairdigi.render.strands import hairstyle_strands
     view = StrandView()
     view.resize(400, 400)
     view.show()

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from render.hairfile import HairFileError, read_hair, write_hair
-from render.strands import HAIRSTYLES, HEAD_RADIUS, hairstyle_strands, swatch_strands
+from hairdigi.render.hairfile import HairFileError, read_hair, write_hair
+from hairdigi.render.strands import HAIRSTYLES, HEAD_RADIUS, hairstyle_strands, swatch_strands
 
 
 def test_swatch_is_deterministic_and_lies_on_the_holder():

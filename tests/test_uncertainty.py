@@ -1,8 +1,8 @@
 """Measured intervals: fitted at 68% on one half of a set, their coverage checked on the other."""
 import numpy as np
 
-from inference.uncertainty import NAMES, band, coverage_of, fit_intervals, intervals
-from render.params import HairParams
+from hairdigi.inference.uncertainty import NAMES, band, coverage_of, fit_intervals, intervals
+from hairdigi.render.params import HairParams
 
 
 def _rows(seed, n=600):

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from PySide6.QtWidgets import QApplication, QDialog, QDialogButtonBox, QFormLayout, QLineEdit
 
-from app.gui.main_window import MainWindow, settings_store
+from hairdigi.app.gui.main_window import MainWindow, settings_store
 
 SETTING_DEFAULTS = {"camera": "0", "serial_port": "", "output_folder": str(Path.home() / "hairdigi-sessions" / "default"),
                     "hairstyle_size": 384, "twin_spp": 16}
@@ -47,11 +47,11 @@ class SettingsDialog(QDialog):
 
 def open_rig(settings: dict, sim: bool, folder: Path):
     """The real rig when its camera and light board answer; else the simulated rig, and why."""
-    from app.rig_session import RigSession
+    from hairdigi.app.rig_session import RigSession
 
     if not sim:
-        from hardware.cameras import CameraError, OpenCVCamera
-        from hardware.lights import LightController, LightError, discover
+        from hairdigi.hardware.cameras import CameraError, OpenCVCamera
+        from hairdigi.hardware.lights import LightController, LightError, discover
         try:
             cam = settings["camera"]
             camera = OpenCVCamera(int(cam) if cam.isdigit() else cam)
@@ -82,7 +82,7 @@ def run_app(sim: bool = False, session: str | None = None, tour: str | None = No
         window.statusBar().showMessage(f"simulated rig: {reason}")
     window.show()
     if tour:
-        from app.gui.tour import run_tour
+        from hairdigi.app.gui.tour import run_tour
         run_tour(window, tour)
     code = app.exec()
     rig.close()

@@ -15,13 +15,13 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QFileDialog, QGridLayout, Q
                                QListWidget, QListWidgetItem, QMainWindow, QProgressBar, QPushButton, QSplitter,
                                QVBoxLayout, QWidget)
 
-from app import rig_session as rs
-from app.gui.images import overlay, to_pixmap
-from app.gui.workers import FeedThread, Task, start
-from render.params import VECTOR_FIELDS, HairParams
-from render.renderer import SceneSpec, default_renderer
-from render.scenes import ENVIRONMENTS
-from render.strands import HAIRSTYLES, hairstyle_strands
+from hairdigi.app import rig_session as rs
+from hairdigi.app.gui.images import overlay, to_pixmap
+from hairdigi.app.gui.workers import FeedThread, Task, start
+from hairdigi.render.params import VECTOR_FIELDS, HairParams
+from hairdigi.render.renderer import SceneSpec, default_renderer
+from hairdigi.render.scenes import ENVIRONMENTS
+from hairdigi.render.strands import HAIRSTYLES, hairstyle_strands
 
 DEFAULTS = {"hairstyle_size": 384, "hairstyle_strands": 3000, "hairstyle_passes": 8, "hairstyle_spp_per_pass": 2,
             "twin_spp": 16, "feed_fps": 20}
@@ -188,7 +188,7 @@ class MainWindow(QMainWindow):
         v.addWidget(self.render_progress)
         self.strand_view = None
         if with_strand_view:
-            from app.gui.strand_view import StrandView
+            from hairdigi.app.gui.strand_view import StrandView
             self.strand_view = StrandView(self)
             self.strand_view.setMinimumHeight(260)
             v.addWidget(self.strand_view, 1)
@@ -230,7 +230,7 @@ class MainWindow(QMainWindow):
         image = self.last_frame.srgb
 
         def work(report, cancelled):
-            from inference.calibration import CalibrationError, detect_chart
+            from hairdigi.inference.calibration import CalibrationError, detect_chart
             try:
                 box = detect_chart(image).box
             except CalibrationError:
@@ -376,7 +376,7 @@ class MainWindow(QMainWindow):
             label.setText(f"{name}: {fmt.format(values[name])}{u}")
         hair = (rec.get("refinement") or {}).get("rendered_linear_rgb")
         if hair:
-            from render.srgb import linear_to_srgb8
+            from hairdigi.render.srgb import linear_to_srgb8
 
             r, g, b = (int(v) for v in linear_to_srgb8(np.asarray(hair)))
             text = "#000" if 0.3 * r + 0.6 * g + 0.1 * b > 128 else "#fff"
@@ -436,8 +436,8 @@ class MainWindow(QMainWindow):
         self.render_progress.setRange(0, passes)
         self.render_progress.setValue(0)
         if self.strand_view is not None:
-            from render.absorption import approximate_albedo
-            from render.srgb import linear_to_srgb8
+            from hairdigi.render.absorption import approximate_albedo
+            from hairdigi.render.srgb import linear_to_srgb8
             colour = linear_to_srgb8(approximate_albedo(params) * 0.8)
             self.strand_view.show_strands(hairstyle_strands(style, 1500, seed=0), tuple(int(c) for c in colour))
 

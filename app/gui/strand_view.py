@@ -5,7 +5,7 @@ import numpy as np
 import pyvista as pv
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
-from render.strands import Strands
+from hairdigi.render.strands import Strands
 
 
 def strand_polydata(strands: Strands, max_strands: int = 3000, seed: int = 0) -> pv.PolyData:

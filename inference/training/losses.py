@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import torch
 
-from render.absorption import (AZIMUTHAL_ROUGHNESS, EUMELANIN_SIGMA_A, MELANIN_REMAP, MIN_DYE_ALBEDO,
+from hairdigi.render.absorption import (AZIMUTHAL_ROUGHNESS, EUMELANIN_SIGMA_A, MELANIN_REMAP, MIN_DYE_ALBEDO,
                                PHEOMELANIN_SIGMA_A, chiang_denominator)
 
 

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from inference.evaluate import evaluate
-from render.params import write_json_atomic
+from hairdigi.inference.training.evaluate import evaluate
+from hairdigi.render.params import write_json_atomic
 
 
 def bench_encoders(onnx_paths: list[str | os.PathLike], out_dir: str | os.PathLike, n: int = 300,
@@ -17,8 +17,8 @@ def bench_encoders(onnx_paths: list[str | os.PathLike], out_dir: str | os.PathLi
                    progress: bool = True) -> list[dict]:
     """Latency (ONNX, 1 thread, median) against the encoder-alone error of several encoders on one
     clean held-out set. Writes ``encoder_bench.csv`` and ``encoder_bench.png``."""
-    from inference.encoder import Encoder
-    from render.bench import write_csv_atomic
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.render.bench import write_csv_atomic
 
     out = Path(out_dir)
     data_root = Path(data_root) if data_root else out / "heldout"   # one held-out set for every variant
@@ -49,13 +49,13 @@ def _parameter_count(path) -> int:
 
 def _latency_views(encoder, repeats: int = 100) -> float:
     """Median milliseconds for the 8-view estimate the app uses (batch of 8)."""
-    from inference.encoder import median_latency_ms
+    from hairdigi.inference.encoder import median_latency_ms
 
     return median_latency_ms(encoder, np.zeros((8, 3, encoder.input_size, encoder.input_size), np.float32), repeats)
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    from render.figures import save_figure  # noqa: I001  (selects the headless backend first)
+    from hairdigi.render.io.figures import save_figure  # noqa: I001  (selects the headless backend first)
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
@@ -93,7 +93,7 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
     A hand-written ``<card>-notes.md`` beside the card (how to read the figures, known limits) is
     appended to it, so regenerating the card keeps them.
     """
-    from inference.encoder import sha256_file
+    from hairdigi.inference.encoder import sha256_file
 
     history = json.loads((Path(run_dir) / "history.json").read_text())
     datasets = history.get("datasets") or [history["dataset"]]

@@ -22,7 +22,7 @@ from dataclasses import asdict
 from typing import TYPE_CHECKING, Callable
 
 if TYPE_CHECKING:
-    from inference.dataset import DatasetConfig
+    from hairdigi.inference.training.dataset import DatasetConfig
 
 INSTALL_HINT = "pip install 'hairdigi[cluster]'"
 #: How often Ray runs a shard's task again after its worker died (a node lost, out of memory).
@@ -45,7 +45,7 @@ def require_ray():
 
 def _render_task(config_dict: dict, shard: int, variant: str, threads: int) -> dict:
     """One Ray task: render shard ``shard`` with ``variant`` and return its arrays."""
-    from inference.dataset import DatasetConfig, render_shard
+    from hairdigi.inference.training.dataset import DatasetConfig, render_shard
 
     return render_shard(DatasetConfig(**config_dict), shard, variant, threads)
 

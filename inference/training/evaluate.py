@@ -27,10 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from inference.dataset import DatasetConfig, generate, load, sample_spec
-from inference.refine import RefineSettings, mean_linear, refine
-from render.metrics import delta_e2000, l1_255, ms_ssim
-from render.params import VECTOR_FIELDS, HairParams, write_json_atomic
+from hairdigi.inference.training.dataset import DatasetConfig, generate, load, sample_spec
+from hairdigi.inference.refine import RefineSettings, mean_linear, refine
+from hairdigi.render.metrics import delta_e2000, l1_255, ms_ssim
+from hairdigi.render.params import VECTOR_FIELDS, HairParams, write_json_atomic
 
 EVAL_SEED = 1_000_003  # training datasets use small seeds; this one is disjoint by construction
 SPANS = np.array([hi - lo for _, lo, hi in VECTOR_FIELDS])
@@ -65,7 +65,7 @@ def buckets(params: HairParams, polar_deg: float) -> list[str]:
 
 
 def heldout_config(n: int, size: int = 64, spp: int = 64) -> DatasetConfig:
-    from render.renderer import defaults_for
+    from hairdigi.render.renderer import defaults_for
 
     sw = defaults_for("swatch")
     return DatasetConfig(n=n, size=size, spp=spp, seed=EVAL_SEED, strands=sw.strands, max_depth=sw.max_depth,
@@ -74,7 +74,7 @@ def heldout_config(n: int, size: int = 64, spp: int = 64) -> DatasetConfig:
 
 def scene_of(config: DatasetConfig, index: int):
     """Sample ``index``'s scene (camera, strand layout, framing): one home for dataset sample -> scene."""
-    from render.renderer import SceneSpec
+    from hairdigi.render.renderer import SceneSpec
 
     s = sample_spec(config, index)
     return SceneSpec("swatch", camera=s.camera, framing=config.framing, strands=config.strands,
@@ -83,14 +83,14 @@ def scene_of(config: DatasetConfig, index: int):
 
 def judge_render(config: DatasetConfig, index: int, hair, judge: Judge = JUDGE):
     """Sample ``index``'s scene with other hair (``HairParams`` or ``sigma_a``), at the judge's settings."""
-    from render.renderer import default_renderer
+    from hairdigi.render.renderer import default_renderer
 
     return default_renderer().render(hair, scene_of(config, index), judge.size, judge.spp, judge.seed)
 
 
 def capture(linear: np.ndarray, index: int) -> np.ndarray:
     """The 8-bit frame a calibrated camera would give of a linear render (fixed noise seed per sample)."""
-    from render.camera_model import CameraModel, sensor_response
+    from hairdigi.render.camera_model import CameraModel, sensor_response
 
     return sensor_response(np.asarray(linear, np.float32), CameraModel(), np.random.default_rng([EVAL_SEED, index]))
 
@@ -129,7 +129,7 @@ def _save_npz(path: Path, arrays: dict) -> None:
 def _image_row(prefix: str, rendered: np.ndarray, truth_judge: np.ndarray | None, input_srgb: np.ndarray) -> dict:
     """The paper's image metrics of a judge render against the input, and its mean colour against the
     truth's judge render (skipped when ``truth_judge`` is None)."""
-    from render.srgb import linear_to_srgb8
+    from hairdigi.render.srgb import linear_to_srgb8
 
     srgb = linear_to_srgb8(rendered)
     row = {f"{prefix}_l1": l1_255(input_srgb, srgb)}
@@ -148,9 +148,9 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 64, 
     """Run the protocol; write ``evaluation.json``, ``samples.json``, ``uncertainty.json``; return the summary."""
     from tqdm import tqdm
 
-    from inference.domain import domain_stats, domain_warnings
-    from inference.preprocess import ImageError, Roi
-    from inference.uncertainty import coverage_of, fit_intervals
+    from hairdigi.inference.domain import domain_stats, domain_warnings
+    from hairdigi.inference.preprocess import ImageError, Roi
+    from hairdigi.inference.uncertainty import coverage_of, fit_intervals
 
     if judge.size != size:
         raise ValueError(f"the judge renders at {judge.size}² but the held-out swatches are {size}²; the paper's "
@@ -225,8 +225,8 @@ def _named(params: HairParams) -> dict[str, float]:
 
 def _latency(encoder, frame: np.ndarray, repeats: int = 200) -> float:
     """Median milliseconds of one encoder call (one view, batch 1) on preprocessed input."""
-    from inference.encoder import median_latency_ms
-    from inference.preprocess import encode
+    from hairdigi.inference.encoder import median_latency_ms
+    from hairdigi.inference.preprocess import encode
 
     return median_latency_ms(encoder, encode(frame, encoder.input_size)[None], repeats)
 

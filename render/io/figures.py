@@ -27,7 +27,7 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> Path:
 
 def save_table(out_dir: str | os.PathLike, stem: str, rows: list[dict], plot) -> Path:
     """A benchmark's results: ``stem.csv`` (atomic) and ``stem.png`` drawn by ``plot(rows, path)``."""
-    from render.bench import write_csv_atomic
+    from hairdigi.render.bench import write_csv_atomic
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

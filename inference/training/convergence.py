@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from inference.dataset import DatasetConfig, load, sample_spec
-from inference.evaluate import JUDGE, Judge, capture, judge_file, judge_render, scene_of
-from inference.refine import RefineSettings, mean_linear, refine
-from render.metrics import delta_e2000
-from render.params import HairParams
+from hairdigi.inference.training.dataset import DatasetConfig, load, sample_spec
+from hairdigi.inference.training.evaluate import JUDGE, Judge, capture, judge_file, judge_render, scene_of
+from hairdigi.inference.refine import RefineSettings, mean_linear, refine
+from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.params import HairParams
 
 
 def convergence_sweep(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLike,
@@ -27,9 +27,9 @@ def convergence_sweep(encoder, data_root: str | os.PathLike, out_dir: str | os.P
     """One row per input spp: median, p95 and worst mean-colour ΔE2000 of the encoder and the refinement."""
     from tqdm import tqdm
 
-    from inference.preprocess import Roi
-    from render.figures import save_table
-    from render.renderer import default_renderer
+    from hairdigi.inference.preprocess import Roi
+    from hairdigi.render.io.figures import save_table
+    from hairdigi.render.renderer import default_renderer
 
     images, vectors, _, manifest = load(data_root)
     config = DatasetConfig(**manifest["config"])
@@ -60,7 +60,7 @@ def convergence_sweep(encoder, data_root: str | os.PathLike, out_dir: str | os.P
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    from render.figures import save_figure  # noqa: I001  (selects the headless backend first)
+    from hairdigi.render.io.figures import save_figure  # noqa: I001  (selects the headless backend first)
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6, 4))

@@ -16,10 +16,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from inference.dataset import load, usable
-from inference.preprocess import encode
-from render.camera_model import CameraModel, CaptureErrors, random_camera, sensor_response
-from render.srgb import linear_to_srgb8, srgb8_to_linear
+from hairdigi.inference.training.dataset import load, usable
+from hairdigi.inference.preprocess import encode
+from hairdigi.render.camera_model import CameraModel, CaptureErrors, random_camera, sensor_response
+from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
 
 
 @dataclass(frozen=True)
@@ -114,9 +114,9 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
     import torch
     from tqdm import tqdm
 
-    from inference.losses import appearance, encoder_loss
+    from hairdigi.inference.training.losses import appearance, encoder_loss
 
-    from inference.model import EncoderConfig, HairEncoder, parameter_count
+    from hairdigi.inference.training.model import EncoderConfig, HairEncoder, parameter_count
 
     encoder_config = encoder_config or EncoderConfig()
     out = Path(out_dir)
@@ -193,7 +193,7 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
                     "epoch": epoch, "history": history, "encoder": encoder_config.to_dict(),
                     "train": asdict(config)}, tmp)
         os.replace(tmp, ckpt)
-    from render.params import write_json_atomic
+    from hairdigi.render.params import write_json_atomic
     write_json_atomic(out / "history.json", history)
     plot_history(history, out / "training_curve.png")
     return history
@@ -203,7 +203,7 @@ def load_trained(out_dir: str | os.PathLike):
     """The model from a training folder's checkpoint, in eval mode."""
     import torch
 
-    from inference.model import EncoderConfig, HairEncoder
+    from hairdigi.inference.training.model import EncoderConfig, HairEncoder
 
     state = torch.load(Path(out_dir) / "checkpoint.pt", weights_only=False)
     model = HairEncoder(EncoderConfig(**state["encoder"]))

@@ -9,7 +9,7 @@ from typing import Callable
 import cv2
 import numpy as np
 
-from render.files import publish
+from hairdigi.render.io.files import publish
 
 
 def _check_suffix(path: Path, suffix: str) -> None:
@@ -45,7 +45,7 @@ def save_png(path: str | os.PathLike, srgb: np.ndarray) -> Path:
 
 def save_exr(path: str | os.PathLike, linear: np.ndarray) -> Path:
     """Write linear float32 RGB as OpenEXR through Mitsuba's Bitmap, atomically."""
-    from render.variant import mi
+    from hairdigi.render.variant import mi
 
     path = Path(path)
     _check_suffix(path, ".exr")

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from render.files import publish
+from hairdigi.render.io.files import publish
 
 
 def export_onnx(model, path: str | os.PathLike, input_size: int) -> Path:

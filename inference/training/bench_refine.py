@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from inference.dataset import DatasetConfig, load, sample_spec
-from inference.evaluate import JUDGE, Judge, capture, judge_file, judge_render
-from inference.refine import RefineSettings, mean_linear, refine
-from render.metrics import delta_e2000
-from render.params import HairParams
+from hairdigi.inference.training.dataset import DatasetConfig, load, sample_spec
+from hairdigi.inference.training.evaluate import JUDGE, Judge, capture, judge_file, judge_render
+from hairdigi.inference.refine import RefineSettings, mean_linear, refine
+from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.params import HairParams
 
 
 def bench_refine(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLike,
@@ -26,8 +26,8 @@ def bench_refine(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLi
                  judge: Judge = JUDGE, progress: bool = True) -> list[dict]:
     from tqdm import tqdm
 
-    from inference.preprocess import Roi
-    from render.figures import save_table
+    from hairdigi.inference.preprocess import Roi
+    from hairdigi.render.io.figures import save_table
 
     images, vectors, _, manifest = load(data_root)
     config = DatasetConfig(**manifest["config"])
@@ -64,7 +64,7 @@ def bench_refine(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLi
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    from render.figures import save_figure  # noqa: I001  (selects the headless backend first)
+    from hairdigi.render.io.figures import save_figure  # noqa: I001  (selects the headless backend first)
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.5, 4.2))

@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from render.files import publish
+from hairdigi.render.io.files import publish
 
-from render.params import HairParams, sample_params
-from render.scenes import CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
+from hairdigi.render.params import HairParams, sample_params
+from hairdigi.render.scenes import CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
 
 MANIFEST = "manifest.json"
 STORES = ("linear16", "srgb8")
@@ -147,8 +147,8 @@ _RENDERERS: dict = {}
 def _renderer():
     """This process's renderer for the current Mitsuba variant; its loaded scene is reused by every
     sample of a shard and by the next shard."""
-    from render.renderer import Renderer, default_renderer
-    from render.variant import mi
+    from hairdigi.render.renderer import Renderer, default_renderer
+    from hairdigi.render.variant import mi
 
     renderer = default_renderer()
     if renderer.variant != mi.variant():   # the variant was switched after the default one was made
@@ -169,8 +169,8 @@ def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
     if threads:
         import drjit as dr
         dr.set_thread_count(threads)
-    from render.renderer import SceneSpec
-    from render.variant import select_variant
+    from hairdigi.render.renderer import SceneSpec
+    from hairdigi.render.variant import select_variant
 
     if variant is not None:
         select_variant(variant)
@@ -220,8 +220,8 @@ def _check_manifest(root: Path, config: DatasetConfig, variant: str | None = Non
             raise ValueError(f"{root} holds a dataset made with other settings {diff} (stored, asked); "
                              f"use another --out or the same settings to resume")
     else:
-        from render.params import write_json_atomic
-        from render.variant import mi
+        from hairdigi.render.params import write_json_atomic
+        from hairdigi.render.variant import mi
         write_json_atomic(path, {"config": asdict(config), "format": "shard-NNNNN.npz: images (N,S,S,3) "
                                  "linear float16 radiance (store linear16) or uint8 sRGB (srgb8); params (N,6) normalised Table 1 vector; cameras (N,3) "
                                  "polar°, azimuth°, distance; seeds (N,2) strand, render; indices (N,)",
@@ -240,7 +240,7 @@ def _check_variant(root: Path, variant: str, has_shards: bool) -> None:
     if has_shards:
         raise ValueError(f"{root} was rendered with Mitsuba variant {stored}, not {variant}; resume it with "
                          f"--variant {stored}, or use another --out")
-    from render.params import write_json_atomic
+    from hairdigi.render.params import write_json_atomic
     write_json_atomic(root / MANIFEST, {**manifest, "mitsuba_variant": variant})
 
 
@@ -248,7 +248,7 @@ def _resolve_variant(variant: str | None, set_here: bool) -> str:
     """The variant to render with, by name: None is this process's, ``auto`` is resolved here. A
     named variant is also set here when this process renders (``set_here``); for Ray it is checked
     where the tasks run, since the driver may have no GPU."""
-    from render.variant import select_variant
+    from hairdigi.render.variant import select_variant
 
     if variant is None or variant == "auto" or set_here:
         return select_variant(variant)
@@ -272,7 +272,7 @@ def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, p
     if backend not in BACKENDS:
         raise ValueError(f"unknown dataset backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     if backend == "ray":
-        from inference.cluster import require_ray
+        from hairdigi.inference.training.cluster import require_ray
         require_ray()   # before anything is written: without Ray, one line saying how to install it
     variant = _resolve_variant(variant, set_here=backend == "local")
     root = Path(root)
@@ -300,7 +300,7 @@ def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, p
             previous = signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
             try:
                 if backend == "ray":
-                    from inference.cluster import render_shards
+                    from hairdigi.inference.training.cluster import render_shards
 
                     def arrived(shard: int, arrays: dict) -> None:
                         write_shard(root, shard, arrays)
