@@ -31,7 +31,7 @@ test: setup  ## pytest's exit 5 (no tests collected) is turned into a failure
 	if [ $$rc -eq 5 ]; then echo "no tests were collected: that is a failure" >&2; exit 1; fi; exit $$rc
 
 bench: setup
-	$(VENV)/bin/hairdigi bench render --out render/bench
+	$(VENV)/bin/hairdigi bench render --out packaging/bench/render
 
 clean:
 	rm -rf out test-output

@@ -7,6 +7,8 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from hairdigi.render.io.version import version
+
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # torch's OpenMP spinning starves a 2-core CPU
 
 
@@ -47,7 +49,8 @@ def cmd_render(args: argparse.Namespace) -> int:
     from hairdigi.render.io.images import save_exr, save_png
     from hairdigi.render.params import load_params
     from hairdigi.render.renderer import SceneSpec, render
-    from hairdigi.render.scenes import CAMERA_DISTANCE, PORTRAIT_CAMERA, CameraPose
+    from hairdigi.render.scenes import PORTRAIT_CAMERA
+    from hairdigi.render.rig_geometry import CAMERA_DISTANCE, CameraPose
 
     _use_variant(args.variant)
     params = load_params(args.params)
@@ -128,9 +131,9 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_file
     from hairdigi.inference.preprocess import Roi
-    from hairdigi.render.params import write_json_atomic
+    from hairdigi.render.io.files import write_json_atomic
 
-    from hairdigi.render.scenes import RIG_SWATCH_POSE, CameraPose
+    from hairdigi.render.rig_geometry import RIG_SWATCH_POSE, CameraPose
 
     encoder = Encoder(args.model)
     roi = Roi.parse(args.roi) if args.roi else None
@@ -203,8 +206,10 @@ def cmd_rig(args: argparse.Namespace) -> int:
         boards = discover()
         print("light boards: " + (", ".join(f"{p} ({ident})" for p, ident in boards) or "none answered ID?"))
         return 0
-    from hairdigi.app.rig_cli import open_session, run_chain
+    from hairdigi.app.rig_cli import open_session, report_still, run_chain
 
+    if args.still:
+        return report_still(args.session, args.still)
     session = open_session(args)
     try:
         run_chain(session)
@@ -312,7 +317,8 @@ def build_parser() -> argparse.ArgumentParser:
     from hairdigi.app import validation as v
     from hairdigi.render.renderer import (MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH, MIN_SIZE,
                                  SCENE_NAMES)
-    from hairdigi.render.scenes import ENVIRONMENTS, LIGHT_POSITIONS
+    from hairdigi.render.scenes import ENVIRONMENTS
+    from hairdigi.render.rig_geometry import LIGHT_POSITIONS
     from hairdigi.render.variant import CHOICES as VARIANTS
 
     size, spp = v.int_in(MIN_SIZE, MAX_SIZE), v.int_in(1, MAX_SPP)
@@ -320,6 +326,7 @@ def build_parser() -> argparse.ArgumentParser:
     seed, workers = v.int_in(0, v.MAX_SEED), v.int_in(1, v.MAX_WORKERS)
     strands, depth = v.int_in(1, MAX_STRANDS), v.int_in(MIN_DEPTH, MAX_DEPTH)
     parser = _Parser(prog="hairdigi", description=__doc__)
+    parser.add_argument("--version", action="version", version=f"hairdigi {version()}")
     parser.add_argument("--debug", action="store_true",
                         help="show the traceback of an error too (anywhere on the command line)")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -434,6 +441,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dead", type=v.int_in(0, len(LIGHT_POSITIONS) - 1), nargs="*",
                    help="simulated dead light(s), numbered from 0")
     p.add_argument("--spp", type=spp, default=32, help="samples per pixel of the simulated rig's light renders")
+    p.add_argument("--still", help="import a RAW still of the rig (DNG, CR2, NEF, ...; the chart in view) into "
+                                   "the session and estimate it; needs no camera or light board")
     p.set_defaults(func=cmd_rig)
 
     p = sub.add_parser("app", help="the desktop app")
@@ -486,6 +495,23 @@ def _error_line(exc: BaseException) -> str:
     return one_line(str(exc) or type(exc).__name__)
 
 
+#: Optional extras: a missing top-level module (or hairdigi subpackage) and the install that brings it.
+EXTRAS = {"torch": "train", "onnx": "train", "hairdigi.inference.training": "train", "ray": "cluster"}
+
+
+def _missing_extra(exc: BaseException) -> str | None:
+    """The one-line fix when a command needs an extra this install lacks (the desktop build has none)."""
+    if not isinstance(exc, ModuleNotFoundError):
+        return None
+    name = exc.name or ""
+    extra = next((e for m, e in EXTRAS.items() if name == m or name.startswith(m + ".")), None)
+    if extra == "train":
+        return "training needs a developer install: pip install 'hairdigi[train]'"
+    if extra == "cluster":
+        return "--backend ray needs the cluster extra: pip install 'hairdigi[cluster]'"
+    return None
+
+
 def _caused_by_interrupt(exc: BaseException) -> bool:
     """Whether a KeyboardInterrupt is among the causes of ``exc``."""
     seen = set()
@@ -508,6 +534,9 @@ def main(argv: list[str] | None = None) -> int:
     # once the command runs it raises KeyboardInterrupt, so that files and devices are closed.
     program = signal.getsignal(signal.SIGINT) is _interrupted_at_start
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv == ["--version"]:   # answered before build_parser loads Mitsuba, so it is instant
+        print(f"hairdigi {version()}")
+        return 0
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
     prog = _prog(argv)
@@ -535,6 +564,12 @@ def main(argv: list[str] | None = None) -> int:
         if _caused_by_interrupt(exc):   # native code (Mitsuba, drjit) wraps a Ctrl-C in its own error
             print(f"{prog}: interrupted", file=sys.stderr)
             return 130
+        missing = _missing_extra(exc)
+        if missing:
+            if debug:
+                traceback.print_exc()
+            print(f"{prog}: error: {missing}", file=sys.stderr)
+            return 2
         if not is_expected(exc) and not isinstance(exc, CliError):
             traceback.print_exc()
             print(f"{prog}: internal error (a bug in hairdigi): {type(exc).__name__}; please report it with "

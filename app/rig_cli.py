@@ -1,17 +1,19 @@
 """``hairdigi rig``: the capture chain without a window: lights, exposure, calibration, capture, estimate."""
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 
 import numpy as np
 
 from hairdigi.app.rig_session import RigSession
+from hairdigi.render.rig_geometry import N_LIGHTS
 
 
 def check_dead_lights(dead) -> set[int]:
     """The simulated dead lights as a set of light numbers; ValueError naming ``--dead`` for any other."""
-    from hairdigi.render.scenes import LIGHT_POSITIONS
+    from hairdigi.render.rig_geometry import LIGHT_POSITIONS
 
     n = len(LIGHT_POSITIONS)
     wrong = [d for d in (dead or ()) if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d < n]
@@ -43,7 +45,7 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
     if session.lights is not None:
         say(f"light board: {session.lights.identify()} on {session.lights.port_name}")
         levels = []
-        for i in range(3):
+        for i in range(N_LIGHTS):
             session.lights.all_off()
             session.set_light(i, True)
             levels.append(float(session.frame().srgb.mean()))
@@ -94,13 +96,41 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
     return out
 
 
+def report_still(session_folder: str | Path, still: str | Path, say=print) -> int:
+    """``hairdigi rig --still``: import a RAW still into the session, estimate it, and say what came out."""
+    from hairdigi.app.rig_session import import_still
+    from hairdigi.inference.encoder import Encoder, ModelError
+
+    def encoder():
+        try:
+            return Encoder()
+        except ModelError as exc:
+            return str(exc)
+
+    result = import_still(session_folder, still, encoder)
+    say(f"still: {result.image_path} (+ {result.meta_path.name}), copied before processing")
+    profile = json.loads(result.meta_path.with_suffix(".result.json").read_text()).get("calibration_profile")
+    if profile is not None:
+        say(f"calibrated on the still's own chart: ΔE2000 mean {profile['delta_e2000']['before']['mean']:.2f} "
+            f"-> {profile['delta_e2000']['after']['mean']:.2f}")
+    if result.blocked:
+        say("estimate blocked: " + "; ".join(result.blocked))
+        return 1
+    p = result.params
+    say(f"estimate in {result.seconds:.1f} s: dye rgb {tuple(round(v) for v in p.dye_rgb)} at "
+        f"{p.dye_concentration:.2f}, melanin {p.melanin_concentration:.2f}, ratio {p.melanin_ratio:.2f}")
+    for warning in result.record.get("warnings", []):
+        say(f"warning: {warning}")
+    return 0
+
+
 def detection_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16) -> list[dict]:
     """``hairdigi bench rig``: chart detection and CCM ΔE over camera poses x noise x casts, and feed fps."""
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
     from hairdigi.render.camera_model import CameraModel, sensor_response
     from hairdigi.inference.calibration import CalibrationError, calibrate
-    from hairdigi.render import scenes
-    from hairdigi.render.bench import write_csv_atomic
+    from hairdigi.render import rig_geometry
+    from hairdigi.render.io.files import write_csv_atomic
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.renderer import Renderer, SceneSpec
     from tqdm import tqdm
@@ -114,9 +144,9 @@ def detection_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16) -> list
     exposures = [-0.7, 0.0]
     rng = np.random.default_rng(0)
     for polar, azimuth in tqdm(poses, desc="rig poses", unit="pose"):
-        spec = SceneSpec("swatch", framing="rig", chart=chart, target=scenes.RIG_TARGET,
-                         half_width=scenes.RIG_HALF_WIDTH * 1.1,
-                         camera=scenes.CameraPose(polar, azimuth))
+        spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET,
+                         half_width=rig_geometry.RIG_HALF_WIDTH * 1.1,
+                         camera=rig_geometry.CameraPose(polar, azimuth))
         linear = renderer.render(DEFAULT_HIDDEN, spec, size, spp, seed=polar).linear
         for shot, read in noises:
             for cast in casts:
@@ -161,34 +191,35 @@ def estimate_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16, twin_siz
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_image
     from hairdigi.inference.preprocess import Roi
-    from hairdigi.render import scenes
-    from hairdigi.render.bench import write_csv_atomic
+    from hairdigi.render import rig_geometry
+    from hairdigi.render.io.files import write_csv_atomic
     from hairdigi.render.camera_model import CameraModel, sensor_response
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.metrics import delta_e2000
-    from hairdigi.render.params import HairParams, write_json_atomic
+    from hairdigi.render.params import HairParams
+    from hairdigi.render.io.files import write_json_atomic
     from hairdigi.render.renderer import Renderer, SceneSpec
     from hairdigi.render.srgb import srgb8_to_linear
 
     renderer = Renderer(max_cached=2)
     encoder = Encoder()
     chart = tuple(map(tuple, colorchecker_reflectances()))
-    half_width = scenes.RIG_HALF_WIDTH * 1.1
+    half_width = rig_geometry.RIG_HALF_WIDTH * 1.1
     rng = np.random.default_rng(0)
     rows = []
     combos = [(h, p) for h in RIG_SET_HAIRS for p in RIG_SET_POSES]
     for hair_tuple, (polar, azimuth) in tqdm(combos, desc="rig set", unit="scene", disable=not progress):
         hidden = HairParams(*hair_tuple)
-        pose = scenes.CameraPose(polar, azimuth)
-        spec = SceneSpec("swatch", framing="rig", chart=chart, target=scenes.RIG_TARGET, half_width=half_width,
+        pose = rig_geometry.CameraPose(polar, azimuth)
+        spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET, half_width=half_width,
                          camera=pose)
         linear = remove_fireflies(renderer.render(hidden, spec, size, spp, seed=11).linear)
         corners = np.array([(x, y, 0.0) for x in (-0.3, 0.3) for y in (-0.35, 0.35)])
-        uv = scenes.project(corners, pose, scenes.RIG_TARGET, half_width, size)
+        uv = rig_geometry.project(corners, pose, rig_geometry.RIG_TARGET, half_width, size)
         x0, y0 = np.ceil(uv.min(0)).astype(int)
         x1, y1 = np.floor(uv.max(0)).astype(int)
         roi = Roi(int(x0), int(y0), int(x1 - x0), int(y1 - y0))
-        swatch_pose = scenes.seen_from((0.0, 0.0, 0.0), pose, scenes.RIG_TARGET)
+        swatch_pose = rig_geometry.seen_from((0.0, 0.0, 0.0), pose, rig_geometry.RIG_TARGET)
         scale = np.array(twin_size) / np.array(size)
         twin_roi = (slice(int(y0 * scale[1]), int(y1 * scale[1])), slice(int(x0 * scale[0]), int(x1 * scale[0])))
         truth_twin = renderer.render(hidden, spec, twin_size, spp, seed=12).linear[twin_roi].reshape(-1, 3).mean(0)

@@ -12,12 +12,15 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.hardware.cameras import RAW_EXTENSIONS, read_raw
 from hairdigi.hardware.capture import save_capture
 from hairdigi.hardware.exposure import ExposureReport, check_exposure, dead_lights
-from hairdigi.hardware.lights import LightController, LightError
+from hairdigi.hardware.frame_source import FrameSource
+from hairdigi.hardware.lights import N_LIGHTS, LightController, LightError
 from hairdigi.inference.calibration import (CalibrationError, ChartDetection, apply_profile, calibrate, detect_chart,
                                    load_profile, profile_warnings, save_profile, staleness)
-from hairdigi.render.params import HairParams, write_json_atomic
+from hairdigi.render.params import HairParams
+from hairdigi.render.io.files import write_json_atomic
 
 
 @dataclass
@@ -62,11 +65,13 @@ def white_patch_box(detection: ChartDetection) -> tuple[int, int, int, int]:
 
 
 class RigSession:
-    """One camera, one light board, one session folder, and the current calibration profile."""
+    """One camera (owned by its frame source), one light board, one session folder, and the current
+    calibration profile."""
 
     def __init__(self, camera, lights: LightController | None, folder: str | Path, swatch_roi=None,
                  encoder=None, simulated: bool = False) -> None:
         self.camera = camera
+        self.frames = FrameSource(camera)   # every read of the camera goes through here
         self.lights = lights
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
@@ -93,7 +98,7 @@ class RigSession:
                      dead_lights=set(dead or ()), board=board)
         session = cls(rig, lights, folder, rig.roi, encoder, simulated=True)
         session._board = board
-        for i in range(3):
+        for i in range(N_LIGHTS):
             lights.set_light(i, True, 255)
         return session
 
@@ -102,7 +107,7 @@ class RigSession:
             self.lights.close()
         if self._board is not None:
             self._board.close()
-        self.camera.close()
+        self.frames.close()
 
     @property
     def encoder(self):
@@ -117,7 +122,7 @@ class RigSession:
 
     def set_all(self, on: bool) -> None:
         if on:
-            for i in range(3):
+            for i in range(N_LIGHTS):
                 self.lights.set_light(i, True)
         else:
             self.lights.all_off()
@@ -126,12 +131,13 @@ class RigSession:
         return self.lights.status()
 
     def frame(self):
-        self.last_frame = self.camera.read()
+        """A frame exposed after this call (so after any light switched before it)."""
+        self.last_frame = self.frames.next_frame()
         return self.last_frame
 
     def settings(self) -> dict:
         """Camera and light settings a calibration depends on."""
-        s = {"camera": getattr(self.camera, "name", "camera"), **self.camera.settings()}
+        s = {"camera": getattr(self.camera, "name", "camera"), **self.frames.settings()}
         try:
             s["lights"] = [[int(st.on), st.intensity] for st in self.lights.status()]
         except (LightError, AttributeError):
@@ -141,7 +147,7 @@ class RigSession:
     def prepare_refinement(self) -> float:
         """Render (or load) the refinement's response curve for the rig's camera; returns its seconds."""
         from hairdigi.inference.refine import RefineSettings, response_curve
-        from hairdigi.render.scenes import RIG_SWATCH_POSE
+        from hairdigi.render.rig_geometry import RIG_SWATCH_POSE
 
         return response_curve(RIG_SWATCH_POSE, RefineSettings()).seconds
 
@@ -160,7 +166,7 @@ class RigSession:
         self.lights.all_off()
         dark = self.frame().srgb
         singles = []
-        for i in range(3):
+        for i in range(N_LIGHTS):
             self.lights.all_off()
             self.lights.set_light(i, True)
             singles.append(self.frame().srgb)
@@ -206,7 +212,8 @@ class RigSession:
         result = CaptureResult(image_path.stem, image_path, meta_path)
         result.blocked = self.blockers(frame.srgb)
         if estimate and not result.blocked:
-            self._estimate(result, frame.srgb)
+            _estimate(result, frame.srgb, self.encoder_or_reason, self.profile, self._roi(frame.srgb),
+                      profile_warnings(self.profile, self.settings()))
         result.seconds = time.perf_counter() - start
         record = {"capture": image_path.name, "blocked": result.blocked, **result.record}
         write_json_atomic(self.folder / "captures" / f"{result.capture_id}.result.json", record)
@@ -221,16 +228,34 @@ class RigSession:
         meta_path = folder / f"{capture_id}.json"
         meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
         image = folder / meta.get("image", f"{capture_id}.png")
-        bgr = cv2.imread(str(image))
-        if bgr is None:
-            raise FileNotFoundError(f"{image}: the capture's image is missing or not one OpenCV reads")
-        profile = meta.get("calibration")
-        if profile is None and self.profile is not None and meta.get("calibration_id") == self.profile["id"]:
-            profile = self.profile          # captures saved before profiles were kept with them
+        if image.suffix.lower() in RAW_EXTENSIONS:
+            rgb = read_raw(image).srgb
+        else:
+            bgr = cv2.imread(str(image))
+            if bgr is None:
+                raise FileNotFoundError(f"{image}: the capture's image is missing or not one OpenCV reads")
+            rgb = bgr[..., ::-1].copy()
         result_path = folder / f"{capture_id}.result.json"
         record = json.loads(result_path.read_text()) if result_path.exists() else {}
-        roi = tuple(meta.get("swatch_roi") or self.swatch_roi or (0, 0, bgr.shape[1], bgr.shape[0]))
-        return LoadedCapture(capture_id, bgr[..., ::-1].copy(), roi, record, profile)
+        profile = meta.get("calibration") or record.get("calibration_profile")   # a still calibrates itself
+        if profile is None and self.profile is not None and meta.get("calibration_id") == self.profile["id"]:
+            profile = self.profile          # captures saved before profiles were kept with them
+        roi = tuple(record.get("swatch_roi") or meta.get("swatch_roi") or self.swatch_roi
+                    or (0, 0, rgb.shape[1], rgb.shape[0]))
+        return LoadedCapture(capture_id, rgb, roi, record, profile)
+
+    def import_still(self, path: str | Path) -> CaptureResult:
+        """A RAW still of the rig as a capture, in this session (see :func:`import_still`)."""
+        return import_still(self.folder, path, self.encoder_or_reason)
+
+    def encoder_or_reason(self):
+        """The encoder, or the one-line reason it cannot be loaded (a missing or broken model file)."""
+        from hairdigi.inference.encoder import ModelError
+
+        try:
+            return self.encoder
+        except ModelError as exc:
+            return str(exc)
 
     def blockers(self, image: np.ndarray) -> list[str]:
         """Reasons not to estimate from this frame; empty when it is fit."""
@@ -247,26 +272,65 @@ class RigSession:
             reasons.append(swatch.message)
         return reasons
 
-    def _estimate(self, result: CaptureResult, image: np.ndarray) -> None:
-        from hairdigi.inference.encoder import ModelError
-        from hairdigi.inference.estimate import calibration_summary, estimate_image, record
-        from hairdigi.inference.preprocess import Roi
-        from hairdigi.render.scenes import RIG_SWATCH_POSE
+def _estimate(result: CaptureResult, image: np.ndarray, encoder_or_reason, profile: dict | None,
+              roi: tuple[int, int, int, int], calibration_warnings: list[str]) -> None:
+    """Colour-correct ``image`` with ``profile``, estimate the swatch in ``roi`` and fill ``result``."""
+    from hairdigi.inference.estimate import calibration_summary, estimate_image, record
+    from hairdigi.inference.preprocess import Roi
+    from hairdigi.render.rig_geometry import RIG_SWATCH_POSE
 
-        try:
-            encoder = self.encoder
-        except ModelError as exc:
-            result.blocked.append(str(exc))
-            return
-        corrected = apply_profile(image, self.profile)
-        x, y, w, h = self._roi(image)
-        calibration_warnings = profile_warnings(self.profile, self.settings())
-        estimate = estimate_image(corrected, encoder, Roi(x, y, w, h), RIG_SWATCH_POSE,
-                                  extra_warnings=calibration_warnings)
-        result.params = estimate.params
-        result.corrected = corrected
-        result.record = record(estimate, encoder, result.image_path.read_bytes(), result.image_path,
-                               calibration_summary(self.profile), RIG_SWATCH_POSE)
+    encoder = encoder_or_reason() if callable(encoder_or_reason) else encoder_or_reason
+    if isinstance(encoder, str):
+        result.blocked.append(encoder)
+        return
+    corrected = apply_profile(image, profile)
+    estimate = estimate_image(corrected, encoder, Roi(*roi), RIG_SWATCH_POSE, extra_warnings=calibration_warnings)
+    result.params = estimate.params
+    result.corrected = corrected
+    result.record = record(estimate, encoder, result.image_path.read_bytes(), result.image_path,
+                           calibration_summary(profile), RIG_SWATCH_POSE)
+
+
+def import_still(folder: str | Path, path: str | Path, encoder_or_reason) -> CaptureResult:
+    """A RAW still (DNG, CR2, NEF, ...) of the rig, taken with the chart in view, as a capture.
+
+    The file is copied into the session first, untouched. Then rawpy decodes it (linear, the
+    camera's own colour space); the still is calibrated on its own chart, since a still camera's
+    processing is not the live feed's; the swatch is found, corrected and estimated. The still's
+    profile is kept in its result record, so reviewing it later corrects it the same way.
+    """
+    start = time.perf_counter()
+    path = Path(path)
+    if path.suffix.lower() not in RAW_EXTENSIONS:
+        raise ValueError(f"{path}: not a RAW still ({', '.join(sorted(RAW_EXTENSIONS))}); "
+                         "open images and videos with hairdigi estimate")
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such RAW file")
+    image_path, meta_path = save_capture(Path(folder) / "captures", raw_path=path,
+                                         meta={"source": "raw still", "original": path.name})
+    result = CaptureResult(image_path.stem, image_path, meta_path)
+    still = read_raw(image_path)
+    profile = None
+    try:
+        profile = calibrate(still.srgb, settings={"camera": still.meta.get("camera"), "still": image_path.name})
+    except CalibrationError as exc:
+        result.blocked.append(f"the still cannot calibrate itself: {exc}")
+    roi = None
+    if profile is not None:
+        from hairdigi.inference.preprocess import find_swatch_roi
+
+        found = find_swatch_roi(still.srgb)
+        roi = (found.x, found.y, found.w, found.h)
+        swatch = check_exposure(still.srgb, roi)[0]
+        if swatch.status == "over":
+            result.blocked.append(swatch.message)
+    if not result.blocked:
+        _estimate(result, still.srgb, encoder_or_reason, profile, roi, profile_warnings(profile, None))
+    result.seconds = time.perf_counter() - start
+    record = {"capture": image_path.name, "blocked": result.blocked, "swatch_roi": list(roi) if roi else None,
+              "calibration_profile": profile, **result.record}
+    write_json_atomic(Path(folder) / "captures" / f"{result.capture_id}.result.json", record)
+    return result
 
 
 def load_results(folder: str | Path) -> list[dict]:
@@ -283,14 +347,14 @@ def load_results(folder: str | Path) -> list[dict]:
 # --- the synthetic twin and exports (no Qt) ---------------------------------------------------
 def twin_spec(roi: tuple[int, int, int, int], frame_size: tuple[int, int]):
     """A swatch scene seen by the rig camera over exactly the ROI of a rig-view frame."""
-    from hairdigi.render import scenes
+    from hairdigi.render import rig_geometry
     from hairdigi.render.renderer import SceneSpec
 
     width, _ = frame_size
-    scale = width / (2 * scenes.RIG_HALF_WIDTH)       # pixels per holder unit in the rig view
+    scale = width / (2 * rig_geometry.RIG_HALF_WIDTH)       # pixels per holder unit in the rig view
     x, y, w, h = roi
-    cx = (x + w / 2 - frame_size[0] / 2) / scale + scenes.RIG_TARGET[0]
-    cy = scenes.RIG_TARGET[1] - (y + h / 2 - frame_size[1] / 2) / scale
+    cx = (x + w / 2 - frame_size[0] / 2) / scale + rig_geometry.RIG_TARGET[0]
+    cy = rig_geometry.RIG_TARGET[1] - (y + h / 2 - frame_size[1] / 2) / scale
     return SceneSpec("swatch", framing="rig", target=(cx, cy, 0.0), half_width=w / 2 / scale), (w, h)
 
 

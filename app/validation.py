@@ -186,7 +186,8 @@ def check_distinct(outputs: dict[str, str | os.PathLike | None]) -> None:
 def check_render(args: argparse.Namespace) -> None:
     """``hairdigi render``: the parameter file, the outputs, and size x spp, depth and camera together."""
     from hairdigi.render.renderer import check_camera, check_size_spp, defaults_for
-    from hairdigi.render.scenes import CAMERA_DISTANCE, PORTRAIT_CAMERA, CameraPose
+    from hairdigi.render.scenes import PORTRAIT_CAMERA
+    from hairdigi.render.rig_geometry import CAMERA_DISTANCE, CameraPose
 
     check_input_file(args.params, "--params")
     inputs = {"--params": args.params}
@@ -247,10 +248,17 @@ def check_dataset(args: argparse.Namespace) -> None:
 
 
 def check_rig(args: argparse.Namespace) -> None:
-    """``hairdigi rig``: the session folder and the swatch area."""
+    """``hairdigi rig``: the session folder, the swatch area, and a RAW still to import."""
     check_output_dir(args.session, "--session")
     if args.roi:
         _parse_roi(args.roi, "--roi")
+    if getattr(args, "still", None):
+        from hairdigi.hardware.cameras import RAW_EXTENSIONS
+
+        still = check_input_file(args.still, "--still")
+        if still.suffix.lower() not in RAW_EXTENSIONS:
+            raise ArgumentError(f"--still {still}: not a RAW still ({', '.join(sorted(RAW_EXTENSIONS))}); "
+                                "estimate images with hairdigi estimate")
 
 
 def _parse_roi(text: str, flag: str) -> tuple[int, int, int, int]:

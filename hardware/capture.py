@@ -5,27 +5,21 @@ import hashlib
 import json
 import os
 import shutil
-import tempfile
 import time
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from hairdigi.render.io.files import publish
+from hairdigi.render.io.files import atomic_path
 
 
 def _atomic_bytes(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        publish(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """A capture is the operator's work: flushed to the disk before it is published."""
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        f.write(data)
+        f.flush()
+        os.fsync(f.fileno())
 
 
 def new_capture_id(now: float | None = None) -> str:
@@ -45,9 +39,8 @@ def save_capture(folder: str | os.PathLike, srgb: np.ndarray | None = None, raw_
     if raw_path is not None:
         raw_path = Path(raw_path)
         image_path = folder / f"{capture_id}{raw_path.suffix.lower()}"
-        tmp = folder / f".{image_path.name}.tmp"
-        shutil.copyfile(raw_path, tmp)
-        publish(tmp, image_path)
+        with atomic_path(image_path) as tmp:
+            shutil.copyfile(raw_path, tmp)
     elif srgb is not None:
         ok, png = cv2.imencode(".png", cv2.cvtColor(srgb, cv2.COLOR_RGB2BGR))
         if not ok:

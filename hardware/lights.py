@@ -9,13 +9,14 @@ from dataclasses import dataclass
 import serial
 import serial.tools.list_ports
 
+from hairdigi.render.rig_geometry import N_LIGHTS  # the rig has as many lights as the board has channels
+
 try:  # pyserial's POSIX backend lets termios.error (not an OSError) escape from a vanished tty
     import termios
     LINK_ERRORS: tuple = (serial.SerialException, OSError, termios.error)
 except ImportError:  # Windows
     LINK_ERRORS = (serial.SerialException, OSError)
 
-N_LIGHTS = 3
 BAUDRATE = 115200
 IDENT_PREFIX = "OK HAIRDIGI-LIGHTS"
 

@@ -18,8 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.hardware.cameras import Frame
-from hairdigi.render import scenes
+from hairdigi.render import rig_geometry
 from hairdigi.render.camera_model import CameraModel, sensor_response
+from hairdigi.render.io.files import atomic_path
 from hairdigi.render.chart import colorchecker_reflectances
 from hairdigi.render.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec
@@ -33,7 +34,7 @@ CACHE_VERSION = 3  # bumped when the absorption mapping or the light images chan
 def swatch_roi(size: tuple[int, int] = SIM_SIZE, margin: float = 0.05) -> tuple[int, int, int, int]:
     """The swatch's visible area in the rig view, as x, y, w, h pixels (inset by ``margin`` units)."""
     half_w, half_l = 0.5 - margin, 0.58 - margin
-    (x0, x1), (y0, y1) = scenes.rig_pixel(np.array([-half_w, half_w]), np.array([half_l, -half_l]), size)
+    (x0, x1), (y0, y1) = rig_geometry.rig_pixel(np.array([-half_w, half_w]), np.array([half_l, -half_l]), size)
     return int(np.ceil(x0)), int(np.ceil(y0)), int(x1 - x0), int(y1 - y0)
 
 
@@ -64,17 +65,15 @@ def render_light_images(hidden: HairParams, size=SIM_SIZE, spp: int = 32, strand
     renderer = Renderer(max_cached=1)
     chart = tuple(map(tuple, colorchecker_reflectances()))
     images = []
-    for i in range(3):
-        lights = tuple(1.0 if j == i else 0.0 for j in range(3))
-        spec = SceneSpec("swatch", framing="rig", chart=chart, target=scenes.RIG_TARGET,
-                         half_width=scenes.RIG_HALF_WIDTH, lights=lights, strand_seed=strand_seed)
+    for i in range(rig_geometry.N_LIGHTS):
+        lights = tuple(1.0 if j == i else 0.0 for j in range(rig_geometry.N_LIGHTS))
+        spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET,
+                         half_width=rig_geometry.RIG_HALF_WIDTH, lights=lights, strand_seed=strand_seed)
         images.append(renderer.render(hidden, spec, size, spp, seed=17 + i).linear)
     stack = np.stack([remove_fireflies(im) for im in images]).astype(np.float32)
     if cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.npy")
-        np.save(tmp, stack)
-        os.replace(tmp, path)
+        with atomic_path(path, ".npy") as tmp:
+            np.save(tmp, stack)
     return stack
 
 
@@ -97,7 +96,7 @@ class SimRig:
         self.frames_served = 0
 
     def levels(self) -> np.ndarray:
-        levels = np.array(self.board.state.levels() if self.board is not None else (1.0, 1.0, 1.0), np.float32)
+        levels = np.array(self.board.state.levels() if self.board is not None else (1.0,) * rig_geometry.N_LIGHTS, np.float32)
         for i in self.dead_lights:
             levels[i] = 0.0
         return levels

@@ -21,8 +21,9 @@ from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, read_image, swatch_crop
 from hairdigi.inference.refine import Refinement, RefineSettings, mean_linear, refine
 from hairdigi.inference.uncertainty import intervals, load_table
+from hairdigi.render.io.version import version
 from hairdigi.render.params import HairParams
-from hairdigi.render.scenes import RIG_SWATCH_POSE, CameraPose
+from hairdigi.render.rig_geometry import RIG_SWATCH_POSE, CameraPose
 from hairdigi.resources import MODELS
 
 UNCERTAINTY_TABLE = MODELS / "uncertainty.json"
@@ -83,6 +84,7 @@ def record(result: EstimateResult, encoder: Encoder, image_bytes: bytes | None =
     """The JSON record of an estimate: parameters, warnings, intervals and provenance."""
     est = result.encoder
     provenance = {
+        "hairdigi_version": version(),
         "model": {"path": str(encoder.path), "sha256": encoder.sha256, "input_size": encoder.input_size},
         "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "roi": None if est.roi is None else [est.roi.x, est.roi.y, est.roi.w, est.roi.h],

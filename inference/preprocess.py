@@ -125,10 +125,10 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
                          f"({MAX_IMAGE_PIXELS / 1e6:.0f} MP); scale it down or crop it around the swatch")
     if img is None:
         raise ImageError(f"{path}: not an image OpenCV can read (PNG, JPEG, TIFF, ...); "
-                         f"for RAW files use the capture command")
+                         f"for a RAW still of the rig use hairdigi rig --still FILE")
     if img.dtype != np.uint8:
         raise ImageError(f"{path}: {img.dtype} ({8 * img.dtype.itemsize}-bit) image; the encoder takes "
-                         f"8-bit sRGB: export 8-bit, or capture RAW through the rig, which converts it")
+                         f"8-bit sRGB: export 8-bit, or import a RAW still with hairdigi rig --still FILE")
     if img.ndim == 2:
         raise ImageError(f"{path}: a greyscale image has no hair colour; use a colour image")
     if img.shape[2] == 4:

@@ -8,17 +8,16 @@ differs from the reference, so RMSE there mixes noise with layout; its ΔE is th
 """
 from __future__ import annotations
 
-import csv
 import os
-import tempfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.io.files import publish
 from tqdm import tqdm
 
+from hairdigi.render.io.figures import save_figure
+from hairdigi.render.io.files import write_csv_atomic
 from hairdigi.render.metrics import mean_colour_delta_e, rmse
 from hairdigi.render.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec, defaults_for
@@ -109,20 +108,8 @@ def run_render_bench(out_dir: str | os.PathLike, quick: bool = False, repeats: i
     return rows
 
 
-def write_csv_atomic(path: Path, rows: list[dict]) -> Path:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    with os.fdopen(fd, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    publish(tmp, path)
-    return path
-
-
 def plot_speed_vs_error(rows: list[dict], path: Path) -> Path:
     """Two panels, seconds against RMSE and against mean-colour ΔE2000, one series per sweep."""
-    import matplotlib
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(12, 5))
@@ -146,9 +133,4 @@ def plot_speed_vs_error(rows: list[dict], path: Path) -> Path:
     axes[0].legend(fontsize=7)
     fig.suptitle("hairdigi bench render: speed against error (labels: the swept value)")
     fig.tight_layout()
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".png")
-    os.close(fd)
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    publish(tmp, path)
-    return path
+    return save_figure(fig, path)

@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import json
 from functools import lru_cache
-from pathlib import Path
 
 import colour
 import numpy as np
 
 from hairdigi.resources import CHARTS
 
-from hairdigi.render import scenes
+from hairdigi.render import rig_geometry
 
 CHART_NAME = "ColorChecker24 - After November 2014"
 TARGETS_FILE = CHARTS / "rig_chart_targets.json"
@@ -38,10 +37,10 @@ def colorchecker_reflectances() -> np.ndarray:
 
 def patch_boxes(size: tuple[int, int], inset: float = 0.6) -> list[tuple[int, int, int, int]]:
     """Pixel boxes (x0, y0, x1, y1) of the central ``inset`` of each patch in the rig view."""
-    half = scenes.CHART_PATCH * inset / 2
+    half = rig_geometry.CHART_PATCH * inset / 2
     boxes = []
-    for cx, cy in scenes.chart_patch_centres():
-        (x0, x1), (y1, y0) = scenes.rig_pixel(np.array([cx - half, cx + half]),
+    for cx, cy in rig_geometry.chart_patch_centres():
+        (x0, x1), (y1, y0) = rig_geometry.rig_pixel(np.array([cx - half, cx + half]),
                                               np.array([cy - half, cy + half]), size)
         boxes.append((int(np.ceil(x0)), int(np.ceil(y0)), int(np.floor(x1)), int(np.floor(y1))))
     return boxes
@@ -58,7 +57,7 @@ def render_chart_targets(size: tuple[int, int] = (400, 300), spp: int = 256) -> 
     from hairdigi.render.renderer import Renderer, SceneSpec
 
     spec = SceneSpec("swatch", framing="rig", chart=tuple(map(tuple, colorchecker_reflectances())),
-                     target=scenes.RIG_TARGET, half_width=scenes.RIG_HALF_WIDTH, strands=200)
+                     target=rig_geometry.RIG_TARGET, half_width=rig_geometry.RIG_HALF_WIDTH, strands=200)
     linear = Renderer(max_cached=1).render(HairParams(), spec, size, spp, seed=0).linear
     return patch_means(linear, size)
 

@@ -1,17 +1,15 @@
 """The hair-colour parameters of Kips et al. 2022, Table 1, with validation and a JSON form."""
 from __future__ import annotations
 
-import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from hairdigi.render.io.files import publish, read_json
+from hairdigi.render.io.files import read_json, write_json_atomic
 
 # (name, low, high) for the six normalised components, in vector order.
 VECTOR_FIELDS: tuple[tuple[str, float, float], ...] = (
@@ -135,22 +133,6 @@ def load_params(path: str | os.PathLike) -> HairParams:
         return HairParams.from_dict(data)
     except HairParamsError as exc:
         raise HairParamsError(f"{path}: {exc}") from None
-
-
-def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
-    """Write JSON to ``path`` through a temporary file and a rename, so no reader sees half a file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(data, f, indent=2)
-            f.write("\n")
-        publish(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
 
 
 def save_params(path: str | os.PathLike, params: HairParams, **provenance: Any) -> Path:

@@ -15,12 +15,13 @@ from typing import Callable, Iterator
 
 import numpy as np
 
+from hairdigi.render import rig_geometry
 from hairdigi.render import scenes
 from hairdigi.render.absorption import hair_bsdf, hair_sigma_a
 from hairdigi.render.params import HairParams
 from hairdigi.render.srgb import linear_to_srgb8
 from hairdigi.render.strands import HAIRSTYLES, Strands, hairstyle_strands, swatch_strands
-from hairdigi.render.variant import is_jit, load_scene, mi
+from hairdigi.render.variant import is_jit, load_scene, mi, select_variant
 
 SCENE_NAMES = ("swatch",) + HAIRSTYLES
 
@@ -78,7 +79,7 @@ def check_size_spp(size: int | tuple[int, int], spp: int) -> None:
                          f"{MAX_SAMPLES:.3g} for one render; lower the size or the spp")
 
 
-def check_camera(pose: scenes.CameraPose, scene: str = "swatch") -> None:
+def check_camera(pose: rig_geometry.CameraPose, scene: str = "swatch") -> None:
     """Raise ValueError naming the camera when its angles or distance are not finite, or its distance
     puts it inside the geometry or absurdly far (both give a black image)."""
     values = (pose.polar_deg, pose.azimuth_deg, pose.distance)
@@ -98,11 +99,11 @@ class SceneSpec:
     the training set, or ``"rig"``, the whole swatch on its holder. ``env`` applies to hairstyles.
     ``strands``, ``max_depth`` None take the scene's defaults. ``lights`` scales the three rig lights.
     ``chart`` adds a colour chart of (24, 3) linear reflectances beside the swatch (swatch only), at
-    ``chart_center`` on the holder (x, y; default ``scenes.CHART_CENTER``).
+    ``chart_center`` on the holder (x, y; default ``rig_geometry.CHART_CENTER``).
     """
 
     name: str = "swatch"
-    camera: scenes.CameraPose | None = None
+    camera: rig_geometry.CameraPose | None = None
     env: str = "studio"
     framing: str = "crop"
     strands: int | None = None
@@ -119,9 +120,9 @@ class SceneSpec:
             raise ValueError(f"unknown scene {self.name!r}; choose one of {', '.join(SCENE_NAMES)}")
         if self.name != "swatch" and self.env not in scenes.ENVIRONMENTS:
             raise ValueError(f"unknown environment {self.env!r}; choose one of {', '.join(scenes.ENVIRONMENTS)}")
-        if self.name == "swatch" and self.framing not in scenes.FRAMING_HALF_WIDTH:
+        if self.name == "swatch" and self.framing not in rig_geometry.FRAMING_HALF_WIDTH:
             raise ValueError(f"unknown framing {self.framing!r}; choose one of "
-                             f"{', '.join(scenes.FRAMING_HALF_WIDTH)}")
+                             f"{', '.join(rig_geometry.FRAMING_HALF_WIDTH)}")
         if self.max_depth is not None and (not _is_int(self.max_depth)
                                            or not MIN_DEPTH <= self.max_depth <= MAX_DEPTH):
             raise ValueError(f"max_depth must be a whole number between {MIN_DEPTH} and {MAX_DEPTH} (depth 1 "
@@ -142,10 +143,10 @@ class SceneSpec:
         return self.max_depth if self.max_depth is not None else defaults_for(self.name).max_depth
 
     @property
-    def pose(self) -> scenes.CameraPose:
+    def pose(self) -> rig_geometry.CameraPose:
         if self.camera is not None:
             return self.camera
-        return scenes.CameraPose() if self.name == "swatch" else scenes.PORTRAIT_CAMERA
+        return rig_geometry.CameraPose() if self.name == "swatch" else scenes.PORTRAIT_CAMERA
 
 
 @dataclass
@@ -179,7 +180,7 @@ class _Loaded:
     scene: object
     params: object
     strand_seed: int
-    camera: scenes.CameraPose
+    camera: rig_geometry.CameraPose
     keys: dict = field(default_factory=dict)
 
 
@@ -191,7 +192,7 @@ class Renderer:
     """
 
     def __init__(self, max_cached: int = 4) -> None:
-        self.variant = mi.variant()
+        self.variant = select_variant()   # the entry point's choice, or the first that works
         self._lock = threading.RLock()
         self._cache: dict[tuple, _Loaded] = {}
         self._max_cached = max_cached
@@ -244,7 +245,7 @@ class Renderer:
                         else scenes.portrait_camera_position(spec.pose))
             p["sensor.to_world"] = mi.AffineTransform4f(scenes.look_at(position, np.asarray(target)).matrix)
             # the field of view follows the distance (the framing is fixed at the holder)
-            p["sensor.x_fov"] = (scenes.swatch_fov(spec.framing, spec.pose.distance, spec.half_width)
+            p["sensor.x_fov"] = (rig_geometry.framing_fov(spec.framing, spec.pose.distance, spec.half_width)
                                  if spec.name == "swatch" else scenes.PORTRAIT_FOV)
             loaded.camera = spec.pose
         if spec.strand_seed != loaded.strand_seed:

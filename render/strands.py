@@ -1,18 +1,22 @@
 """Strand geometry as ``bsplinecurve`` control points with radii, deterministic from a seed.
 
-Units: the swatch holder is 1 unit wide (a 5 cm swatch, so 1 unit = 5 cm); the head proxy is a
-sphere of radius 1 (about 9 cm). Strands are far thicker than real hair (tens of µm) so that a
-few thousand of them cover the surface: the ``hair`` BSDF's absorption is per fibre radius, so
-the radius changes the texture scale but not the colour.
+Units: the swatch holder is 1 unit wide (a 5 cm swatch, so 1 unit = 5 cm); the head (``head.py``,
+a bust whose skull is about 2 units tall) has 1 unit ≈ 9 cm. Strands are far thicker than real
+hair (tens of µm) so that a few thousand of them cover the surface: the ``hair`` BSDF's absorption
+is per fibre radius, so the radius changes the texture scale but not the colour.
+
+Hairstyles grow in three steps (``grow``): guide strands drape from the scalp under gravity and
+collide with the bust; every strand follows its nearest guide (a clump), converging on it towards
+the tip; then waves, curls, frizz, a cut and a last collision. ``STYLES`` holds each style's
+parameters; strand counts and point counts are chosen in ``render/README.md``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-HEAD_RADIUS = 1.0
-HAIRSTYLES = ("straight", "wavy", "curly", "bob", "ponytail")
+from hairdigi.render import head
 
 
 @dataclass(frozen=True)
@@ -72,6 +76,33 @@ class Strands:
         """The strands as a list of (K, 3) arrays."""
         return np.split(self.points, np.cumsum(self.counts)[:-1])
 
+    def starts(self) -> np.ndarray:
+        """Index of every strand's first control point."""
+        return np.concatenate([[0], np.cumsum(self.counts)[:-1]]).astype(np.int64)
+
+    def subset(self, strands: np.ndarray) -> "Strands":
+        """The strands numbered ``strands`` (indices, in the order given)."""
+        strands = np.asarray(strands, dtype=np.int64)
+        starts, counts = self.starts()[strands], self.counts[strands]
+        index = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + np.arange(counts.sum())
+        return Strands(self.points[index], self.radii[index], counts.copy())
+
+    def curves(self, per_segment: int = 4) -> "Strands":
+        """The cubic B-splines Mitsuba draws, sampled ``per_segment`` times a segment, as polylines."""
+        seg = self.segment_indices().astype(np.int64)
+        u = np.arange(per_segment) / per_segment
+        basis = np.stack([(1 - u) ** 3, 3 * u ** 3 - 6 * u ** 2 + 4, -3 * u ** 3 + 3 * u ** 2 + 3 * u + 1, u ** 3], 1) / 6
+        end = np.array([0.0, 1.0, 4.0, 1.0]) / 6
+        rows = np.column_stack([self.points, self.radii]).astype(np.float64)
+        quads = rows[seg[:, None] + np.arange(4)]                       # (segments, 4, 4)
+        samples = np.einsum("uk,skc->suc", basis, quads).reshape(-1, 4)
+        n_seg = self.counts - 3
+        last = np.cumsum(n_seg) - 1
+        ends = np.einsum("k,skc->sc", end, quads[last])
+        out = np.insert(samples, np.cumsum(n_seg) * per_segment, ends, axis=0)
+        return Strands(out[:, :3].astype(np.float32), out[:, 3].astype(np.float32),
+                       (n_seg * per_segment + 1).astype(np.int64))
+
 
 # --- the swatch -------------------------------------------------------------------------------
 
@@ -100,121 +131,335 @@ def swatch_strands(n_strands: int = 2000, seed: int = 0, radius: float = 0.004,
     return Strands.from_grid(pts, radius)
 
 
-# --- hairstyles on a head proxy ---------------------------------------------------------------
+# --- hairstyles on the head -------------------------------------------------------------------
+
+HAIRSTYLES = ("straight", "wavy", "curly", "bob", "ponytail", "afro")
+DOWN = np.array([0.0, -1.0, 0.0])
+#: The crown's whorl: behind the parting, hair radiates from here.
+CROWN = np.array([0.0, 0.8, -0.5])
+
+
+@dataclass(frozen=True)
+class Style:
+    """How one hairstyle grows. Lengths are in scene units (1 unit ≈ 9 cm)."""
+
+    length: float                 #: guide length from the scalp
+    points: int                   #: control points per strand
+    kind: str = "drape"           #: "drape" (falls under gravity), "ponytail" or "afro" (grows outward)
+    length_jitter: float = 0.1    #: each strand is up to this fraction shorter than its guide
+    part_x: float | None = None   #: a parting at this x, from the front hairline to the crown; None: none
+    bend: float = 0.5             #: arc length over which a strand turns from its growth direction to gravity
+    lift: float = 0.3             #: how far strands rise off the scalp along its normal before combing
+    layer: float = 0.08           #: thickness of the hair over the scalp: crown strands lie on top
+    strands_per_clump: int = 16
+    clump: float = 0.4            #: 0: strands keep their offset from the guide; 1: their tips meet it
+    wave: tuple[float, float] = (0.0, 0.5)   #: amplitude, wavelength of planar waves
+    curl: tuple[float, float] = (0.0, 0.2)   #: amplitude, wavelength of helical curls (ringlets, coils)
+    curl_jitter: float = 0.15     #: per-strand variation of the curls' amplitude and wavelength
+    frizz: float = 0.01           #: per-strand random wander, growing to the tip
+    cut_y: float | None = None    #: a blunt cut: tips end at this height in front, 0.25 higher at the back
+    curl_under: float = 0.0       #: ends turned under towards the neck (a bob)
+
+
+STYLES = {
+    "straight": Style(length=2.5, points=32, part_x=0.3, bend=0.35, lift=0.2, layer=0.07,
+                      strands_per_clump=14, clump=0.35, wave=(0.012, 0.8), frizz=0.006, length_jitter=0.12),
+    "wavy": Style(length=2.4, points=44, part_x=0.0, bend=0.35, lift=0.3, layer=0.09,
+                  strands_per_clump=16, clump=0.5, wave=(0.07, 0.42), frizz=0.01, length_jitter=0.12),
+    "curly": Style(length=1.9, points=72, part_x=-0.22, bend=0.45, lift=0.5, layer=0.14,
+                   strands_per_clump=18, clump=0.65, curl=(0.085, 0.21), frizz=0.014, length_jitter=0.18),
+    "bob": Style(length=1.8, points=26, part_x=-0.3, bend=0.3, lift=0.25, layer=0.08,
+                 strands_per_clump=14, clump=0.3, wave=(0.006, 0.8), frizz=0.004, length_jitter=0.03,
+                 cut_y=-1.3, curl_under=0.12),
+    "ponytail": Style(length=1.7, points=40, kind="ponytail", bend=0.5, layer=0.03,
+                      strands_per_clump=16, clump=0.45, wave=(0.02, 0.6), frizz=0.008, length_jitter=0.15),
+    "afro": Style(length=0.8, points=96, kind="afro", lift=1.0, layer=0.02, strands_per_clump=6, clump=0.35,
+                  curl=(0.045, 0.075), curl_jitter=0.25, frizz=0.02, length_jitter=0.1),
+}
+assert tuple(STYLES) == HAIRSTYLES
+
 
 def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
 
 
-def scalp_roots(n: int, rng: np.random.Generator) -> np.ndarray:
-    """Unit directions on the scalp: the upper head, minus the face (the face looks along +z)."""
+def _smoothstep(lo: float, hi: float, x: np.ndarray) -> np.ndarray:
+    t = np.clip((x - lo) / (hi - lo), 0.0, 1.0)
+    return t * t * (3 - 2 * t)
+
+
+def in_parting(points: np.ndarray, part_x: float | None, half_gap: float = 0.022) -> np.ndarray:
+    """Whether scalp ``points`` lie in the parting's bare line (front hairline to the crown)."""
+    if part_x is None:
+        return np.zeros(len(points), dtype=bool)
+    p = np.asarray(points)
+    return (np.abs(p[:, 0] - part_x) < half_gap) & (p[:, 2] > CROWN[2] + 0.05) & (p[:, 1] > 0.2)
+
+
+def scalp_roots(n: int, rng: np.random.Generator, part_x: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` root points on the scalp (above the hairline, off the parting) and their outward normals."""
     out = np.empty((0, 3))
     while len(out) < n:
-        d = _unit(rng.normal(size=(4 * n, 3)))
-        face = (d[:, 2] > 0.45) & (d[:, 1] < 0.55)
-        temples = (d[:, 2] > 0.2) & (d[:, 1] < 0.25)
-        keep = (d[:, 1] > -0.15) & ~face & ~temples
-        out = np.vstack([out, d[keep]])
-    return out[:n]
+        d = _unit(rng.normal(size=(3 * n + 16, 3)))
+        d = d[head.hairline_margin(head.SKULL_CENTER + d) > rng.uniform(0.0, 4.0, len(d))]  # a soft hairline
+        p = head.surface_along(d)
+        out = np.vstack([out, p[~in_parting(p, part_x)]])
+    out = out[:n]
+    return out, head.gradient(out)
 
 
-def _drape(roots: np.ndarray, length: np.ndarray, n_pts: int, stiffness: float,
-           rng: np.random.Generator) -> np.ndarray:
-    """Walk strands from their roots under gravity, pushed out of the head sphere."""
+def _comb(roots: np.ndarray, normals: np.ndarray, part_x: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """Each root's combing direction on the scalp, and its side of the parting (±1)."""
+    radial = _unit(roots - CROWN)
+    side = np.where(roots[:, 0] >= (0.0 if part_x is None else part_x), 1.0, -1.0)
+    if part_x is None:
+        comb = radial
+    else:   # in front of the crown: away from the parting, a little back; behind it: from the crown
+        away = np.column_stack([side, np.full(len(roots), -0.2), np.full(len(roots), -0.45)])
+        w = _smoothstep(CROWN[2] - 0.1, CROWN[2] + 0.35, roots[:, 2])[:, None]
+        comb = w * _unit(away) + (1 - w) * radial
+    comb = comb - np.sum(comb * normals, axis=1, keepdims=True) * normals
+    return _unit(comb), side
+
+
+def _keep_off_face(p: np.ndarray, side: np.ndarray, margin: np.ndarray) -> np.ndarray:
+    """Hair does not hang in front of the face: points there move sideways to its edge."""
+    half = 0.74 + margin
+    front = (p[:, 2] > 0.05) & (p[:, 1] < 0.45) & (p[:, 1] > -1.6) & (np.abs(p[:, 0]) < half)
+    if front.any():
+        p = p.copy()
+        p[front, 0] = side[front] * half[front]
+    return p
+
+
+def _margins(heights: np.ndarray, radius: float, layer: float, rng: np.random.Generator) -> np.ndarray:
+    """Each strand's height over the bust: higher roots lie on top of lower ones."""
+    rank = np.argsort(np.argsort(heights)) / max(len(heights) - 1, 1)
+    return 1.5 * radius + 0.004 + layer * np.clip(rank + rng.normal(0, 0.12, len(heights)), 0, 1)
+
+
+def _ramp(margin: np.ndarray, arc: np.ndarray, over: float = 0.25) -> np.ndarray:
+    """The margin rises from the scalp to its full height over the first ``over`` units of a strand."""
+    base = 1e-3 + 0 * margin
+    return base[:, None] + (margin - base)[:, None] * _smoothstep(0.0, over, arc)
+
+
+def _drape(roots: np.ndarray, normals: np.ndarray, comb: np.ndarray, side: np.ndarray, lengths: np.ndarray,
+           n_pts: int, style: Style, margin: np.ndarray) -> np.ndarray:
+    """Walk strands from their roots: combed, then turning to gravity, sliding over the bust."""
     s = len(roots)
-    shell = HEAD_RADIUS * (1.02 + 0.06 * rng.uniform(0, 1, (s, 1)))
-    p = roots * HEAD_RADIUS * 1.005
-    # start along the normal, combed back and away from the face
-    v = _unit(0.6 * roots + np.column_stack([0.3 * roots[:, 0], np.zeros(s),
-                                             -0.9 * np.clip(roots[:, 2], 0, None) - 0.3]))
-    step = (length / (n_pts - 1))[:, None]
-    down = np.array([0.0, -1.0, 0.0])
+    step = lengths / (n_pts - 1)
+    keep = np.exp(-step / style.bend)[:, None]
+    arc = step[:, None] * np.arange(n_pts)[None, :]
+    m = _ramp(margin, arc)
+    p = roots + normals * m[:, :1]
+    v = _unit(style.lift * normals + comb)
     out = np.empty((s, n_pts, 3))
     out[:, 0] = p
     for k in range(1, n_pts):
-        v = _unit(stiffness * v + (1 - stiffness) * down)
-        p = p + step * v
-        # in front of the face nothing hangs: push such points behind the jaw plane
-        front = (p[:, 2] > 0.35) & (p[:, 1] < 0.4) & (np.abs(p[:, 0]) < 0.9)
-        p[front, 2] = 0.35
-        p = _push_out(p, shell)
-        out[:, k] = p
+        v = _unit(keep * v + (1 - keep) * DOWN)
+        q = p + step[:, None] * v
+        q = _keep_off_face(q, side, m[:, k])
+        q = head.push_out(q, m[:, k], iterations=2)
+        v = _unit(q - p)
+        p = out[:, k] = q
     return out
 
 
-def _push_out(points: np.ndarray, radius: np.ndarray | float) -> np.ndarray:
-    """Move points that lie inside a sphere of ``radius`` around the origin onto its surface."""
-    r = np.linalg.norm(points, axis=-1, keepdims=True)
-    return np.where(r < radius, points / np.maximum(r, 1e-9) * radius, points)
+def _resample(curves: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """Each strand's first ``keep`` fraction of its arc length, resampled to the same point count."""
+    s, k, _ = curves.shape
+    seg = np.linalg.norm(np.diff(curves, axis=1), axis=-1)
+    arc = np.concatenate([np.zeros((s, 1)), np.cumsum(seg, axis=1)], axis=1)
+    target = arc[:, -1:] * keep[:, None] * np.linspace(0, 1, k)[None, :]
+    idx = np.clip(np.sum(arc[:, None, :] <= target[:, :, None], axis=2) - 1, 0, k - 2)
+    a0 = np.take_along_axis(arc, idx, 1)
+    a1 = np.take_along_axis(arc, idx + 1, 1)
+    w = ((target - a0) / np.maximum(a1 - a0, 1e-12))[..., None]
+    p0 = np.take_along_axis(curves, idx[..., None], 1)
+    p1 = np.take_along_axis(curves, idx[..., None] + 1, 1)
+    return p0 + w * (p1 - p0)
 
 
 def _frame(curves: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit normals per point, perpendicular to each strand's tangent."""
+    """Two unit normals per point, perpendicular to each strand's tangent, turning smoothly along it."""
     t = _unit(np.gradient(curves, axis=1))
     ref = np.where(np.abs(t[..., 1:2]) < 0.9, np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0]))
     n1 = _unit(np.cross(t, ref))
     return n1, np.cross(t, n1)
 
 
-def _displace(curves: np.ndarray, arc: np.ndarray, amplitude: float, wavelength: float,
-              helix: bool, rng: np.random.Generator) -> np.ndarray:
-    """Waves (planar) or curls (helical) whose amplitude fades in from the root."""
+def _displace(curves: np.ndarray, arc: np.ndarray, amplitude: np.ndarray, wavelength: np.ndarray,
+              phase: np.ndarray, helix: bool) -> np.ndarray:
+    """Waves (planar) or curls (helical) of ``amplitude`` (per strand and point) and ``wavelength`` and
+    ``phase`` (per strand), faded in over the first 0.2 units."""
     n1, n2 = _frame(curves)
-    phase = rng.uniform(0, 2 * np.pi, (len(curves), 1))
-    lam = wavelength * rng.uniform(0.85, 1.15, (len(curves), 1))
-    amp = amplitude * rng.uniform(0.7, 1.3, (len(curves), 1)) * np.clip(arc / 0.35, 0, 1)
-    ang = 2 * np.pi * arc / lam + phase
-    offset = amp[..., None] * np.cos(ang)[..., None] * n1
+    amp = amplitude * _smoothstep(0.0, 0.2, arc)
+    ang = 2 * np.pi * arc / wavelength[:, None] + phase[:, None]
+    offset = (amp * np.cos(ang))[..., None] * n1
     if helix:
-        offset += amp[..., None] * np.sin(ang)[..., None] * n2
+        offset += (amp * np.sin(ang))[..., None] * n2
     return curves + offset
 
 
-def _ponytail(roots: np.ndarray, n_pts: int, rng: np.random.Generator) -> np.ndarray:
-    """Hair gathered from the scalp to a tie at the back of the head, then falling as a tail."""
-    tie = np.array([0.0, 0.25, -1.08])
-    s = len(roots)
-    n_gather = n_pts // 3
+def _nearest(points: np.ndarray, centres: np.ndarray, labels: np.ndarray | None = None,
+             centre_labels: np.ndarray | None = None) -> np.ndarray:
+    """Index of the nearest centre for every point (only among centres with the same label, if given)."""
+    out = np.empty(len(points), dtype=np.int64)
+    for start in range(0, len(points), 2048):
+        chunk = points[start:start + 2048]
+        d = np.sum((chunk[:, None, :] - centres[None, :, :]) ** 2, axis=-1)
+        if labels is not None:
+            d = d + 1e6 * (labels[start:start + 2048, None] != centre_labels[None, :])
+        out[start:start + 2048] = np.argmin(d, axis=1)
+    return out
+
+
+def _afro_guides(roots: np.ndarray, normals: np.ndarray, lengths: np.ndarray, n_pts: int,
+                 rng: np.random.Generator) -> np.ndarray:
+    """Strands growing outward from the scalp to a rounded silhouette around the head."""
+    centre, radii = np.array([0.0, 0.32, -0.14]), np.array([1.6, 1.42, 1.6])
+    g = _unit(normals + 0.6 * _unit(roots - centre) + rng.normal(0, 0.12, roots.shape))
+    g[:, 1] = np.maximum(g[:, 1], -0.6)
+    # distance along g from the root to the silhouette ellipsoid (the root is inside it)
+    o, d = (roots - centre) / radii, g / radii
+    a, b, c = np.sum(d * d, 1), 2 * np.sum(o * d, 1), np.sum(o * o, 1) - 1
+    reach = (-b + np.sqrt(np.maximum(b * b - 4 * a * c, 0))) / (2 * a)
+    length = np.clip(reach, 0.25, None) * lengths / lengths.max()
+    t = np.linspace(0, 1, n_pts)[None, :, None]
+    curves = roots[:, None] + g[:, None] * length[:, None, None] * t
+    curves[..., 1] -= 0.08 * (length[:, None] * t[..., 0]) ** 2   # a little weight
+    return curves
+
+
+def _ponytail(roots: np.ndarray, normals: np.ndarray, style: Style, n_strands: int, lengths: np.ndarray,
+              margin: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Hair pulled over the scalp to a tie at the back of the head, then a clumped tail falling from it."""
+    n_gather = style.points // 3
+    tie_dir = _unit(np.array([0.0, 0.05, -1.0]))
+    tie = head.surface_along(tie_dir[None])[0] + 0.09 * tie_dir
+    # the gather: along the skull, from each root's direction to the tie's
     t = np.linspace(0, 1, n_gather)[None, :, None]
-    start = roots * HEAD_RADIUS * 1.01
-    # slerp-like path over the head: blend, then push onto a shell just above the scalp
-    path = (1 - t) * start[:, None] + t * tie
-    r = np.linalg.norm(path, axis=-1, keepdims=True)
-    path = path / r * np.maximum(r, HEAD_RADIUS * 1.02)
-    tail_len = rng.uniform(1.3, 1.7, (s, 1))
-    u = np.linspace(0, 1, n_pts - n_gather + 1)[1:][None, :]
-    spread = rng.normal(0, 0.05, (s, 1, 2)) * (0.3 + u[..., None])
-    tail = np.empty((s, n_pts - n_gather, 3))
-    tail[..., 0] = tie[0] + spread[..., 0]
-    tail[..., 1] = tie[1] - tail_len * u
-    tail[..., 2] = tie[2] - 0.15 * np.sin(np.pi * u * 0.6) + spread[..., 1]
-    return np.concatenate([path, tail], axis=1)
+    d0 = _unit(roots - head.SKULL_CENTER)[:, None]
+    dirs = _unit((1 - t) * d0 + t * tie_dir)
+    radius = 1.0 / np.sqrt(np.sum((dirs / head.SKULL_RADII) ** 2, axis=-1, keepdims=True))
+    path = head.SKULL_CENTER + dirs * radius
+    spread = rng.normal(0, 0.035, (len(roots), 2))
+    across = np.stack([np.array([1.0, 0.0, 0.0]), _unit(np.array([0.0, 1.0, 0.05]))])
+    tie_points = tie + spread @ across
+    pull = _smoothstep(0.55, 1.0, t)
+    path = (1 - pull) * path + pull * tie_points[:, None]
+    arc = np.linspace(0, 1, n_gather)[None, :] * 1.5
+    path = head.push_out(path.reshape(-1, 3), _ramp(0.3 * margin, arc).reshape(-1)).reshape(path.shape)
+    # the tail: guides fall from the tie, every strand follows the nearest one
+    n_tail = style.points - n_gather
+    n_guides = max(4, n_strands // style.strands_per_clump)
+    guide_spread = rng.normal(0, 0.035, (n_guides, 2))
+    guide_roots = tie + guide_spread @ across
+    up = np.tile(_unit(np.array([0.0, 0.35, -1.0])), (n_guides, 1))
+    tail_len = style.length * rng.uniform(0.9, 1.0, n_guides)
+    guides = _drape(guide_roots, up, np.zeros_like(up), np.ones(n_guides), tail_len, n_tail + 1,
+                    replace(style, lift=1.0, bend=0.35), np.full(n_guides, 0.02))
+    assign = _nearest(spread, guide_spread)
+    tails = _follow(guides, guide_roots, tie_points, assign, style, lengths, rng)
+    return np.concatenate([path, tails[:, 1:]], axis=1)
+
+
+def _follow(guides: np.ndarray, guide_roots: np.ndarray, roots: np.ndarray, assign: np.ndarray, style: Style,
+            fraction: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Every strand follows its guide over ``fraction`` of its length, its offset from the guide
+    shrinking towards the tip by ``style.clump``, with some frizz of its own."""
+    s, (_, k, _) = len(roots), guides.shape
+    t = np.linspace(0, 1, k)[None, :]
+    pos = t * fraction[:, None] * (k - 1)
+    i0 = np.clip(np.floor(pos).astype(np.int64), 0, k - 2)
+    w = (pos - i0)[..., None]
+    g = guides[assign]
+    rows = np.arange(s)[:, None]
+    base = g[rows, i0] * (1 - w) + g[rows, i0 + 1] * w
+    offset = roots - guide_roots[assign]
+    shrink = 1 - style.clump * _smoothstep(0.0, 1.0, t * fraction[:, None]) ** 0.7
+    curves = base + offset[:, None, :] * shrink[..., None]
+    if style.frizz > 0:
+        a = rng.normal(0, 1, (s, 2, 3))
+        f = rng.uniform(0.5, 2.0, (s, 2))
+        ph = rng.uniform(0, 2 * np.pi, (s, 2))
+        wander = np.sin(2 * np.pi * f[:, None, :] * t[..., None] + ph[:, None, :])   # (s, k, 2)
+        curves += style.frizz * (t ** 1.5)[..., None] * np.einsum("skj,sjc->skc", wander, a)
+    return curves
+
+
+def grow(style: Style, n_strands: int, seed: int = 0, radius: float = 0.006) -> Strands:
+    """Grow ``n_strands`` strands of ``style`` on the head (see the module docstring)."""
+    rng = np.random.default_rng(seed)
+    guide_rng = np.random.default_rng([seed, 1])
+    k = style.points
+    roots, normals = scalp_roots(n_strands, rng, style.part_x)
+    n_guides = max(4, min(n_strands, n_strands // max(style.strands_per_clump, 1)))
+    g_roots, g_normals = scalp_roots(n_guides, guide_rng, style.part_x)
+    margin = _margins(roots[:, 1] + 0.3 * roots[:, 2], radius, style.layer, rng)
+    g_margin = _margins(g_roots[:, 1] + 0.3 * g_roots[:, 2], radius, style.layer, guide_rng)
+    fraction = 1.0 - style.length_jitter * rng.uniform(0, 1, n_strands) ** 1.5
+    comb, side = _comb(roots, normals, style.part_x)
+    g_comb, g_side = _comb(g_roots, g_normals, style.part_x)
+    g_len = style.length * guide_rng.uniform(0.95, 1.0, n_guides)
+    if style.kind == "ponytail":
+        curves = _ponytail(roots, normals, style, n_strands, fraction, margin, rng)
+    else:
+        if style.kind == "afro":
+            guides = _afro_guides(g_roots, g_normals, g_len, k, guide_rng)
+        else:
+            guides = _drape(g_roots, g_normals, g_comb, g_side, g_len, k, style, g_margin)
+        assign = _nearest(roots, g_roots, side, g_side)
+        curves = _follow(guides, g_roots, roots, assign, style, fraction, rng)
+        arc = np.concatenate([np.zeros((n_strands, 1)),
+                              np.cumsum(np.linalg.norm(np.diff(curves, axis=1), axis=-1), axis=1)], axis=1)
+        clump_phase = guide_rng.uniform(0, 2 * np.pi, n_guides)[assign]
+        t = arc / np.maximum(arc[:, -1:], 1e-9)
+        for (amp, lam), helix in ((style.wave, False), (style.curl, True)):
+            if amp > 0:   # coherent in a clump (one phase), varied per strand; curls widen to the tip
+                j = style.curl_jitter
+                amplitude = amp * (1 + j * rng.uniform(-1, 1, (n_strands, 1))) * (0.6 + 0.4 * t if helix else 1.0)
+                curves = _displace(curves, arc, amplitude, lam * (1 + 0.5 * j * rng.uniform(-1, 1, n_strands)),
+                                   clump_phase + rng.normal(0, 0.35, n_strands), helix)
+        if style.cut_y is not None:
+            curves = _cut(curves, style.cut_y)
+        if style.curl_under > 0:
+            curves = _curl_under(curves, style.curl_under)
+    arc = np.concatenate([np.zeros((n_strands, 1)),
+                          np.cumsum(np.linalg.norm(np.diff(curves, axis=1), axis=-1), axis=1)], axis=1)
+    m = _ramp(margin, arc).reshape(-1)
+    flat = curves.reshape(-1, 3)
+    flat = _keep_off_face(flat, np.repeat(side, k), m) if style.kind != "afro" else flat
+    curves = head.push_out(flat, m).reshape(curves.shape)
+    # a B-spline starts near its second point: a mirrored first point makes it start at the root
+    curves = np.concatenate([2 * curves[:, :1] - curves[:, 1:2], curves], axis=1)
+    return Strands.from_grid(curves, radius)
+
+
+def _cut(curves: np.ndarray, cut_y: float) -> np.ndarray:
+    """A blunt cut: each strand ends where it first goes below the cut line (higher at the back)."""
+    level = cut_y + 0.25 * np.clip(-curves[..., 2], 0, 1)
+    below = curves[..., 1] < level
+    seg = np.linalg.norm(np.diff(curves, axis=1), axis=-1)
+    arc = np.concatenate([np.zeros((len(curves), 1)), np.cumsum(seg, axis=1)], axis=1)
+    first = np.where(below.any(axis=1), np.argmax(below, axis=1), curves.shape[1] - 1)
+    keep = np.take_along_axis(arc, first[:, None], 1)[:, 0] / np.maximum(arc[:, -1], 1e-9)
+    return _resample(curves, np.clip(keep, 0.05, 1.0))
+
+
+def _curl_under(curves: np.ndarray, amount: float) -> np.ndarray:
+    """Turn the last quarter of every strand in towards the neck."""
+    t = np.linspace(0, 1, curves.shape[1])[None, :, None]
+    w = _smoothstep(0.7, 1.0, t) ** 2
+    inward = _unit((curves - np.array([0.0, 0.0, -0.2])) * np.array([1.0, 0.0, 1.0]))
+    return curves - amount * w * inward + np.array([0.0, 0.5 * amount, 0.0]) * w
 
 
 def hairstyle_strands(style: str, n_strands: int = 4000, seed: int = 0, radius: float = 0.006) -> Strands:
-    """One of ``HAIRSTYLES`` on the head proxy (a sphere of radius 1 at the origin, face along +z)."""
+    """One of ``HAIRSTYLES`` on the head (``head.py``'s bust, face along +z)."""
     if style not in HAIRSTYLES:
         raise ValueError(f"unknown hairstyle {style!r}; choose one of {', '.join(HAIRSTYLES)}")
     if n_strands < 1:
         raise ValueError(f"a hairstyle needs at least 1 strand, got {n_strands}")
-    rng = np.random.default_rng(seed)
-    roots = scalp_roots(n_strands, rng)
-    if style == "ponytail":
-        curves = _ponytail(roots, 36, rng)
-        return Strands.from_grid(_push_out(curves, HEAD_RADIUS * 1.005), radius)
-    length = {"straight": 2.4, "wavy": 2.2, "curly": 1.7, "bob": 1.15}[style]
-    n_pts = {"straight": 32, "wavy": 40, "curly": 72, "bob": 20}[style]
-    lengths = length * rng.uniform(0.9, 1.05, n_strands)
-    stiffness = 0.75 if style != "curly" else 0.8
-    curves = _drape(roots, lengths, n_pts, stiffness, rng)
-    arc = np.linspace(0, 1, n_pts)[None, :] * lengths[:, None]
-    if style == "wavy":
-        curves = _displace(curves, arc, 0.07, 0.45, helix=False, rng=rng)
-    elif style == "curly":
-        curves = _displace(curves, arc, 0.06, 0.16, helix=True, rng=rng)
-    elif style == "bob":
-        # ends turn in under the chin line
-        curl_in = np.clip((arc - 0.8) / 0.35, 0, 1)[..., None] ** 2
-        curves = curves - 0.15 * curl_in * _unit(curves * np.array([1.0, 0.0, 1.0]))
-    # waves, curls and the bob's curl-in may dip into the head: collide once more, last
-    return Strands.from_grid(_push_out(curves, HEAD_RADIUS * 1.005), radius)
+    return grow(STYLES[style], n_strands, seed, radius)

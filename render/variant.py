@@ -7,6 +7,9 @@ curve geometry in memory. Set ``HAIRDIGI_VARIANT`` to force one.
 ``select_variant("auto")`` (the command line's ``--variant auto``) tries ``cuda_ad_rgb`` first, with
 a one-float allocation on the GPU to prove that Mitsuba finds one. A variant can be switched only
 while no Mitsuba object exists: the command line switches before it loads any scene.
+
+Importing this module chooses nothing: the entry points (the command line, the app) choose, or else
+the first renderer or scene builder that needs Mitsuba objects calls ``select_variant()``.
 """
 from __future__ import annotations
 
@@ -62,7 +65,10 @@ def is_jit() -> bool:
     return select_variant().startswith(("llvm", "cuda"))
 
 
-select_variant()
+def transform(matrix) -> "mi.ScalarTransform4f":
+    """A 4 x 4 matrix (numpy or nested lists) as a Mitsuba scalar transform, for scene dicts."""
+    select_variant()
+    return mi.ScalarTransform4f([[float(v) for v in row] for row in matrix])
 
 
 def load_scene(scene_dict: dict):
@@ -73,6 +79,7 @@ def load_scene(scene_dict: dict):
     samples: two loads of one dict rendered different (equally valid) images. Objects that are
     instantiated one by one keep the order in which they are given.
     """
+    select_variant()
     children = {key: value if key == "type" or not isinstance(value, dict) else mi.load_dict(value)
                 for key, value in scene_dict.items()}
     return mi.load_dict(children)

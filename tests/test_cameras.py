@@ -4,34 +4,11 @@ import numpy as np
 import pytest
 
 from hairdigi.hardware.cameras import CameraError, FileCamera, OpenCVCamera, read_raw
+from raw_stills import write_raw_still
 
 
 def write_dng(path, width=64, height=48, level=(0.25, 0.5, 0.125)):
-    """A minimal linear Bayer DNG (RGGB, 16-bit) made with tifffile's CFA and DNG tags."""
-    import tifffile
-
-    cfa = np.zeros((height, width), np.uint16)
-    white = 4095
-    r, g, b = (int(v * white) for v in level)
-    cfa[0::2, 0::2] = r
-    cfa[0::2, 1::2] = g
-    cfa[1::2, 0::2] = g
-    cfa[1::2, 1::2] = b
-    identity = [(1, 1), (0, 1), (0, 1), (0, 1), (1, 1), (0, 1), (0, 1), (0, 1), (1, 1)]
-    tags = [
-        (50706, "B", 4, (1, 4, 0, 0), True),          # DNGVersion
-        (50707, "B", 4, (1, 1, 0, 0), True),          # DNGBackwardVersion
-        (50708, "s", 0, "hairdigi test camera", True),  # UniqueCameraModel
-        (33421, "H", 2, (2, 2), True),                # CFARepeatPatternDim
-        (33422, "B", 4, (0, 1, 1, 2), True),          # CFAPattern: RGGB
-        (50714, "H", 1, 0, True),                     # BlackLevel
-        (50717, "H", 1, white, True),                 # WhiteLevel
-        (50721, "2i", 9, [v for pair in identity for v in pair], True),  # ColorMatrix1 (SRATIONAL)
-        (50778, "H", 1, 21, True),                    # CalibrationIlluminant1: D65
-        (50728, "2I", 3, (1, 1, 1, 1, 1, 1), True),   # AsShotNeutral
-    ]
-    tifffile.imwrite(path, cfa, photometric=32803, extratags=tags, subfiletype=0)
-    return path
+    return write_raw_still(path, np.broadcast_to(np.asarray(level, float), (height, width, 3)))
 
 
 def test_dng_written_here_reads_back_linear(tmp_path):

@@ -6,7 +6,7 @@ import pytest
 from hairdigi.inference.domain import domain_stats, domain_warnings
 from hairdigi.render.params import HairParams
 from hairdigi.render.renderer import SceneSpec, render
-from hairdigi.render.scenes import CameraPose
+from hairdigi.render.rig_geometry import CameraPose
 
 RNG = np.random.default_rng(0)
 GARBAGE = {

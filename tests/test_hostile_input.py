@@ -58,7 +58,7 @@ def materials(tmp_path_factory):
     """A parameter file, a simulated rig frame with the chart in view, and a calibration profile from it."""
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, remove_fireflies
     from hairdigi.inference.calibration import calibrate
-    from hairdigi.render import scenes
+    from hairdigi.render import rig_geometry
     from hairdigi.render.camera_model import CameraModel, sensor_response
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.renderer import Renderer, SceneSpec
@@ -66,7 +66,7 @@ def materials(tmp_path_factory):
     root = tmp_path_factory.mktemp("materials")
     (root / "p.json").write_text(json.dumps({"hair": DEFAULT_HIDDEN.to_dict()}))
     spec = SceneSpec("swatch", framing="rig", chart=tuple(map(tuple, colorchecker_reflectances())),
-                     target=scenes.RIG_TARGET, half_width=scenes.RIG_HALF_WIDTH, strands=1000)
+                     target=rig_geometry.RIG_TARGET, half_width=rig_geometry.RIG_HALF_WIDTH, strands=1000)
     linear = remove_fireflies(Renderer(max_cached=1).render(DEFAULT_HIDDEN, spec, SIM, 4, seed=1).linear)
     frame = sensor_response(linear, CameraModel(), np.random.default_rng(0))
     cv2.imwrite(str(root / "photo.png"), frame[..., ::-1])

@@ -11,7 +11,7 @@ from hairdigi.inference.encoder import Encoder
 from hairdigi.inference.preprocess import Roi, find_swatch_roi, swatch_crop
 from hairdigi.render.params import HairParams
 from hairdigi.render.renderer import SceneSpec, render
-from hairdigi.render.scenes import CameraPose, light_blocks_view
+from hairdigi.render.rig_geometry import CameraPose, light_blocks_view
 
 from conftest import TINY
 

@@ -41,3 +41,24 @@ def test_import_contracts_hold_on_the_built_package(wheel, tmp_path):
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-2000:]
     assert "4 kept, 0 broken" in result.stdout
     assert "Analyzed 0 files" not in result.stdout
+
+
+def _modules_after_import(statement: str) -> dict:
+    code = (f"import json, sys; {statement}; mods = sys.modules; "
+            "mi = mods.get('mitsuba'); print(json.dumps({'mitsuba': 'mitsuba' in mods, "
+            "'variant': mi.variant() if mi else None, 'qt': 'PySide6' in mods, 'torch': 'torch' in mods}))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
+    import json
+    return json.loads(out.stdout)
+
+
+def test_the_rig_geometry_imports_without_mitsuba():
+    seen = _modules_after_import("import hairdigi.render.rig_geometry, hairdigi.inference.preprocess")
+    assert not seen["mitsuba"] and not seen["qt"] and not seen["torch"]
+
+
+def test_importing_the_renderer_chooses_no_variant():
+    """The entry points or the first renderer choose Mitsuba's variant; an import never does."""
+    seen = _modules_after_import("import hairdigi.render.renderer, hairdigi.render.scenes, "
+                                 "hairdigi.inference.training.dataset, hairdigi.app.rig_session")
+    assert seen["variant"] is None and not seen["qt"]

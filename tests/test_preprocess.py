@@ -36,25 +36,25 @@ def flat_png(path, width: int, height: int, rgb=(120, 80, 40), rows: int = 50) -
 def chart_positions() -> list[tuple[float, float]]:
     """Chart centres the rig allows: the whole chart on the holder, in view, right of the swatch
     (the view is RIG_HALF_WIDTH either side of RIG_TARGET, 4:3), at its corners, edges and default."""
-    from hairdigi.render import scenes
+    from hairdigi.render import rig_geometry
     from hairdigi.render.strands import SWATCH_WIDTH
 
-    pitch = scenes.CHART_PATCH + scenes.CHART_GAP
-    half_w, half_h = 3 * pitch + scenes.CHART_GAP, 2 * pitch + scenes.CHART_GAP   # the board
-    view_x = scenes.RIG_TARGET[0] + scenes.RIG_HALF_WIDTH
-    view_y = scenes.RIG_HALF_WIDTH * SIM[1] / SIM[0]
+    pitch = rig_geometry.CHART_PATCH + rig_geometry.CHART_GAP
+    half_w, half_h = 3 * pitch + rig_geometry.CHART_GAP, 2 * pitch + rig_geometry.CHART_GAP   # the board
+    view_x = rig_geometry.RIG_TARGET[0] + rig_geometry.RIG_HALF_WIDTH
+    view_y = rig_geometry.RIG_HALF_WIDTH * SIM[1] / SIM[0]
     x_lo, x_hi = SWATCH_WIDTH / 2 + 0.02 + half_w, view_x - 0.02 - half_w
     y_hi = view_y - 0.02 - half_h
-    return [scenes.CHART_CENTER] + [(x, y) for x in (x_lo, x_hi) for y in (-y_hi, 0.0, y_hi)]
+    return [rig_geometry.CHART_CENTER] + [(x, y) for x in (x_lo, x_hi) for y in (-y_hi, 0.0, y_hi)]
 
 
 def chart_box(center, size=SIM) -> tuple[int, int, int, int]:
     """The chart board's pixel box (x, y, w, h) in the rig view."""
-    from hairdigi.render import scenes
+    from hairdigi.render import rig_geometry
 
-    pitch = scenes.CHART_PATCH + scenes.CHART_GAP
-    half_w, half_h = 3 * pitch + scenes.CHART_GAP, 2 * pitch + scenes.CHART_GAP
-    (x0, x1), (y0, y1) = scenes.rig_pixel(np.array([center[0] - half_w, center[0] + half_w]),
+    pitch = rig_geometry.CHART_PATCH + rig_geometry.CHART_GAP
+    half_w, half_h = 3 * pitch + rig_geometry.CHART_GAP, 2 * pitch + rig_geometry.CHART_GAP
+    (x0, x1), (y0, y1) = rig_geometry.rig_pixel(np.array([center[0] - half_w, center[0] + half_w]),
                                           np.array([center[1] + half_h, center[1] - half_h]), size)
     return int(x0), int(y0), int(x1 - x0), int(y1 - y0)
 
@@ -70,7 +70,7 @@ def overlap(a, b) -> int:
 def rig_frames():
     """{chart centre: simulated rig frame (8-bit sRGB through the camera model)}, tiny renders."""
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, remove_fireflies
-    from hairdigi.render import scenes
+    from hairdigi.render import rig_geometry
     from hairdigi.render.camera_model import CameraModel, sensor_response
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.renderer import Renderer, SceneSpec
@@ -80,8 +80,8 @@ def rig_frames():
     rng = np.random.default_rng(0)
     frames = {}
     for centre in chart_positions():
-        spec = SceneSpec("swatch", framing="rig", chart=chart, target=scenes.RIG_TARGET,
-                         half_width=scenes.RIG_HALF_WIDTH, chart_center=centre, strands=1000)
+        spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET,
+                         half_width=rig_geometry.RIG_HALF_WIDTH, chart_center=centre, strands=1000)
         linear = remove_fireflies(renderer.render(DEFAULT_HIDDEN, spec, SIM, 4, seed=1).linear)
         frames[centre] = sensor_response(linear, CameraModel(), rng)
     return frames

@@ -8,7 +8,7 @@ import pytest
 
 from hairdigi.render.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec
-from hairdigi.render.scenes import CameraPose
+from hairdigi.render.rig_geometry import CameraPose
 
 SIZE, SPP, STRANDS = 32, 4, 300
 

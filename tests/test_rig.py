@@ -210,3 +210,59 @@ def test_an_old_capture_is_reviewed_with_its_own_calibration(tmp_path):
     expected = apply_profile(loaded.frame[y:y + h, x:x + w].copy(), first)
     assert np.array_equal(loaded.corrected_swatch(), expected)
     assert not np.array_equal(expected, apply_profile(loaded.frame[y:y + h, x:x + w].copy(), second))
+
+
+def test_a_raw_still_of_the_rig_is_a_capture_calibrated_on_its_own_chart(tmp_path):
+    """A still camera's DNG of the rig (its own colour cast and exposure): copied into the session
+    first, calibrated on the chart in the still, estimated, and reviewed later with that profile."""
+    from raw_stills import write_raw_still
+
+    from hairdigi.render.metrics import delta_e2000
+
+    session = RigSession.simulated_rig(tmp_path / "s", spp=SPP)
+    try:
+        session.calibrate()
+        live = session.capture()
+        # a still camera of twice the feed's resolution (each 2 x 2 Bayer cell sees one feed pixel),
+        # with a colour cast and an exposure of its own
+        radiance = session.camera.radiance().repeat(2, axis=0).repeat(2, axis=1)
+        still = write_raw_still(tmp_path / "IMG_0001.dng", radiance * np.array([1.25, 1.0, 0.8]) * 0.7)
+        result = session.import_still(still)
+        loaded = session.load_capture(result.capture_id)
+    finally:
+        session.close()
+    assert result.image_path.read_bytes() == still.read_bytes()          # kept as shot, before processing
+    assert not result.blocked and result.params is not None
+    assert result.record["provenance"]["calibration"]["delta_e2000_after"]["mean"] < 1.5
+    # the same swatch as the live capture: the refined colours agree
+    assert float(delta_e2000(np.array(result.record["refinement"]["rendered_linear_rgb"]),
+                             np.array(live.record["refinement"]["rendered_linear_rgb"]))) < 1.0
+    assert loaded.profile is not None and loaded.frame.shape == radiance.shape
+
+
+def test_a_file_that_is_not_a_raw_still_is_refused_before_anything_is_written(tmp_path):
+    from hairdigi.app.rig_session import import_still
+
+    png = tmp_path / "frame.png"
+    png.write_bytes(b"not used")
+    with pytest.raises(ValueError, match="not a RAW still"):
+        import_still(tmp_path / "s", png, "no encoder needed")
+    assert not (tmp_path / "s").exists()
+
+
+def test_rig_still_on_the_command_line(tmp_path, capsys):
+    """``hairdigi rig --still``: no camera or board; the still's file is refused if it is not RAW."""
+    from raw_stills import write_raw_still
+
+    from hairdigi.app.cli import main
+
+    png = tmp_path / "x.png"
+    png.write_bytes(b"\x89PNG")
+    assert main(["rig", "--still", str(png), "--session", str(tmp_path / "s")]) == 2
+    assert "not a RAW still" in capsys.readouterr().err
+    rig = SimRig(spp=SPP)
+    still = write_raw_still(tmp_path / "IMG_2.dng", (rig.radiance() * 0.8).repeat(2, 0).repeat(2, 1))
+    assert main(["rig", "--still", str(still), "--session", str(tmp_path / "s")]) == 0
+    out = capsys.readouterr().out
+    assert "calibrated on the still's own chart" in out and "estimate in" in out
+    assert len(list((tmp_path / "s" / "captures").glob("*.dng"))) == 1

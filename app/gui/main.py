@@ -78,6 +78,7 @@ def run_app(sim: bool = False, session: str | None = None, tour: str | None = No
     menu = window.menuBar().addMenu("&File")
     menu.addAction("Settings…", lambda: SettingsDialog(window).exec())
     menu.addAction("Quit", window.close)
+    window.menuBar().addMenu("&Help").addAction("About hairdigi", window.show_about)
     if reason:
         window.statusBar().showMessage(f"simulated rig: {reason}")
     window.show()

@@ -17,7 +17,7 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QFileDialog, QGridLayout, Q
 
 from hairdigi.app import rig_session as rs
 from hairdigi.app.gui.images import overlay, to_pixmap
-from hairdigi.app.gui.workers import FeedThread, Task, start
+from hairdigi.app.gui.workers import FrameFeed, Task, start
 from hairdigi.render.params import VECTOR_FIELDS, HairParams
 from hairdigi.render.renderer import SceneSpec, default_renderer
 from hairdigi.render.scenes import ENVIRONMENTS
@@ -53,7 +53,8 @@ class MainWindow(QMainWindow):
         self.chart_box = None
         self.last_frame = None
         self._build(strand_view)
-        self.feed = FeedThread(session.camera.read, self.opts["feed_fps"])
+        session.frames.period = 1.0 / self.opts["feed_fps"]
+        self.feed = FrameFeed(session.frames)
         self.feed.frame.connect(self._on_frame)
         self.feed.failed.connect(self.show_banner)
         self.feed.start()
@@ -483,6 +484,24 @@ class MainWindow(QMainWindow):
                 self.statusBar().showMessage(f"exported to {path}")
             except (ValueError, OSError) as exc:
                 self.show_banner(str(exc))
+
+    def show_about(self):
+        """Help > About: the version, the model's sha256 and the Mitsuba variant (what a bug report needs)."""
+        from PySide6.QtWidgets import QMessageBox
+
+        from hairdigi.inference.encoder import ModelError
+        from hairdigi.render.io.version import version
+        from hairdigi.render.variant import select_variant
+
+        try:
+            model = f"{self.session.encoder.path.name}, sha256 {self.session.encoder.sha256}"
+        except ModelError as exc:
+            model = f"not loaded: {exc}"
+        box = QMessageBox(QMessageBox.Icon.Information, "About hairdigi", f"hairdigi {version()}", parent=self)
+        box.setInformativeText(f"Model: {model}\nMitsuba variant: {select_variant()}")
+        box.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        box.open()   # not modal to the app: the feed and renders keep running
+        return box
 
     # -- shutdown ----------------------------------------------------------------------------
     def closeEvent(self, event) -> None:

@@ -12,7 +12,7 @@ from pathlib import Path
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
 
-from hairdigi.render.params import write_json_atomic
+from hairdigi.render.io.files import write_json_atomic
 
 
 def run_tour(window, out_dir: str | Path) -> None:

@@ -1,12 +1,11 @@
-"""Work off the UI thread: a cancellable task runner and the live-feed thread."""
+"""Work off the UI thread: a cancellable task runner, and the live feed relayed from the frame source."""
 from __future__ import annotations
 
 import threading
-import time
 import traceback
 from typing import Callable
 
-from PySide6.QtCore import QObject, QRunnable, QThread, QThreadPool, Signal
+from PySide6.QtCore import QObject, QRunnable, QThreadPool, Signal
 
 
 class TaskSignals(QObject):
@@ -55,30 +54,27 @@ def start(task: Task, pool: QThreadPool | None = None) -> Task:
     return task
 
 
-class FeedThread(QThread):
-    """Reads frames from a camera as fast as ``fps`` allows and emits them; errors stop the feed."""
+class FrameFeed(QObject):
+    """The live feed: relays the session's frame source (the camera's one owner) onto the UI thread."""
 
     frame = Signal(object)
     failed = Signal(str)
 
-    def __init__(self, read: Callable, fps: float = 20.0) -> None:
+    def __init__(self, source) -> None:
         super().__init__()
-        self.read = read
-        self.period = 1.0 / fps
-        self._stop = threading.Event()
+        self.source = source
         self.frames = 0
+        self._unsubscribe = None
 
-    def run(self) -> None:
-        while not self._stop.is_set():
-            start = time.perf_counter()
-            try:
-                self.frame.emit(self.read())
-                self.frames += 1
-            except Exception as exc:
-                self.failed.emit(f"camera: {exc}")
-                return
-            self._stop.wait(max(0.0, self.period - (time.perf_counter() - start)))
+    def _relay(self, frame) -> None:
+        self.frames += 1
+        self.frame.emit(frame)
+
+    def start(self) -> None:
+        if self._unsubscribe is None:
+            self._unsubscribe = self.source.subscribe(self._relay, lambda message: self.failed.emit(f"camera: {message}"))
 
     def stop(self) -> None:
-        self._stop.set()
-        self.wait(2000)
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+            self._unsubscribe = None

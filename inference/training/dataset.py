@@ -17,17 +17,16 @@ from __future__ import annotations
 import json
 import multiprocessing as mp
 import os
-import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.io.files import publish
+from hairdigi.render.io.files import atomic_path
 
 from hairdigi.render.params import HairParams, sample_params
-from hairdigi.render.scenes import CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
+from hairdigi.render.rig_geometry import CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
 
 MANIFEST = "manifest.json"
 STORES = ("linear16", "srgb8")
@@ -193,10 +192,9 @@ def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
 def write_shard(root: str | os.PathLike, shard: int, arrays: dict[str, np.ndarray]) -> Path:
     """Write a shard's arrays to ``shard-NNNNN.npz`` in ``root`` atomically (a temporary file, renamed)."""
     path = shard_path(Path(root), shard)
-    fd, tmp = tempfile.mkstemp(dir=root, prefix=f".{path.stem}.", suffix=".npz")
-    os.close(fd)
-    np.savez(tmp, **{name: arrays[name] for name in SHARD_FIELDS})
-    return publish(tmp, path)
+    with atomic_path(path, ".npz") as tmp:
+        np.savez(tmp, **{name: arrays[name] for name in SHARD_FIELDS})
+    return path
 
 
 def _render_shard(args: tuple) -> tuple[int, int, float]:
@@ -220,7 +218,7 @@ def _check_manifest(root: Path, config: DatasetConfig, variant: str | None = Non
             raise ValueError(f"{root} holds a dataset made with other settings {diff} (stored, asked); "
                              f"use another --out or the same settings to resume")
     else:
-        from hairdigi.render.params import write_json_atomic
+        from hairdigi.render.io.files import write_json_atomic
         from hairdigi.render.variant import mi
         write_json_atomic(path, {"config": asdict(config), "format": "shard-NNNNN.npz: images (N,S,S,3) "
                                  "linear float16 radiance (store linear16) or uint8 sRGB (srgb8); params (N,6) normalised Table 1 vector; cameras (N,3) "
@@ -240,7 +238,7 @@ def _check_variant(root: Path, variant: str, has_shards: bool) -> None:
     if has_shards:
         raise ValueError(f"{root} was rendered with Mitsuba variant {stored}, not {variant}; resume it with "
                          f"--variant {stored}, or use another --out")
-    from hairdigi.render.params import write_json_atomic
+    from hairdigi.render.io.files import write_json_atomic
     write_json_atomic(root / MANIFEST, {**manifest, "mitsuba_variant": variant})
 
 

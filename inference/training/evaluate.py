@@ -30,7 +30,8 @@ import numpy as np
 from hairdigi.inference.training.dataset import DatasetConfig, generate, load, sample_spec
 from hairdigi.inference.refine import RefineSettings, mean_linear, refine
 from hairdigi.render.metrics import delta_e2000, l1_255, ms_ssim
-from hairdigi.render.params import VECTOR_FIELDS, HairParams, write_json_atomic
+from hairdigi.render.params import VECTOR_FIELDS, HairParams
+from hairdigi.render.io.files import atomic_path, write_json_atomic
 
 EVAL_SEED = 1_000_003  # training datasets use small seeds; this one is disjoint by construction
 SPANS = np.array([hi - lo for _, lo, hi in VECTOR_FIELDS])
@@ -121,9 +122,8 @@ def judge_file(root: str | os.PathLike, judge: Judge = JUDGE) -> Path:
 
 
 def _save_npz(path: Path, arrays: dict) -> None:
-    tmp = path.with_name(f".{path.stem}.tmp.npz")
-    np.savez(tmp, **arrays)
-    os.replace(tmp, path)
+    with atomic_path(path, ".npz") as tmp:
+        np.savez(tmp, **arrays)
 
 
 def _image_row(prefix: str, rendered: np.ndarray, truth_judge: np.ndarray | None, input_srgb: np.ndarray) -> dict:

@@ -2,12 +2,11 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.io.files import publish
+from hairdigi.render.io.files import atomic_path
 
 
 def export_onnx(model, path: str | os.PathLike, input_size: int) -> Path:
@@ -18,13 +17,11 @@ def export_onnx(model, path: str | os.PathLike, input_size: int) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     model = model.eval().to(memory_format=torch.contiguous_format)
     dummy = torch.zeros(1, 3, input_size, input_size)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".onnx")
-    os.close(fd)
-    # the TorchScript exporter needs no onnxscript; one file, weights inside
-    torch.onnx.export(model, (dummy,), tmp, dynamo=False, input_names=["image"],
-                      output_names=["params", "logits"], opset_version=17,
-                      dynamic_axes={"image": {0: "batch"}, "params": {0: "batch"}, "logits": {0: "batch"}})
-    publish(tmp, path)
+    with atomic_path(path, ".onnx") as tmp:
+        # the TorchScript exporter needs no onnxscript; one file, weights inside
+        torch.onnx.export(model, (dummy,), str(tmp), dynamo=False, input_names=["image"],
+                          output_names=["params", "logits"], opset_version=17,
+                          dynamic_axes={"image": {0: "batch"}, "params": {0: "batch"}, "logits": {0: "batch"}})
     return path
 
 

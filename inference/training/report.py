@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.inference.training.evaluate import evaluate
-from hairdigi.render.params import write_json_atomic
+from hairdigi.render.io.files import write_json_atomic, write_text_atomic
+from hairdigi.render.io.version import version
 
 
 def bench_encoders(onnx_paths: list[str | os.PathLike], out_dir: str | os.PathLike, n: int = 300,
@@ -18,7 +19,7 @@ def bench_encoders(onnx_paths: list[str | os.PathLike], out_dir: str | os.PathLi
     """Latency (ONNX, 1 thread, median) against the encoder-alone error of several encoders on one
     clean held-out set. Writes ``encoder_bench.csv`` and ``encoder_bench.png``."""
     from hairdigi.inference.encoder import Encoder
-    from hairdigi.render.bench import write_csv_atomic
+    from hairdigi.render.io.files import write_csv_atomic
 
     out = Path(out_dir)
     data_root = Path(data_root) if data_root else out / "heldout"   # one held-out set for every variant
@@ -101,6 +102,7 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
     a = evaluation["buckets"]["all"]
     card = {
         "model": Path(onnx_path).name, "sha256": sha256_file(onnx_path), "date": time.strftime("%Y-%m-%d"),
+        "hairdigi_version": version(),
         "architecture": {**history["encoder"], "parameters": history["parameters"],
                          "description": "strided conv blocks (conv3x3 s2 + conv3x3, BatchNorm, ReLU), global "
                                         "average pooling, MLP 64, sigmoid over 6 normalised parameters"},
@@ -130,6 +132,7 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
     lines = [
         f"# Model card: {card['model']}", "",
         f"- sha256 `{card['sha256']}`, made {card['date']}",
+        f"- hairdigi version {card['hairdigi_version']}",
         f"- Architecture: {card['architecture']['description']}; width {history['encoder']['width']}, "
         f"{history['encoder']['blocks']} blocks, input {history['encoder']['input_size']}² px, "
         f"{history['parameters']:,} parameters.",
@@ -202,7 +205,4 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
     notes = out_path.with_name(f"{out_path.stem}-notes.md")
     if notes.exists():
         lines += ["", notes.read_text().rstrip()]
-    tmp = out_path.with_name(f".{out_path.name}")
-    tmp.write_text("\n".join(lines) + "\n")
-    os.replace(tmp, out_path)
-    return out_path
+    return write_text_atomic(out_path, "\n".join(lines) + "\n")

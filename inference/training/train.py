@@ -20,6 +20,7 @@ from hairdigi.inference.training.dataset import load, usable
 from hairdigi.inference.preprocess import encode
 from hairdigi.render.camera_model import CameraModel, CaptureErrors, random_camera, sensor_response
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
+from hairdigi.render.io.files import atomic_path
 
 
 @dataclass(frozen=True)
@@ -188,12 +189,11 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
             print(f"epoch {epoch + 1}/{config.epochs}: train loss {row['train_loss']:.5f}  val MSE {val_mse:.5f}  "
                   f"val appearance MSE {val_appearance:.5f}  "
                   f"({row['seconds']:.1f} s)", flush=True)
-        tmp = ckpt.with_suffix(".tmp")
-        torch.save({"model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
-                    "epoch": epoch, "history": history, "encoder": encoder_config.to_dict(),
-                    "train": asdict(config)}, tmp)
-        os.replace(tmp, ckpt)
-    from hairdigi.render.params import write_json_atomic
+        with atomic_path(ckpt) as tmp:
+            torch.save({"model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
+                        "epoch": epoch, "history": history, "encoder": encoder_config.to_dict(),
+                        "train": asdict(config)}, tmp)
+    from hairdigi.render.io.files import write_json_atomic
     write_json_atomic(out / "history.json", history)
     plot_history(history, out / "training_curve.png")
     return history
@@ -212,9 +212,9 @@ def load_trained(out_dir: str | os.PathLike):
 
 
 def plot_history(history: dict, path: Path) -> Path:
-    import matplotlib
-    matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from hairdigi.render.io.figures import save_figure
 
     rows = history["epochs"]
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -228,8 +228,4 @@ def plot_history(history: dict, path: Path) -> Path:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    tmp = path.with_name(f".{path.name}")
-    fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
-    os.replace(tmp, path)
-    return path
+    return save_figure(fig, path)

@@ -1,8 +1,15 @@
-"""Atomic file publication: write to a temporary file beside the target, then rename over it."""
+"""Files, written atomically: every writer goes through :func:`atomic_path`, which hands out a
+temporary path beside the target and renames it over the target only when the write succeeded, so
+no reader ever sees half a file and a failed write leaves the old file in place."""
 from __future__ import annotations
 
+import csv
+import json
 import os
+import tempfile
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any, Iterator
 
 
 def _umask() -> int:
@@ -22,6 +29,49 @@ def publish(tmp: str | os.PathLike, path: str | os.PathLike) -> Path:
     return Path(path)
 
 
+@contextmanager
+def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
+    """A temporary path beside ``path`` to write to; published as ``path`` when the block succeeds.
+
+    ``suffix`` (default: ``path``'s) matters to writers that choose the format by extension
+    (``cv2.imwrite``, ``np.savez``)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=suffix or path.suffix or ".tmp")
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        publish(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
+def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+    return Path(path)
+
+
+def write_text_atomic(path: str | os.PathLike, text: str) -> Path:
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
+
+
+def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
+    """JSON, indented, with a final newline."""
+    return write_text_atomic(path, json.dumps(data, indent=2) + "\n")
+
+
+def write_csv_atomic(path: str | os.PathLike, rows: list[dict]) -> Path:
+    """Rows of one shape as CSV, the first row's keys as the header."""
+    with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    return Path(path)
+
+
 #: A parameter file, calibration profile or manifest is a few kB; anything this large is the wrong file.
 MAX_JSON_BYTES = 16 * 1024 * 1024
 
@@ -29,8 +79,6 @@ MAX_JSON_BYTES = 16 * 1024 * 1024
 def read_json(path: str | os.PathLike, error: type[Exception], missing: str, invalid: str):
     """Parse a JSON file; a missing or malformed file raises ``error`` with ``path: missing`` or
     ``path: invalid`` (``{exc}`` in ``invalid`` is replaced by the parser's message)."""
-    import json
-
     path = Path(path)
     try:
         size = path.stat().st_size
