@@ -5,6 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hairdigi.render.srgb import srgb8_to_linear
+
 #: The white patch should sit in this 8-bit band: bright, with headroom before clipping.
 WHITE_BAND = (185.0, 240.0)
 WHITE_TARGET_LINEAR = 0.62    # the middle of the band, linear
@@ -15,8 +17,8 @@ SWATCH_BAND = (12.0, 235.0)   # loose: black hair is dark, platinum is bright
 
 
 def _linear(v: np.ndarray | float) -> np.ndarray:
-    v = np.asarray(v, float) / 255.0
-    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+    """8-bit sRGB levels (any float) to linear, through the one sRGB decoding (``render.srgb``)."""
+    return srgb8_to_linear(v)
 
 
 def luminance8(img: np.ndarray) -> np.ndarray:

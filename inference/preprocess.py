@@ -13,6 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from hairdigi.render.io.files import read_bytes
 from hairdigi.render.srgb import linear_to_srgb, srgb8_to_linear
 
 MIN_SIDE = 32          # smaller images hold too few strands to judge a colour
@@ -87,20 +88,7 @@ def image_size(data: bytes) -> tuple[int, int] | None:
 
 def _read_bytes(path: Path) -> bytes:
     """The file's bytes, with an ImageError naming the path and the fix for every way reading fails."""
-    try:
-        size = path.stat().st_size
-        if path.is_dir():
-            raise ImageError(f"{path}: is a folder; give the path of an image file")
-        if size > MAX_IMAGE_BYTES:
-            raise ImageError(f"{path}: {size / 1e6:.0f} MB is too large for one swatch image (at most "
-                             f"{MAX_IMAGE_BYTES / 1e6:.0f} MB); export a smaller JPEG or PNG")
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise ImageError(f"{path}: no such file") from None
-    except PermissionError:
-        raise ImageError(f"{path}: permission denied; make it readable (chmod +r) or use a copy") from None
-    except OSError as exc:
-        raise ImageError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    return read_bytes(path, ImageError, "a swatch image", MAX_IMAGE_BYTES, "export a smaller JPEG or PNG")
 
 
 def read_image(path: str | os.PathLike) -> np.ndarray:

@@ -91,19 +91,23 @@ def run_render_bench(out_dir: str | os.PathLike, quick: bool = False, repeats: i
         spec = _spec(case.scene, case.strands, case.depth)
         first = renderer.render(BENCH_HAIR[0], spec, case.size, case.spp, seed=1).seconds
         ref_key = next(k for k in refs if k[:2] == (case.scene, case.size))
-        times, cpus, errs, des = [], [], [], []
+        times, cpus, errs, des, nonfinite = [], [], [], [], 0
         for i, hair in enumerate(BENCH_HAIR):
             for r in range(repeats):
                 res = renderer.render(hair, spec, case.size, case.spp, seed=100 + r)
                 times.append(res.seconds)
                 cpus.append(res.cpu_seconds)
+                nonfinite += res.nonfinite
             errs.append(rmse(res.linear, references[ref_key][i]))
             des.append(mean_colour_delta_e(res.linear, references[ref_key][i]))
         rows.append({**asdict(case), "seconds": float(np.median(times)), "cpu_s": float(np.median(cpus)),
                      "first_s": first,
                      "rmse": float(np.mean(errs)), "mean_delta_e2000": float(np.mean(des)),
-                     "max_delta_e2000": float(np.max(des)), "variant": renderer.variant})
+                     "max_delta_e2000": float(np.max(des)), "nonfinite": nonfinite, "variant": renderer.variant})
     write_csv_atomic(out / "render_bench.csv", rows)
+    bad = sum(r["nonfinite"] for r in rows)
+    print(f"non-finite values returned by the path tracer over all cases: {bad}"
+          + ("" if not bad else " (written as 0; see the CSV's nonfinite column)"))
     plot_speed_vs_error(rows, out / "render_bench.png")
     return rows
 

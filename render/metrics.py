@@ -28,6 +28,29 @@ def mean_colour_delta_e(image_a: np.ndarray, image_b: np.ndarray) -> float:
     return float(delta_e2000(image_a.reshape(-1, 3).mean(0), image_b.reshape(-1, 3).mean(0)))
 
 
+def pixel_delta_e(image_a: np.ndarray, image_b: np.ndarray) -> float:
+    """Mean per-pixel ΔE2000 of two linear-RGB images of one shape (how far a preview is from a reference)."""
+    a, b = np.asarray(image_a, dtype=float), np.asarray(image_b, dtype=float)
+    if a.shape != b.shape:
+        raise ValueError(f"per-pixel ΔE2000 needs images of one shape, got {a.shape} and {b.shape}")
+    return float(np.mean(delta_e2000(a, b)))
+
+
+def delta_e_map(image_a: np.ndarray, image_b: np.ndarray, sigma_px: float = 0.0) -> np.ndarray:
+    """(H, W) ΔE2000 of two linear-RGB images, both first smoothed by a Gaussian of ``sigma_px`` pixels.
+
+    Smoothing at the fibre scale leaves colour differences and removes what no colour is: single
+    fibres, sensor and render noise.
+    """
+    a, b = np.asarray(image_a, dtype=float), np.asarray(image_b, dtype=float)
+    if a.shape != b.shape or a.ndim != 3 or a.shape[2] != 3:
+        raise ValueError(f"a ΔE2000 map needs two (H, W, 3) images of one shape, got {a.shape} and {b.shape}")
+    if sigma_px > 0:
+        a = gaussian_filter(a, (sigma_px, sigma_px, 0), mode="nearest")
+        b = gaussian_filter(b, (sigma_px, sigma_px, 0), mode="nearest")
+    return delta_e2000(a, b)
+
+
 def rmse(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean((np.asarray(a, float) - np.asarray(b, float)) ** 2)))
 

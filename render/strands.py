@@ -44,7 +44,7 @@ class Strands:
 
         Mitsuba 3.9.1's ``bsplinecurve`` reads one segment past its array on some rays under
         ``llvm_ad_rgb`` and segfaults; an extra strand at the end makes that read land in valid
-        memory (see shared/reference/mitsuba-hair-notes.md).
+        memory (``render/README.md``; ``tests/test_render.py`` renders the case that crashed).
         """
         dummy = np.asarray(where, dtype=np.float32) + np.array(
             [[0, 0, 0], [0, 0, 1e-3], [0, 0, 2e-3], [0, 0, 3e-3]], dtype=np.float32)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from hairdigi.hardware.cameras import CameraError, FileCamera, OpenCVCamera, read_raw
-from raw_stills import write_raw_still
+from media import write_raw_still, write_video
 
 
 def write_dng(path, width=64, height=48, level=(0.25, 0.5, 0.125)):
@@ -29,12 +29,7 @@ def test_broken_raw_is_a_clear_error(tmp_path):
 
 
 def test_video_file_replays_and_loops(tmp_path):
-    path = str(tmp_path / "session.avi")
-    writer = cv2.VideoWriter(path, cv2.VideoWriter_fourcc(*"MJPG"), 10, (64, 48))
-    assert writer.isOpened()
-    for i in range(5):
-        writer.write(np.full((48, 64, 3), 40 * i, np.uint8))
-    writer.release()
+    path = str(write_video(tmp_path / "session.avi"))
     cam = FileCamera(path)
     levels = [cam.read().srgb.mean() for _ in range(7)]
     cam.close()

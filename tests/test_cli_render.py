@@ -100,7 +100,10 @@ def test_bench_render_quick_writes_a_table_where_depth_matters(tmp_path, capsys)
 
     assert main(["bench", "render", "--quick", "--out", str(tmp_path)]) == 0
     rows = list(csv.DictReader(open(tmp_path / "render_bench.csv")))
-    assert (tmp_path / "render_bench.png").stat().st_size > 0 and "cases" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert (tmp_path / "render_bench.png").stat().st_size > 0 and "cases" in out
+    assert "non-finite values returned by the path tracer over all cases: 0" in out
+    assert all(r["nonfinite"] == "0" for r in rows)
     swatch = [r for r in rows if r["scene"] == "swatch"]
     shallow = next(r for r in swatch if r["sweep"] == "depth")
     deep = next(r for r in swatch if r["sweep"] == "spp" and r["spp"] == shallow["spp"])

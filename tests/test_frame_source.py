@@ -2,9 +2,8 @@
 import threading
 import time
 
-import cv2
-import numpy as np
 import pytest
+from media import write_video
 
 from hairdigi.hardware.cameras import CameraError, FileCamera
 from hairdigi.hardware.frame_source import FrameSource
@@ -36,12 +35,7 @@ class WatchedCamera(FileCamera):
 
 @pytest.fixture
 def video(tmp_path):
-    path = tmp_path / "feed.avi"
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 30, (32, 24))
-    for i in range(30):
-        writer.write(np.full((24, 32, 3), 8 * i, np.uint8))
-    writer.release()
-    return path
+    return write_video(tmp_path / "feed.avi", frames=30, size=(32, 24), step=8, fps=30)
 
 
 def test_the_feed_and_three_workers_never_read_the_camera_at_once(video):

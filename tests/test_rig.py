@@ -171,15 +171,11 @@ def test_a_changed_camera_exposure_makes_the_profile_stale(tmp_path):
 
 def test_a_real_camera_reports_its_settings(tmp_path):
     """An OpenCV camera (here a video file through cv2.VideoCapture) reports what the driver does."""
-    import cv2
+    from media import write_video
 
     from hairdigi.hardware.cameras import OpenCVCamera
 
-    path = tmp_path / "feed.avi"
-    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 10, (96, 64))
-    for k in range(5):
-        writer.write(np.full((64, 96, 3), 40 * k, np.uint8))
-    writer.release()
+    path = write_video(tmp_path / "feed.avi", size=(96, 64))
     camera = OpenCVCamera(str(path))
     try:
         settings = camera.settings()
@@ -215,7 +211,7 @@ def test_an_old_capture_is_reviewed_with_its_own_calibration(tmp_path):
 def test_a_raw_still_of_the_rig_is_a_capture_calibrated_on_its_own_chart(tmp_path):
     """A still camera's DNG of the rig (its own colour cast and exposure): copied into the session
     first, calibrated on the chart in the still, estimated, and reviewed later with that profile."""
-    from raw_stills import write_raw_still
+    from media import write_raw_still
 
     from hairdigi.render.metrics import delta_e2000
 
@@ -252,7 +248,7 @@ def test_a_file_that_is_not_a_raw_still_is_refused_before_anything_is_written(tm
 
 def test_rig_still_on_the_command_line(tmp_path, capsys):
     """``hairdigi rig --still``: no camera or board; the still's file is refused if it is not RAW."""
-    from raw_stills import write_raw_still
+    from media import write_raw_still
 
     from hairdigi.app.cli import main
 
@@ -266,3 +262,16 @@ def test_rig_still_on_the_command_line(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "calibrated on the still's own chart" in out and "estimate in" in out
     assert len(list((tmp_path / "s" / "captures").glob("*.dng"))) == 1
+
+
+def test_the_shipped_chart_targets_are_the_chart_rendered_in_todays_rig():
+    """``resources/charts/rig_chart_targets.json`` is ``render_chart_targets``' output: a change to the
+    rig's lights, holder or chart that would make calibration aim at stale targets fails here."""
+    from hairdigi.render.chart import render_chart_targets
+    from hairdigi.render.metrics import delta_e2000
+
+    shipped, source = rig_chart_targets()
+    assert source.startswith("rendered in the rig")
+    fresh = render_chart_targets(spp=32)
+    de = delta_e2000(fresh, shipped)
+    assert de.mean() < 0.5 and de.max() < 1.5, de

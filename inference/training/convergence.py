@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.inference.training.dataset import DatasetConfig, load, sample_spec
-from hairdigi.inference.training.evaluate import JUDGE, Judge, capture, judge_file, judge_render, scene_of
+from hairdigi.inference.training.dataset import DatasetConfig, load, sample_spec, scene_of
+from hairdigi.inference.training.evaluate import JUDGE, Judge, capture, judge_file, judge_render
 from hairdigi.inference.refine import RefineSettings, mean_linear, refine
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.params import HairParams

@@ -157,6 +157,15 @@ def _renderer():
     return renderer
 
 
+def scene_of(config: DatasetConfig, index: int):
+    """Sample ``index``'s scene (camera, strand layout, framing): the one way from a sample to a scene."""
+    from hairdigi.render.renderer import SceneSpec
+
+    s = sample_spec(config, index)
+    return SceneSpec("swatch", camera=s.camera, framing=config.framing, strands=config.strands,
+                     strand_seed=s.strand_seed, max_depth=config.max_depth)
+
+
 def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
                  threads: int = 0) -> dict[str, np.ndarray]:
     """Render shard ``shard`` in this process and return its arrays (``SHARD_FIELDS``).
@@ -168,7 +177,6 @@ def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
     if threads:
         import drjit as dr
         dr.set_thread_count(threads)
-    from hairdigi.render.renderer import SceneSpec
     from hairdigi.render.variant import select_variant
 
     if variant is not None:
@@ -178,9 +186,7 @@ def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
     renderer = _renderer()
     for i in indices:
         s = sample_spec(config, i)
-        spec = SceneSpec("swatch", camera=s.camera, framing=config.framing, strands=config.strands,
-                         strand_seed=s.strand_seed, max_depth=config.max_depth)
-        result = renderer.render(s.params, spec, config.size, config.spp, s.render_seed)
+        result = renderer.render(s.params, scene_of(config, i), config.size, config.spp, s.render_seed)
         images.append(result.linear.astype(np.float16) if config.store == "linear16" else result.srgb)
         vectors.append(s.params.to_vector())
         cameras.append([s.camera.polar_deg, s.camera.azimuth_deg, s.camera.distance])

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.inference.training.dataset import DatasetConfig, generate, load, sample_spec
+from hairdigi.inference.training.dataset import DatasetConfig, generate, load, sample_spec, scene_of
 from hairdigi.inference.refine import RefineSettings, mean_linear, refine
 from hairdigi.render.metrics import delta_e2000, l1_255, ms_ssim
 from hairdigi.render.params import VECTOR_FIELDS, HairParams
@@ -71,15 +71,6 @@ def heldout_config(n: int, size: int = 64, spp: int = 64) -> DatasetConfig:
     sw = defaults_for("swatch")
     return DatasetConfig(n=n, size=size, spp=spp, seed=EVAL_SEED, strands=sw.strands, max_depth=sw.max_depth,
                          shard_size=50, store="linear16")
-
-
-def scene_of(config: DatasetConfig, index: int):
-    """Sample ``index``'s scene (camera, strand layout, framing): one home for dataset sample -> scene."""
-    from hairdigi.render.renderer import SceneSpec
-
-    s = sample_spec(config, index)
-    return SceneSpec("swatch", camera=s.camera, framing=config.framing, strands=config.strands,
-                     strand_seed=s.strand_seed, max_depth=config.max_depth)
 
 
 def judge_render(config: DatasetConfig, index: int, hair, judge: Judge = JUDGE):

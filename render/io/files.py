@@ -76,26 +76,37 @@ def write_csv_atomic(path: str | os.PathLike, rows: list[dict]) -> Path:
 MAX_JSON_BYTES = 16 * 1024 * 1024
 
 
-def read_json(path: str | os.PathLike, error: type[Exception], missing: str, invalid: str):
-    """Parse a JSON file; a missing or malformed file raises ``error`` with ``path: missing`` or
-    ``path: invalid`` (``{exc}`` in ``invalid`` is replaced by the parser's message)."""
+def read_bytes(path: str | os.PathLike, error: type[Exception], what: str, max_bytes: int,
+               too_large: str, missing: str = "no such file") -> bytes:
+    """A file's bytes; every way reading fails raises ``error`` naming the path and the fix.
+
+    ``what`` names the expected file ("a JSON file"); ``too_large`` is the fix for a file over
+    ``max_bytes``, which is refused before it is read."""
     path = Path(path)
     try:
+        if path.is_dir():
+            raise error(f"{path}: is a folder, not {what}; give the file's path")
         size = path.stat().st_size
-        text = path.read_text(encoding="utf-8") if size <= MAX_JSON_BYTES else None
+        if size > max_bytes:
+            raise error(f"{path}: {size / 1e6:.0f} MB is too large for {what} (at most "
+                        f"{max_bytes / 1e6:.0f} MB); {too_large}")
+        return path.read_bytes()
     except FileNotFoundError:
         raise error(f"{path}: {missing}") from None
-    except IsADirectoryError:
-        raise error(f"{path}: is a folder, not a JSON file; give the file's path") from None
     except PermissionError:
         raise error(f"{path}: permission denied; make it readable (chmod +r) or use a copy") from None
     except OSError as exc:
         raise error(f"{path}: cannot be read ({exc.strerror or exc})") from None
+
+
+def read_json(path: str | os.PathLike, error: type[Exception], missing: str, invalid: str):
+    """Parse a JSON file; a missing or malformed file raises ``error`` with ``path: missing`` or
+    ``path: invalid`` (``{exc}`` in ``invalid`` is replaced by the parser's message)."""
+    data = read_bytes(path, error, "a JSON file", MAX_JSON_BYTES, "check the file name", missing)
+    try:
+        text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise error(f"{path}: {invalid.format(exc='not UTF-8 text')}") from None
-    if text is None:
-        raise error(f"{path}: {size / 1e6:.0f} MB is too large for a hairdigi JSON file (at most "
-                    f"{MAX_JSON_BYTES / 1e6:.0f} MB); check the file name")
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:

@@ -1,5 +1,7 @@
-"""RAW stills for the tests: a linear Bayer DNG (RGGB, 12-bit in 16) written with tifffile's CFA and
-DNG tags, which rawpy (LibRaw) reads like a camera's file."""
+"""Media the tests write for the real readers: RAW stills (a linear Bayer DNG, RGGB, 12-bit in 16,
+written with tifffile's CFA and DNG tags, which rawpy reads like a camera's file) and videos (MJPG
+through OpenCV, which ``cv2.VideoCapture`` replays like a camera)."""
+import cv2
 import numpy as np
 
 WHITE = 4095
@@ -30,4 +32,14 @@ def write_raw_still(path, linear: np.ndarray):
         (50728, "2I", 3, (1, 1, 1, 1, 1, 1), True),   # AsShotNeutral
     ]
     tifffile.imwrite(path, cfa, photometric=32803, extratags=tags, subfiletype=0)
+    return path
+
+
+def write_video(path, frames: int = 5, size=(64, 48), step: int = 40, fps: int = 10):
+    """A video of ``frames`` flat grey frames, ``step`` levels apart, of ``size`` (width, height)."""
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
+    assert writer.isOpened()
+    for i in range(frames):
+        writer.write(np.full((size[1], size[0], 3), step * i, np.uint8))
+    writer.release()
     return path

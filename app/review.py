@@ -1,0 +1,648 @@
+"""The review of captures, free of Qt: what the window shows, and the long work behind it.
+
+napari-style. :class:`ReviewModel` holds the review state: the shown capture (with its own
+calibration profile), its parameters, the twin preview (real, synthetic raw and denoised, the ΔE2000
+map, the mean-colour ΔE2000), the hairstyle choice, camera orbit and passes, and the strand preview.
+Widgets subscribe to its events (``model.events.twin.connect(callback)``).
+
+Long work is plain functions ``work(report, cancelled)`` made by the model (``model.twin_work()``
+and so on). The window runs them in its workers and hands what they report and return back to
+:meth:`ReviewModel.apply` on the UI thread, which stores it and emits the event. A new capture, a
+new selection or new parameters bump the model's generation: stale work stops at its next pass, and
+whatever it still reports is dropped. A denoised image is for the eye only: every number (ΔE, the
+chip's colour, exports' metrics) comes from the raw path-traced image.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterator
+
+import numpy as np
+
+from hairdigi.app import rig_session as rs
+from hairdigi.render import denoise as dn
+from hairdigi.render.metrics import delta_e_map, mean_colour_delta_e
+from hairdigi.render.params import HairParams
+from hairdigi.render.renderer import Renderer, SceneSpec
+from hairdigi.render.rig_geometry import CameraPose
+from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
+
+Report = Callable[[object], None]
+Cancelled = Callable[[], bool]
+Work = Callable[[Report, Cancelled], object]
+
+
+# --- events ----------------------------------------------------------------------------------
+class Event:
+    """Callbacks called with one value, in the order they connected."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self._callbacks: list[Callable[[object], None]] = []
+
+    def connect(self, callback: Callable[[object], None]) -> Callable[[object], None]:
+        self._callbacks.append(callback)
+        return callback
+
+    def disconnect(self, callback: Callable[[object], None]) -> None:
+        if callback in self._callbacks:
+            self._callbacks.remove(callback)
+
+    def emit(self, value: object = None) -> None:
+        for callback in list(self._callbacks):
+            callback(value)
+
+
+class Events:
+    """The model's events; each carries the new value of the state it names."""
+
+    NAMES = ("records",      # list[dict]: the session's result records, oldest first
+             "shown",        # Shown: the capture under review (or its first look, before its record)
+             "parameters",   # Shown: new parameters to preview (start the twin and hairstyle work)
+             "twin",         # TwinPreview: a twin pass
+             "hairstyle",    # HairstylePass: a hairstyle pass
+             "view",         # str: the hairstyle, environment, orbit or hair file changed (start the hairstyle work)
+             "strands",      # StrandPreview: the strands and colour of the 3-D view
+             "calibration",  # dict: a new calibration profile
+             "frame_check",  # FrameCheck: the chart outline and exposure of a recent frame
+             "display",      # bool: denoised (True) or raw passes shown
+             "status",       # str: one line for the status bar
+             "error")        # str: one line naming the problem and the fix
+
+    def __init__(self) -> None:
+        for name in self.NAMES:
+            setattr(self, name, Event(name))
+
+
+# --- settings and state ----------------------------------------------------------------------
+@dataclass(frozen=True)
+class PreviewSettings:
+    """How previews render; the defaults are chosen by ``hairdigi bench previews`` (render/bench_previews.py)."""
+
+    twin_passes: tuple[int, ...] = (1, 3, 12, 48)          # spp of each twin pass
+    twin_clean_spp: int = 16                               # spp from which the denoised twin counts as clean
+    hairstyle_size: int = 512
+    hairstyle_strands: int | None = None                   # None: the scene's default
+    hairstyle_passes: tuple[int, ...] = (1, 1, 2, 4, 8, 16)
+    hairstyle_clean_spp: int = 4
+    denoise: bool = True
+    fibre_px: float = 2.0                                  # smoothing of the ΔE2000 map (pixels)
+    view_strands: int = 1500                               # strands drawn in the 3-D view
+    shared_renderer: bool = False                          # one Renderer for twin and hairstyle, twin first
+    warm: bool = True                                      # build the preview scenes before the first capture
+
+
+@dataclass
+class Shown:
+    """The capture under review: its corrected swatch, its parameters and where they came from."""
+
+    capture_id: str | None          # None for the encoder's first look, before the record is written
+    real: np.ndarray                # (h, w, 3) uint8 sRGB swatch, corrected with the capture's own profile
+    roi: tuple[int, int, int, int]
+    frame_size: tuple[int, int]     # (width, height) of the rig view
+    params: HairParams | None
+    stage: str                      # "encoder" (first look), "refined" (the record's), "blocked"
+    record: dict = field(default_factory=dict)
+    simulated: bool = True
+
+
+@dataclass
+class TwinPreview:
+    """One pass of the synthetic twin beside the real swatch."""
+
+    generation: int
+    raw: np.ndarray                 # linear float32, path-traced running mean: what every number uses
+    clean: np.ndarray | None        # denoised copy, for the eye only (None without a denoiser)
+    spp: int
+    final: bool                     # the last pass
+    clean_enough: bool              # spp >= PreviewSettings.twin_clean_spp
+    delta_e: float                  # mean-colour ΔE2000, real vs raw twin
+    delta_e_map: np.ndarray         # (h, w) ΔE2000 of real vs raw twin, both smoothed at the fibre scale
+    hair_linear: np.ndarray         # the raw twin's mean linear colour: the estimated hair colour
+    stage: str
+    seconds: float                  # since the work began
+
+
+@dataclass
+class HairstylePass:
+    """One pass of the hairstyle render."""
+
+    generation: int
+    raw: np.ndarray
+    clean: np.ndarray | None
+    spp: int
+    index: int
+    passes: int
+    clean_enough: bool
+    label: str                      # "straight, studio" or the hair file's name
+    stage: str
+    seconds: float
+
+    @property
+    def final(self) -> bool:
+        return self.index == self.passes
+
+
+@dataclass
+class StrandPreview:
+    generation: int
+    strands: object                 # render.strands.Strands
+    colour_rgb8: tuple[int, int, int]
+
+
+@dataclass
+class FrameCheck:
+    chart_box: np.ndarray | None    # the chart's corners in the frame, or None when not found
+    exposure: list                  # hardware.exposure.ExposureReport, swatch first
+
+
+@dataclass
+class Warmed:
+    seconds: dict                   # what each scene cost to build and compile
+
+
+@dataclass
+class Captured:
+    result: rs.CaptureResult
+
+
+@dataclass
+class FirstLook:
+    """The encoder's parameters, before refinement: what the operator sees within a second."""
+
+    params: HairParams
+    real: np.ndarray
+    roi: tuple[int, int, int, int]
+    frame_size: tuple[int, int]
+
+
+class PreviewRenderer(Renderer):
+    """A :class:`Renderer` that counts the scenes it builds (a capture must only update parameters)."""
+
+    def __init__(self, max_cached: int = 4) -> None:
+        super().__init__(max_cached)
+        self.builds = 0
+
+    def _build(self, spec, size, params):
+        self.builds += 1
+        return super()._build(spec, size, params)
+
+
+# --- pure functions: views, passes, colours ----------------------------------------------------
+def twin_view(roi: tuple[int, int, int, int], frame_size: tuple[int, int], simulated: bool) -> tuple[SceneSpec, tuple]:
+    """The twin's scene and size: the rig camera over exactly the ROI (simulated geometry), or a crop."""
+    if simulated:
+        return rs.twin_spec(roi, frame_size)
+    return SceneSpec("swatch", framing="crop"), (int(roi[2]), int(roi[3]))
+
+
+def orbit_pose(azimuth_deg: float, elevation_deg: float, distance: float | None = None) -> CameraPose:
+    """The portrait camera turned ``azimuth_deg`` around the head and raised ``elevation_deg``.
+
+    Portrait poses are polar from the face direction, so the orbit stays in front of the face
+    (polar < 90°): ``|azimuth|`` and ``|elevation|`` are clipped to 80° and 60°.
+    """
+    from hairdigi.render.scenes import PORTRAIT_CAMERA
+
+    yaw, pitch = np.radians(np.clip(azimuth_deg, -80, 80)), np.radians(np.clip(elevation_deg, -60, 60))
+    d = np.array([np.sin(yaw) * np.cos(pitch), np.sin(pitch), np.cos(yaw) * np.cos(pitch)])
+    polar = float(np.degrees(np.arccos(np.clip(d[2], -1.0, 1.0))))
+    azimuth = float(np.degrees(np.arctan2(d[1], d[0]))) if polar > 1e-6 else PORTRAIT_CAMERA.azimuth_deg
+    return CameraPose(min(polar, 89.0), azimuth, distance or PORTRAIT_CAMERA.distance)
+
+
+def denoised(raw: np.ndarray, on: bool) -> np.ndarray | None:
+    """The display copy of a pass (None when denoising is off or there is no denoiser)."""
+    if not on or not dn.available():
+        return None
+    return dn.denoise(raw)
+
+
+def progressive(renderer: Renderer, params: HairParams, spec: SceneSpec, size, schedule: tuple[int, ...],
+                cancelled: Cancelled, seed: int = 0, gate: Callable[[], None] | None = None
+                ) -> Iterator[tuple[np.ndarray, int, int]]:
+    """Render passes of ``schedule[i]`` spp with new seeds; yield (running mean, spp so far, pass number).
+
+    ``gate()`` is called before each pass (it may wait: the hairstyle lets the twin go first).
+    """
+    total, spp = None, 0
+    for i, n in enumerate(schedule):
+        if gate is not None:
+            gate()
+        if cancelled():
+            return
+        result = renderer.render(params, spec, size, int(n), seed=seed * 1_000_003 + i)
+        total = result.linear * n if total is None else total + result.linear * n
+        spp += n
+        if cancelled():
+            return
+        yield (total / spp).astype(np.float32), spp, i + 1
+
+
+def hair_colour_rgb8(linear: np.ndarray) -> tuple[int, int, int]:
+    """An sRGB 8-bit chip colour from a mean linear colour."""
+    return tuple(int(v) for v in linear_to_srgb8(np.asarray(linear, dtype=np.float32)))
+
+
+def strand_colour(params: HairParams) -> tuple[int, int, int]:
+    """The strands' colour in the 3-D view: the fibre albedo, a little darkened (as lit hair looks)."""
+    from hairdigi.render.absorption import approximate_albedo
+
+    return hair_colour_rgb8(approximate_albedo(params) * 0.8)
+
+
+def record_title(rec: dict) -> str:
+    """A session-list line: the capture id and its estimate, or why there is none."""
+    if rec.get("blocked"):
+        return f"{rec['id']}  (blocked)"
+    h = rec.get("hair", {})
+    return f"{rec['id']}  rgb {[round(v) for v in h.get('dye_rgb', [])]}  mel {h.get('melanin_concentration', 0):.2f}"
+
+
+def thumbnail(folder: Path, rec: dict, size=(64, 48)) -> np.ndarray | None:
+    """A small RGB picture of a capture, or None when its image is missing."""
+    import cv2
+
+    path = Path(folder) / "captures" / rec.get("capture", "")
+    img = cv2.imread(str(path)) if path.is_file() else None
+    return None if img is None else cv2.resize(img[..., ::-1], size)
+
+
+def calibration_text(profile: dict | None, status: str, reasons: list[str], now: float | None = None) -> str:
+    """One line on the calibration: method, ΔE2000 before and after, age, and why it is stale."""
+    if profile is None:
+        return "calibration: none — press Calibrate with the chart in view"
+    age_min = ((now or time.time()) - profile["time"]) / 60
+    de = profile["delta_e2000"]
+    text = (f"calibration: {profile['method']}, ΔE2000 {de['before']['mean']:.2f} → {de['after']['mean']:.2f} "
+            f"(max {de['after']['max']:.2f}), {age_min:.0f} min old")
+    if reasons:
+        text += " — STALE: " + "; ".join(reasons)
+    return text
+
+
+class _EncoderTap:
+    """The session's encoder, reporting each estimate as it returns (before refinement runs)."""
+
+    def __init__(self, encoder) -> None:
+        self._encoder = encoder
+        self.listener: Callable[[object, np.ndarray, object], None] | None = None
+
+    def estimate(self, image, roi=None, *args, **kwargs):
+        est = self._encoder.estimate(image, roi, *args, **kwargs)
+        if self.listener is not None:
+            self.listener(est, image, roi)
+        return est
+
+    def __getattr__(self, name):
+        return getattr(self._encoder, name)
+
+
+# --- the model ---------------------------------------------------------------------------------
+class ReviewModel:
+    """The review state of one rig session, and the work that updates it (see the module's note)."""
+
+    def __init__(self, session: rs.RigSession, settings: PreviewSettings | None = None) -> None:
+        from hairdigi.render.scenes import ENVIRONMENTS
+        from hairdigi.render.strands import HAIRSTYLES
+
+        self.session = session
+        self.settings = settings or PreviewSettings()
+        self.events = Events()
+        self.records: list[dict] = []
+        self.shown: Shown | None = None
+        self.twin: TwinPreview | None = None
+        self.hairstyle: HairstylePass | None = None
+        self.strands: StrandPreview | None = None
+        self.frame_check: FrameCheck | None = None
+        self.style, self.env = HAIRSTYLES[0], ENVIRONMENTS[0]
+        self.orbit = (0.0, 0.0)                      # azimuth, elevation (degrees)
+        self.show_denoised = self.settings.denoise and dn.available()
+        self.twin_renderer = PreviewRenderer()
+        self.style_renderer = self.twin_renderer if self.settings.shared_renderer else PreviewRenderer()
+        self._generation = {"twin": 0, "hairstyle": 0}
+        self._twin_idle = threading.Event()
+        self._twin_idle.set()
+        self._last_check = 0.0
+        self._checking = False
+        self._tap: _EncoderTap | None = None
+
+    # -- generations: what makes running work stale ------------------------------------------
+    def generation(self, kind: str) -> int:
+        return self._generation[kind]
+
+    def _bump(self, *kinds: str) -> None:
+        for kind in kinds:
+            self._generation[kind] += 1
+
+    def _stale(self, kind: str, generation: int, cancelled: Cancelled) -> Cancelled:
+        return lambda: cancelled() or self._generation[kind] != generation
+
+    # -- records and selection (UI thread) ---------------------------------------------------
+    def reload(self) -> list[dict]:
+        self.records = rs.load_results(self.session.folder)
+        self.events.records.emit(self.records)
+        return self.records
+
+    def select(self, capture_id: str) -> Shown | None:
+        """Review a saved capture with its own calibration profile; emits ``shown`` and ``parameters``."""
+        try:
+            loaded = self.session.load_capture(capture_id)
+        except (FileNotFoundError, OSError, ValueError) as exc:
+            self.events.error.emit(str(exc))
+            return None
+        x, y, w, h = loaded.roi
+        rec = loaded.record
+        frame_size = (loaded.frame.shape[1], loaded.frame.shape[0])
+        blocked = bool(rec.get("blocked")) or "hair" not in rec
+        real = loaded.frame[y:y + h, x:x + w].copy() if blocked else loaded.corrected_swatch()
+        params = None if blocked else HairParams.from_dict(rec)
+        shown = Shown(capture_id, real, tuple(loaded.roi), frame_size, params, "blocked" if blocked else "refined",
+                      {"id": capture_id, **rec}, self.session.simulated)
+        if (self.shown is not None and self.shown.capture_id == capture_id and self.shown.params == params
+                and self.twin is not None):
+            self.shown = shown          # the same estimate again (a reload): keep the previews running
+            return shown
+        self._show(shown)
+        return shown
+
+    def _show(self, shown: Shown) -> None:
+        self._bump("twin", "hairstyle")
+        self.shown = shown
+        self.twin = None
+        self.events.shown.emit(shown)
+        if shown.params is not None:
+            self.events.parameters.emit(shown)
+
+    # -- state set by the window (UI thread) -------------------------------------------------
+    def set_view(self, style: str | None = None, env: str | None = None, orbit: tuple[float, float] | None = None,
+                 hair_file: str | Path | None = None) -> None:
+        """Change the hairstyle, environment, camera orbit or hair file; emits ``view``."""
+        if style is not None:
+            self.style = style
+        if env is not None:
+            self.env = env
+        if orbit is not None:
+            self.orbit = (float(orbit[0]), float(orbit[1]))
+        self._bump("hairstyle")
+        self.events.view.emit(self.view_label())
+
+    def view_label(self) -> str:
+        return f"{self.style}, {self.env}"
+
+    def set_denoised(self, on: bool) -> None:
+        """Show the denoised passes (True) or the raw path-traced ones; no re-render."""
+        self.show_denoised = bool(on) and dn.available()
+        self.events.display.emit(self.show_denoised)
+        if self.twin is not None:
+            self.events.twin.emit(self.twin)
+        if self.hairstyle is not None:
+            self.events.hairstyle.emit(self.hairstyle)
+
+    def hairstyle_spec(self) -> SceneSpec:
+        pose = orbit_pose(*self.orbit)
+        return SceneSpec(self.style, env=self.env, strands=self.settings.hairstyle_strands, camera=pose)
+
+    # -- work: made here, run by the window's workers ----------------------------------------
+    def warm_work(self) -> Work:
+        """Build and compile the twin and hairstyle scenes (and refinement's) before any capture."""
+        session, settings = self.session, self.settings
+        roi = session.swatch_roi
+        spec = self.hairstyle_spec()
+
+        def work(report: Report, cancelled: Cancelled) -> Warmed:
+            seconds = {}
+            placeholder = HairParams()
+            start = time.perf_counter()
+            session.prepare_refinement()
+            self._install_tap()
+            seconds["refinement_curve"] = time.perf_counter() - start
+            if roi is not None:
+                frame = session.frames.latest() or session.frame()
+                tspec, tsize = twin_view(roi, (frame.srgb.shape[1], frame.srgb.shape[0]), session.simulated)
+                start = time.perf_counter()
+                self.twin_renderer.render(placeholder, tspec, tsize, 1)
+                seconds["twin"] = time.perf_counter() - start
+            if cancelled():
+                return Warmed(seconds)
+            start = time.perf_counter()
+            self.style_renderer.render(placeholder, spec, settings.hairstyle_size, 1)
+            seconds["hairstyle"] = time.perf_counter() - start
+            if cancelled():
+                return Warmed(seconds)
+            start = time.perf_counter()
+            _warm_refinement()
+            seconds["refinement"] = time.perf_counter() - start
+            return Warmed(seconds)
+        return work
+
+    def _install_tap(self) -> None:
+        """Wrap the session's encoder so the model sees the encoder's estimate before refinement."""
+        if self._tap is None:
+            encoder = self.session.encoder_or_reason()
+            if isinstance(encoder, str):
+                return                    # the capture will say why it cannot estimate
+            self._tap = _EncoderTap(encoder)
+            self.session._encoder = self._tap   # RigSession has no hook for the encoder's stage yet
+
+    def capture_work(self) -> Work:
+        """Capture, estimate and refine; reports the encoder's :class:`FirstLook` as soon as it exists."""
+        session = self.session
+        self._bump("twin", "hairstyle")       # stale previews stop now and leave the cores to the capture
+
+        def work(report: Report, cancelled: Cancelled) -> Captured:
+            self._install_tap()
+
+            def first_look(est, image, roi) -> None:
+                x, y, w, h = (roi.x, roi.y, roi.w, roi.h) if roi is not None else (0, 0, image.shape[1], image.shape[0])
+                report(FirstLook(est.params, image[y:y + h, x:x + w].copy(), (x, y, w, h),
+                                 (image.shape[1], image.shape[0])))
+            if self._tap is not None:
+                self._tap.listener = first_look
+            try:
+                return Captured(session.capture())
+            finally:
+                if self._tap is not None:
+                    self._tap.listener = None
+        return work
+
+    def twin_work(self) -> Work | None:
+        """The twin's passes for the shown parameters (None when there is nothing to preview)."""
+        shown = self.shown
+        if shown is None or shown.params is None:
+            return None
+        generation, settings, renderer = self._generation["twin"], self.settings, self.twin_renderer
+        spec, size = twin_view(shown.roi, shown.frame_size, shown.simulated)
+        real = srgb8_to_linear(shown.real)
+        on = self.show_denoised or settings.denoise
+        idle = self._twin_idle
+
+        def work(report: Report, cancelled: Cancelled) -> None:
+            stale = self._stale("twin", generation, cancelled)
+            start = time.perf_counter()
+            idle.clear()
+            try:
+                for raw, spp, i in progressive(renderer, shown.params, spec, size, settings.twin_passes, stale):
+                    if raw.shape != real.shape:      # a real camera's crop view: compare at the twin's size
+                        import cv2
+                        real_here = cv2.resize(real, (raw.shape[1], raw.shape[0]), interpolation=cv2.INTER_AREA)
+                    else:
+                        real_here = real
+                    report(TwinPreview(generation, raw, denoised(raw, on), spp, i == len(settings.twin_passes),
+                                       spp >= settings.twin_clean_spp, mean_colour_delta_e(real_here, raw),
+                                       delta_e_map(real_here, raw, settings.fibre_px), raw.reshape(-1, 3).mean(0),
+                                       shown.stage, time.perf_counter() - start))
+                    if i == 1:
+                        idle.set()           # the hairstyle may go once the twin's first pass is up
+            finally:
+                idle.set()
+        return work
+
+    def hairstyle_work(self) -> Work | None:
+        """The hairstyle's passes for the shown parameters, in the chosen view."""
+        shown = self.shown
+        if shown is None or shown.params is None:
+            return None
+        generation, settings, renderer = self._generation["hairstyle"], self.settings, self.style_renderer
+        spec, label = self.hairstyle_spec(), self.view_label()
+        on = self.show_denoised or settings.denoise
+        gate = (lambda: self._twin_idle.wait(30.0)) if settings.shared_renderer else None
+
+        def work(report: Report, cancelled: Cancelled) -> None:
+            stale = self._stale("hairstyle", generation, cancelled)
+            start = time.perf_counter()
+            schedule = settings.hairstyle_passes
+            for raw, spp, i in progressive(renderer, shown.params, spec, settings.hairstyle_size, schedule, stale,
+                                           gate=gate):
+                report(HairstylePass(generation, raw, denoised(raw, on), spp, i, len(schedule),
+                                     spp >= settings.hairstyle_clean_spp, label, shown.stage,
+                                     time.perf_counter() - start))
+        return work
+
+    def strand_work(self) -> Work | None:
+        """The 3-D view's strands (fewer than the render's) and their colour."""
+        shown = self.shown
+        if shown is None or shown.params is None:
+            return None
+        generation, style, n = self._generation["hairstyle"], self.style, self.settings.view_strands
+
+        def work(report: Report, cancelled: Cancelled) -> StrandPreview:
+            from hairdigi.render.strands import hairstyle_strands
+
+            return StrandPreview(generation, hairstyle_strands(style, n, seed=0), strand_colour(shown.params))
+        return work
+
+    def frame_check_due(self, period_s: float = 1.5) -> bool:
+        """True when a frame should be checked for the chart and exposure (none running, ``period_s`` since)."""
+        now = time.monotonic()
+        if self._checking or now - self._last_check < period_s:
+            return False
+        self._checking, self._last_check = True, now
+        return True
+
+    def frame_check_work(self, image: np.ndarray) -> Work:
+        """Find the chart and check the exposure of one frame."""
+        session = self.session
+
+        def work(report: Report, cancelled: Cancelled) -> FrameCheck:
+            from hairdigi.inference.calibration import CalibrationError, detect_chart
+
+            try:
+                try:
+                    box = detect_chart(image).box
+                except CalibrationError:
+                    box = None
+                return FrameCheck(box, session.exposure(image))
+            finally:
+                self._checking = False
+        return work
+
+    def calibrate_work(self) -> Work:
+        session = self.session
+        return lambda report, cancelled: session.calibrate()
+
+    # -- results back from work (UI thread) --------------------------------------------------
+    def apply(self, payload: object) -> None:
+        """Store what a work function reported or returned, and emit its event; stale passes are dropped."""
+        if isinstance(payload, TwinPreview):
+            if payload.generation == self._generation["twin"]:
+                self.twin = payload
+                self.events.twin.emit(payload)
+        elif isinstance(payload, HairstylePass):
+            if payload.generation == self._generation["hairstyle"]:
+                self.hairstyle = payload
+                self.events.hairstyle.emit(payload)
+        elif isinstance(payload, StrandPreview):
+            if payload.generation == self._generation["hairstyle"]:
+                self.strands = payload
+                self.events.strands.emit(payload)
+        elif isinstance(payload, FirstLook):
+            self._show(Shown(None, payload.real, payload.roi, payload.frame_size, payload.params, "encoder",
+                             {}, self.session.simulated))
+        elif isinstance(payload, Captured):
+            result = payload.result
+            self.reload()
+            self.select(result.capture_id)
+        elif isinstance(payload, FrameCheck):
+            self.frame_check = payload
+            self.events.frame_check.emit(payload)
+        elif isinstance(payload, Warmed):
+            parts = ", ".join(f"{k} {v:.1f} s" for k, v in payload.seconds.items())
+            self.events.status.emit(f"previews ready ({parts})")
+        elif isinstance(payload, dict) and "delta_e2000" in payload:   # a calibration profile
+            self.events.calibration.emit(payload)
+
+    # -- what the window reads ---------------------------------------------------------------
+    def calibration(self) -> tuple[str, str]:
+        """(status, one line) of the session's calibration."""
+        status, reasons = self.session.calibration_status()
+        return status, calibration_text(self.session.profile, status, reasons)
+
+    def twin_image(self, preview: TwinPreview | None = None) -> np.ndarray | None:
+        """The twin as shown (denoised or raw), sRGB 8-bit."""
+        preview = preview or self.twin
+        if preview is None:
+            return None
+        return linear_to_srgb8(preview.clean if self.show_denoised and preview.clean is not None else preview.raw)
+
+    def hairstyle_image(self, p: HairstylePass | None = None) -> np.ndarray | None:
+        p = p or self.hairstyle
+        if p is None:
+            return None
+        return linear_to_srgb8(p.clean if self.show_denoised and p.clean is not None else p.raw)
+
+    def save_render(self, which: str, path: str | Path) -> list[Path]:
+        """Write the shown ``"hairstyle"`` or ``"twin"`` render as ``path`` (.png) and beside it linear .exr."""
+        from hairdigi.render.io.images import save_exr, save_png
+
+        item = self.hairstyle if which == "hairstyle" else self.twin if which == "twin" else None
+        if which not in ("hairstyle", "twin"):
+            raise ValueError(f"save which render? 'hairstyle' or 'twin', got {which!r}")
+        if item is None:
+            raise ValueError(f"no {which} render yet: capture or select a swatch first")
+        linear = item.clean if self.show_denoised and item.clean is not None else item.raw
+        path = Path(path)
+        if path.suffix.lower() not in (".png", ".exr"):
+            path = path.with_name(path.name + ".png")
+        png, exr = path.with_suffix(".png"), path.with_suffix(".exr")
+        return [save_png(png, linear_to_srgb8(linear)), save_exr(exr, linear)]
+
+    def export(self, path: str | Path, all_: bool = True) -> Path:
+        """The estimates as JSON: all of the session's, or the shown capture's."""
+        records = [r for r in self.records if not r.get("blocked") and "hair" in r]
+        if not all_ and self.shown is not None and self.shown.capture_id is not None:
+            records = [r for r in records if r["id"] == self.shown.capture_id]
+        if not records:
+            raise ValueError("nothing to export: no capture has an estimate yet")
+        return rs.export_records(records, path)
+
+
+def _warm_refinement() -> None:
+    """Build refinement's swatch scene once (its response curve may come from the disk cache)."""
+    from hairdigi.inference.refine import refine
+    from hairdigi.render.rig_geometry import RIG_SWATCH_POSE
+
+    refine(HairParams(), np.array([0.08, 0.05, 0.03]), RIG_SWATCH_POSE)
