@@ -59,6 +59,10 @@ def cmd_render(args: argparse.Namespace) -> int:
     spec = SceneSpec(name=args.scene, camera=camera, env=args.env, framing=args.framing,
                      strands=args.strands, max_depth=args.depth, strand_seed=args.seed)
     result = render(params, spec, args.size, args.spp, args.seed)
+    if spec.hair_file is not None:
+        from hairdigi.render.hairfile import model_summary
+
+        print(model_summary(spec.hair_file, spec.n_strands))
     save_png(args.out, result.srgb)
     print(f"wrote {args.out} ({result.srgb.shape[1]}x{result.srgb.shape[0]}, {result.spp} spp, "
           f"{result.seconds:.2f} s, {result.nonfinite} non-finite values)")
@@ -248,6 +252,9 @@ def cmd_model_card(args: argparse.Namespace) -> int:
     return 0
 
 
+BENCH_OUT = "out/bench"
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if args.what == "refine":
@@ -298,6 +305,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
                   f"({r['n']} in {r['seconds']:.1f} s, {r['size']}² {r['spp']} spp, {r['variant']})")
         print(f"wrote {out / 'dataset_bench.csv'} and {out / 'dataset_bench.png'}")
         return 0
+    if args.what == "previews":
+        from hairdigi.app.review import bench_previews
+
+        out = out / "previews" if args.out == BENCH_OUT else out
+        for line in bench_previews(out, quick=args.quick):
+            print(line)
+        print(f"wrote {out / 'previews_bench.csv'} and {out / 'previews_bench.png'}")
+        return 0
     if args.what == "render":
         from hairdigi.render.bench import run_render_bench
 
@@ -333,7 +348,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("render", help="render hair parameters in the swatch rig or a hairstyle")
     p.add_argument("--params", required=True, help="hair parameter JSON (top level or under 'hair')")
-    p.add_argument("--scene", default="swatch", choices=SCENE_NAMES)
+    p.add_argument("--scene", default="swatch", type=v.scene_name(SCENE_NAMES),
+                   help=f"{', '.join(SCENE_NAMES)}, or the path of a Cem Yuksel .hair model (fitted to the head)")
     p.add_argument("--size", type=size, default=None, help="image side in pixels (default: the scene's)")
     p.add_argument("--spp", type=spp, default=None, help="samples per pixel (default: the scene's)")
     p.add_argument("--seed", type=seed, default=0, help="sampler and strand-layout seed")
@@ -464,13 +480,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_model_card)
 
     p = sub.add_parser("bench", help="speed against error tables and plots")
-    p.add_argument("what", choices=("render", "rig", "encoder", "refine", "dataset"))
+    p.add_argument("what", choices=("render", "rig", "encoder", "refine", "dataset", "previews"))
     p.add_argument("--models", nargs="*", help="encoder: the ONNX models to compare")
     p.add_argument("--n", type=int, default=None, help="held-out swatches (encoder: 300, refine: 10); "
                    "dataset: swatches per case (16)")
     p.add_argument("--data", help="encoder, refine: held-out dataset folder to reuse")
     p.add_argument("--model", default=None, help="refine: the encoder giving the prior (default: shipped)")
-    p.add_argument("--out", default="out/bench")
+    p.add_argument("--out", default=BENCH_OUT, help="results folder (previews: out/bench/previews)")
     p.add_argument("--quick", action="store_true", help="a tiny sweep, for tests")
     p.add_argument("--estimate", action="store_true",
                    help="rig: estimate simulated captures over poses, casts and exposures; real vs twin ΔE")

@@ -65,8 +65,10 @@ class Events:
              "twin",         # TwinPreview: a twin pass
              "hairstyle",    # HairstylePass: a hairstyle pass
              "view",         # str: the hairstyle, environment, orbit or hair file changed (start the hairstyle work)
+             "hair_model",   # HairModel: a .hair file opened (the view follows)
              "strands",      # StrandPreview: the strands and colour of the 3-D view
              "calibration",  # dict: a new calibration profile
+             "warmed",       # Warmed: the preview scenes are built (captures now only update parameters)
              "frame_check",  # FrameCheck: the chart outline and exposure of a recent frame
              "display",      # bool: denoised (True) or raw passes shown
              "status",       # str: one line for the status bar
@@ -80,18 +82,23 @@ class Events:
 # --- settings and state ----------------------------------------------------------------------
 @dataclass(frozen=True)
 class PreviewSettings:
-    """How previews render; the defaults are chosen by ``hairdigi bench previews`` (render/bench_previews.py)."""
+    """How previews render; the defaults are chosen by ``hairdigi bench previews`` (render/bench_previews.py).
 
-    twin_passes: tuple[int, ...] = (1, 3, 12, 48)          # spp of each twin pass
-    twin_clean_spp: int = 16                               # spp from which the denoised twin counts as clean
+    ``fibre_px``: the ΔE2000 map smooths real and twin over 6 px, about a clump of fibres in the rig
+    view (0.04 swatch widths). Measured on a simulated capture whose mean colours differ by ΔE2000
+    0.47: the map's mean is 2.38 at 2 px (noise and single fibres), 1.47 at 4, 1.17 at 6, 1.04 at 8.
+    """
+
+    twin_passes: tuple[int, ...] = (1, 3, 4, 8, 16)        # spp of each twin pass (running totals 1, 4, 8, 16, 32)
+    twin_clean_spp: int = 8                                # spp from which the denoised twin counts as clean
     hairstyle_size: int = 512
     hairstyle_strands: int | None = None                   # None: the scene's default
-    hairstyle_passes: tuple[int, ...] = (1, 1, 2, 4, 8, 16)
-    hairstyle_clean_spp: int = 4
+    hairstyle_passes: tuple[int, ...] = (1, 1, 2, 4, 8)    # running totals 1, 2, 4, 8, 16
+    hairstyle_clean_spp: int = 2
+    first_look_passes: int = 1                             # passes rendered for the encoder's (unrefined) estimate
     denoise: bool = True
-    fibre_px: float = 2.0                                  # smoothing of the ΔE2000 map (pixels)
+    fibre_px: float = 6.0                                  # smoothing of the ΔE2000 map (pixels), see below
     view_strands: int = 1500                               # strands drawn in the 3-D view
-    shared_renderer: bool = False                          # one Renderer for twin and hairstyle, twin first
     warm: bool = True                                      # build the preview scenes before the first capture
 
 
@@ -107,6 +114,7 @@ class Shown:
     stage: str                      # "encoder" (first look), "refined" (the record's), "blocked"
     record: dict = field(default_factory=dict)
     simulated: bool = True
+    key: int = 0                    # one per capture under review: its first look and refined estimate share it
 
 
 @dataclass
@@ -124,6 +132,7 @@ class TwinPreview:
     hair_linear: np.ndarray         # the raw twin's mean linear colour: the estimated hair colour
     stage: str
     seconds: float                  # since the work began
+    key: int = 0                    # the Shown.key it previews
 
 
 @dataclass
@@ -140,6 +149,7 @@ class HairstylePass:
     label: str                      # "straight, studio" or the hair file's name
     stage: str
     seconds: float
+    key: int = 0
 
     @property
     def final(self) -> bool:
@@ -165,6 +175,14 @@ class Warmed:
 
 
 @dataclass
+class HairModel:
+    """A ``.hair`` model read, checked and fitted to the head: ready to render."""
+
+    path: Path
+    summary: str
+
+
+@dataclass
 class Captured:
     result: rs.CaptureResult
 
@@ -180,10 +198,21 @@ class FirstLook:
 
 
 class PreviewRenderer(Renderer):
-    """A :class:`Renderer` that counts the scenes it builds (a capture must only update parameters)."""
+    """The previews' own scene cache (refinement's scenes and theirs never evict each other), rendering
+    under the process-wide renderer's lock, and counting the scenes it builds (a capture must only
+    update parameters).
+
+    One lock for every render in the process: two threads rendering at once, even on separate
+    Renderers, crash Dr.Jit's LLVM backend (measured: "jit_llvm_compile(): module could not be
+    verified", then a segmentation fault, within 3 rounds of a twin, a hairstyle and refinement
+    rendered side by side). So the twin goes first by priority (see ``ReviewModel``), not in parallel.
+    """
 
     def __init__(self, max_cached: int = 4) -> None:
+        from hairdigi.render.renderer import default_renderer
+
         super().__init__(max_cached)
+        self._lock = default_renderer()._lock
         self.builds = 0
 
     def _build(self, spec, size, params):
@@ -237,9 +266,7 @@ def progressive(renderer: Renderer, params: HairParams, spec: SceneSpec, size, s
         result = renderer.render(params, spec, size, int(n), seed=seed * 1_000_003 + i)
         total = result.linear * n if total is None else total + result.linear * n
         spp += n
-        if cancelled():
-            return
-        yield (total / spp).astype(np.float32), spp, i + 1
+        yield (total / spp).astype(np.float32), spp, i + 1   # even if cancelled meanwhile: the model decides
 
 
 def hair_colour_rgb8(linear: np.ndarray) -> tuple[int, int, int]:
@@ -319,21 +346,21 @@ class ReviewModel:
         self.strands: StrandPreview | None = None
         self.frame_check: FrameCheck | None = None
         self.style, self.env = HAIRSTYLES[0], ENVIRONMENTS[0]
+        self.hair_file: Path | None = None           # a .hair model shown instead of the built-in style
         self.orbit = (0.0, 0.0)                      # azimuth, elevation (degrees)
         self.show_denoised = self.settings.denoise and dn.available()
-        self.twin_renderer = PreviewRenderer()
-        self.style_renderer = self.twin_renderer if self.settings.shared_renderer else PreviewRenderer()
+        self.twin_renderer = PreviewRenderer(max_cached=2)
+        self.style_renderer = PreviewRenderer(max_cached=4)
         self._generation = {"twin": 0, "hairstyle": 0}
-        self._twin_idle = threading.Event()
+        self._twin_idle = threading.Event()     # clear while the twin renders its way to clean: the hairstyle waits
         self._twin_idle.set()
+        self._key = 0
         self._last_check = 0.0
         self._checking = False
         self._tap: _EncoderTap | None = None
+        self._tap_lock = threading.Lock()
 
     # -- generations: what makes running work stale ------------------------------------------
-    def generation(self, kind: str) -> int:
-        return self._generation[kind]
-
     def _bump(self, *kinds: str) -> None:
         for kind in kinds:
             self._generation[kind] += 1
@@ -341,14 +368,21 @@ class ReviewModel:
     def _stale(self, kind: str, generation: int, cancelled: Cancelled) -> Cancelled:
         return lambda: cancelled() or self._generation[kind] != generation
 
+    def stop(self) -> None:
+        """Make all running preview work stale (closing the window)."""
+        self._bump("twin", "hairstyle")
+
     # -- records and selection (UI thread) ---------------------------------------------------
     def reload(self) -> list[dict]:
         self.records = rs.load_results(self.session.folder)
         self.events.records.emit(self.records)
         return self.records
 
-    def select(self, capture_id: str) -> Shown | None:
-        """Review a saved capture with its own calibration profile; emits ``shown`` and ``parameters``."""
+    def select(self, capture_id: str, same_capture: bool = False) -> Shown | None:
+        """Review a saved capture with its own calibration profile; emits ``shown`` and ``parameters``.
+
+        ``same_capture``: the capture whose first look is shown, now with its record (refined).
+        """
         try:
             loaded = self.session.load_capture(capture_id)
         except (FileNotFoundError, OSError, ValueError) as exc:
@@ -360,29 +394,46 @@ class ReviewModel:
         blocked = bool(rec.get("blocked")) or "hair" not in rec
         real = loaded.frame[y:y + h, x:x + w].copy() if blocked else loaded.corrected_swatch()
         params = None if blocked else HairParams.from_dict(rec)
+        same = self.shown is not None and (same_capture or self.shown.capture_id == capture_id)
         shown = Shown(capture_id, real, tuple(loaded.roi), frame_size, params, "blocked" if blocked else "refined",
-                      {"id": capture_id, **rec}, self.session.simulated)
-        if (self.shown is not None and self.shown.capture_id == capture_id and self.shown.params == params
-                and self.twin is not None):
+                      {"id": capture_id, **rec}, self.session.simulated, self.shown.key if same else self._new_key())
+        if self.shown is not None and self.shown.capture_id == capture_id and self.shown.params == params:
             self.shown = shown          # the same estimate again (a reload): keep the previews running
             return shown
         self._show(shown)
         return shown
 
+    def _new_key(self) -> int:
+        self._key += 1
+        return self._key
+
     def _show(self, shown: Shown) -> None:
+        """Show a capture (or new parameters of the shown one): running preview work goes stale. The
+        shown capture's previews stay up until the new ones come (the first look until the refined)."""
         self._bump("twin", "hairstyle")
+        if self.shown is None or shown.key != self.shown.key:
+            self.twin = self.hairstyle = None
         self.shown = shown
-        self.twin = None
         self.events.shown.emit(shown)
         if shown.params is not None:
             self.events.parameters.emit(shown)
 
+    def _current(self, payload, kind: str, showing) -> bool:
+        """A pass is shown when its work is current, or when it is the first pass of the shown capture
+        (a first-look pass that finished after the refined estimate came beats an empty panel)."""
+        if payload.generation == self._generation[kind]:
+            return True
+        return self.shown is not None and payload.key == self.shown.key and showing is None
+
     # -- state set by the window (UI thread) -------------------------------------------------
     def set_view(self, style: str | None = None, env: str | None = None, orbit: tuple[float, float] | None = None,
                  hair_file: str | Path | None = None) -> None:
-        """Change the hairstyle, environment, camera orbit or hair file; emits ``view``."""
+        """Change the hairstyle (a built-in style closes the hair file), environment, camera orbit or
+        hair file; emits ``view``."""
         if style is not None:
-            self.style = style
+            self.style, self.hair_file = style, None
+        if hair_file is not None:
+            self.hair_file = Path(hair_file)
         if env is not None:
             self.env = env
         if orbit is not None:
@@ -391,7 +442,7 @@ class ReviewModel:
         self.events.view.emit(self.view_label())
 
     def view_label(self) -> str:
-        return f"{self.style}, {self.env}"
+        return f"{self.hair_file.name if self.hair_file else self.style}, {self.env}"
 
     def set_denoised(self, on: bool) -> None:
         """Show the denoised passes (True) or the raw path-traced ones; no re-render."""
@@ -403,8 +454,13 @@ class ReviewModel:
             self.events.hairstyle.emit(self.hairstyle)
 
     def hairstyle_spec(self) -> SceneSpec:
-        pose = orbit_pose(*self.orbit)
-        return SceneSpec(self.style, env=self.env, strands=self.settings.hairstyle_strands, camera=pose)
+        pose, strands = orbit_pose(*self.orbit), self.settings.hairstyle_strands
+        if self.hair_file is not None:
+            from hairdigi.render.renderer import HAIR_FILE_SCENE
+
+            return SceneSpec(HAIR_FILE_SCENE, hair_file=str(self.hair_file), env=self.env, strands=strands,
+                             camera=pose)
+        return SceneSpec(self.style, env=self.env, strands=strands, camera=pose)
 
     # -- work: made here, run by the window's workers ----------------------------------------
     def warm_work(self) -> Work:
@@ -433,6 +489,10 @@ class ReviewModel:
             seconds["hairstyle"] = time.perf_counter() - start
             if cancelled():
                 return Warmed(seconds)
+            if dn.available():          # OIDN's first call loads its kernels (2 s)
+                start = time.perf_counter()
+                dn.denoise(np.full((16, 16, 3), 0.1, np.float32))
+                seconds["denoiser"] = time.perf_counter() - start
             start = time.perf_counter()
             _warm_refinement()
             seconds["refinement"] = time.perf_counter() - start
@@ -441,7 +501,9 @@ class ReviewModel:
 
     def _install_tap(self) -> None:
         """Wrap the session's encoder so the model sees the encoder's estimate before refinement."""
-        if self._tap is None:
+        with self._tap_lock:
+            if self._tap is not None:
+                return
             encoder = self.session.encoder_or_reason()
             if isinstance(encoder, str):
                 return                    # the capture will say why it cannot estimate
@@ -479,24 +541,26 @@ class ReviewModel:
         real = srgb8_to_linear(shown.real)
         on = self.show_denoised or settings.denoise
         idle = self._twin_idle
+        idle.clear()                         # from now: the hairstyle's passes wait until the twin is clean
 
         def work(report: Report, cancelled: Cancelled) -> None:
             stale = self._stale("twin", generation, cancelled)
             start = time.perf_counter()
-            idle.clear()
+            schedule = settings.twin_passes[:settings.first_look_passes] if shown.stage == "encoder" \
+                else settings.twin_passes
             try:
-                for raw, spp, i in progressive(renderer, shown.params, spec, size, settings.twin_passes, stale):
+                for raw, spp, i in progressive(renderer, shown.params, spec, size, schedule, stale):
                     if raw.shape != real.shape:      # a real camera's crop view: compare at the twin's size
                         import cv2
                         real_here = cv2.resize(real, (raw.shape[1], raw.shape[0]), interpolation=cv2.INTER_AREA)
                     else:
                         real_here = real
-                    report(TwinPreview(generation, raw, denoised(raw, on), spp, i == len(settings.twin_passes),
+                    report(TwinPreview(generation, raw, denoised(raw, on), spp, i == len(schedule),
                                        spp >= settings.twin_clean_spp, mean_colour_delta_e(real_here, raw),
                                        delta_e_map(real_here, raw, settings.fibre_px), raw.reshape(-1, 3).mean(0),
-                                       shown.stage, time.perf_counter() - start))
-                    if i == 1:
-                        idle.set()           # the hairstyle may go once the twin's first pass is up
+                                       shown.stage, time.perf_counter() - start, shown.key))
+                    if spp >= settings.twin_clean_spp:
+                        idle.set()           # the twin is clean: the hairstyle's passes may take turns with it
             finally:
                 idle.set()
         return work
@@ -509,17 +573,27 @@ class ReviewModel:
         generation, settings, renderer = self._generation["hairstyle"], self.settings, self.style_renderer
         spec, label = self.hairstyle_spec(), self.view_label()
         on = self.show_denoised or settings.denoise
-        gate = (lambda: self._twin_idle.wait(30.0)) if settings.shared_renderer else None
+        gate = lambda: self._twin_idle.wait(30.0)       # noqa: E731  (the twin first, until it is clean)
 
         def work(report: Report, cancelled: Cancelled) -> None:
             stale = self._stale("hairstyle", generation, cancelled)
             start = time.perf_counter()
-            schedule = settings.hairstyle_passes
+            schedule = settings.hairstyle_passes[:settings.first_look_passes] if shown.stage == "encoder" \
+                else settings.hairstyle_passes
             for raw, spp, i in progressive(renderer, shown.params, spec, settings.hairstyle_size, schedule, stale,
                                            gate=gate):
                 report(HairstylePass(generation, raw, denoised(raw, on), spp, i, len(schedule),
                                      spp >= settings.hairstyle_clean_spp, label, shown.stage,
-                                     time.perf_counter() - start))
+                                     time.perf_counter() - start, shown.key))
+        return work
+
+    def warm_view_work(self) -> Work:
+        """Build the chosen hairstyle's scene before any capture needs it (a style picked before a capture)."""
+        spec, size, renderer = self.hairstyle_spec(), self.settings.hairstyle_size, self.style_renderer
+
+        def work(report: Report, cancelled: Cancelled) -> None:
+            if not cancelled():
+                renderer.render(HairParams(), spec, size, 1)
         return work
 
     def strand_work(self) -> Work | None:
@@ -528,11 +602,30 @@ class ReviewModel:
         if shown is None or shown.params is None:
             return None
         generation, style, n = self._generation["hairstyle"], self.style, self.settings.view_strands
+        hair_file = self.hair_file
 
         def work(report: Report, cancelled: Cancelled) -> StrandPreview:
+            from hairdigi.render.hairfile import hair_model_strands
             from hairdigi.render.strands import hairstyle_strands
 
-            return StrandPreview(generation, hairstyle_strands(style, n, seed=0), strand_colour(shown.params))
+            strands = hair_model_strands(hair_file, n) if hair_file else hairstyle_strands(style, n, seed=0)
+            return StrandPreview(generation, strands, strand_colour(shown.params))
+        return work
+
+    def open_hair_work(self, path: str | Path) -> Work:
+        """Read, check and fit a ``.hair`` model; a bad file raises its one-line error (HairFileError)."""
+        from hairdigi.render.renderer import defaults_for
+
+        n = self.settings.hairstyle_strands or defaults_for("hairstyle").strands
+
+        def work(report: Report, cancelled: Cancelled) -> HairModel:
+            from hairdigi.render.hairfile import hair_model_strands, model_summary
+
+            model = Path(path)
+            if not model.is_file():
+                raise FileNotFoundError(f"{model}: no such .hair file; choose another")
+            hair_model_strands(model, n)        # read once here: the render and the 3-D view reuse it
+            return HairModel(model, model_summary(model, n))
         return work
 
     def frame_check_due(self, period_s: float = 1.5) -> bool:
@@ -568,11 +661,11 @@ class ReviewModel:
     def apply(self, payload: object) -> None:
         """Store what a work function reported or returned, and emit its event; stale passes are dropped."""
         if isinstance(payload, TwinPreview):
-            if payload.generation == self._generation["twin"]:
+            if self._current(payload, "twin", self.twin):
                 self.twin = payload
                 self.events.twin.emit(payload)
         elif isinstance(payload, HairstylePass):
-            if payload.generation == self._generation["hairstyle"]:
+            if self._current(payload, "hairstyle", self.hairstyle):
                 self.hairstyle = payload
                 self.events.hairstyle.emit(payload)
         elif isinstance(payload, StrandPreview):
@@ -581,17 +674,22 @@ class ReviewModel:
                 self.events.strands.emit(payload)
         elif isinstance(payload, FirstLook):
             self._show(Shown(None, payload.real, payload.roi, payload.frame_size, payload.params, "encoder",
-                             {}, self.session.simulated))
+                             {}, self.session.simulated, self._new_key()))
         elif isinstance(payload, Captured):
-            result = payload.result
+            first_look = self.shown is not None and self.shown.capture_id is None
+            self.select(payload.result.capture_id, same_capture=first_look)
             self.reload()
-            self.select(result.capture_id)
+        elif isinstance(payload, HairModel):
+            self.events.hair_model.emit(payload)
+            self.events.status.emit(payload.summary)
+            self.set_view(hair_file=payload.path)
         elif isinstance(payload, FrameCheck):
             self.frame_check = payload
             self.events.frame_check.emit(payload)
         elif isinstance(payload, Warmed):
             parts = ", ".join(f"{k} {v:.1f} s" for k, v in payload.seconds.items())
             self.events.status.emit(f"previews ready ({parts})")
+            self.events.warmed.emit(payload)
         elif isinstance(payload, dict) and "delta_e2000" in payload:   # a calibration profile
             self.events.calibration.emit(payload)
 
@@ -646,3 +744,29 @@ def _warm_refinement() -> None:
     from hairdigi.render.rig_geometry import RIG_SWATCH_POSE
 
     refine(HairParams(), np.array([0.08, 0.05, 0.03]), RIG_SWATCH_POSE)
+
+
+def bench_previews(out_dir: str | Path, quick: bool = False) -> list[str]:
+    """``hairdigi bench previews``: render/bench_previews.py on the simulated rig's twin view; the
+    summary lines say each default's measured error and the cheapest clean setting."""
+    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SIM_SIZE, swatch_roi
+    from hairdigi.render.bench_previews import CLEAN_DE, cheapest_clean, run_previews_bench
+
+    rows = run_previews_bench(out_dir, twin_view(swatch_roi(SIM_SIZE), SIM_SIZE, True), DEFAULT_HIDDEN, quick)
+    s = PreviewSettings()
+    mode = "oidn" if s.denoise and any(r["mode"] == "oidn" for r in rows) else "raw"
+    lines = []
+    for view, width in sorted({(r["view"], r["width"]) for r in rows}):
+        here = [r for r in rows if r["view"] == view and r["width"] == width]
+        best = cheapest_clean(rows, view, width)
+        lines.append(f"{view} {width}px: cheapest clean (per-pixel ΔE2000 <= {CLEAN_DE:g}): "
+                     + (f"{best['spp']} spp {best['mode']}, {best['total_s']:.2f} s, ΔE {best['pixel_de2000']:.2f}"
+                        if best else "none"))
+        first = s.twin_passes[0] if view == "twin" else s.hairstyle_passes[0]
+        clean = s.twin_clean_spp if view == "twin" else s.hairstyle_clean_spp
+        for label, spp in (("first pass", first), ("clean pass", clean)):
+            row = next((r for r in here if r["spp"] == spp and r["mode"] == mode), None)
+            if row is not None:
+                lines.append(f"  app default {label}: {spp} spp {mode}: per-pixel ΔE2000 {row['pixel_de2000']:.2f}, "
+                             f"mean colour {row['mean_colour_de2000']:.2f}, {row['total_s']:.2f} s")
+    return lines

@@ -23,20 +23,17 @@ def check_dead_lights(dead) -> set[int]:
 
 
 def open_session(args) -> RigSession:
-    """The simulated rig with ``--sim``, else the camera and light board named on the command line."""
+    """The simulated rig with ``--sim``, else the camera and the light board (``--port``, or found)."""
+    from hairdigi.app.rig_session import open_rig
+
+    simulated = {}
     if args.sim:
         from hairdigi.render.camera_model import CameraModel
 
-        dead = check_dead_lights(args.dead)
-        model = CameraModel(exposure_ev=args.exposure, cast=tuple(args.cast))
-        return RigSession.simulated_rig(args.session, camera_model=model, dead=dead, spp=args.spp)
-    from hairdigi.hardware.cameras import OpenCVCamera
-    from hairdigi.hardware.lights import LightController
-
-    camera = OpenCVCamera(int(args.camera) if str(args.camera).isdigit() else args.camera)
-    lights = LightController(args.port) if args.port else None
+        simulated = {"camera_model": CameraModel(exposure_ev=args.exposure, cast=tuple(args.cast)),
+                     "dead": check_dead_lights(args.dead), "spp": args.spp}
     roi = tuple(int(v) for v in args.roi.split(",")) if args.roi else None
-    return RigSession(camera, lights, args.session, roi)
+    return open_rig(args.session, args.sim, args.camera, args.port, roi, require_lights=False, **simulated)[0]
 
 
 def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:

@@ -333,6 +333,37 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason) -> Cap
     return result
 
 
+def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", port: str | None = None, roi=None,
+             fallback: bool = False, require_lights: bool = True, **simulated) -> tuple[RigSession, str | None]:
+    """The rig for the command line and the window alike, and why it is the simulated one (or None).
+
+    ``sim`` gives the simulated rig (``simulated`` goes to :meth:`RigSession.simulated_rig`). Otherwise
+    the camera and the light board on ``port``, found on the serial ports when empty; without a board
+    the session has no lights unless ``require_lights``. When they do not answer, ``fallback`` gives
+    the simulated rig and the reason; without it the CameraError or LightError is raised.
+    """
+    if not sim:
+        from hairdigi.hardware.cameras import CameraError, OpenCVCamera
+        from hairdigi.hardware.lights import discover
+
+        opened = None
+        try:
+            opened = OpenCVCamera(int(camera) if str(camera).isdigit() else camera)
+            port = port or next((p for p, _ in discover()), None)
+            if port is None and require_lights:
+                raise LightError("no light board answered on any serial port; plug it in, or name it with --port")
+            return RigSession(opened, LightController(port) if port else None, folder, roi), None
+        except (CameraError, LightError) as exc:
+            if opened is not None:
+                opened.close()
+            if not fallback:
+                raise
+            reason = f"{exc}; using the simulated rig"
+    else:
+        reason = None
+    return RigSession.simulated_rig(folder, **simulated), reason
+
+
 def load_results(folder: str | Path) -> list[dict]:
     """Every capture's result record in a session folder, oldest first."""
     out = []

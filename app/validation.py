@@ -183,6 +183,16 @@ def check_distinct(outputs: dict[str, str | os.PathLike | None]) -> None:
 
 
 # --- per command ---------------------------------------------------------------------------
+def scene_name(names) -> Callable[[str], str]:
+    """An argparse type: one of the scene ``names``, or a path ending in ``.hair`` (checked later)."""
+    def parse(text: str) -> str:
+        if text in names or text.lower().endswith(".hair"):
+            return text
+        raise argparse.ArgumentTypeError(f"{text!r} is not a scene: choose one of {', '.join(names)}, "
+                                         f"or give the path of a .hair file")
+    return parse
+
+
 def check_render(args: argparse.Namespace) -> None:
     """``hairdigi render``: the parameter file, the outputs, and size x spp, depth and camera together."""
     from hairdigi.render.renderer import check_camera, check_size_spp, defaults_for
@@ -191,6 +201,15 @@ def check_render(args: argparse.Namespace) -> None:
 
     check_input_file(args.params, "--params")
     inputs = {"--params": args.params}
+    if args.scene.lower().endswith(".hair"):
+        from hairdigi.render.hairfile import read_hair_file
+
+        check_input_file(args.scene, "--scene")
+        inputs["--scene"] = args.scene
+        try:
+            read_hair_file(args.scene)   # a malformed model stops here, before any scene is built
+        except ValueError as exc:
+            raise ArgumentError(f"--scene {exc}") from None
     check_distinct({"--out": args.out, "--exr": args.exr})
     check_output_file(args.out, "--out", (".png",), "an 8-bit PNG", inputs)
     if args.exr:

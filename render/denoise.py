@@ -4,8 +4,9 @@ A denoised image is a picture for the operator. It never goes to the estimator o
 those take the raw path-traced image, whose mean is unbiased.
 
 OIDN removes fireflies, and with them some of a low-spp pass's energy (the twin's 1-spp pass lost
-ΔE2000 1.8 of mean colour). :func:`denoise` therefore scales the result, per channel, back to the
-raw pass's mean colour (``keep_mean``), so that the clean picture and the raw one have one colour.
+ΔE2000 2.0 of mean colour). :func:`denoise` therefore adds back what it removed, blurred to a coarse
+scale (``keep_mean``, :func:`restore_mean`): the clean picture keeps the raw pass's colour region by
+region, and a background the raw pass had right stays untouched (a global gain tinted it).
 Without ``pyoidn`` :func:`available` is False and :func:`denoise` raises :class:`DenoiserMissing`
 naming the fix; the app then shows the raw passes.
 """
@@ -55,12 +56,20 @@ def name() -> str:
         return "none"
 
 
-def mean_preserved(denoised: np.ndarray, raw: np.ndarray) -> np.ndarray:
-    """``denoised`` scaled per channel so its mean colour is ``raw``'s (channels with no light stay)."""
-    want = raw.reshape(-1, 3).mean(0)
-    have = denoised.reshape(-1, 3).mean(0)
-    gain = np.where(have > 1e-8, want / np.maximum(have, 1e-8), 1.0)
-    return (denoised * gain.astype(np.float32)).astype(np.float32)
+#: The scale (pixels) at which :func:`restore_mean` gives back what the denoiser removed: coarser than
+#: fibres and clumps, finer than a head. Measured on the twin (1-spp pass, per-pixel ΔE2000 against
+#: 1024 spp): 3.77 with nothing given back, 3.49 at 16 px, 3.83 at 8 px, 3.25 with one global gain.
+RESTORE_SIGMA_PX = 16.0
+
+
+def restore_mean(denoised: np.ndarray, raw: np.ndarray, sigma_px: float = RESTORE_SIGMA_PX) -> np.ndarray:
+    """``denoised`` plus the part of ``raw - denoised`` coarser than ``sigma_px``: the local mean colour
+    of ``raw`` (and its global mean) without its noise."""
+    import cv2
+
+    residual = np.ascontiguousarray(raw - denoised, dtype=np.float32)
+    coarse = cv2.GaussianBlur(residual, (0, 0), sigmaX=float(sigma_px), borderType=cv2.BORDER_REFLECT)
+    return np.clip(denoised + coarse, 0.0, None).astype(np.float32)
 
 
 def denoise(linear: np.ndarray, albedo: np.ndarray | None = None, normal: np.ndarray | None = None,
@@ -68,7 +77,7 @@ def denoise(linear: np.ndarray, albedo: np.ndarray | None = None, normal: np.nda
     """A denoised copy of an (H, W, 3) linear RGB render (HDR, values >= 0); the input is untouched.
 
     ``albedo`` ([0, 1]) and ``normal`` ([-1, 1]) are optional guide images of the same shape.
-    ``keep_mean`` scales the result back to the input's mean colour (see the module's note).
+    ``keep_mean`` gives back, at a coarse scale, the energy the denoiser removed (see the module's note).
     """
     image = np.asarray(linear, dtype=np.float32)
     if image.ndim != 3 or image.shape[2] != 3 or min(image.shape[:2]) < 1:
@@ -77,4 +86,4 @@ def denoise(linear: np.ndarray, albedo: np.ndarray | None = None, normal: np.nda
     guides = [None if g is None else np.ascontiguousarray(g, dtype=np.float32) for g in (albedo, normal)]
     out = _oidn().denoise(image, guides[0], guides[1], hdr=True, quality=quality)
     out = np.clip(out, 0.0, None)
-    return mean_preserved(out, image) if keep_mean else out
+    return restore_mean(out, image) if keep_mean else out

@@ -6,8 +6,9 @@ projected onto the surface, normals from the gradient). Units as in ``strands``:
 9 cm, y is up, the face looks along +z, the skull's crown is at y ≈ 1 and the shoulders' top at
 y ≈ -2.3, inside the portrait camera's view (``scenes.PORTRAIT_*``).
 
-numpy only; Mitsuba reads the mesh through :func:`write_ply` (the ``ply`` shape) and pyvista
-through ``HeadMesh.vertices`` / ``faces``.
+The scalp is the skull above ``HAIRLINE``; a parting (``in_parting``) is a bare line on it.
+Mitsuba reads the bust as two PLYs, skin and scalp (:func:`head_plys`, the ``ply`` shape); pyvista
+reads ``HeadMesh.vertices`` / ``pyvista_faces()``. numpy only.
 """
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ GRID_STEP = 0.04
 BOUNDS = (np.array([-2.25, -3.5, -1.25]), np.array([2.25, 1.1, 1.3]))
 BOTTOM_Y = -3.4
 #: Bump when the shape changes, so a PLY written by an older build is never reused.
-SHAPE_VERSION = 1
+SHAPE_VERSION = 2
 
 
 def _rotation(axis: str, degrees: float) -> np.ndarray:
@@ -37,14 +38,21 @@ def _rotation(axis: str, degrees: float) -> np.ndarray:
     return m
 
 
+def _norm(a: np.ndarray) -> np.ndarray:
+    """Row lengths of an (N, 3) array (faster than ``np.linalg.norm`` for this shape)."""
+    return np.sqrt(np.einsum("ij,ij->i", a, a))
+
+
 def _ellipsoid(p: np.ndarray, center, radii, rotation: np.ndarray | None = None) -> np.ndarray:
-    """Approximate signed distance to an ellipsoid (exact on the surface, a bound near it)."""
+    """Approximate signed distance from (N, 3) points to an ellipsoid (exact on the surface, close near it)."""
     q = p - np.asarray(center, float)
     if rotation is not None:
         q = q @ rotation   # world to local: rows times R is R^T applied
     r = np.asarray(radii, float)
-    k0 = np.linalg.norm(q / r, axis=-1)
-    k1 = np.linalg.norm(q / (r * r), axis=-1)
+    q /= r
+    k0 = _norm(q)
+    q /= r
+    k1 = _norm(q)
     return k0 * (k0 - 1.0) / np.maximum(k1, 1e-12)
 
 
@@ -52,7 +60,7 @@ def _capsule(p: np.ndarray, a, b, radius: float) -> np.ndarray:
     a, b = np.asarray(a, float), np.asarray(b, float)
     ab = b - a
     t = np.clip(((p - a) @ ab) / (ab @ ab), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1) - radius
+    return _norm(p - (a + t[:, None] * ab)) - radius
 
 
 def _smin(a: np.ndarray, b: np.ndarray, k: float) -> np.ndarray:
@@ -70,18 +78,23 @@ _NOSE_ROT = _rotation("x", -22.0)
 
 
 def skull_sdf(p: np.ndarray) -> np.ndarray:
-    """The cranium alone: the scalp is the part of it above the hairline."""
+    """The cranium alone, for (N, 3) points: the scalp is the part of it above the hairline."""
     return _ellipsoid(p, SKULL_CENTER, SKULL_RADII)
+
+
+def _near(p: np.ndarray, lo, hi) -> np.ndarray:
+    """Indices of the (N, 3) points inside the box [lo, hi]."""
+    near = np.flatnonzero((p[:, 1] >= lo[1]) & (p[:, 1] <= hi[1]))
+    for axis in (0, 2):
+        c = p[near, axis]
+        near = near[(c >= lo[axis]) & (c <= hi[axis])]
+    return near
 
 
 def _blend(d: np.ndarray, p: np.ndarray, part, k: float, lo, hi, subtract: bool = False) -> np.ndarray:
     """Smoothly add (or carve) ``part`` where it can matter: within its box grown by 2k, elsewhere
     the smooth union equals ``d`` already (the part is farther than ``k``)."""
-    lo, hi = np.asarray(lo) - 2 * k, np.asarray(hi) + 2 * k
-    near = np.flatnonzero((p[:, 1] >= lo[1]) & (p[:, 1] <= hi[1]))
-    for axis in (0, 2):
-        c = p[near, axis]
-        near = near[(c >= lo[axis]) & (c <= hi[axis])]
+    near = _near(p, np.asarray(lo) - 2 * k, np.asarray(hi) + 2 * k)
     if len(near):
         e = part(p[near])
         d[near] = _smax(d[near], -e, k) if subtract else _smin(d[near], e, k)
@@ -96,23 +109,24 @@ def _box(center, radii) -> tuple[np.ndarray, np.ndarray]:
 def _face(p: np.ndarray) -> np.ndarray:
     """Face and jaw: an ellipsoid narrowing towards the chin."""
     face_c, face_r = np.array([0.0, -0.6, 0.26]), np.array([0.64, 0.84, 0.76])
-    t = np.clip((p[..., 1] - face_c[1]) / face_r[1], -1.0, 1.0)
+    t = np.clip((p[:, 1] - face_c[1]) / face_r[1], -1.0, 1.0)
     warped = p.copy()
-    warped[..., 0] = p[..., 0] / (1.0 + 0.22 * t)
+    warped[:, 0] = p[:, 0] / (1.0 + 0.22 * t)
     return _ellipsoid(warped, face_c, face_r)
 
 
 #: (part, blend radius, box, carve) in the order they are combined; the skull comes first.
 _PARTS = [
     (_face, 0.18, ((-0.7, -1.5, -0.55), (0.7, 0.3, 1.05)), False),
-    (lambda p: _ellipsoid(p, (0.0, -1.27, 0.7), (0.27, 0.2, 0.22)), 0.14, _box((0.0, -1.27, 0.7), (0.27,)), False),
+    (lambda p: _ellipsoid(p, (0.0, -1.3, 0.62), (0.22, 0.15, 0.2)), 0.12, _box((0.0, -1.3, 0.62), (0.22,)), False),
+    (lambda p: _ellipsoid(p, (0.0, -0.93, 0.96), (0.2, 0.045, 0.07)), 0.04, _box((0.0, -0.93, 0.96), (0.2,)), True),
     (lambda p: _ellipsoid(p, (0.0, -0.1, 0.8), (0.55, 0.13, 0.2)), 0.1, ((-0.55, -0.23, 0.6), (0.55, 0.03, 1.0)), False),
     (lambda p: _ellipsoid(p, (0.0, -0.42, 1.0), (0.1, 0.26, 0.14), _NOSE_ROT), 0.08, _box((0.0, -0.42, 1.0), (0.26,)), False),
 ]
 for _side in (-1, 1):
     _PARTS += [
-        (functools.partial(_ellipsoid, center=(_side * 0.29, -0.24, 1.0), radii=(0.16, 0.1, 0.12)), 0.08,
-         _box((_side * 0.29, -0.24, 1.0), (0.16,)), True),                                          # eye socket
+        (functools.partial(_ellipsoid, center=(_side * 0.29, -0.24, 1.04), radii=(0.16, 0.1, 0.12)), 0.1,
+         _box((_side * 0.29, -0.24, 1.04), (0.16,)), True),                                          # eye socket
         (functools.partial(_ellipsoid, center=(_side * 0.29, -0.25, 0.84), radii=(0.12, 0.08, 0.1)), 0.03,
          _box((_side * 0.29, -0.25, 0.84), (0.12,)), False),                                         # eye
     ]
@@ -123,10 +137,19 @@ _PARTS.append((lambda p: _capsule(p, (0.0, -0.7, -0.22), (0.0, -2.5, -0.18), 0.5
                ((-0.5, -3.0, -0.72), (0.5, -0.2, 0.32)), False))                                      # neck
 for _side in (-1, 1):                                                                                  # shoulders
     _PARTS.append((functools.partial(_capsule, a=(0.0, -2.2, -0.22), b=(_side * 1.45, -2.62, -0.2), radius=0.36),
-                   0.35, (np.minimum(0, _side * 1.81) + np.array([0, -2.98, -0.58]) * 1,
-                          np.maximum(0, _side * 1.81) + np.array([0, -1.84, 0.16]) * 1), False))
+                   0.35, ((min(0.0, _side * 1.81), -2.98, -0.58), (max(0.0, _side * 1.81), -1.84, 0.16)), False))
 _PARTS.append((lambda p: _ellipsoid(p, (0.0, -3.45, -0.15), (1.95, 1.05, 0.8)), 0.35,
                ((-1.95, -4.5, -0.95), (1.95, -2.4, 0.65)), False))                                    # torso
+
+
+def _group(parts: list) -> tuple[tuple[np.ndarray, np.ndarray], list]:
+    """The parts with the box that holds all their (grown) boxes."""
+    lo = np.min([np.asarray(box[0]) - 2 * k for _, k, box, _ in parts], axis=0)
+    hi = np.max([np.asarray(box[1]) + 2 * k for _, k, box, _ in parts], axis=0)
+    return (lo, hi), parts
+
+
+_GROUPS = [_group(_PARTS[:9]), _group(_PARTS[9:11]), _group(_PARTS[11:])]   # face, ears, neck and body
 
 
 def sdf(points: np.ndarray) -> np.ndarray:
@@ -135,8 +158,13 @@ def sdf(points: np.ndarray) -> np.ndarray:
     shape = p.shape[:-1]
     p = p.reshape(-1, 3)
     d = skull_sdf(p)
-    for part, k, (lo, hi), carve in _PARTS:
-        d = _blend(d, p, part, k, lo, hi, carve)
+    for (lo, hi), parts in _GROUPS:   # a box per group first: most points are near few parts
+        near = _near(p, lo, hi)
+        if len(near):
+            q, e = p[near], d[near]
+            for part, k, (part_lo, part_hi), carve in parts:
+                e = _blend(e, q, part, k, part_lo, part_hi, carve)
+            d[near] = e
     return np.maximum(d, BOTTOM_Y - p[:, 1]).reshape(shape)
 
 
@@ -147,17 +175,25 @@ def gradient(points: np.ndarray, h: float = 1e-3) -> np.ndarray:
     return g / np.maximum(np.linalg.norm(g, axis=-1, keepdims=True), 1e-12)
 
 
-def push_out(points: np.ndarray, margin: np.ndarray | float, iterations: int = 3) -> np.ndarray:
+def push_out(points: np.ndarray, margin: np.ndarray | float, iterations: int = 4) -> np.ndarray:
     """Move points closer than ``margin`` to the bust (or inside it) out to ``margin`` along the normal."""
-    p = np.array(points, float)
-    margin = np.broadcast_to(np.asarray(margin, float), p.shape[:-1])
-    for _ in range(iterations):
-        d = sdf(p)
-        bad = d < margin
+    p = np.array(points, float).reshape(-1, 3)
+    margin = np.broadcast_to(np.asarray(margin, float), np.shape(points)[:-1]).reshape(-1)
+    active = np.arange(len(p))
+    for _ in range(iterations):   # only points that moved are checked again
+        d = sdf(p[active])
+        bad = d < margin[active]
         if not bad.any():
             break
-        p[bad] += (margin[bad] - d[bad])[:, None] * gradient(p[bad])
-    return p
+        active, d = active[bad], d[bad]
+        p[active] += (margin[active] - d)[:, None] * _forward_gradient(p[active], d)
+    return p.reshape(np.shape(points))
+
+
+def _forward_gradient(p: np.ndarray, d: np.ndarray, h: float = 1e-3) -> np.ndarray:
+    """Unit gradient of :func:`sdf` at ``p`` whose distances ``d`` are known (forward differences)."""
+    g = np.stack([sdf(p + h * e) - d for e in np.eye(3)], axis=-1)
+    return g / np.maximum(_norm(g), 1e-12)[:, None]
 
 
 def surface_along(directions: np.ndarray, center: np.ndarray = SKULL_CENTER, far: float = 2.5,
@@ -292,15 +328,6 @@ def write_ply(path: str | os.PathLike, mesh: HeadMesh | None = None) -> Path:
     return write_bytes_atomic(path, ply_bytes(mesh or head_mesh()))
 
 
-def head_ply(directory: str | os.PathLike) -> Path:
-    """The bust's PLY in ``directory``, written there on first use."""
-    path = Path(directory) / f"head-v{SHAPE_VERSION}.ply"
-    if not path.is_file():
-        write_ply(path)
-    return path
-
-
-
 # --- the scalp --------------------------------------------------------------------------------
 
 #: The hairline as the lowest elevation (degrees, seen from ``SKULL_CENTER``) at which hair grows,
@@ -324,3 +351,43 @@ def hairline_margin(points: np.ndarray) -> np.ndarray:
     elevation, azimuth = elevation_azimuth(points)
     a, e = np.array(HAIRLINE).T
     return elevation - np.interp(azimuth, a, e)
+
+
+#: The crown's whorl: behind the parting, hair radiates from here.
+CROWN = np.array([0.0, 0.8, -0.5])
+PART_HALF_GAP = 0.022
+
+
+def in_parting(points: np.ndarray, part_x: float | None, half_gap: float = PART_HALF_GAP) -> np.ndarray:
+    """Whether scalp ``points`` lie on a parting's bare line at ``part_x`` (front hairline to the crown)."""
+    p = np.atleast_2d(np.asarray(points, float))
+    if part_x is None:
+        return np.zeros(len(p), dtype=bool)
+    return (np.abs(p[:, 0] - part_x) < half_gap) & (p[:, 2] > CROWN[2] + 0.05) & (p[:, 1] > 0.2)
+
+
+def _submesh(mesh: HeadMesh, keep: np.ndarray) -> HeadMesh:
+    faces = mesh.faces[keep]
+    used = np.unique(faces)
+    remap = np.full(len(mesh.vertices), -1, dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    return HeadMesh(mesh.vertices[used], mesh.normals[used], remap[faces].astype(np.int32))
+
+
+def split_scalp(mesh: HeadMesh, part_x: float | None = None, inset_deg: float = 5.0) -> tuple[HeadMesh, HeadMesh]:
+    """The bust as (skin, scalp): the scalp is the part ``inset_deg`` inside the hairline, minus the
+    parting. The renderer paints it in the hair's colour, so that it never shows as skin between strands."""
+    centres = mesh.vertices[mesh.faces].mean(axis=1)
+    scalp = (hairline_margin(centres) > inset_deg) & ~in_parting(centres, part_x, 1.6 * PART_HALF_GAP)
+    return _submesh(mesh, ~scalp), _submesh(mesh, scalp)
+
+
+def head_plys(directory: str | os.PathLike, part_x: float | None = None) -> tuple[Path, Path]:
+    """PLYs of the skin and the scalp (for a parting at ``part_x``) in ``directory``, written on first use."""
+    tag = "none" if part_x is None else f"{part_x:+.4f}"
+    paths = (Path(directory) / f"head-v{SHAPE_VERSION}-skin-{tag}.ply",
+             Path(directory) / f"head-v{SHAPE_VERSION}-scalp-{tag}.ply")
+    if not all(p.is_file() for p in paths):
+        for path, part in zip(paths, split_scalp(head_mesh(), part_x)):
+            write_ply(path, part)
+    return paths

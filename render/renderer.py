@@ -6,6 +6,7 @@ instead of being rebuilt, which is what makes rendering thousands of dataset swa
 """
 from __future__ import annotations
 
+import os
 import tempfile
 import threading
 import time
@@ -18,12 +19,15 @@ import numpy as np
 from hairdigi.render import rig_geometry
 from hairdigi.render import scenes
 from hairdigi.render.absorption import hair_bsdf, hair_sigma_a
+from hairdigi.render.hairfile import hair_model_strands
 from hairdigi.render.params import HairParams
 from hairdigi.render.srgb import linear_to_srgb8
-from hairdigi.render.strands import HAIRSTYLES, Strands, hairstyle_strands, swatch_strands
+from hairdigi.render.strands import HAIRSTYLES, STYLES, Strands, hairstyle_strands, swatch_strands
 from hairdigi.render.variant import is_jit, load_scene, mi, select_variant
 
 SCENE_NAMES = ("swatch",) + HAIRSTYLES
+#: The scene of a ``.hair`` model (``SceneSpec.hair_file``).
+HAIR_FILE_SCENE = "hairfile"
 
 
 @dataclass(frozen=True)
@@ -40,7 +44,7 @@ class SceneDefaults:
 #: noise that matters.
 DEFAULTS = {
     "swatch": SceneDefaults(strands=2000, spp=16, max_depth=32, size=128),
-    "hairstyle": SceneDefaults(strands=4000, spp=16, max_depth=24, size=512),
+    "hairstyle": SceneDefaults(strands=6000, spp=16, max_depth=24, size=512),   # strands: render/README.md
 }
 
 
@@ -95,7 +99,10 @@ def check_camera(pose: rig_geometry.CameraPose, scene: str = "swatch") -> None:
 class SceneSpec:
     """What to render, apart from the hair colour.
 
-    ``name`` is ``"swatch"`` or a hairstyle. ``framing`` (swatch only) is ``"crop"``, all hair, as in
+    ``name`` is ``"swatch"``, a hairstyle, or ``"hairfile"`` with ``hair_file`` the path of a Cem
+    Yuksel ``.hair`` model (a ``name`` ending in ``.hair`` is taken as that path: ``SceneSpec("x.hair")``
+    is ``SceneSpec("hairfile", hair_file="/abs/x.hair")``); the model is fitted to the head and cut to
+    ``strands`` strands (``hairfile.hair_model_strands``). ``framing`` (swatch only) is ``"crop"``, all hair, as in
     the training set, or ``"rig"``, the whole swatch on its holder. ``env`` applies to hairstyles.
     ``strands``, ``max_depth`` None take the scene's defaults. ``lights`` scales the three rig lights.
     ``chart`` adds a colour chart of (24, 3) linear reflectances beside the swatch (swatch only), at
@@ -114,10 +121,22 @@ class SceneSpec:
     target: tuple[float, float, float] = (0.0, 0.0, 0.0)
     half_width: float | None = None
     chart_center: tuple[float, float] | None = None
+    hair_file: str | None = None
 
     def __post_init__(self) -> None:
-        if self.name not in SCENE_NAMES:
-            raise ValueError(f"unknown scene {self.name!r}; choose one of {', '.join(SCENE_NAMES)}")
+        if isinstance(self.name, str) and self.name.lower().endswith(".hair") and self.hair_file is None:
+            object.__setattr__(self, "hair_file", self.name)
+            object.__setattr__(self, "name", HAIR_FILE_SCENE)
+        if self.name == HAIR_FILE_SCENE:
+            path = Path(self.hair_file or "")
+            if not self.hair_file or not path.is_file():
+                raise ValueError(f"hair model {self.hair_file!r}: no such file; give the path of a .hair file")
+            object.__setattr__(self, "hair_file", str(path.resolve()))
+        elif self.hair_file is not None:
+            raise ValueError(f"hair_file applies to the {HAIR_FILE_SCENE!r} scene, not {self.name!r}")
+        elif self.name not in SCENE_NAMES:
+            raise ValueError(f"unknown scene {self.name!r}; choose one of {', '.join(SCENE_NAMES)} "
+                             f"or the path of a .hair file")
         if self.name != "swatch" and self.env not in scenes.ENVIRONMENTS:
             raise ValueError(f"unknown environment {self.env!r}; choose one of {', '.join(scenes.ENVIRONMENTS)}")
         if self.name == "swatch" and self.framing not in rig_geometry.FRAMING_HALF_WIDTH:
@@ -172,6 +191,8 @@ def absorption_of(hair: HairParams | np.ndarray) -> np.ndarray:
 def strands_for(spec: SceneSpec) -> Strands:
     if spec.name == "swatch":
         return swatch_strands(spec.n_strands, seed=spec.strand_seed)
+    if spec.name == HAIR_FILE_SCENE:
+        return hair_model_strands(spec.hair_file, spec.n_strands, seed=spec.strand_seed)
     return hairstyle_strands(spec.name, spec.n_strands, seed=spec.strand_seed)
 
 
@@ -202,6 +223,9 @@ class Renderer:
     def _structure_key(self, spec: SceneSpec, size: int) -> tuple:
         key = (spec.name, spec.env, spec.framing, spec.n_strands, spec.depth, size, spec.chart,
                spec.target, spec.half_width, spec.chart_center)
+        if spec.hair_file is not None:   # a model saved again is loaded again
+            stat = os.stat(spec.hair_file)
+            key += (spec.hair_file, stat.st_mtime_ns, stat.st_size)
         if not is_jit():  # scalar_rgb cannot swap curves in memory: a new layout means a new scene
             key += (spec.strand_seed,)
         return key
@@ -218,7 +242,8 @@ class Renderer:
             if moved:
                 scene_dict.update(scenes.chart_patches(chart, center=tuple(spec.chart_center)))
         else:
-            scene_dict = scenes.portrait_scene(str(curve_file), bsdf, size, spec.env, spec.pose, spec.depth)
+            scene_dict = scenes.portrait_scene(str(curve_file), bsdf, size, spec.env, spec.pose, spec.depth,
+                                               part_x=STYLES[spec.name].part_x if spec.name in STYLES else None)
         scene = load_scene(scene_dict)
         curve_file.unlink(missing_ok=True)
         return _Loaded(scene, mi.traverse(scene), spec.strand_seed, spec.pose)
@@ -236,6 +261,8 @@ class Renderer:
     def _update(self, loaded: _Loaded, spec: SceneSpec, params: HairParams) -> None:
         p = loaded.params
         p["hair.bsdf.sigma_a.value"] = mi.Color3f(*absorption_of(params).tolist())
+        if "scalp.bsdf.reflectance.value" in p:   # portraits: the scalp under the hair takes its colour
+            p["scalp.bsdf.reflectance.value"] = mi.Color3f(*scenes.scalp_albedo(absorption_of(params)))
         if spec.name == "swatch":
             for i, scale in enumerate(spec.lights):
                 p[f"light{i}.emitter.radiance.value"] = mi.Color3f([scenes.LIGHT_RADIANCE * float(scale)] * 3)

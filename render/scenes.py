@@ -151,26 +151,40 @@ def portrait_lights(env: str) -> dict:
     }
 
 
+def scalp_albedo(sigma_a) -> list[float]:
+    """The scalp under the hair, as the fibre's albedo darkened by the hair's own shadow."""
+    from hairdigi.render.absorption import albedo_from_sigma_a
+
+    return (SCALP_SHADE * albedo_from_sigma_a(np.asarray(sigma_a, float))).tolist()
+
+
+SCALP_SHADE = 0.5
+
+
 def portrait_scene(curve_file: str, bsdf: dict, size: int, env: str = "studio",
                    camera_pose: CameraPose = PORTRAIT_CAMERA, max_depth: int = 16,
-                   head_file: str | None = None) -> dict:
+                   part_x: float | None = None) -> dict:
     """A hairstyle on the head (``head.py``'s bust), with the camera in front of the face.
 
-    ``head_file`` is the bust's PLY; by default it is written once beside ``curve_file``.
+    The bust is two PLYs written once beside ``curve_file``: the skin, and the scalp (keyed
+    ``"scalp"``) whose colour the renderer sets from the hair's (``scalp_albedo``), so that the few
+    thousand strands a preview can afford read as a full head of hair; a parting at ``part_x`` stays skin.
     """
     from pathlib import Path
 
-    from hairdigi.render.head import head_ply
+    from hairdigi.render.head import head_plys
 
     position = portrait_camera_position(camera_pose)
-    head_file = str(head_ply(Path(curve_file).parent)) if head_file is None else head_file
+    skin_file, scalp_file = head_plys(Path(curve_file).parent, part_x)
     return {
         "type": "scene",
         "integrator": integrator(max_depth),
         "sensor": {**sensor(camera_pose, PORTRAIT_TARGET, size, PORTRAIT_FOV),
                    "to_world": look_at(position, np.asarray(PORTRAIT_TARGET))},
-        "head": {"type": "ply", "filename": head_file, "face_normals": False,
+        "head": {"type": "ply", "filename": str(skin_file), "face_normals": False,
                  "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": list(SKIN_ALBEDO)}}},
+        "scalp": {"type": "ply", "filename": str(scalp_file), "face_normals": False,
+                  "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.05, 0.03, 0.02]}}},
         "hair": hair_shape(curve_file, bsdf),
         **portrait_lights(env),
     }

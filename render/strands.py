@@ -63,14 +63,9 @@ class Strands:
 
     def to_curve_text(self) -> str:
         """Mitsuba's curve file: one ``x y z r`` line per control point, a blank line between strands."""
-        rows = np.column_stack([self.points, self.radii])
-        lines: list[str] = []
-        start = 0
-        for k in self.counts:
-            lines.extend(" ".join(f"{v:.9g}" for v in row) for row in rows[start:start + k])  # exact float32
-            lines.append("")
-            start += k
-        return "\n".join(lines)
+        rows = np.column_stack([self.points, self.radii]).astype(np.float64)   # 9 digits: exact float32
+        template = "".join("%.9g %.9g %.9g %.9g\n" * int(k) + "\n" for k in self.counts)
+        return (template % tuple(rows.ravel().tolist()))[:-1]   # one C-level format: 10x a loop
 
     def polylines(self) -> list[np.ndarray]:
         """The strands as a list of (K, 3) arrays."""
@@ -86,6 +81,25 @@ class Strands:
         starts, counts = self.starts()[strands], self.counts[strands]
         index = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + np.arange(counts.sum())
         return Strands(self.points[index], self.radii[index], counts.copy())
+
+    def through_ends(self) -> "Strands":
+        """Polylines as B-spline control points that pass through each strand's first and last points.
+
+        A uniform cubic B-spline starts at (p0 + 4 p1 + p2) / 6; a mirrored point 2 p0 - p1 before p0
+        (and 2 pn - pn-1 after pn) makes it start (and end) on the polyline's ends, with 2 points or more.
+        """
+        starts, ends = self.starts(), self.starts() + self.counts - 1
+        second = np.minimum(starts + 1, ends)
+        before = 2 * self.points[starts] - self.points[second]
+        after = 2 * self.points[ends] - self.points[np.maximum(ends - 1, starts)]
+        index = np.insert(np.arange(len(self.points)), np.concatenate([starts, ends + 1]), -1)
+        points = self.points[np.maximum(index, 0)].copy()
+        radii = self.radii[np.maximum(index, 0)].copy()
+        out_starts = starts + 2 * np.arange(self.n_strands)
+        out_ends = out_starts + self.counts + 1
+        points[out_starts], points[out_ends] = before, after
+        radii[out_starts], radii[out_ends] = self.radii[starts], self.radii[ends]
+        return Strands(points.astype(np.float32), radii.astype(np.float32), self.counts + 2)
 
     def curves(self, per_segment: int = 4) -> "Strands":
         """The cubic B-splines Mitsuba draws, sampled ``per_segment`` times a segment, as polylines."""
@@ -135,8 +149,11 @@ def swatch_strands(n_strands: int = 2000, seed: int = 0, radius: float = 0.004,
 
 HAIRSTYLES = ("straight", "wavy", "curly", "bob", "ponytail", "afro")
 DOWN = np.array([0.0, -1.0, 0.0])
-#: The crown's whorl: behind the parting, hair radiates from here.
-CROWN = np.array([0.0, 0.8, -0.5])
+MIN_GUIDES = 120
+#: Fibre radius of the hairstyles (0.6 mm: far thicker than hair, so that ~6000 strands cover a head;
+#: the absorption is per radius, so this sets the texture, not the colour; see render/README.md).
+HAIR_RADIUS = 0.007
+CROWN = head.CROWN
 
 
 @dataclass(frozen=True)
@@ -152,29 +169,30 @@ class Style:
     lift: float = 0.3             #: how far strands rise off the scalp along its normal before combing
     layer: float = 0.08           #: thickness of the hair over the scalp: crown strands lie on top
     strands_per_clump: int = 16
-    clump: float = 0.4            #: 0: strands keep their offset from the guide; 1: their tips meet it
+    clump: float = 0.4            #: 0: strands keep their offset from the guide; 1: their tips meet it; < 0: fan out
     wave: tuple[float, float] = (0.0, 0.5)   #: amplitude, wavelength of planar waves
     curl: tuple[float, float] = (0.0, 0.2)   #: amplitude, wavelength of helical curls (ringlets, coils)
     curl_jitter: float = 0.15     #: per-strand variation of the curls' amplitude and wavelength
     frizz: float = 0.01           #: per-strand random wander, growing to the tip
     cut_y: float | None = None    #: a blunt cut: tips end at this height in front, 0.25 higher at the back
     curl_under: float = 0.0       #: ends turned under towards the neck (a bob)
+    thickness: float = 1.0        #: radius multiplier (coils need thicker strands to fill their volume)
 
 
 STYLES = {
-    "straight": Style(length=2.5, points=32, part_x=0.3, bend=0.35, lift=0.2, layer=0.07,
+    "straight": Style(length=2.5, points=32, part_x=0.3, bend=0.18, lift=0.15, layer=0.05,
                       strands_per_clump=14, clump=0.35, wave=(0.012, 0.8), frizz=0.006, length_jitter=0.12),
     "wavy": Style(length=2.4, points=44, part_x=0.0, bend=0.35, lift=0.3, layer=0.09,
                   strands_per_clump=16, clump=0.5, wave=(0.07, 0.42), frizz=0.01, length_jitter=0.12),
-    "curly": Style(length=1.9, points=72, part_x=-0.22, bend=0.45, lift=0.5, layer=0.14,
+    "curly": Style(length=1.9, points=72, part_x=-0.22, bend=0.45, lift=0.3, layer=0.1,
                    strands_per_clump=18, clump=0.65, curl=(0.085, 0.21), frizz=0.014, length_jitter=0.18),
     "bob": Style(length=1.8, points=26, part_x=-0.3, bend=0.3, lift=0.25, layer=0.08,
                  strands_per_clump=14, clump=0.3, wave=(0.006, 0.8), frizz=0.004, length_jitter=0.03,
                  cut_y=-1.3, curl_under=0.12),
-    "ponytail": Style(length=1.7, points=40, kind="ponytail", bend=0.5, layer=0.03,
-                      strands_per_clump=16, clump=0.45, wave=(0.02, 0.6), frizz=0.008, length_jitter=0.15),
-    "afro": Style(length=0.8, points=96, kind="afro", lift=1.0, layer=0.02, strands_per_clump=6, clump=0.35,
-                  curl=(0.045, 0.075), curl_jitter=0.25, frizz=0.02, length_jitter=0.1),
+    "ponytail": Style(length=1.7, points=40, kind="ponytail", bend=0.5, layer=0.05,
+                      strands_per_clump=16, clump=-1.5, wave=(0.02, 0.6), frizz=0.01, length_jitter=0.15),
+    "afro": Style(length=0.8, points=96, kind="afro", lift=1.0, layer=0.02, strands_per_clump=6, clump=0.25,
+                  curl=(0.05, 0.08), curl_jitter=0.25, frizz=0.07, length_jitter=0.1, thickness=1.15),
 }
 assert tuple(STYLES) == HAIRSTYLES
 
@@ -188,14 +206,6 @@ def _smoothstep(lo: float, hi: float, x: np.ndarray) -> np.ndarray:
     return t * t * (3 - 2 * t)
 
 
-def in_parting(points: np.ndarray, part_x: float | None, half_gap: float = 0.022) -> np.ndarray:
-    """Whether scalp ``points`` lie in the parting's bare line (front hairline to the crown)."""
-    if part_x is None:
-        return np.zeros(len(points), dtype=bool)
-    p = np.asarray(points)
-    return (np.abs(p[:, 0] - part_x) < half_gap) & (p[:, 2] > CROWN[2] + 0.05) & (p[:, 1] > 0.2)
-
-
 def scalp_roots(n: int, rng: np.random.Generator, part_x: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``n`` root points on the scalp (above the hairline, off the parting) and their outward normals."""
     out = np.empty((0, 3))
@@ -203,7 +213,7 @@ def scalp_roots(n: int, rng: np.random.Generator, part_x: float | None = None) -
         d = _unit(rng.normal(size=(3 * n + 16, 3)))
         d = d[head.hairline_margin(head.SKULL_CENTER + d) > rng.uniform(0.0, 4.0, len(d))]  # a soft hairline
         p = head.surface_along(d)
-        out = np.vstack([out, p[~in_parting(p, part_x)]])
+        out = np.vstack([out, p[~head.in_parting(p, part_x)]])
     out = out[:n]
     return out, head.gradient(out)
 
@@ -222,13 +232,16 @@ def _comb(roots: np.ndarray, normals: np.ndarray, part_x: float | None) -> tuple
     return _unit(comb), side
 
 
-def _keep_off_face(p: np.ndarray, side: np.ndarray, margin: np.ndarray) -> np.ndarray:
-    """Hair does not hang in front of the face: points there move sideways to its edge."""
+def _keep_off_face(p: np.ndarray, side: np.ndarray, margin: np.ndarray, active: np.ndarray | bool = True) -> np.ndarray:
+    """Hair does not hang in front of the face: points there move sideways to its edge, on the side
+    they are on (or their root's, near the middle). ``active`` spares the roots."""
     half = 0.74 + margin
-    front = (p[:, 2] > 0.05) & (p[:, 1] < 0.45) & (p[:, 1] > -1.6) & (np.abs(p[:, 0]) < half)
+    front = active & (p[:, 2] > 0.05) & (p[:, 1] < 0.45) & (p[:, 1] > -1.6) & (np.abs(p[:, 0]) < half)
     if front.any():
         p = p.copy()
-        p[front, 0] = side[front] * half[front]
+        toward = np.where(np.abs(p[front, 0]) > 0.05, np.sign(p[front, 0]), side[front])
+        p[front, 0] = toward * half[front]
+        p[front, 2] = np.minimum(p[front, 2], 0.3 + 2 * margin[front])   # beside the cheek, not before it
     return p
 
 
@@ -259,7 +272,7 @@ def _drape(roots: np.ndarray, normals: np.ndarray, comb: np.ndarray, side: np.nd
     for k in range(1, n_pts):
         v = _unit(keep * v + (1 - keep) * DOWN)
         q = p + step[:, None] * v
-        q = _keep_off_face(q, side, m[:, k])
+        q = _keep_off_face(q, side, m[:, k], arc[:, k] > 0.2)
         q = head.push_out(q, m[:, k], iterations=2)
         v = _unit(q - p)
         p = out[:, k] = q
@@ -292,9 +305,9 @@ def _frame(curves: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _displace(curves: np.ndarray, arc: np.ndarray, amplitude: np.ndarray, wavelength: np.ndarray,
               phase: np.ndarray, helix: bool) -> np.ndarray:
     """Waves (planar) or curls (helical) of ``amplitude`` (per strand and point) and ``wavelength`` and
-    ``phase`` (per strand), faded in over the first 0.2 units."""
+    ``phase`` (per strand), faded in over the first 0.2 units (curls 0.3: no corkscrews at the part)."""
     n1, n2 = _frame(curves)
-    amp = amplitude * _smoothstep(0.0, 0.2, arc)
+    amp = amplitude * _smoothstep(0.0, 0.3 if helix else 0.2, arc)
     ang = 2 * np.pi * arc / wavelength[:, None] + phase[:, None]
     offset = (amp * np.cos(ang))[..., None] * n1
     if helix:
@@ -318,8 +331,10 @@ def _nearest(points: np.ndarray, centres: np.ndarray, labels: np.ndarray | None 
 def _afro_guides(roots: np.ndarray, normals: np.ndarray, lengths: np.ndarray, n_pts: int,
                  rng: np.random.Generator) -> np.ndarray:
     """Strands growing outward from the scalp to a rounded silhouette around the head."""
-    centre, radii = np.array([0.0, 0.32, -0.14]), np.array([1.6, 1.42, 1.6])
-    g = _unit(normals + 0.6 * _unit(roots - centre) + rng.normal(0, 0.12, roots.shape))
+    centre, radii = np.array([0.0, 0.3, -0.14]), np.array([1.55, 1.38, 1.55])
+    # front hair rises (seen from the front it stands side-on, as a wall, not end-on)
+    rise = 0.5 * _smoothstep(0.0, 0.6, roots[:, 2])[:, None] * np.array([0.0, 1.0, -0.3])
+    g = _unit(normals + 0.6 * _unit(roots - centre) + rise + rng.normal(0, 0.3, roots.shape))
     g[:, 1] = np.maximum(g[:, 1], -0.6)
     # distance along g from the root to the silhouette ellipsoid (the root is inside it)
     o, d = (roots - centre) / radii, g / radii
@@ -336,7 +351,7 @@ def _ponytail(roots: np.ndarray, normals: np.ndarray, style: Style, n_strands: i
               margin: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Hair pulled over the scalp to a tie at the back of the head, then a clumped tail falling from it."""
     n_gather = style.points // 3
-    tie_dir = _unit(np.array([0.0, 0.05, -1.0]))
+    tie_dir = _unit(np.array([0.0, 0.4, -1.0]))   # a high tie, at the back of the crown
     tie = head.surface_along(tie_dir[None])[0] + 0.09 * tie_dir
     # the gather: along the skull, from each root's direction to the tie's
     t = np.linspace(0, 1, n_gather)[None, :, None]
@@ -344,22 +359,22 @@ def _ponytail(roots: np.ndarray, normals: np.ndarray, style: Style, n_strands: i
     dirs = _unit((1 - t) * d0 + t * tie_dir)
     radius = 1.0 / np.sqrt(np.sum((dirs / head.SKULL_RADII) ** 2, axis=-1, keepdims=True))
     path = head.SKULL_CENTER + dirs * radius
-    spread = rng.normal(0, 0.035, (len(roots), 2))
+    spread = rng.normal(0, 0.045, (len(roots), 2))
     across = np.stack([np.array([1.0, 0.0, 0.0]), _unit(np.array([0.0, 1.0, 0.05]))])
     tie_points = tie + spread @ across
     pull = _smoothstep(0.55, 1.0, t)
     path = (1 - pull) * path + pull * tie_points[:, None]
     arc = np.linspace(0, 1, n_gather)[None, :] * 1.5
-    path = head.push_out(path.reshape(-1, 3), _ramp(0.3 * margin, arc).reshape(-1)).reshape(path.shape)
+    path = head.push_out(path.reshape(-1, 3), _ramp(margin, arc).reshape(-1)).reshape(path.shape)
     # the tail: guides fall from the tie, every strand follows the nearest one
     n_tail = style.points - n_gather
-    n_guides = max(4, n_strands // style.strands_per_clump)
-    guide_spread = rng.normal(0, 0.035, (n_guides, 2))
+    n_guides = min(n_strands, max(4, n_strands // style.strands_per_clump))
+    guide_spread = rng.normal(0, 0.045, (n_guides, 2))
     guide_roots = tie + guide_spread @ across
-    up = np.tile(_unit(np.array([0.0, 0.35, -1.0])), (n_guides, 1))
+    up = _unit(np.array([0.0, 0.7, -1.0]) + rng.normal(0, 0.15, (n_guides, 3)))   # out and up, then falling
     tail_len = style.length * rng.uniform(0.9, 1.0, n_guides)
     guides = _drape(guide_roots, up, np.zeros_like(up), np.ones(n_guides), tail_len, n_tail + 1,
-                    replace(style, lift=1.0, bend=0.35), np.full(n_guides, 0.02))
+                    replace(style, lift=1.0, bend=0.45), np.full(n_guides, 0.02))
     assign = _nearest(spread, guide_spread)
     tails = _follow(guides, guide_roots, tie_points, assign, style, lengths, rng)
     return np.concatenate([path, tails[:, 1:]], axis=1)
@@ -389,13 +404,16 @@ def _follow(guides: np.ndarray, guide_roots: np.ndarray, roots: np.ndarray, assi
     return curves
 
 
-def grow(style: Style, n_strands: int, seed: int = 0, radius: float = 0.006) -> Strands:
+def grow(style: Style, n_strands: int, seed: int = 0, radius: float = HAIR_RADIUS) -> Strands:
     """Grow ``n_strands`` strands of ``style`` on the head (see the module docstring)."""
+    radius = radius * style.thickness
     rng = np.random.default_rng(seed)
     guide_rng = np.random.default_rng([seed, 1])
     k = style.points
     roots, normals = scalp_roots(n_strands, rng, style.part_x)
-    n_guides = max(4, min(n_strands, n_strands // max(style.strands_per_clump, 1)))
+    # clumps of about ``strands_per_clump`` strands, but never fewer than MIN_GUIDES (so that few
+    # strands do not follow guides a head's width away)
+    n_guides = min(n_strands, max(MIN_GUIDES, n_strands // max(style.strands_per_clump, 1)))
     g_roots, g_normals = scalp_roots(n_guides, guide_rng, style.part_x)
     margin = _margins(roots[:, 1] + 0.3 * roots[:, 2], radius, style.layer, rng)
     g_margin = _margins(g_roots[:, 1] + 0.3 * g_roots[:, 2], radius, style.layer, guide_rng)
@@ -420,8 +438,9 @@ def grow(style: Style, n_strands: int, seed: int = 0, radius: float = 0.006) -> 
             if amp > 0:   # coherent in a clump (one phase), varied per strand; curls widen to the tip
                 j = style.curl_jitter
                 amplitude = amp * (1 + j * rng.uniform(-1, 1, (n_strands, 1))) * (0.6 + 0.4 * t if helix else 1.0)
-                curves = _displace(curves, arc, amplitude, lam * (1 + 0.5 * j * rng.uniform(-1, 1, n_strands)),
-                                   clump_phase + rng.normal(0, 0.35, n_strands), helix)
+                clump_lam = lam * (1 + 0.5 * j * guide_rng.uniform(-1, 1, n_guides))[assign]
+                curves = _displace(curves, arc, amplitude, clump_lam * (1 + 0.015 * rng.uniform(-1, 1, n_strands)),
+                                   clump_phase + rng.normal(0, 0.3, n_strands), helix)
         if style.cut_y is not None:
             curves = _cut(curves, style.cut_y)
         if style.curl_under > 0:
@@ -430,11 +449,49 @@ def grow(style: Style, n_strands: int, seed: int = 0, radius: float = 0.006) -> 
                           np.cumsum(np.linalg.norm(np.diff(curves, axis=1), axis=-1), axis=1)], axis=1)
     m = _ramp(margin, arc).reshape(-1)
     flat = curves.reshape(-1, 3)
-    flat = _keep_off_face(flat, np.repeat(side, k), m) if style.kind != "afro" else flat
-    curves = head.push_out(flat, m).reshape(curves.shape)
-    # a B-spline starts near its second point: a mirrored first point makes it start at the root
-    curves = np.concatenate([2 * curves[:, :1] - curves[:, 1:2], curves], axis=1)
-    return Strands.from_grid(curves, radius)
+    if style.kind != "afro":
+        flat = _keep_off_face(flat, np.repeat(side, k), m, arc.reshape(-1) > 0.2)
+    curves = head.push_out(flat, m, iterations=8).reshape(curves.shape)
+    # a B-spline starts near its second point: mirrored end points make it start at the root
+    strands = Strands.from_grid(curves, radius).through_ends()
+    grid = _settle(strands.points.reshape(n_strands, k + 2, 3).astype(float), m.reshape(n_strands, k))
+    return Strands.from_grid(grid, radius)
+
+
+def _settle(control: np.ndarray, margin: np.ndarray, rounds: int = 4) -> np.ndarray:
+    """Push control points out until the B-spline itself (sampled at its knots and mid-segments),
+    not only its control points, clears the bust by ``margin`` (per point, without the mirrored ends).
+
+    Control points straddling a thin part (an ear's rim) otherwise let the curve cut through it.
+    """
+    s, k, _ = control.shape
+    target = np.concatenate([margin[:, :1], margin, margin[:, -1:]], axis=1)
+    knot = np.array([1.0, 4.0, 1.0]) / 6
+    mid = np.array([1.0, 23.0, 23.0, 1.0]) / 48
+    live = np.ones(s, dtype=bool)   # strands still checked: after the first round, those that moved
+    for _ in range(rounds):
+        moved, touched = False, np.zeros(s, dtype=bool)
+        for weights, lift in ((knot, (1,)), (mid, (1, 2))):
+            n = len(weights)
+            samples = sum(w * control[:, i:k - n + 1 + i] for i, w in enumerate(weights))   # (s, k-n+1, 3)
+            first = 1 if n == 3 else 0          # the knot at the root stays on the scalp
+            samples = samples[:, first:]
+            need = np.min([target[:, first + i:k - n + 1 + i] for i in lift], axis=0)
+            d = np.full(samples.shape[:2], np.inf)
+            d[live] = head.sdf(samples[live].reshape(-1, 3)).reshape(-1, samples.shape[1])
+            bad = d < need - 1e-4
+            if not bad.any():
+                continue
+            moved = True
+            rows, cols = np.nonzero(bad)
+            touched[rows] = True
+            push = ((need - d)[bad] * 1.5)[:, None] * head.gradient(samples[rows, cols])
+            for i in lift:
+                np.add.at(control, (rows, cols + first + i), push)
+        if not moved:
+            break
+        live = touched
+    return control
 
 
 def _cut(curves: np.ndarray, cut_y: float) -> np.ndarray:
@@ -456,7 +513,7 @@ def _curl_under(curves: np.ndarray, amount: float) -> np.ndarray:
     return curves - amount * w * inward + np.array([0.0, 0.5 * amount, 0.0]) * w
 
 
-def hairstyle_strands(style: str, n_strands: int = 4000, seed: int = 0, radius: float = 0.006) -> Strands:
+def hairstyle_strands(style: str, n_strands: int = 6000, seed: int = 0, radius: float = HAIR_RADIUS) -> Strands:
     """One of ``HAIRSTYLES`` on the head (``head.py``'s bust, face along +z)."""
     if style not in HAIRSTYLES:
         raise ValueError(f"unknown hairstyle {style!r}; choose one of {', '.join(HAIRSTYLES)}")

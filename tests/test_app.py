@@ -8,9 +8,11 @@ import pytest
 from hairdigi.app.gui.main_window import MainWindow
 from hairdigi.app.rig_session import RigSession
 from hairdigi.inference.encoder import Encoder
+from hairdigi.render.hairfile import write_hair
+from hairdigi.render.strands import hairstyle_strands
 
-FAST = {"hairstyle_size": 48, "hairstyle_strands": 200, "hairstyle_passes": 2, "hairstyle_spp_per_pass": 1,
-        "twin_spp": 2, "feed_fps": 10}
+FAST = {"hairstyle_size": 48, "hairstyle_strands": 200, "hairstyle_passes": (1, 1), "hairstyle_clean_spp": 2,
+        "twin_passes": (1, 1), "twin_clean_spp": 2, "view_strands": 100, "feed_fps": 10}
 
 
 def open_window(qtbot, folder, onnx_path):
@@ -51,7 +53,41 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output):
     assert result.params is not None and not result.blocked
     assert result.image_path.exists() and result.meta_path.exists()
     qtbot.waitUntil(lambda: "ΔE2000" in win.match_label.text(), timeout=120000)
-    qtbot.waitUntil(lambda: win.render_progress.value() == FAST["hairstyle_passes"], timeout=120000)
+    qtbot.waitUntil(lambda: win.render_progress.value() == len(FAST["hairstyle_passes"]), timeout=120000)
+    qtbot.waitUntil(lambda: win.model.twin is not None and win.model.twin.stage == "refined"
+                    and win.model.twin.final, timeout=120000)
+    # the scenes were built by the warm-up: the capture only updated parameters
+    assert (win.model.twin_renderer.builds, win.model.style_renderer.builds) == (1, 1)
+    # the chips: the estimated hair colour (the twin's mean) and the dye, each labelled
+    assert win.chip.text() == "hair" and win.dye_chip.text() == "dye"
+    assert win.chip.styleSheet() != win.dye_chip.styleSheet()
+    # the raw path-traced twin is one click away, and shows at once (no re-render)
+    denoised = pixmap_array(win.synth_label.pixmap()).copy()
+    win.denoise_box.setChecked(False)
+    assert not np.array_equal(pixmap_array(win.synth_label.pixmap()), denoised)
+    win.denoise_box.setChecked(True)
+    saved = win.model.save_render("twin", tmp_path / "twin.png")
+    assert [p.suffix for p in saved] == [".png", ".exr"] and all(p.stat().st_size > 0 for p in saved)
+
+    # the camera orbits: the hairstyle re-renders from the warm scene
+    win.orbit_sliders[0].setValue(30)
+    with qtbot.waitSignal(win.hairstyle_done, timeout=120000):
+        pass
+    assert win.model.orbit == (30.0, 0.0) and win.model.style_renderer.builds == 1
+
+    # a .hair model opens as a hairstyle; a bad one shows its error in the banner, and the app goes on
+    good, bad = tmp_path / "bob.hair", tmp_path / "cut.hair"
+    write_hair(good, hairstyle_strands("bob", 60))
+    bad.write_bytes(good.read_bytes()[:300])
+    with qtbot.waitSignal(win.hairstyle_done, timeout=120000):
+        win.open_hair_model(good)
+    assert win.style_box.currentText() == "bob.hair" and "bob.hair" in win.render_progress.format()
+    win.open_hair_model(bad)
+    qtbot.waitUntil(lambda: win.banner.isVisible(), timeout=60000)
+    assert "cut.hair" in win.banner.text() and "truncated" in win.banner.text()
+    win.banner.hide()
+    win.style_box.setCurrentText("straight")
+    assert win.model.hair_file is None
 
     # a new selection cancels the stale render and starts another
     old = win.render_task

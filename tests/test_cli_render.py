@@ -81,7 +81,7 @@ def test_bad_camera_and_unknown_scene(tmp_path, params_file, capsys):
     assert "POLAR,AZIMUTH" in capsys.readouterr().err
     run = subprocess.run([sys.executable, "-m", "hairdigi.app.cli", "render", "--params", str(params_file),
                           "--scene", "beehive", "--out", "x.png"], capture_output=True, text=True)
-    assert run.returncode == 2 and "invalid choice: 'beehive'" in run.stderr
+    assert run.returncode == 2 and "'beehive' is not a scene" in run.stderr
 
 
 def test_demo_quick(tmp_path, capsys):

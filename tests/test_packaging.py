@@ -162,3 +162,42 @@ def test_screenshot_check(tmp_path):
     assert png_check.main([str(tmp_path / "flat.png")]) == 1
     (tmp_path / "not.png").write_text("text")
     assert png_check.main([str(tmp_path / "not.png")]) == 2
+
+
+def run_rthook(tmp_path, argv: list[str], env: dict, failing_libs: tuple[str, ...] = ()) -> subprocess.CompletedProcess:
+    """packaging/rthook_hairdigi.py as the build runs it (``sys._MEIPASS`` set), with some libraries unloadable."""
+    code = (f"import ctypes, os, runpy, sys\n"
+            f"sys._MEIPASS = {str(tmp_path)!r}\n"
+            f"sys.argv = {['hairdigi', *argv]!r}\n"
+            f"real = ctypes.CDLL\n"
+            f"def fake(name, *a, **k):\n"
+            f"    if os.path.basename(name) in {failing_libs!r}:\n"
+            f"        raise OSError(name + ': cannot open shared object file')\n"
+            f"    return real(name, *a, **k)\n"
+            f"ctypes.CDLL = fake\n"
+            f"runpy.run_path({str(PACKAGING / 'rthook_hairdigi.py')!r})\n"
+            f"print(os.environ.get('DRJIT_LIBLLVM_PATH'), os.environ.get('HAIRDIGI_VARIANT'))\n")
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env={"PATH": "/usr/bin:/bin", **env})
+
+
+def test_first_run_checks_are_one_line(tmp_path):
+    """The build's runtime hook: no display, a missing GL library, an LLVM that does not load."""
+    done = run_rthook(tmp_path, ["app", "--sim"], {})
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and "no display" in done.stderr
+
+    done = run_rthook(tmp_path, ["app"], {"DISPLAY": ":99"}, failing_libs=("libEGL.so.1",))
+    assert done.returncode == 2 and done.stderr.count("\n") == 1
+    assert "libEGL.so.1" in done.stderr and "sudo apt-get install libegl1" in done.stderr
+
+    assert run_rthook(tmp_path, ["app"], {"QT_QPA_PLATFORM": "offscreen"}).returncode == 0
+
+    llvm = tmp_path / "llvm" / "libLLVM.so.19.1"
+    llvm.parent.mkdir()
+    llvm.write_bytes(b"not a library")
+    done = run_rthook(tmp_path, ["render", "--params", "p.json"], {})
+    assert done.returncode == 0 and done.stdout.split() == [str(llvm), "scalar_rgb"]
+    assert done.stderr.count("\n") == 1 and "sudo apt-get install libllvm19" in done.stderr
+
+    done = run_rthook(tmp_path, ["--version"], {})   # prints only: no checks, no cost
+    assert done.returncode == 0 and done.stdout.split() == ["None", "None"] and not done.stderr

@@ -1,8 +1,18 @@
+"""Strand geometry: the swatch, the procedural hairstyles on the head, and the head itself."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-from hairdigi.render.hairfile import HairFileError, read_hair, write_hair
-from hairdigi.render.strands import HAIRSTYLES, HEAD_RADIUS, hairstyle_strands, swatch_strands
+from hairdigi.render import head
+from hairdigi.render.strands import HAIRSTYLES, STYLES, Strands, grow, hairstyle_strands, swatch_strands
+
+N = 300
+
+
+@pytest.fixture(scope="module")
+def styles():
+    return {style: hairstyle_strands(style, N, seed=3) for style in HAIRSTYLES}
 
 
 def test_swatch_is_deterministic_and_lies_on_the_holder():
@@ -14,16 +24,80 @@ def test_swatch_is_deterministic_and_lies_on_the_holder():
 
 
 @pytest.mark.parametrize("style", HAIRSTYLES)
-def test_hairstyles_grow_outside_the_head(style):
-    s = hairstyle_strands(style, 200, seed=3)
-    assert s.n_strands == 200 and np.all(s.counts >= 4)
-    assert np.all(np.isfinite(s.points))
-    assert np.linalg.norm(s.points, axis=1).min() >= HEAD_RADIUS  # nothing inside the head proxy
-    assert np.array_equal(s.points, hairstyle_strands(style, 200, seed=3).points)
+def test_hairstyles_root_on_the_scalp_and_stay_out_of_the_head(style, styles):
+    s = styles[style]
+    assert s.n_strands == N and np.all(s.counts >= 4) and np.all(np.isfinite(s.points))
+    assert np.array_equal(s.points, hairstyle_strands(style, N, seed=3).points)          # deterministic
+    # the curve Mitsuba draws starts on the scalp, above the hairline
+    roots = s.curves(1).points[s.curves(1).starts()]
+    assert np.abs(head.sdf(roots)).max() < 0.01
+    assert head.hairline_margin(roots).min() > 0
+    # its centre line never enters the bust, and past the first 0.1 units the tube clears it
+    curves = s.curves(3)
+    d = head.sdf(curves.points)
+    seg = np.r_[0.0, np.linalg.norm(np.diff(curves.points, axis=0), axis=1)]
+    seg[curves.starts()] = 0.0
+    arc = np.cumsum(seg) - np.repeat(np.cumsum(seg)[curves.starts()], curves.counts)
+    assert d.min() > 0
+    assert np.quantile(d[arc > 0.1], 0.999) > 0 and (d[arc > 0.1] < 0.5 * s.radii[0]).mean() < 1e-3
+
+
+def test_the_part_is_bare(styles):
+    for style in ("straight", "wavy", "bob", "curly"):
+        part_x = STYLES[style].part_x
+        roots = styles[style].curves(1).points[styles[style].curves(1).starts()]
+        assert not head.in_parting(roots, part_x).any(), style
+        # roots crowd both sides of the part
+        near = (np.abs(roots[:, 0] - part_x) < 0.15) & (roots[:, 2] > 0) & (roots[:, 1] > 0.5)
+        assert (roots[near, 0] < part_x).sum() > 2 and (roots[near, 0] > part_x).sum() > 2, style
+
+
+def _tip_spacing(strands: Strands) -> float:
+    tips = strands.points[strands.starts() + strands.counts - 2]   # the last point before the mirrored end
+    d = np.linalg.norm(tips[:, None] - tips[None], axis=-1)
+    np.fill_diagonal(d, np.inf)
+    return float(d.min(axis=1).mean())
+
+
+@pytest.mark.parametrize("style, ratio", [("straight", 0.9), ("curly", 0.92)])
+def test_clumping_gathers_the_tips(style, ratio):
+    clumped = grow(STYLES[style], 600, seed=1)
+    loose = grow(replace(STYLES[style], clump=0.0), 600, seed=1)
+    assert _tip_spacing(clumped) < ratio * _tip_spacing(loose)
+
+
+def test_lengths_vary_per_strand(styles):
+    for style in ("straight", "curly"):
+        curves = styles[style].curves(2)
+        seg = np.r_[0.0, np.linalg.norm(np.diff(curves.points, axis=0), axis=1)]
+        seg[curves.starts()] = 0.0
+        lengths = np.add.reduceat(seg, curves.starts())
+        assert lengths.std() / lengths.mean() > 0.04, style
+
+
+def test_the_afro_has_volume(styles):
+    afro, straight = styles["afro"].points, styles["straight"].points
+    assert np.ptp(afro[:, 0]) > np.ptp(straight[:, 0]) + 0.4
+    assert afro[:, 1].max() > straight[:, 1].max() + 0.4          # it stands up off the crown
+
+
+def test_curls_coil(styles):
+    """Curly and afro strands turn round and round: their path is much longer than root-to-tip."""
+    for style, ratio in (("curly", 1.3), ("afro", 1.6), ("straight", 0.0)):
+        curves = styles[style].curves(2)
+        seg = np.r_[0.0, np.linalg.norm(np.diff(curves.points, axis=0), axis=1)]
+        seg[curves.starts()] = 0.0
+        path = np.add.reduceat(seg, curves.starts())
+        ends = curves.starts() + curves.counts - 1
+        chord = np.linalg.norm(curves.points[ends] - curves.points[curves.starts()], axis=1)
+        if ratio:
+            assert np.median(path / chord) > ratio, style
+        else:
+            assert np.median(path / chord) < 1.3
 
 
 def test_unknown_hairstyle_names_the_choices():
-    with pytest.raises(ValueError, match="unknown hairstyle 'mohawk'.*straight"):
+    with pytest.raises(ValueError, match="unknown hairstyle 'mohawk'.*straight.*afro"):
         hairstyle_strands("mohawk")
 
 
@@ -42,35 +116,30 @@ def test_curve_text_has_a_blank_line_between_strands():
     assert len(blocks) == 3 and all(len(b.strip().splitlines()) == 5 for b in blocks)
 
 
-def test_hair_file_round_trip(tmp_path):
-    s = hairstyle_strands("bob", 50, seed=0)
-    path = write_hair(tmp_path / "bob.hair", s)
-    raw = path.read_bytes()
-    assert raw[:4] == b"HAIR" and len(raw) == 128 + 2 * 50 + 16 * len(s.points)
-    back = read_hair(path)
-    assert np.array_equal(back.counts, s.counts)
-    assert np.allclose(back.points, s.points) and np.allclose(back.radii, s.radii)
+def test_through_ends_makes_the_curve_start_and_end_on_the_polyline():
+    lines = Strands(np.random.default_rng(0).normal(size=(9, 3)).astype(np.float32), np.ones(9, np.float32),
+                    np.array([2, 3, 4]))
+    curves = lines.through_ends().curves(4)
+    for line, curve in zip(lines.polylines(), curves.polylines()):
+        assert np.allclose(curve[0], line[0], atol=1e-5) and np.allclose(curve[-1], line[-1], atol=1e-5)
+    subset = lines.subset([2, 0])
+    assert np.array_equal(subset.counts, [4, 2]) and np.array_equal(subset.polylines()[1], lines.polylines()[0])
 
 
-def test_hair_file_drops_short_strands_and_uses_defaults(tmp_path):
-    import struct
-    # 2 strands (segments 2 and 4: 3 and 5 points), no thickness array: default diameter 0.02
-    header = struct.pack("<4sIIIIff3f88s", b"HAIR", 2, 8, 0b11, 0, 0.02, 0, 0, 0, 0, b"")
-    pts = np.arange(24, dtype="<f4")
-    (tmp_path / "h.hair").write_bytes(header + np.array([2, 4], "<u2").tobytes() + pts.tobytes())
-    s = read_hair(tmp_path / "h.hair")
-    assert s.n_strands == 1 and len(s.points) == 5 and np.allclose(s.radii, 0.01)
-
-
-def test_bad_hair_files(tmp_path):
-    (tmp_path / "a.hair").write_bytes(b"NOPE" + bytes(124))
-    with pytest.raises(HairFileError, match="not a .hair file"):
-        read_hair(tmp_path / "a.hair")
-    s = swatch_strands(5, seed=0)
-    raw = write_hair(tmp_path / "b.hair", s).read_bytes()
-    (tmp_path / "b.hair").write_bytes(raw[:-10])
-    with pytest.raises(HairFileError, match="truncated"):
-        read_hair(tmp_path / "b.hair")
-    (tmp_path / "c.hair").write_bytes(b"HAIR")
-    with pytest.raises(HairFileError, match="too short"):
-        read_hair(tmp_path / "c.hair")
+def test_the_head_is_a_closed_outward_mesh_with_ears_neck_and_shoulders():
+    mesh = head.head_mesh()
+    faces = mesh.faces.astype(np.int64)
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    _, uses = np.unique(edges, axis=0, return_counts=True)
+    assert (uses == 2).mean() > 0.999                                        # closed
+    tri = mesh.vertices[faces].astype(float)
+    assert np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum() / 6 > 5   # outward, bust-sized
+    off = np.abs(head.sdf(mesh.vertices))
+    assert np.quantile(off, 0.999) < 1e-3 and off.max() < 0.01                 # on the surface (bar the cut)
+    v = mesh.vertices
+    ears = (np.abs(v[:, 0]) > 0.85) & (np.abs(v[:, 1] + 0.3) < 0.2)
+    assert ears.sum() > 20                                                   # ears stick out of the skull
+    assert np.ptp(v[:, 0]) > 3.5 and v[:, 1].min() < -3.0                    # shoulders
+    skin, scalp = head.split_scalp(mesh, part_x=0.3)
+    assert len(skin.faces) + len(scalp.faces) == len(mesh.faces) and len(scalp.faces) > 1000
+    assert len(head.ply_bytes(mesh)) < 2_000_000

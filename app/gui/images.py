@@ -28,3 +28,22 @@ def overlay(rgb: np.ndarray, roi=None, chart_box=None, zebra: bool = True) -> np
     if chart_box is not None:
         cv2.polylines(out, [np.asarray(chart_box, np.int32).reshape(-1, 1, 2)], True, (0, 255, 255), 1)
     return out
+
+
+#: The ΔE2000 map's scale: black (no difference) through blue, green and yellow to red at DELTA_E_MAX and over.
+DELTA_E_MAX = 6.0
+_SCALE = np.array([(0, 0, 0), (30, 30, 130), (0, 140, 170), (60, 190, 60), (230, 210, 40), (240, 120, 30),
+                   (220, 30, 30)], dtype=float)
+
+
+def delta_e_colours(delta_e: np.ndarray, max_de: float = DELTA_E_MAX) -> np.ndarray:
+    """An (H, W) ΔE2000 map as an RGB uint8 image on the window's colour scale."""
+    x = np.clip(np.asarray(delta_e, dtype=float), 0.0, max_de) / max_de * (len(_SCALE) - 1)
+    out = np.stack([np.interp(x, np.arange(len(_SCALE)), _SCALE[:, c]) for c in range(3)], axis=-1)
+    return np.round(out).astype(np.uint8)
+
+
+def colour_scale(width: int, height: int, max_de: float = DELTA_E_MAX) -> np.ndarray:
+    """The colour bar of :func:`delta_e_colours`, 0 on the left, ``max_de`` on the right."""
+    row = delta_e_colours(np.linspace(0.0, max_de, width), max_de)
+    return np.ascontiguousarray(np.repeat(row[None], height, axis=0))

@@ -8,9 +8,10 @@ from pathlib import Path
 from PySide6.QtWidgets import QApplication, QDialog, QDialogButtonBox, QFormLayout, QLineEdit
 
 from hairdigi.app.gui.main_window import MainWindow, settings_store
+from hairdigi.app.rig_session import open_rig
 
 SETTING_DEFAULTS = {"camera": "0", "serial_port": "", "output_folder": str(Path.home() / "hairdigi-sessions" / "default"),
-                    "hairstyle_size": 384, "twin_spp": 16}
+                    "hairstyle_size": 512}
 
 
 def read_settings() -> dict:
@@ -45,37 +46,15 @@ class SettingsDialog(QDialog):
         self.accept()
 
 
-def open_rig(settings: dict, sim: bool, folder: Path):
-    """The real rig when its camera and light board answer; else the simulated rig, and why."""
-    from hairdigi.app.rig_session import RigSession
-
-    if not sim:
-        from hairdigi.hardware.cameras import CameraError, OpenCVCamera
-        from hairdigi.hardware.lights import LightController, LightError, discover
-        try:
-            cam = settings["camera"]
-            camera = OpenCVCamera(int(cam) if cam.isdigit() else cam)
-            port = settings["serial_port"] or next((p for p, _ in discover()), None)
-            if port is None:
-                camera.close()
-                raise LightError("no light board answered on any serial port")
-            return RigSession(camera, LightController(port), folder), None
-        except (CameraError, LightError) as exc:
-            reason = f"{exc}; using the simulated rig"
-    else:
-        reason = None
-    return RigSession.simulated_rig(folder), reason
-
-
 def run_app(sim: bool = False, session: str | None = None, tour: str | None = None) -> int:
     app = QApplication.instance() or QApplication(sys.argv[:1])
     settings = read_settings()
     folder = Path(session or settings["output_folder"])
-    rig, reason = open_rig(settings, sim, folder)
+    rig, reason = open_rig(folder, sim, settings["camera"], settings["serial_port"], fallback=True)
     offscreen = os.environ.get("QT_QPA_PLATFORM") == "offscreen"
-    window = MainWindow(rig, {"hairstyle_size": settings["hairstyle_size"], "twin_spp": settings["twin_spp"]},
-                        strand_view=not offscreen)
+    window = MainWindow(rig, {"hairstyle_size": settings["hairstyle_size"]}, strand_view=not offscreen)
     menu = window.menuBar().addMenu("&File")
+    menu.addAction("Open hair model…", window.open_hair_dialog)
     menu.addAction("Settings…", lambda: SettingsDialog(window).exec())
     menu.addAction("Quit", window.close)
     window.menuBar().addMenu("&Help").addAction("About hairdigi", window.show_about)

@@ -1,30 +1,31 @@
 """The main window: rig panel, result panel, hairstyle panel and the session list.
 
-Every slow call (frames, chart detection, calibration, capture, renders) runs in a worker; the
-window only starts tasks and shows what they return. The science is in app/rig_session.py,
-hardware/, inference/ and render/.
+The window holds widgets and workers only. The review state and the work behind it are in
+app/review.py (``ReviewModel``, free of Qt): the window runs the model's work functions in its
+workers, hands what they report back to ``model.apply`` on the UI thread, and redraws on the
+model's events.
 """
 from __future__ import annotations
 
-import time
+import dataclasses
 from pathlib import Path
 
 import numpy as np
-from PySide6.QtCore import QSettings, Qt, QTimer, Signal
+from PySide6.QtCore import QSettings, Qt, QThreadPool, QTimer, Signal
 from PySide6.QtWidgets import (QCheckBox, QComboBox, QFileDialog, QGridLayout, QGroupBox, QHBoxLayout, QLabel,
-                               QListWidget, QListWidgetItem, QMainWindow, QProgressBar, QPushButton, QSplitter,
-                               QVBoxLayout, QWidget)
+                               QListWidget, QListWidgetItem, QMainWindow, QProgressBar, QPushButton, QSlider,
+                               QSplitter, QVBoxLayout, QWidget)
 
 from hairdigi.app import rig_session as rs
-from hairdigi.app.gui.images import overlay, to_pixmap
-from hairdigi.app.gui.workers import FrameFeed, Task, start
-from hairdigi.render.params import VECTOR_FIELDS, HairParams
-from hairdigi.render.renderer import SceneSpec, default_renderer
+from hairdigi.app import review
+from hairdigi.app.gui.images import DELTA_E_MAX, colour_scale, delta_e_colours, overlay, to_pixmap
+from hairdigi.app.gui.workers import POOL, FrameFeed, Task, start
+from hairdigi.render.params import VECTOR_FIELDS
 from hairdigi.render.scenes import ENVIRONMENTS
-from hairdigi.render.strands import HAIRSTYLES, hairstyle_strands
+from hairdigi.render.strands import HAIRSTYLES
 
-DEFAULTS = {"hairstyle_size": 384, "hairstyle_strands": 3000, "hairstyle_passes": 8, "hairstyle_spp_per_pass": 2,
-            "twin_spp": 16, "feed_fps": 20}
+#: Window options; the preview ones are ``review.PreviewSettings`` fields.
+DEFAULTS = {"feed_fps": 20}
 
 
 def image_label(text: str, size=(260, 200)) -> QLabel:
@@ -35,39 +36,50 @@ def image_label(text: str, size=(260, 200)) -> QLabel:
     return label
 
 
+def chip_style(rgb8) -> str:
+    r, g, b = (int(v) for v in rgb8)
+    text = "#000" if 0.3 * r + 0.6 * g + 0.1 * b > 128 else "#fff"
+    return f"background: rgb({r},{g},{b}); color:{text}; border:1px solid #888; font-size:10px"
+
+
+def preview_settings(opts: dict) -> review.PreviewSettings:
+    """The preview fields of the window's options, with tuples where the settings want them."""
+    fields = {f.name for f in dataclasses.fields(review.PreviewSettings)}
+    chosen = {k: (tuple(v) if isinstance(v, list) else v) for k, v in opts.items() if k in fields}
+    return review.PreviewSettings(**chosen)
+
+
 class MainWindow(QMainWindow):
     calibrated = Signal(dict)
     captured = Signal(object)
-    preview_ready = Signal(float)           # mean-colour ΔE2000 of real vs synthetic
-    hairstyle_pass = Signal(int)             # spp so far
+    preview_ready = Signal(float)           # mean-colour ΔE2000 of real vs synthetic (each twin pass)
+    hairstyle_pass = Signal(int)            # spp so far
     hairstyle_done = Signal()
 
     def __init__(self, session: rs.RigSession, settings: dict | None = None, strand_view: bool = True) -> None:
         super().__init__()
         self.session = session
         self.opts = {**DEFAULTS, **(settings or {})}
+        self.model = review.ReviewModel(session, preview_settings(self.opts))
         self.setWindowTitle(f"hairdigi — {session.folder}")
         self.tasks: list[Task] = []
-        self.render_task: Task | None = None
-        self.current: dict | None = None     # the shown capture: record, images
-        self.chart_box = None
+        self.jobs: dict[str, Task] = {}      # the running twin, hairstyle and strand work, by name
+        self.hair_models: dict[str, Path] = {}   # opened .hair models, by their entry in the style list
         self.last_frame = None
         self._build(strand_view)
+        self._connect_model()
         session.frames.period = 1.0 / self.opts["feed_fps"]
         self.feed = FrameFeed(session.frames)
         self.feed.frame.connect(self._on_frame)
         self.feed.failed.connect(self.show_banner)
         self.feed.start()
-        self.chart_timer = QTimer(self)
-        self.chart_timer.timeout.connect(self._detect_chart)
-        self.chart_timer.start(1500)
         self.refresh_lights()
         self.refresh_calibration()
-        self.reload_session()
         source = "simulated rig (no camera or light board found, or --sim)" if session.simulated else "camera"
         self.statusBar().showMessage(f"{source}; session {session.folder}")
-        # the refinement's response curve for the rig's pose: built once (cached on disk), off the UI thread
-        self.run_task(lambda report, cancelled: session.prepare_refinement(), name="refinement curve")
+        if self.model.settings.warm:   # the preview scenes are built before the first capture needs them
+            self.run_task(self.model.warm_work(), name="warm-up")
+        self.model.reload()
 
     # -- layout ------------------------------------------------------------------------------
     def _build(self, with_strand_view: bool) -> None:
@@ -84,7 +96,7 @@ class MainWindow(QMainWindow):
         splitter.addWidget(self._hairstyle_panel(with_strand_view))
         outer.addWidget(splitter, 1)
         self.setCentralWidget(central)
-        self.resize(1500, 820)
+        self.resize(1500, 860)
 
     def _rig_panel(self) -> QWidget:
         box = QGroupBox("Rig")
@@ -135,28 +147,60 @@ class MainWindow(QMainWindow):
         return box
 
     def _result_panel(self) -> QWidget:
-        box = QGroupBox("Result: captured swatch | synthetic twin | difference ×4")
+        box = QGroupBox("Result: captured swatch | synthetic twin | ΔE2000 map")
         v = QVBoxLayout(box)
         row = QHBoxLayout()
         self.real_label = image_label("capture")
         self.synth_label = image_label("synthetic")
-        self.diff_label = image_label("difference")
+        self.diff_label = image_label("ΔE2000")
         for label in (self.real_label, self.synth_label, self.diff_label):
             label.setMinimumSize(160, 190)
             row.addWidget(label)
         v.addLayout(row)
-        self.chip = QLabel("hair")          # the estimated hair's colour: the refined swatch's mean
-        self.chip.setFixedSize(60, 60)
+        row = QHBoxLayout()
+        self.twin_info = QLabel("twin: –")
+        row.addWidget(self.twin_info, 1)
+        self.scale_label = QLabel()         # the ΔE map's colour scale, under the map
+        self.scale_label.setPixmap(to_pixmap(colour_scale(200, 14)))
+        self.scale_label.setToolTip(f"ΔE2000 of real vs twin, both smoothed at the fibre scale "
+                                    f"({self.model.settings.fibre_px:g} px): 0 (black) to {DELTA_E_MAX:g}+ (white)")
+        scale = QVBoxLayout()
+        scale.addWidget(self.scale_label)
+        ticks = QHBoxLayout()
+        for t in ("0", "1", "2", "3", "4", "5", f"{DELTA_E_MAX:g}+ ΔE"):
+            tick = QLabel(t)
+            tick.setStyleSheet("font-size:9px")
+            ticks.addWidget(tick)
+        scale.addLayout(ticks)
+        row.addLayout(scale)
+        v.addLayout(row)
+        row = QHBoxLayout()
+        self.denoise_box = QCheckBox("denoised (untick for the raw path-traced passes)")
+        self.denoise_box.setChecked(self.model.show_denoised)
+        self.denoise_box.setEnabled(self.model.show_denoised)
+        if not self.model.show_denoised:
+            self.denoise_box.setToolTip("no denoiser: pip install pyoidn==2.5.1.0")
+        self.denoise_box.toggled.connect(self.model.set_denoised)
+        row.addWidget(self.denoise_box)
+        b = QPushButton("Save twin…")
+        b.clicked.connect(lambda: self._save_dialog("twin"))
+        row.addWidget(b)
+        v.addLayout(row)
+        self.chip = QLabel("hair")          # the estimated hair colour: the twin's mean (raw)
+        self.chip.setFixedSize(70, 44)
+        self.chip.setAlignment(Qt.AlignmentFlag.AlignCenter)
+        self.chip.setToolTip("estimated hair colour: the mean of the synthetic twin")
         self.dye_chip = QLabel("dye")       # the dye alone, labelled, so brown hair is not read as pink
-        self.dye_chip.setFixedSize(60, 22)
+        self.dye_chip.setFixedSize(70, 44)
+        self.dye_chip.setAlignment(Qt.AlignmentFlag.AlignCenter)
         grid = QGridLayout()
         grid.addWidget(self.chip, 0, 0, 2, 1)
-        grid.addWidget(self.dye_chip, 2, 0, 1, 1)
+        grid.addWidget(self.dye_chip, 0, 1, 2, 1)
         self.param_labels = {}
         for i, (name, _, _) in enumerate(VECTOR_FIELDS):
             label = QLabel(f"{name}: –")
             self.param_labels[name] = label
-            grid.addWidget(label, i % 3, 1 + i // 3)
+            grid.addWidget(label, i % 3, 2 + i // 3)
         v.addLayout(grid)
         self.match_label = QLabel("real vs synthetic: –")
         self.match_label.setStyleSheet("font-weight:bold")
@@ -175,18 +219,46 @@ class MainWindow(QMainWindow):
         self.style_box.addItems(HAIRSTYLES)
         self.env_box = QComboBox()
         self.env_box.addItems(ENVIRONMENTS)
-        self.style_box.currentTextChanged.connect(lambda _: self.render_hairstyle())
-        self.env_box.currentTextChanged.connect(lambda _: self.render_hairstyle())
+        self.style_box.currentTextChanged.connect(self._on_style)
+        self.env_box.currentTextChanged.connect(lambda e: self.model.set_view(env=e))
         row.addWidget(self.style_box)
         row.addWidget(self.env_box)
         self.cancel_button = QPushButton("Cancel")
         self.cancel_button.clicked.connect(self.cancel_render)
         row.addWidget(self.cancel_button)
+        b = QPushButton("Save render…")
+        b.clicked.connect(lambda: self._save_dialog("hairstyle"))
+        row.addWidget(b)
+        v.addLayout(row)
+        row = QHBoxLayout()
+        b = QPushButton("Open hair model…")
+        b.setToolTip("a Cem Yuksel .hair model, fitted to the head and rendered with the estimate")
+        b.clicked.connect(self.open_hair_dialog)
+        row.addWidget(b)
+        row.addStretch(1)
         v.addLayout(row)
         self.style_label = image_label("capture a swatch, then pick a hairstyle", (360, 360))
         v.addWidget(self.style_label, 1)
         self.render_progress = QProgressBar()
         v.addWidget(self.render_progress)
+        orbit = QGridLayout()
+        self.orbit_sliders = []
+        for i, (name, limit) in enumerate((("azimuth", 80), ("elevation", 60))):
+            slider = QSlider(Qt.Orientation.Horizontal)
+            slider.setRange(-limit, limit)
+            slider.setValue(0)
+            label = QLabel(f"{name} 0°")
+            slider.valueChanged.connect(lambda value, label=label, name=name: label.setText(f"{name} {value}°"))
+            slider.valueChanged.connect(lambda _: self.orbit_timer.start())
+            orbit.addWidget(label, i, 0)
+            orbit.addWidget(slider, i, 1)
+            self.orbit_sliders.append(slider)
+        self.orbit_timer = QTimer(self)          # one render per slider gesture, not per step
+        self.orbit_timer.setSingleShot(True)
+        self.orbit_timer.setInterval(250)
+        self.orbit_timer.timeout.connect(
+            lambda: self.model.set_view(orbit=tuple(s.value() for s in self.orbit_sliders)))
+        v.addLayout(orbit)
         self.strand_view = None
         if with_strand_view:
             from hairdigi.app.gui.strand_view import StrandView
@@ -200,168 +272,58 @@ class MainWindow(QMainWindow):
         v.addWidget(self.zebra_box)
         return box
 
-    # -- tasks -------------------------------------------------------------------------------
-    def run_task(self, fn, on_done=None, on_progress=None, name="task") -> Task:
-        task = Task(fn, name)
-        if on_done:
-            task.signals.done.connect(on_done)
-        if on_progress:
-            task.signals.progress.connect(on_progress)
-        task.signals.failed.connect(self.show_banner)
-        task.signals.finished.connect(lambda t=task: self.tasks.remove(t) if t in self.tasks else None)
-        self.tasks.append(task)
-        return start(task)
+    # -- the model's events ------------------------------------------------------------------
+    def _connect_model(self) -> None:
+        ev = self.model.events
+        self._subscriptions = [
+            (ev.records, self._show_records), (ev.shown, self._show_capture),
+            (ev.parameters, lambda _: self.start_previews()), (ev.view, lambda _: self.start_hairstyle()),
+            (ev.twin, self._show_twin), (ev.hairstyle, self._show_hairstyle), (ev.strands, self._show_strands),
+            (ev.frame_check, self._show_frame_check), (ev.calibration, self._on_calibrated),
+            (ev.status, lambda text: self.statusBar().showMessage(text)), (ev.error, self.show_banner),
+            (ev.hair_model, self._on_hair_model)]
+        for event, callback in self._subscriptions:
+            event.connect(callback)
 
-    def show_banner(self, text: str) -> None:
-        self.banner.setText(f"⚠ {text} — captures so far are saved in {self.session.folder}")
-        self.banner.show()
+    def _disconnect_model(self) -> None:
+        """Work still in flight when the window closes reports to the model, which no longer draws here."""
+        for event, callback in self._subscriptions:
+            event.disconnect(callback)
 
-    def busy(self) -> bool:
-        return bool(self.tasks)
-
-    # -- rig ---------------------------------------------------------------------------------
-    def _on_frame(self, frame) -> None:
-        self.last_frame = frame
-        img = overlay(frame.srgb, self.session.swatch_roi, self.chart_box, self.zebra_box.isChecked())
-        self.feed_label.setPixmap(to_pixmap(img).scaled(self.feed_label.size(), Qt.AspectRatioMode.KeepAspectRatio))
-
-    def _detect_chart(self) -> None:
-        if self.last_frame is None or any(t.name == "chart" for t in self.tasks):
-            return
-        image = self.last_frame.srgb
-
-        def work(report, cancelled):
-            from hairdigi.inference.calibration import CalibrationError, detect_chart
-            try:
-                box = detect_chart(image).box
-            except CalibrationError:
-                box = None
-            return box, self.session.exposure(image)
-
-        def done(result):
-            self.chart_box, reports = result
-            worst = next((r for r in reports if r.status != "ok"), reports[0])
-            colour = "#2a2" if worst.status == "ok" else "#c60"
-            self.exposure_label.setText("exposure: " + "; ".join(r.message for r in reports))
-            self.exposure_label.setStyleSheet(f"color:{colour}")
-        self.run_task(work, done, name="chart")
-
-    def refresh_lights(self) -> None:
-        def work(report, cancelled):
-            return self.session.light_states(), self.session.lights.identify()
-
-        def done(result):
-            states, ident = result
-            for b, st in zip(self.light_buttons, states):
-                b.setChecked(st.on)
-            self.link_label.setText(f"light board: {ident} on {self.session.lights.port_name} — linked")
-        self.run_task(work, done, name="lights")
-
-    def set_light(self, index: int, on: bool) -> Task:
-        return self.run_task(lambda r, c: self.session.set_light(index, on), lambda _: self.refresh_lights(),
-                             name=f"light {index}")
-
-    def set_all(self, on: bool) -> Task:
-        return self.run_task(lambda r, c: self.session.set_all(on), lambda _: self.refresh_lights(), name="lights")
-
-    def refresh_calibration(self) -> None:
-        status, reasons = self.session.calibration_status()
-        p = self.session.profile
-        if p is None:
-            self.calibration_label.setText("calibration: none — press Calibrate with the chart in view")
-            self.calibration_label.setStyleSheet("color:#c60")
-            return
-        age_min = (time.time() - p["time"]) / 60
-        de = p["delta_e2000"]
-        text = (f"calibration: {p['method']}, ΔE2000 {de['before']['mean']:.2f} → {de['after']['mean']:.2f} "
-                f"(max {de['after']['max']:.2f}), {age_min:.0f} min old")
-        if reasons:
-            text += " — STALE: " + "; ".join(reasons)
-        self.calibration_label.setText(text)
-        self.calibration_label.setStyleSheet("color:#2a2" if status == "ok" else "color:#c60")
-
-    def calibrate(self) -> Task:
-        self.calibrate_button.setEnabled(False)
-
-        def done(profile):
-            self.refresh_calibration()
-            self.calibrated.emit(profile)
-        task = self.run_task(lambda r, c: self.session.calibrate(), done, name="calibration")
-        task.signals.finished.connect(lambda: self.calibrate_button.setEnabled(True))
-        return task
-
-    # -- capture and result ------------------------------------------------------------------
-    def capture(self) -> Task:
-        self.capture_button.setEnabled(False)
-
-        def work(report, cancelled):
-            result = self.session.capture()
-            frame = self.last_frame.srgb if self.last_frame is not None else None
-            return result, frame
-
-        def done(payload):
-            result, _ = payload
-            self.reload_session(select=result.capture_id)
-            self.captured.emit(result)
-        task = self.run_task(work, done, name="capture")
-        task.signals.finished.connect(lambda: self.capture_button.setEnabled(True))
-        return task
-
-    def reload_session(self, select: str | None = None) -> None:
-        self.records = rs.load_results(self.session.folder)
+    def _show_records(self, records: list[dict]) -> None:
+        shown = self.model.shown
+        select = shown.capture_id if shown is not None else None
         self.session_list.blockSignals(True)
         self.session_list.clear()
-        for rec in self.records:
-            item = QListWidgetItem(self._record_title(rec))
-            thumb = self._thumbnail(rec)
+        for rec in records:
+            item = QListWidgetItem(review.record_title(rec))
+            thumb = review.thumbnail(self.session.folder, rec)
             if thumb is not None:
                 item.setIcon(to_pixmap(thumb))
             self.session_list.addItem(item)
         self.session_list.blockSignals(False)
-        if self.records:
-            ids = [r["id"] for r in self.records]
-            self.session_list.setCurrentRow(ids.index(select) if select in ids else len(ids) - 1)
-
-    @staticmethod
-    def _record_title(rec: dict) -> str:
-        if rec.get("blocked"):
-            return f"{rec['id']}  (blocked)"
-        h = rec.get("hair", {})
-        return f"{rec['id']}  rgb {[round(v) for v in h.get('dye_rgb', [])]}  mel {h.get('melanin_concentration', 0):.2f}"
-
-    def _thumbnail(self, rec: dict):
-        import cv2
-        path = self.session.folder / "captures" / rec.get("capture", "")
-        img = cv2.imread(str(path)) if path.is_file() else None
-        if img is None:
-            return None
-        return cv2.resize(img[..., ::-1], (64, 48))
+        if records:
+            ids = [r["id"] for r in records]
+            row = ids.index(select) if select in ids else len(ids) - 1
+            self.session_list.setCurrentRow(row)
 
     def _on_select(self, row: int) -> None:
-        if not 0 <= row < len(self.records):
-            return
-        rec = self.records[row]
-        try:
-            loaded = self.session.load_capture(rec["id"])
-        except FileNotFoundError as exc:
-            self.show_banner(str(exc))
-            return
-        frame, roi = loaded.frame, loaded.roi
-        self.current = {"record": rec, "frame": frame, "roi": roi, "capture": loaded}
-        if rec.get("blocked"):
-            self.result_info.setText("no estimate: " + "; ".join(rec["blocked"]))
-            x, y, w, h = roi
-            self.real_label.setPixmap(to_pixmap(frame[y:y + h, x:x + w]).scaled(
-                self.real_label.size(), Qt.AspectRatioMode.KeepAspectRatio))
-            return
-        params = HairParams.from_dict(rec)
-        self._show_params(params, rec)
-        self.preview_twin(params, loaded)
-        self.render_hairstyle()
+        if 0 <= row < len(self.model.records):
+            self.model.select(self.model.records[row]["id"])
 
-    def _show_params(self, p: HairParams, rec: dict) -> None:
-        """Parameters with their measured 68% intervals, the hair and dye chips, and the warnings."""
-        prov = rec.get("provenance", {})
+    def _show_capture(self, shown: review.Shown) -> None:
+        self._set_image(self.real_label, shown.real)
+        for label, text in ((self.synth_label, "rendering…"), (self.diff_label, "ΔE2000")):
+            label.clear()
+            label.setText(text if shown.params is not None else "–")
+        if shown.params is None:
+            self.result_info.setText("no estimate: " + "; ".join(shown.record.get("blocked") or ["none saved"]))
+            return
+        self._show_params(shown)
+
+    def _show_params(self, shown: review.Shown) -> None:
+        """Parameters with their measured 68% intervals, the dye chip, and the warnings."""
+        p, rec = shown.params, shown.record
         intervals = (rec.get("uncertainty") or {}).get("parameters", {})
         values = dict(zip([f[0] for f in VECTOR_FIELDS], [*p.dye_rgb, p.dye_concentration,
                                                             p.melanin_concentration, p.melanin_ratio]))
@@ -375,17 +337,15 @@ class MainWindow(QMainWindow):
             else:
                 u = ""
             label.setText(f"{name}: {fmt.format(values[name])}{u}")
-        hair = (rec.get("refinement") or {}).get("rendered_linear_rgb")
-        if hair:
-            from hairdigi.render.srgb import linear_to_srgb8
-
-            r, g, b = (int(v) for v in linear_to_srgb8(np.asarray(hair)))
-            text = "#000" if 0.3 * r + 0.6 * g + 0.1 * b > 128 else "#fff"
-            self.chip.setStyleSheet(f"background: rgb({r},{g},{b}); color:{text}; border:1px solid #888")
-        r, g, b = (int(round(v)) for v in p.dye_rgb)
-        text = "#000" if 0.3 * r + 0.6 * g + 0.1 * b > 128 else "#fff"
-        self.dye_chip.setStyleSheet(f"background: rgb({r},{g},{b}); color:{text}; border:1px solid #888")
+        self.dye_chip.setText("dye")
+        self.dye_chip.setStyleSheet(chip_style(p.dye_rgb))
         self.dye_chip.setToolTip(f"dye colour alone, at concentration {p.dye_concentration:.2f}")
+        self.chip.setText("hair\n…")
+        self.chip.setStyleSheet("background:#1e1e22; color:#aaa; border:1px solid #888; font-size:10px")
+        if shown.stage == "encoder":
+            self.result_info.setText("encoder's estimate; refining by synthesis…")
+            return
+        prov = rec.get("provenance", {})
         refinement = rec.get("refinement") or {}
         lines = [f"model {prov.get('model', {}).get('sha256', '')[:12]}, calibration "
                  f"{(prov.get('calibration') or {}).get('id')}"]
@@ -398,82 +358,173 @@ class MainWindow(QMainWindow):
         lines += [f"⚠ {w}" for w in rec.get("warnings", [])]
         self.result_info.setText("\n".join(lines))
 
-    def preview_twin(self, params: HairParams, capture: rs.LoadedCapture) -> Task:
-        """The capture (corrected with its own calibration) beside its synthetic twin, off the UI thread."""
-        frame, roi = capture.frame, capture.roi
-        real = capture.corrected_swatch()
-        self.real_label.setPixmap(to_pixmap(real).scaled(self.real_label.size(), Qt.AspectRatioMode.KeepAspectRatio))
-        frame_size = (frame.shape[1], frame.shape[0])
+    def _show_twin(self, t: review.TwinPreview) -> None:
+        self._set_image(self.synth_label, self.model.twin_image(t))
+        self._set_image(self.diff_label, delta_e_colours(t.delta_e_map))
+        shown = "denoised" if self.model.show_denoised and t.clean is not None else "raw"
+        self.twin_info.setText(f"twin: {t.spp} spp, {shown}; map mean ΔE {float(t.delta_e_map.mean()):.2f}")
+        stage = "encoder's estimate" if t.stage == "encoder" else "refined estimate"
+        self.match_label.setText(f"real vs synthetic: mean-colour ΔE2000 {t.delta_e:.2f} ({stage})")
+        self.chip.setText("hair")
+        self.chip.setStyleSheet(chip_style(review.hair_colour_rgb8(t.hair_linear)))
+        self.preview_ready.emit(t.delta_e)
 
+    def _show_hairstyle(self, p: review.HairstylePass) -> None:
+        self._set_image(self.style_label, self.model.hairstyle_image(p))
+        self.render_progress.setRange(0, p.passes)
+        self.render_progress.setValue(p.index)
+        shown = "denoised" if self.model.show_denoised and p.clean is not None else "raw"
+        self.render_progress.setFormat(f"{p.label}: {p.spp} spp, {shown}")
+        self.hairstyle_pass.emit(p.spp)
+        if p.final:
+            self.hairstyle_done.emit()
+
+    def _show_strands(self, s: review.StrandPreview) -> None:
+        if self.strand_view is not None:
+            self.strand_view.show_strands(s.strands, s.colour_rgb8)
+
+    def _show_frame_check(self, check: review.FrameCheck) -> None:
+        reports = check.exposure
+        worst = next((r for r in reports if r.status != "ok"), reports[0])
+        self.exposure_label.setText("exposure: " + "; ".join(r.message for r in reports))
+        self.exposure_label.setStyleSheet(f"color:{'#2a2' if worst.status == 'ok' else '#c60'}")
+
+    @staticmethod
+    def _set_image(label: QLabel, rgb: np.ndarray | None) -> None:
+        if rgb is not None:
+            label.setPixmap(to_pixmap(rgb).scaled(label.size(), Qt.AspectRatioMode.KeepAspectRatio,
+                                                  Qt.TransformationMode.SmoothTransformation))
+
+    # -- tasks -------------------------------------------------------------------------------
+    def run_task(self, fn, on_done=None, on_progress=None, name="task") -> Task:
+        """Run ``fn(report, cancelled)`` in a worker; what it reports and returns goes to the model by default."""
+        task = Task(fn, name)
+        task.signals.done.connect(on_done or self.model.apply)
+        task.signals.progress.connect(on_progress or self.model.apply)
+        task.signals.failed.connect(self.show_banner)
+        task.signals.finished.connect(lambda t=task: self.tasks.remove(t) if t in self.tasks else None)
+        self.tasks.append(task)
+        return start(task, POOL)
+
+    def run_job(self, name: str, work) -> Task | None:
+        """Run the model's ``work`` as the one job called ``name``; the previous one is cancelled."""
+        old = self.jobs.pop(name, None)
+        if old is not None:
+            old.cancel()
+        if work is None:
+            return None
+        task = self.jobs[name] = self.run_task(work, name=name)
+        task.signals.finished.connect(lambda: self.jobs.pop(name) if self.jobs.get(name) is task else None)
+        return task
+
+    def show_banner(self, text: str) -> None:
+        self.banner.setText(f"⚠ {text} — captures so far are saved in {self.session.folder}")
+        self.banner.show()
+
+    # -- rig ---------------------------------------------------------------------------------
+    def _on_frame(self, frame) -> None:
+        self.last_frame = frame
+        check = self.model.frame_check
+        img = overlay(frame.srgb, self.session.swatch_roi, None if check is None else check.chart_box,
+                      self.zebra_box.isChecked())
+        self.feed_label.setPixmap(to_pixmap(img).scaled(self.feed_label.size(), Qt.AspectRatioMode.KeepAspectRatio))
+        if self.model.frame_check_due():
+            self.run_task(self.model.frame_check_work(frame.srgb), name="chart")
+
+    def refresh_lights(self) -> None:
         def work(report, cancelled):
-            twin = rs.render_twin(params, roi, frame_size, self.opts["twin_spp"], simulated=self.session.simulated)
-            de, diff = rs.compare(real, twin.srgb)
-            return twin.srgb, diff, de
+            return self.session.light_states(), self.session.lights.identify()
 
         def done(result):
-            synth, diff, de = result
-            for label, img in ((self.synth_label, synth), (self.diff_label, diff)):
-                label.setPixmap(to_pixmap(img).scaled(label.size(), Qt.AspectRatioMode.KeepAspectRatio))
-            self.match_label.setText(f"real vs synthetic: mean-colour ΔE2000 {de:.2f}")
-            self.preview_ready.emit(de)
-        return self.run_task(work, done, name="twin")
+            states, ident = result
+            for b, st in zip(self.light_buttons, states):
+                b.setChecked(st.on)
+            self.link_label.setText(f"light board: {ident} on {self.session.lights.port_name} — linked")
+            self.refresh_calibration()
+        self.run_task(work, done, name="lights")
 
-    # -- hairstyles --------------------------------------------------------------------------
-    def cancel_render(self) -> None:
-        if self.render_task is not None:
-            self.render_task.cancel()
-            self.render_task = None
+    def set_light(self, index: int, on: bool) -> Task:
+        return self.run_task(lambda r, c: self.session.set_light(index, on), lambda _: self.refresh_lights(),
+                             name=f"light {index}")
 
-    def render_hairstyle(self) -> Task | None:
-        """Render the selected hairstyle with the shown estimate, pass by pass; a new call cancels the last."""
-        self.cancel_render()
-        if not self.current or self.current["record"].get("blocked"):
-            return None
-        params = HairParams.from_dict(self.current["record"])
-        style, env = self.style_box.currentText(), self.env_box.currentText()
-        spec = SceneSpec(style, env=env, strands=self.opts["hairstyle_strands"])
-        passes, per_pass, size = (self.opts["hairstyle_passes"], self.opts["hairstyle_spp_per_pass"],
-                                  self.opts["hairstyle_size"])
-        self.render_progress.setRange(0, passes)
-        self.render_progress.setValue(0)
-        if self.strand_view is not None:
-            from hairdigi.render.absorption import approximate_albedo
-            from hairdigi.render.srgb import linear_to_srgb8
-            colour = linear_to_srgb8(approximate_albedo(params) * 0.8)
-            self.strand_view.show_strands(hairstyle_strands(style, 1500, seed=0), tuple(int(c) for c in colour))
+    def set_all(self, on: bool) -> Task:
+        return self.run_task(lambda r, c: self.session.set_all(on), lambda _: self.refresh_lights(), name="lights")
 
-        def work(report, cancelled):
-            for i, result in enumerate(default_renderer().render_progressive(params, spec, size, per_pass, passes,
-                                                                             cancelled=cancelled)):
-                report((i + 1, result.srgb, result.spp))
-            return None
+    def refresh_calibration(self) -> None:
+        status, text = self.model.calibration()
+        self.calibration_label.setText(text)
+        self.calibration_label.setStyleSheet("color:#2a2" if status == "ok" else "color:#c60")
 
-        def progress(payload):
-            if task is not self.render_task:
-                return  # a stale render's last pass
-            n, img, spp = payload
-            self.style_label.setPixmap(to_pixmap(img).scaled(self.style_label.size(),
-                                                             Qt.AspectRatioMode.KeepAspectRatio))
-            self.render_progress.setValue(n)
-            self.render_progress.setFormat(f"{style}, {env}: {spp} spp")
-            self.hairstyle_pass.emit(spp)
-
-        def done(_):
-            if task is self.render_task:
-                self.render_task = None
-                self.hairstyle_done.emit()
-        task = self.run_task(work, done, progress, name="hairstyle")
-        self.render_task = task
+    def calibrate(self) -> Task:
+        self.calibrate_button.setEnabled(False)
+        task = self.run_task(self.model.calibrate_work(), name="calibration")
+        task.signals.finished.connect(lambda: self.calibrate_button.setEnabled(True))
         return task
+
+    def _on_calibrated(self, profile: dict) -> None:
+        self.refresh_calibration()
+        self.calibrated.emit(profile)
+
+    # -- capture and previews ----------------------------------------------------------------
+    def capture(self) -> Task:
+        """Capture; the encoder's estimate shows first, then the refined one (the model relays both)."""
+        self.capture_button.setEnabled(False)
+        for name in ("twin", "hairstyle"):        # stale renders stop now (the model's generation moved too)
+            self.run_job(name, None)
+
+        def done(captured: review.Captured) -> None:
+            self.model.apply(captured)
+            self.captured.emit(captured.result)
+        task = self.run_task(self.model.capture_work(), done, name="capture")
+        task.signals.finished.connect(lambda: self.capture_button.setEnabled(True))
+        return task
+
+    def start_previews(self) -> None:
+        self.run_job("twin", self.model.twin_work())
+        self.start_hairstyle()
+
+    def start_hairstyle(self) -> None:
+        self.render_progress.setValue(0)
+        self.run_job("hairstyle", self.model.hairstyle_work() or self.model.warm_view_work())
+        if self.strand_view is not None:
+            self.run_job("strands", self.model.strand_work())
+
+    def _on_style(self, text: str) -> None:
+        if text in HAIRSTYLES:
+            self.model.set_view(style=text)
+        elif text in self.hair_models:
+            self.model.set_view(hair_file=self.hair_models[text])
+
+    def open_hair_model(self, path: str | Path) -> Task:
+        """Read and check a .hair model in a worker; a bad file shows its error in the banner."""
+        return self.run_task(self.model.open_hair_work(path), name="hair model")
+
+    def open_hair_dialog(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Open a hair model", str(Path.home()),
+                                              "Cem Yuksel hair models (*.hair);;All files (*)")
+        if path:
+            self.open_hair_model(path)
+
+    def _on_hair_model(self, hair: review.HairModel) -> None:
+        """The opened model joins the style list, selected (a built-in style there closes it)."""
+        label = hair.path.name
+        self.hair_models[label] = hair.path
+        self.style_box.blockSignals(True)
+        if self.style_box.findText(label) < 0:
+            self.style_box.addItem(label)
+        self.style_box.setCurrentText(label)
+        self.style_box.blockSignals(False)
+
+    def cancel_render(self) -> None:
+        self.run_job("hairstyle", None)
+
+    @property
+    def render_task(self) -> Task | None:
+        return self.jobs.get("hairstyle")
 
     # -- export ------------------------------------------------------------------------------
     def export(self, path: str | Path, all_: bool = True) -> Path:
-        records = [r for r in self.records if not r.get("blocked")]
-        if not all_ and self.current is not None:
-            records = [self.current["record"]]
-        if not records:
-            raise ValueError("nothing to export: no capture has an estimate yet")
-        return rs.export_records(records, path)
+        return self.model.export(path, all_)
 
     def _export_dialog(self, all_: bool) -> None:
         path, _ = QFileDialog.getSaveFileName(self, "Export parameters", str(self.session.folder / "export.json"),
@@ -482,6 +533,17 @@ class MainWindow(QMainWindow):
             try:
                 self.export(path, all_)
                 self.statusBar().showMessage(f"exported to {path}")
+            except (ValueError, OSError) as exc:
+                self.show_banner(str(exc))
+
+    def _save_dialog(self, which: str) -> None:
+        default = str(self.session.folder / f"{which}.png")
+        path, _ = QFileDialog.getSaveFileName(self, f"Save the {which} render (PNG, and linear EXR beside it)",
+                                              default, "PNG (*.png)")
+        if path:
+            try:
+                written = self.model.save_render(which, path)
+                self.statusBar().showMessage("saved " + " and ".join(str(p) for p in written))
             except (ValueError, OSError) as exc:
                 self.show_banner(str(exc))
 
@@ -505,12 +567,12 @@ class MainWindow(QMainWindow):
 
     # -- shutdown ----------------------------------------------------------------------------
     def closeEvent(self, event) -> None:
-        self.chart_timer.stop()
+        self._disconnect_model()
         self.feed.stop()
-        self.cancel_render()
         for t in list(self.tasks):
             t.cancel()
-        from PySide6.QtCore import QThreadPool
+        self.model.stop()
+        POOL.waitForDone(30000)
         QThreadPool.globalInstance().waitForDone(30000)
         if self.strand_view is not None:
             self.strand_view.close_view()

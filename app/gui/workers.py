@@ -16,7 +16,7 @@ class TaskSignals(QObject):
 
 
 class Task(QRunnable):
-    """Runs ``fn(report, cancelled)`` in the global thread pool.
+    """Runs ``fn(report, cancelled)`` in a thread pool (:data:`POOL` for the window).
 
     ``report(x)`` emits ``progress``; ``cancelled()`` is true once :meth:`cancel` was called, and the
     function should return early then. Its return value is emitted as ``done`` unless cancelled.
@@ -47,6 +47,13 @@ class Task(QRunnable):
             self.signals.failed.emit(f"{self.name}: {exc}")
         finally:
             self.signals.finished.emit()
+
+
+#: The window's workers. More threads than cores: most tasks wait (on Mitsuba's own thread pool, the
+#: camera, the serial port), and a capture, a twin and a hairstyle render must run side by side; Qt's
+#: global pool has as many threads as cores (2 on the bench PCs).
+POOL = QThreadPool()
+POOL.setMaxThreadCount(8)
 
 
 def start(task: Task, pool: QThreadPool | None = None) -> Task:
