@@ -223,6 +223,10 @@ def cmd_rig(args: argparse.Namespace) -> int:
 
 
 def cmd_app(args: argparse.Namespace) -> int:
+    # numpy's OpenBLAS threads spin after every call: the simulated feed's 20 calls a second kept one of
+    # two cores busy doing nothing (the idle window took 132% of a core, 37% with this); the window
+    # needs no threaded BLAS (Mitsuba and the denoiser have their own threads). Set before numpy loads.
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     from hairdigi.app.gui.main import run_app
 
     return run_app(sim=args.sim, session=args.session, tour=args.tour)

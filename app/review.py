@@ -11,9 +11,16 @@ and so on). The window runs them in its workers and hands what they report and r
 new selection or new parameters bump the model's generation: stale work stops at its next pass, and
 whatever it still reports is dropped. A denoised image is for the eye only: every number (ΔE, the
 chip's colour, exports' metrics) comes from the raw path-traced image.
+
+The order after a capture: the capture worker reports the encoder's estimate (the first look), then
+renders its first twin and hairstyle passes itself, then refines; the refined estimate's twin renders
+until it is clean, and only then its hairstyle passes take turns with it. The scenes are built by
+:meth:`ReviewModel.warm_work` when the window opens, so a capture only updates parameters. Every
+render in the process takes one lock (see :class:`PreviewRenderer`).
 """
 from __future__ import annotations
 
+import itertools
 import threading
 import time
 from dataclasses import dataclass, field
@@ -84,6 +91,12 @@ class Events:
 class PreviewSettings:
     """How previews render; the defaults are chosen by ``hairdigi bench previews`` (render/bench_previews.py).
 
+    Mean per-pixel ΔE2000 against 1024 spp, not denoised (clean: 3 or less), OIDN without guides: the
+    twin is 3.34 at 1 spp (the first pass), 3.13 at 2, 3.06 at 4, 2.89 at 8 (clean), 2.75 at 16;
+    raw it is 6.1 even at 64 spp. The 512² hairstyle is clean from its first pass: 1.08 at 1 spp,
+    0.89 at 2 (raw: 6.0 and 4.6). Albedo and normal guides never helped (twin 3.48 at 1 spp, 3.13 at
+    8; hairstyle 1.08 at 1) and cost an AOV render.
+
     ``fibre_px``: the ΔE2000 map smooths real and twin over 6 px, about a clump of fibres in the rig
     view (0.04 swatch widths). Measured on a simulated capture whose mean colours differ by ΔE2000
     0.47: the map's mean is 2.38 at 2 px (noise and single fibres), 1.47 at 4, 1.17 at 6, 1.04 at 8.
@@ -94,7 +107,7 @@ class PreviewSettings:
     hairstyle_size: int = 512
     hairstyle_strands: int | None = None                   # None: the scene's default
     hairstyle_passes: tuple[int, ...] = (1, 1, 2, 4, 8)    # running totals 1, 2, 4, 8, 16
-    hairstyle_clean_spp: int = 2
+    hairstyle_clean_spp: int = 1
     first_look_passes: int = 1                             # passes rendered for the encoder's (unrefined) estimate
     denoise: bool = True
     fibre_px: float = 6.0                                  # smoothing of the ΔE2000 map (pixels), see below
@@ -158,7 +171,7 @@ class HairstylePass:
 
 @dataclass
 class StrandPreview:
-    generation: int
+    of: tuple                       # (style or hair file, strands): what the strands are of
     strands: object                 # render.strands.Strands
     colour_rgb8: tuple[int, int, int]
 
@@ -195,6 +208,11 @@ class FirstLook:
     real: np.ndarray
     roi: tuple[int, int, int, int]
     frame_size: tuple[int, int]
+    key: int
+
+
+#: Review keys: one per capture under review, unique in the process (the capture worker takes one).
+_KEYS = itertools.count(1)
 
 
 class PreviewRenderer(Renderer):
@@ -243,11 +261,11 @@ def orbit_pose(azimuth_deg: float, elevation_deg: float, distance: float | None 
     return CameraPose(min(polar, 89.0), azimuth, distance or PORTRAIT_CAMERA.distance)
 
 
-def denoised(raw: np.ndarray, on: bool) -> np.ndarray | None:
+def denoised(raw: np.ndarray, on: bool, quality: str = "high") -> np.ndarray | None:
     """The display copy of a pass (None when denoising is off or there is no denoiser)."""
     if not on or not dn.available():
         return None
-    return dn.denoise(raw)
+    return dn.denoise(raw, quality=quality)
 
 
 def progressive(renderer: Renderer, params: HairParams, spec: SceneSpec, size, schedule: tuple[int, ...],
@@ -352,9 +370,10 @@ class ReviewModel:
         self.twin_renderer = PreviewRenderer(max_cached=2)
         self.style_renderer = PreviewRenderer(max_cached=4)
         self._generation = {"twin": 0, "hairstyle": 0}
-        self._twin_idle = threading.Event()     # clear while the twin renders its way to clean: the hairstyle waits
-        self._twin_idle.set()
-        self._key = 0
+        self._twin_state = threading.Condition()
+        self._twin_ready = 0                    # the twin generation that is clean (or done): the hairstyle waits for it
+        self._capturing = False
+        self._strand_cache: dict[tuple, object] = {}
         self._last_check = 0.0
         self._checking = False
         self._tap: _EncoderTap | None = None
@@ -368,9 +387,20 @@ class ReviewModel:
     def _stale(self, kind: str, generation: int, cancelled: Cancelled) -> Cancelled:
         return lambda: cancelled() or self._generation[kind] != generation
 
+    def _twin_is_ready(self, generation: int) -> None:
+        with self._twin_state:
+            self._twin_ready = max(self._twin_ready, generation)
+            self._twin_state.notify_all()
+
+    def _wait_for_twin(self, timeout_s: float = 30.0) -> None:
+        """Until the current twin is clean (the hairstyle and the 3-D view let the twin go first)."""
+        with self._twin_state:
+            self._twin_state.wait_for(lambda: self._twin_ready >= self._generation["twin"], timeout_s)
+
     def stop(self) -> None:
         """Make all running preview work stale (closing the window)."""
         self._bump("twin", "hairstyle")
+        self._twin_is_ready(self._generation["twin"])
 
     # -- records and selection (UI thread) ---------------------------------------------------
     def reload(self) -> list[dict]:
@@ -403,9 +433,9 @@ class ReviewModel:
         self._show(shown)
         return shown
 
-    def _new_key(self) -> int:
-        self._key += 1
-        return self._key
+    @staticmethod
+    def _new_key() -> int:
+        return next(_KEYS)
 
     def _show(self, shown: Shown) -> None:
         """Show a capture (or new parameters of the shown one): running preview work goes stale. The
@@ -414,8 +444,11 @@ class ReviewModel:
         if self.shown is None or shown.key != self.shown.key:
             self.twin = self.hairstyle = None
         self.shown = shown
+        previews = shown.params is not None and shown.stage != "encoder"   # the capture renders the first look
+        if not previews:
+            self._twin_is_ready(self._generation["twin"])    # no twin work comes for this: nothing to wait for
         self.events.shown.emit(shown)
-        if shown.params is not None:
+        if previews:
             self.events.parameters.emit(shown)
 
     def _current(self, payload, kind: str, showing) -> bool:
@@ -511,81 +544,91 @@ class ReviewModel:
             self.session._encoder = self._tap   # RigSession has no hook for the encoder's stage yet
 
     def capture_work(self) -> Work:
-        """Capture, estimate and refine; reports the encoder's :class:`FirstLook` as soon as it exists."""
-        session = self.session
+        """Capture, estimate and refine. Between the encoder and refinement the same worker reports
+        the :class:`FirstLook` and renders its first twin and hairstyle passes: the operator sees
+        parameters, a twin and a hairstyle before refinement takes the renderer."""
+        session, settings = self.session, self.settings
+        spec, label = self.hairstyle_spec(), self.view_label()
         self._bump("twin", "hairstyle")       # stale previews stop now and leave the cores to the capture
+        self._twin_is_ready(self._generation["twin"])
+        self._capturing = True
 
         def work(report: Report, cancelled: Cancelled) -> Captured:
             self._install_tap()
 
             def first_look(est, image, roi) -> None:
                 x, y, w, h = (roi.x, roi.y, roi.w, roi.h) if roi is not None else (0, 0, image.shape[1], image.shape[0])
-                report(FirstLook(est.params, image[y:y + h, x:x + w].copy(), (x, y, w, h),
-                                 (image.shape[1], image.shape[0])))
+                look = FirstLook(est.params, image[y:y + h, x:x + w].copy(), (x, y, w, h),
+                                 (image.shape[1], image.shape[0]), next(_KEYS))
+                report(look)
+                shown = Shown(None, look.real, look.roi, look.frame_size, look.params, "encoder", {},
+                              session.simulated, look.key)
+                n = settings.first_look_passes
+                self._twin_passes(shown, -1, settings.twin_passes[:n], report, cancelled)
+                self._hairstyle_passes(shown, -1, spec, label, settings.hairstyle_passes[:n], report, cancelled)
             if self._tap is not None:
                 self._tap.listener = first_look
             try:
                 return Captured(session.capture())
             finally:
+                self._capturing = False
                 if self._tap is not None:
                     self._tap.listener = None
         return work
 
     def twin_work(self) -> Work | None:
-        """The twin's passes for the shown parameters (None when there is nothing to preview)."""
+        """The twin's passes for the shown (refined) parameters; None when there is nothing to preview."""
         shown = self.shown
         if shown is None or shown.params is None:
             return None
-        generation, settings, renderer = self._generation["twin"], self.settings, self.twin_renderer
+        generation, schedule = self._generation["twin"], self.settings.twin_passes
+
+        def work(report: Report, cancelled: Cancelled) -> None:
+            try:
+                self._twin_passes(shown, generation, schedule, report, self._stale("twin", generation, cancelled))
+            finally:
+                self._twin_is_ready(generation)
+        return work
+
+    def _twin_passes(self, shown: Shown, generation: int, schedule: tuple[int, ...], report: Report,
+                     stale: Cancelled) -> None:
+        settings = self.settings
         spec, size = twin_view(shown.roi, shown.frame_size, shown.simulated)
         real = srgb8_to_linear(shown.real)
-        on = self.show_denoised or settings.denoise
-        idle = self._twin_idle
-        idle.clear()                         # from now: the hairstyle's passes wait until the twin is clean
-
-        def work(report: Report, cancelled: Cancelled) -> None:
-            stale = self._stale("twin", generation, cancelled)
-            start = time.perf_counter()
-            schedule = settings.twin_passes[:settings.first_look_passes] if shown.stage == "encoder" \
-                else settings.twin_passes
-            try:
-                for raw, spp, i in progressive(renderer, shown.params, spec, size, schedule, stale):
-                    if raw.shape != real.shape:      # a real camera's crop view: compare at the twin's size
-                        import cv2
-                        real_here = cv2.resize(real, (raw.shape[1], raw.shape[0]), interpolation=cv2.INTER_AREA)
-                    else:
-                        real_here = real
-                    report(TwinPreview(generation, raw, denoised(raw, on), spp, i == len(schedule),
-                                       spp >= settings.twin_clean_spp, mean_colour_delta_e(real_here, raw),
-                                       delta_e_map(real_here, raw, settings.fibre_px), raw.reshape(-1, 3).mean(0),
-                                       shown.stage, time.perf_counter() - start, shown.key))
-                    if spp >= settings.twin_clean_spp:
-                        idle.set()           # the twin is clean: the hairstyle's passes may take turns with it
-            finally:
-                idle.set()
-        return work
+        on, start = self.show_denoised or settings.denoise, time.perf_counter()
+        for raw, spp, i in progressive(self.twin_renderer, shown.params, spec, size, schedule, stale):
+            if raw.shape != real.shape:      # a real camera's crop view: compare at the twin's size
+                import cv2
+                real = cv2.resize(real, (raw.shape[1], raw.shape[0]), interpolation=cv2.INTER_AREA)
+            report(TwinPreview(generation, raw, denoised(raw, on), spp, i == len(schedule),
+                               spp >= settings.twin_clean_spp, mean_colour_delta_e(real, raw),
+                               delta_e_map(real, raw, settings.fibre_px), raw.reshape(-1, 3).mean(0),
+                               shown.stage, time.perf_counter() - start, shown.key))
+            if spp >= settings.twin_clean_spp and generation >= 0:
+                self._twin_is_ready(generation)   # clean: the hairstyle's passes may take turns with the twin
 
     def hairstyle_work(self) -> Work | None:
-        """The hairstyle's passes for the shown parameters, in the chosen view."""
+        """The hairstyle's passes for the shown parameters, in the chosen view, after the twin is clean."""
         shown = self.shown
         if shown is None or shown.params is None:
             return None
-        generation, settings, renderer = self._generation["hairstyle"], self.settings, self.style_renderer
-        spec, label = self.hairstyle_spec(), self.view_label()
-        on = self.show_denoised or settings.denoise
-        gate = lambda: self._twin_idle.wait(30.0)       # noqa: E731  (the twin first, until it is clean)
-
+        generation, spec, label = self._generation["hairstyle"], self.hairstyle_spec(), self.view_label()
+        schedule = self.settings.hairstyle_passes
         def work(report: Report, cancelled: Cancelled) -> None:
-            stale = self._stale("hairstyle", generation, cancelled)
-            start = time.perf_counter()
-            schedule = settings.hairstyle_passes[:settings.first_look_passes] if shown.stage == "encoder" \
-                else settings.hairstyle_passes
-            for raw, spp, i in progressive(renderer, shown.params, spec, settings.hairstyle_size, schedule, stale,
-                                           gate=gate):
-                report(HairstylePass(generation, raw, denoised(raw, on), spp, i, len(schedule),
-                                     spp >= settings.hairstyle_clean_spp, label, shown.stage,
-                                     time.perf_counter() - start, shown.key))
+            self._hairstyle_passes(shown, generation, spec, label, schedule, report,
+                                   self._stale("hairstyle", generation, cancelled), self._wait_for_twin)
         return work
+
+    def _hairstyle_passes(self, shown: Shown, generation: int, spec: SceneSpec, label: str,
+                          schedule: tuple[int, ...], report: Report, stale: Cancelled, gate=None) -> None:
+        settings = self.settings
+        on, start = self.show_denoised or settings.denoise, time.perf_counter()
+        for raw, spp, i in progressive(self.style_renderer, shown.params, spec, settings.hairstyle_size, schedule,
+                                       stale, gate=gate):
+            # OIDN's "fast" on the first pass: 0.22 s instead of 0.47 s at 512², per-pixel ΔE 1.50 for 1.48
+            report(HairstylePass(generation, raw, denoised(raw, on, "fast" if i == 1 else "high"), spp, i,
+                                 len(schedule), spp >= settings.hairstyle_clean_spp, label, shown.stage,
+                                 time.perf_counter() - start, shown.key))
 
     def warm_view_work(self) -> Work:
         """Build the chosen hairstyle's scene before any capture needs it (a style picked before a capture)."""
@@ -596,20 +639,30 @@ class ReviewModel:
                 renderer.render(HairParams(), spec, size, 1)
         return work
 
-    def strand_work(self) -> Work | None:
-        """The 3-D view's strands (fewer than the render's) and their colour."""
-        shown = self.shown
-        if shown is None or shown.params is None:
-            return None
-        generation, style, n = self._generation["hairstyle"], self.style, self.settings.view_strands
-        hair_file = self.hair_file
+    def _strand_key(self) -> tuple:
+        return (str(self.hair_file) if self.hair_file else self.style, self.settings.view_strands)
 
-        def work(report: Report, cancelled: Cancelled) -> StrandPreview:
+    def strand_work(self) -> Work | None:
+        """The 3-D view's strands (fewer than the render's) in the estimated colour, once the twin is
+        clean; None when the view already shows them. Strands are grown once per style or hair file."""
+        shown = self.shown
+        if shown is None or shown.params is None or shown.stage == "encoder":
+            return None
+        which, colour = self._strand_key(), strand_colour(shown.params)
+        if self.strands is not None and (self.strands.of, self.strands.colour_rgb8) == (which, colour):
+            return None
+        style, hair_file, n, cache = self.style, self.hair_file, self.settings.view_strands, self._strand_cache
+
+        def work(report: Report, cancelled: Cancelled) -> StrandPreview | None:
             from hairdigi.render.hairfile import hair_model_strands
             from hairdigi.render.strands import hairstyle_strands
 
-            strands = hair_model_strands(hair_file, n) if hair_file else hairstyle_strands(style, n, seed=0)
-            return StrandPreview(generation, strands, strand_colour(shown.params))
+            self._wait_for_twin()
+            if cancelled():
+                return None
+            if which not in cache:
+                cache[which] = hair_model_strands(hair_file, n) if hair_file else hairstyle_strands(style, n, seed=0)
+            return StrandPreview(which, cache[which], colour)
         return work
 
     def open_hair_work(self, path: str | Path) -> Work:
@@ -631,7 +684,8 @@ class ReviewModel:
     def frame_check_due(self, period_s: float = 1.5) -> bool:
         """True when a frame should be checked for the chart and exposure (none running, ``period_s`` since)."""
         now = time.monotonic()
-        if self._checking or now - self._last_check < period_s:
+        busy = self._capturing or self._twin_ready < self._generation["twin"]   # a capture and its twin first
+        if busy or self._checking or now - self._last_check < period_s:
             return False
         self._checking, self._last_check = True, now
         return True
@@ -669,12 +723,12 @@ class ReviewModel:
                 self.hairstyle = payload
                 self.events.hairstyle.emit(payload)
         elif isinstance(payload, StrandPreview):
-            if payload.generation == self._generation["hairstyle"]:
+            if payload.of == self._strand_key():
                 self.strands = payload
                 self.events.strands.emit(payload)
         elif isinstance(payload, FirstLook):
             self._show(Shown(None, payload.real, payload.roi, payload.frame_size, payload.params, "encoder",
-                             {}, self.session.simulated, self._new_key()))
+                             {}, self.session.simulated, payload.key))
         elif isinstance(payload, Captured):
             first_look = self.shown is not None and self.shown.capture_id is None
             self.select(payload.result.capture_id, same_capture=first_look)

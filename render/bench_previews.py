@@ -76,10 +76,10 @@ def _scene_code() -> str:
     return digest.hexdigest()[:16]
 
 
-def _reference(renderer: Renderer, hair: HairParams, view: View, spp: int, cache: Path) -> np.ndarray:
+def _reference(renderer: Renderer, hair: HairParams, view: View, spp: int, cache: Path, code: str) -> np.ndarray:
     """The view at ``spp`` (not denoised), rendered in chunks of 256 spp and cached on disk."""
     key = hashlib.sha256(json.dumps([2, repr(view.spec), list(view.size), hair.to_dict(), spp, renderer.variant,
-                                     _scene_code()], sort_keys=True, default=str).encode()).hexdigest()[:16]
+                                     code], sort_keys=True, default=str).encode()).hexdigest()[:16]
     path = cache / f"ref-{view.name}-{view.size[0]}x{view.size[1]}-{key}.npy"
     if path.exists():
         return np.load(path)
@@ -101,9 +101,10 @@ def run_previews_bench(out_dir: str | os.PathLike, twin: tuple[SceneSpec, tuple[
     reference_spp = 64 if quick else reference_spp
     modes = MODES if dn.available() else ("raw",)
     renderer = Renderer(max_cached=2)
+    code = _scene_code()            # as imported now: references of older scene code are not reused
     rows = []
     for view in default_views(twin, quick):
-        ref = _reference(renderer, hair, view, reference_spp, cache)
+        ref = _reference(renderer, hair, view, reference_spp, cache, code)
         renderer.render(hair, view.spec, view.size, 1, seed=1)        # warm: build and compile
         if "oidn+aov" in modes:
             _aux_images(renderer, hair, view.spec, view.size, 1)         # warm: the AOV kernel

@@ -89,6 +89,7 @@ def test_a_new_capture_cancels_stale_renders(calibrated):
     model = review.ReviewModel(calibrated, dataclasses.replace(SMALL, hairstyle_passes=(1,) * 40, warm=False))
     model.apply(model.capture_work()(model.apply, lambda: False))
     first = model.shown.capture_id
+    model.twin_work()(model.apply, lambda: False)                   # the twin goes first, as in the window
     reported, started = [], threading.Event()
 
     def report(p):
@@ -103,9 +104,10 @@ def test_a_new_capture_cancels_stale_renders(calibrated):
     assert not thread.is_alive() and 1 <= len(reported) < 40        # it stopped at its next pass
     for stale in reported:                                          # and what it reported late is dropped
         model.apply(stale)
-    assert model.hairstyle is None
+    assert model.hairstyle.stage == "encoder" and model.hairstyle.key == model.shown.key   # the new first look
+    assert all(stale.key != model.shown.key for stale in reported)
     model.apply(captured)
-    assert model.shown.capture_id != first
+    assert model.shown.capture_id != first and model.hairstyle.key == model.shown.key
 
 
 def test_the_delta_e_map_shows_colour_differences_not_noise():

@@ -313,9 +313,12 @@ class MainWindow(QMainWindow):
 
     def _show_capture(self, shown: review.Shown) -> None:
         self._set_image(self.real_label, shown.real)
-        for label, text in ((self.synth_label, "rendering…"), (self.diff_label, "ΔE2000")):
-            label.clear()
-            label.setText(text if shown.params is not None else "–")
+        if self.model.twin is None:          # the first look's twin stays up until the refined one comes
+            for label, text in ((self.synth_label, "rendering…"), (self.diff_label, "ΔE2000")):
+                label.clear()
+                label.setText(text if shown.params is not None else "–")
+            self.chip.setText("hair\n…")
+            self.chip.setStyleSheet("background:#1e1e22; color:#aaa; border:1px solid #888; font-size:10px")
         if shown.params is None:
             self.result_info.setText("no estimate: " + "; ".join(shown.record.get("blocked") or ["none saved"]))
             return
@@ -340,8 +343,6 @@ class MainWindow(QMainWindow):
         self.dye_chip.setText("dye")
         self.dye_chip.setStyleSheet(chip_style(p.dye_rgb))
         self.dye_chip.setToolTip(f"dye colour alone, at concentration {p.dye_concentration:.2f}")
-        self.chip.setText("hair\n…")
-        self.chip.setStyleSheet("background:#1e1e22; color:#aaa; border:1px solid #888; font-size:10px")
         if shown.stage == "encoder":
             self.result_info.setText("encoder's estimate; refining by synthesis…")
             return
@@ -486,8 +487,9 @@ class MainWindow(QMainWindow):
     def start_hairstyle(self) -> None:
         self.render_progress.setValue(0)
         self.run_job("hairstyle", self.model.hairstyle_work() or self.model.warm_view_work())
-        if self.strand_view is not None:
-            self.run_job("strands", self.model.strand_work())
+        strands = self.model.strand_work() if self.strand_view is not None else None
+        if strands is not None:
+            self.run_job("strands", strands)
 
     def _on_style(self, text: str) -> None:
         if text in HAIRSTYLES:
