@@ -138,3 +138,20 @@ def test_uncalibrated_capture_is_kept_and_blocked(qtbot, tiny_model, tmp_path):
         win.export(tmp_path / "x.json")
     win.close()
     session.close()
+
+
+def test_a_raw_still_is_a_capture_source_in_the_window(qtbot, tiny_model, tmp_path):
+    """File > Import RAW still: the still joins the session as a capture, calibrated on its own chart."""
+    from media import write_raw_still
+
+    _, onnx_path, _ = tiny_model
+    win, session = open_window(qtbot, tmp_path / "s", onnx_path)
+    still = write_raw_still(tmp_path / "IMG_7.dng", (session.camera.radiance() * 0.8).repeat(2, 0).repeat(2, 1))
+    with qtbot.waitSignal(win.captured, timeout=120000) as cap:
+        win.import_still(still)
+    result = cap.args[0]
+    assert not result.blocked and result.params is not None
+    assert result.image_path.suffix == ".dng" and result.image_path.read_bytes() == still.read_bytes()
+    qtbot.waitUntil(lambda: win.session_list.count() == 1, timeout=20000)
+    win.close()
+    session.close()

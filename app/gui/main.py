@@ -54,6 +54,7 @@ def run_app(sim: bool = False, session: str | None = None, tour: str | None = No
     offscreen = os.environ.get("QT_QPA_PLATFORM") == "offscreen"
     window = MainWindow(rig, {"hairstyle_size": settings["hairstyle_size"]}, strand_view=not offscreen)
     menu = window.menuBar().addMenu("&File")
+    menu.addAction("Import RAW still…", window.import_still_dialog)
     menu.addAction("Open hair model…", window.open_hair_dialog)
     menu.addAction("Settings…", lambda: SettingsDialog(window).exec())
     menu.addAction("Quit", window.close)

@@ -497,6 +497,25 @@ class MainWindow(QMainWindow):
         elif text in self.hair_models:
             self.model.set_view(hair_file=self.hair_models[text])
 
+    def import_still(self, path: str | Path) -> Task:
+        """A RAW still of the rig as a capture: copied into the session first, calibrated on the chart
+        in the still, estimated, then shown like a live capture."""
+        def done(captured: review.Captured) -> None:
+            self.model.apply(captured)
+            self.captured.emit(captured.result)
+        session = self.model.session
+        return self.run_task(lambda report, cancelled: review.Captured(session.import_still(path)), done,
+                             name="RAW still")
+
+    def import_still_dialog(self) -> None:
+        from hairdigi.hardware.cameras import RAW_EXTENSIONS
+
+        patterns = " ".join(f"*{e} *{e.upper()}" for e in sorted(RAW_EXTENSIONS))
+        path, _ = QFileDialog.getOpenFileName(self, "Import a RAW still of the rig", str(Path.home()),
+                                              f"RAW stills ({patterns});;All files (*)")
+        if path:
+            self.import_still(path)
+
     def open_hair_model(self, path: str | Path) -> Task:
         """Read and check a .hair model in a worker; a bad file shows its error in the banner."""
         return self.run_task(self.model.open_hair_work(path), name="hair model")
