@@ -92,18 +92,23 @@ class PreviewSettings:
     """How previews render; the defaults are chosen by ``hairdigi bench previews`` (render/bench_previews.py).
 
     Mean per-pixel ΔE2000 against 1024 spp, not denoised (clean: 3 or less), OIDN without guides: the
-    twin is 3.34 at 1 spp (the first pass), 3.13 at 2, 3.06 at 4, 2.89 at 8 (clean), 2.75 at 16;
-    raw it is 6.1 even at 64 spp. The 512² hairstyle is clean from its first pass: 1.08 at 1 spp,
-    0.89 at 2 (raw: 6.0 and 4.6). Albedo and normal guides never helped (twin 3.48 at 1 spp, 3.13 at
-    8; hairstyle 1.08 at 1) and cost an AOV render.
+    twin (130 x 154) is 3.34 at 1 spp, 3.13 at 2, 3.06 at 4, 2.89 at 8 (clean), 2.75 at 16; raw it is
+    6.1 even at 64 spp. At half resolution (65 x 77, a quarter of the samples per spp) it is clean
+    at 4 spp: 3.1–3.6 at 1, 2.8–3.0 at 2, 2.69 at 4, in 0.19 s instead of 1.44 s for 8 spp at full
+    resolution; the half-resolution twin is flat, the full-resolution one shows the fibres' streaks,
+    so the twin goes from one to the other. The 512² hairstyle is clean from its first pass: 1.08 at
+    1 spp, 0.89 at 2 (raw: 6.0 and 4.6). Albedo and normal guides never helped (twin 3.48 at 1 spp,
+    3.13 at 8; hairstyle 1.08 at 1) and cost an AOV render.
 
-    ``fibre_px``: the ΔE2000 map smooths real and twin over 6 px, about a clump of fibres in the rig
+    ``fibre_px``: the ΔE2000 map smooths real and twin over 6 px (at full resolution; 3 at half), about a clump of fibres in the rig
     view (0.04 swatch widths). Measured on a simulated capture whose mean colours differ by ΔE2000
     0.47: the map's mean is 2.38 at 2 px (noise and single fibres), 1.47 at 4, 1.17 at 6, 1.04 at 8.
     """
 
-    twin_passes: tuple[int, ...] = (1, 3, 4, 8, 16)        # spp of each twin pass (running totals 1, 4, 8, 16, 32)
-    twin_clean_spp: int = 8                                # spp from which the denoised twin counts as clean
+    #: (scale, spp) of each twin pass: at half the capture's resolution first (running totals 1, 4),
+    #: then at full resolution (8, 16, 32) for the streaks of the fibres.
+    twin_passes: tuple[tuple[float, int], ...] = ((0.5, 1), (0.5, 3), (1.0, 8), (1.0, 8), (1.0, 16))
+    twin_clean_spp: tuple[tuple[float, int], ...] = ((0.5, 4), (1.0, 8))   # (scale, spp) from which it is clean
     hairstyle_size: int = 512
     hairstyle_strands: int | None = None                   # None: the scene's default
     hairstyle_passes: tuple[int, ...] = (1, 1, 2, 4, 8)    # running totals 1, 2, 4, 8, 16
@@ -146,6 +151,7 @@ class TwinPreview:
     stage: str
     seconds: float                  # since the work began
     key: int = 0                    # the Shown.key it previews
+    scale: float = 1.0              # of the capture's resolution
 
 
 @dataclass
@@ -239,11 +245,15 @@ class PreviewRenderer(Renderer):
 
 
 # --- pure functions: views, passes, colours ----------------------------------------------------
-def twin_view(roi: tuple[int, int, int, int], frame_size: tuple[int, int], simulated: bool) -> tuple[SceneSpec, tuple]:
-    """The twin's scene and size: the rig camera over exactly the ROI (simulated geometry), or a crop."""
+def twin_view(roi: tuple[int, int, int, int], frame_size: tuple[int, int], simulated: bool,
+              scale: float = 1.0) -> tuple[SceneSpec, tuple]:
+    """The twin's scene and size: the rig camera over exactly the ROI (simulated geometry), or a crop;
+    ``scale`` < 1 renders the same view with fewer pixels."""
     if simulated:
-        return rs.twin_spec(roi, frame_size)
-    return SceneSpec("swatch", framing="crop"), (int(roi[2]), int(roi[3]))
+        spec, (w, h) = rs.twin_spec(roi, frame_size)
+    else:
+        spec, (w, h) = SceneSpec("swatch", framing="crop"), (int(roi[2]), int(roi[3]))
+    return spec, (max(8, round(w * scale)), max(8, round(h * scale)))
 
 
 def orbit_pose(azimuth_deg: float, elevation_deg: float, distance: float | None = None) -> CameraPose:
@@ -285,6 +295,20 @@ def progressive(renderer: Renderer, params: HairParams, spec: SceneSpec, size, s
         total = result.linear * n if total is None else total + result.linear * n
         spp += n
         yield (total / spp).astype(np.float32), spp, i + 1   # even if cancelled meanwhile: the model decides
+
+
+def scaled_progressive(renderer: Renderer, params: HairParams, view: Callable[[float], tuple[SceneSpec, tuple]],
+                       passes: tuple[tuple[float, int], ...], cancelled: Cancelled
+                       ) -> Iterator[tuple[np.ndarray, int, int, float]]:
+    """:func:`progressive` over (scale, spp) passes; each run of one scale accumulates on its own.
+    Yields (running mean, spp at this scale, pass number, scale)."""
+    done = 0
+    for scale, run in itertools.groupby(passes, key=lambda p: p[0]):
+        spec, size = view(scale)
+        spps = tuple(n for _, n in run)
+        for raw, spp, i in progressive(renderer, params, spec, size, spps, cancelled):
+            yield raw, spp, done + i, scale
+        done += len(spps)
 
 
 def hair_colour_rgb8(linear: np.ndarray) -> tuple[int, int, int]:
@@ -367,7 +391,7 @@ class ReviewModel:
         self.hair_file: Path | None = None           # a .hair model shown instead of the built-in style
         self.orbit = (0.0, 0.0)                      # azimuth, elevation (degrees)
         self.show_denoised = self.settings.denoise and dn.available()
-        self.twin_renderer = PreviewRenderer(max_cached=2)
+        self.twin_renderer = PreviewRenderer(max_cached=4)      # the twin at each scale
         self.style_renderer = PreviewRenderer(max_cached=4)
         self._generation = {"twin": 0, "hairstyle": 0}
         self._twin_state = threading.Condition()
@@ -511,9 +535,11 @@ class ReviewModel:
             seconds["refinement_curve"] = time.perf_counter() - start
             if roi is not None:
                 frame = session.frames.latest() or session.frame()
-                tspec, tsize = twin_view(roi, (frame.srgb.shape[1], frame.srgb.shape[0]), session.simulated)
                 start = time.perf_counter()
-                self.twin_renderer.render(placeholder, tspec, tsize, 1)
+                for scale in sorted({scale for scale, _ in settings.twin_passes}):
+                    tspec, tsize = twin_view(roi, (frame.srgb.shape[1], frame.srgb.shape[0]), session.simulated,
+                                             scale)
+                    self.twin_renderer.render(placeholder, tspec, tsize, 1)
                 seconds["twin"] = time.perf_counter() - start
             if cancelled():
                 return Warmed(seconds)
@@ -590,21 +616,24 @@ class ReviewModel:
                 self._twin_is_ready(generation)
         return work
 
-    def _twin_passes(self, shown: Shown, generation: int, schedule: tuple[int, ...], report: Report,
-                     stale: Cancelled) -> None:
+    def _twin_passes(self, shown: Shown, generation: int, schedule: tuple[tuple[float, int], ...],
+                     report: Report, stale: Cancelled) -> None:
+        import cv2
+
         settings = self.settings
-        spec, size = twin_view(shown.roi, shown.frame_size, shown.simulated)
-        real = srgb8_to_linear(shown.real)
+        clean_at = dict(settings.twin_clean_spp)
+        real_full = srgb8_to_linear(shown.real)
         on, start = self.show_denoised or settings.denoise, time.perf_counter()
-        for raw, spp, i in progressive(self.twin_renderer, shown.params, spec, size, schedule, stale):
-            if raw.shape != real.shape:      # a real camera's crop view: compare at the twin's size
-                import cv2
-                real = cv2.resize(real, (raw.shape[1], raw.shape[0]), interpolation=cv2.INTER_AREA)
-            report(TwinPreview(generation, raw, denoised(raw, on), spp, i == len(schedule),
-                               spp >= settings.twin_clean_spp, mean_colour_delta_e(real, raw),
-                               delta_e_map(real, raw, settings.fibre_px), raw.reshape(-1, 3).mean(0),
-                               shown.stage, time.perf_counter() - start, shown.key))
-            if spp >= settings.twin_clean_spp and generation >= 0:
+        view = lambda scale: twin_view(shown.roi, shown.frame_size, shown.simulated, scale)   # noqa: E731
+        for raw, spp, i, scale in scaled_progressive(self.twin_renderer, shown.params, view, schedule, stale):
+            real = real_full if raw.shape == real_full.shape else \
+                cv2.resize(real_full, (raw.shape[1], raw.shape[0]), interpolation=cv2.INTER_AREA)
+            clean = spp >= clean_at.get(scale, spp + 1)
+            report(TwinPreview(generation, raw, denoised(raw, on), spp, i == len(schedule), clean,
+                               mean_colour_delta_e(real, raw), delta_e_map(real, raw, settings.fibre_px * scale),
+                               raw.reshape(-1, 3).mean(0), shown.stage, time.perf_counter() - start, shown.key,
+                               scale))
+            if clean and generation >= 0:
                 self._twin_is_ready(generation)   # clean: the hairstyle's passes may take turns with the twin
 
     def hairstyle_work(self) -> Work | None:
@@ -801,25 +830,31 @@ def _warm_refinement() -> None:
 
 
 def bench_previews(out_dir: str | Path, quick: bool = False) -> list[str]:
-    """``hairdigi bench previews``: render/bench_previews.py on the simulated rig's twin view; the
-    summary lines say each default's measured error and the cheapest clean setting."""
+    """``hairdigi bench previews``: render/bench_previews.py on the simulated rig's twin view (at the
+    scales the app renders it) and the hairstyle; the summary lines say each default's measured error
+    and the cheapest clean setting."""
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SIM_SIZE, swatch_roi
     from hairdigi.render.bench_previews import CLEAN_DE, cheapest_clean, run_previews_bench
 
-    rows = run_previews_bench(out_dir, twin_view(swatch_roi(SIM_SIZE), SIM_SIZE, True), DEFAULT_HIDDEN, quick)
     s = PreviewSettings()
+    roi = swatch_roi(SIM_SIZE)
+    twins = {scale: twin_view(roi, SIM_SIZE, True, scale) for scale, _ in s.twin_passes}
+    rows = run_previews_bench(out_dir, list(twins.values()), DEFAULT_HIDDEN, quick)
     mode = "oidn" if s.denoise and any(r["mode"] == "oidn" for r in rows) else "raw"
+    defaults = {("hairstyle", s.hairstyle_size): [("first pass", s.hairstyle_passes[0]),
+                                                  ("clean pass", s.hairstyle_clean_spp)]}
+    for scale, (_, size) in twins.items():
+        firsts = [n for sc, n in s.twin_passes if sc == scale]
+        defaults[("twin", size[0])] = [("first pass", firsts[0]), ("clean pass", dict(s.twin_clean_spp)[scale])]
     lines = []
     for view, width in sorted({(r["view"], r["width"]) for r in rows}):
-        here = [r for r in rows if r["view"] == view and r["width"] == width]
         best = cheapest_clean(rows, view, width)
         lines.append(f"{view} {width}px: cheapest clean (per-pixel ΔE2000 <= {CLEAN_DE:g}): "
                      + (f"{best['spp']} spp {best['mode']}, {best['total_s']:.2f} s, ΔE {best['pixel_de2000']:.2f}"
                         if best else "none"))
-        first = s.twin_passes[0] if view == "twin" else s.hairstyle_passes[0]
-        clean = s.twin_clean_spp if view == "twin" else s.hairstyle_clean_spp
-        for label, spp in (("first pass", first), ("clean pass", clean)):
-            row = next((r for r in here if r["spp"] == spp and r["mode"] == mode), None)
+        for label, spp in defaults.get((view, width), []):
+            row = next((r for r in rows if (r["view"], r["width"], r["spp"], r["mode"]) == (view, width, spp, mode)),
+                       None)
             if row is not None:
                 lines.append(f"  app default {label}: {spp} spp {mode}: per-pixel ΔE2000 {row['pixel_de2000']:.2f}, "
                              f"mean colour {row['mean_colour_de2000']:.2f}, {row['total_s']:.2f} s")

@@ -1,12 +1,13 @@
 """``hairdigi bench previews``: the app's preview settings, time against error.
 
-Two views, as the app renders them: the swatch's twin (the rig camera over the swatch area) and a
-hairstyle portrait. Each case renders ``spp`` samples in a warm scene (built and compiled before),
-optionally denoises (OIDN; with or without albedo and normal guides, which cost an AOV render), and
-is compared per pixel with a 1024-spp render of the same view that is not denoised: the mean
-per-pixel ΔE2000 (the app calls a pass "clean" at 3 or less) and the ΔE2000 of the mean colour. The
-references are cached in ``OUT/refs``. ``denoise_mean_shift`` is what OIDN alone moved the mean
-colour (before :func:`render.denoise.restore_mean` gives it back).
+Two views, as the app renders them: the swatch's twin (the rig camera over the swatch area, at each
+resolution the app renders it) and a hairstyle portrait. Each case renders ``spp`` samples in a warm
+scene (built, and its kernel for that spp compiled, before), optionally denoises (OIDN; with or
+without albedo and normal guides, which cost an AOV render), and is compared per pixel with a
+1024-spp render of the same view that is not denoised: the mean per-pixel ΔE2000 (the app calls a
+pass "clean" at 3 or less) and the ΔE2000 of the mean colour. The references are cached in
+``OUT/refs``. ``denoise_mean_shift`` is what OIDN alone moved the mean colour (before
+:func:`render.denoise.restore_mean` gives it back).
 """
 from __future__ import annotations
 
@@ -44,12 +45,14 @@ class View:
     spps: tuple[int, ...]
 
 
-def default_views(twin: tuple[SceneSpec, tuple[int, int]], quick: bool = False) -> list[View]:
-    """The twin view (given: the app knows the rig's swatch area) and the hairstyle at 512² and 256²."""
+def default_views(twins: list[tuple[SceneSpec, tuple[int, int]]], quick: bool = False) -> list[View]:
+    """The twin views (given, at each size the app renders: the app knows the rig's swatch area) and
+    the hairstyle at 512² and 256²."""
     if quick:
-        return [View("twin", twin[0], (max(8, twin[1][0] // 4), max(8, twin[1][1] // 4)), (1, 4)),
+        spec, (w, h) = min(twins, key=lambda t: t[1][0])
+        return [View("twin", spec, (max(8, w // 4), max(8, h // 4)), (1, 4)),
                 View("hairstyle", SceneSpec("straight", strands=400), (64, 64), (1, 4))]
-    return [View("twin", twin[0], tuple(twin[1]), (1, 2, 4, 8, 16, 32, 64)),
+    return [*(View("twin", spec, tuple(size), (1, 2, 4, 8, 16, 32, 64)) for spec, size in twins),
             View("hairstyle", SceneSpec("straight"), (512, 512), (1, 2, 4, 8, 16)),
             View("hairstyle", SceneSpec("straight"), (256, 256), (1, 2, 4, 8))]
 
@@ -92,7 +95,7 @@ def _reference(renderer: Renderer, hair: HairParams, view: View, spp: int, cache
     return image
 
 
-def run_previews_bench(out_dir: str | os.PathLike, twin: tuple[SceneSpec, tuple[int, int]],
+def run_previews_bench(out_dir: str | os.PathLike, twins: list[tuple[SceneSpec, tuple[int, int]]],
                        hair: HairParams, quick: bool = False, reference_spp: int = REFERENCE_SPP) -> list[dict]:
     """Every view x spp x denoise mode; writes ``previews_bench.csv`` and ``.png``; returns the rows."""
     out = Path(out_dir)
@@ -103,12 +106,13 @@ def run_previews_bench(out_dir: str | os.PathLike, twin: tuple[SceneSpec, tuple[
     renderer = Renderer(max_cached=2)
     code = _scene_code()            # as imported now: references of older scene code are not reused
     rows = []
-    for view in default_views(twin, quick):
+    for view in default_views(twins, quick):
         ref = _reference(renderer, hair, view, reference_spp, cache, code)
         renderer.render(hair, view.spec, view.size, 1, seed=1)        # warm: build and compile
         if "oidn+aov" in modes:
             _aux_images(renderer, hair, view.spec, view.size, 1)         # warm: the AOV kernel
         for spp in tqdm(view.spps, desc=f"{view.name} {view.size[0]}x{view.size[1]}", unit="spp"):
+            renderer.render(hair, view.spec, view.size, spp, seed=3)   # Dr.Jit compiles a kernel per spp: not timed
             result = renderer.render(hair, view.spec, view.size, spp, seed=7 + spp)
             raw = result.linear
             for mode in modes:

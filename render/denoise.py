@@ -12,6 +12,7 @@ naming the fix; the app then shows the raw passes.
 """
 from __future__ import annotations
 
+import sys
 import threading
 
 import numpy as np
@@ -25,12 +26,25 @@ _LOCK = threading.Lock()
 _STATE: dict = {}
 
 
+def _import_pyoidn():
+    """``import pyoidn``, without the torch it imports when torch is installed (for tensor inputs,
+    which hairdigi does not use): that took 1.3 s, and the runtime path never loads torch."""
+    hide = "torch" not in sys.modules
+    if hide:
+        sys.modules["torch"] = None          # makes pyoidn's optional ``import torch`` fail, as without torch
+    try:
+        import pyoidn
+    finally:
+        if hide and "torch" in sys.modules and sys.modules["torch"] is None:
+            del sys.modules["torch"]
+    return pyoidn
+
+
 def _oidn():
     with _LOCK:
         if "module" not in _STATE:
             try:
-                import pyoidn
-                _STATE["module"], _STATE["error"] = pyoidn, None
+                _STATE["module"], _STATE["error"] = _import_pyoidn(), None
             except (ImportError, OSError) as exc:   # OSError: the wheel's OIDN libraries do not load
                 _STATE["module"], _STATE["error"] = None, exc
     if _STATE["module"] is None:

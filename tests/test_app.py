@@ -12,7 +12,7 @@ from hairdigi.render.hairfile import write_hair
 from hairdigi.render.strands import hairstyle_strands
 
 FAST = {"hairstyle_size": 48, "hairstyle_strands": 200, "hairstyle_passes": (1, 1), "hairstyle_clean_spp": 2,
-        "twin_passes": (1, 1), "twin_clean_spp": 2, "view_strands": 100, "feed_fps": 10}
+        "twin_passes": ((0.5, 1), (1.0, 1)), "twin_clean_spp": ((0.5, 1), (1.0, 1)), "view_strands": 100, "feed_fps": 10}
 
 
 def open_window(qtbot, folder, onnx_path):
@@ -57,7 +57,7 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output):
     qtbot.waitUntil(lambda: win.model.twin is not None and win.model.twin.stage == "refined"
                     and win.model.twin.final, timeout=120000)
     # the scenes were built by the warm-up: the capture only updated parameters
-    assert (win.model.twin_renderer.builds, win.model.style_renderer.builds) == (1, 1)
+    assert (win.model.twin_renderer.builds, win.model.style_renderer.builds) == (2, 1)   # the twin at 2 scales
     # the chips: the estimated hair colour (the twin's mean) and the dye, each labelled
     assert win.chip.text() == "hair" and win.dye_chip.text() == "dye"
     assert win.chip.styleSheet() != win.dye_chip.styleSheet()

@@ -65,3 +65,14 @@ def test_without_pyoidn_the_error_says_how_to_install_it():
             "except dn.DenoiserMissing as exc:\n    print(exc)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
     assert "pip install pyoidn" in out.stdout
+
+
+@needs_oidn
+def test_denoising_loads_no_torch():
+    """pyoidn imports torch when it is installed; the runtime path must not (and need not) load it."""
+    code = ("import sys, numpy as np\n"
+            "from hairdigi.render import denoise as dn\n"
+            "dn.denoise(np.full((8, 8, 3), 0.2, np.float32))\n"
+            "print('torch' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
+    assert out.stdout.strip() == "False"

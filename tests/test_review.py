@@ -13,7 +13,7 @@ from hairdigi.app.rig_session import RigSession
 from hairdigi.inference.encoder import Encoder
 from hairdigi.render.metrics import delta_e2000, delta_e_map
 
-SMALL = review.PreviewSettings(twin_passes=(1, 1), twin_clean_spp=2, hairstyle_size=48, hairstyle_strands=200,
+SMALL = review.PreviewSettings(twin_passes=((0.5, 1), (1.0, 1)), twin_clean_spp=((0.5, 1), (1.0, 1)), hairstyle_size=48, hairstyle_strands=200,
                                hairstyle_passes=(1, 1), hairstyle_clean_spp=2, view_strands=100)
 
 
@@ -46,7 +46,7 @@ def test_a_capture_shows_the_encoder_first_then_the_refined_estimate_in_warm_sce
     model = review.ReviewModel(calibrated, SMALL)
     warmed = model.warm_work()(model.apply, lambda: False)
     assert {"twin", "hairstyle"} <= set(warmed.seconds)
-    assert (model.twin_renderer.builds, model.style_renderer.builds) == (1, 1)
+    assert (model.twin_renderer.builds, model.style_renderer.builds) == (2, 1)   # the twin at 2 scales
 
     stages, twins, passes = [], [], []
     model.events.shown.connect(lambda shown: stages.append(shown.stage))
@@ -59,10 +59,11 @@ def test_a_capture_shows_the_encoder_first_then_the_refined_estimate_in_warm_sce
     assert stages == ["encoder", "refined"]
     assert model.shown.capture_id == captured.result.capture_id and model.shown.record["refinement"]["ran"]
     # the encoder's look renders one pass; the refined estimate its whole schedule
-    assert [(t.stage, t.spp) for t in twins] == [("encoder", 1), ("refined", 1), ("refined", 2)]
+    # half resolution first, then full; the first look is one pass, rendered by the capture worker
+    assert [(t.stage, t.scale, t.spp) for t in twins] == [("encoder", 0.5, 1), ("refined", 0.5, 1), ("refined", 1.0, 1)]
     assert [(p.stage, p.spp) for p in passes] == [("encoder", 1), ("refined", 1), ("refined", 2)]
     # the warm scenes were reused: the capture only updated parameters
-    assert (model.twin_renderer.builds, model.style_renderer.builds) == (1, 1)
+    assert (model.twin_renderer.builds, model.style_renderer.builds) == (2, 1)
     twin = model.twin
     assert twin.final and twin.clean_enough and twin.raw.shape == twin.clean.shape == (*model.shown.real.shape[:2], 3)
     assert twin.delta_e_map.shape == model.shown.real.shape[:2] and np.isfinite(twin.delta_e)

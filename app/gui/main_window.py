@@ -24,8 +24,10 @@ from hairdigi.render.params import VECTOR_FIELDS
 from hairdigi.render.scenes import ENVIRONMENTS
 from hairdigi.render.strands import HAIRSTYLES
 
-#: Window options; the preview ones are ``review.PreviewSettings`` fields.
-DEFAULTS = {"feed_fps": 20}
+#: Window options; the preview ones are ``review.PreviewSettings`` fields. While a capture is estimated
+#: and its twin renders, the live feed slows to ``busy_feed_fps``: on 2 cores the simulated feed at
+#: 20 fps took a fifth of a core that the first twin and hairstyle passes need.
+DEFAULTS = {"feed_fps": 20, "busy_feed_fps": 4}
 
 
 def image_label(text: str, size=(260, 200)) -> QLabel:
@@ -156,7 +158,7 @@ class MainWindow(QMainWindow):
         for label in (self.real_label, self.synth_label, self.diff_label):
             label.setMinimumSize(160, 190)
             row.addWidget(label)
-        v.addLayout(row)
+        v.addLayout(row, 1)
         row = QHBoxLayout()
         self.twin_info = QLabel("twin: –")
         row.addWidget(self.twin_info, 1)
@@ -208,7 +210,6 @@ class MainWindow(QMainWindow):
         self.result_info.setWordWrap(True)
         v.addWidget(self.match_label)
         v.addWidget(self.result_info)
-        v.addStretch(1)
         return box
 
     def _hairstyle_panel(self, with_strand_view: bool) -> QWidget:
@@ -311,7 +312,11 @@ class MainWindow(QMainWindow):
         if 0 <= row < len(self.model.records):
             self.model.select(self.model.records[row]["id"])
 
+    def _feed_busy(self, busy: bool) -> None:
+        self.session.frames.period = 1.0 / self.opts["busy_feed_fps" if busy else "feed_fps"]
+
     def _show_capture(self, shown: review.Shown) -> None:
+        self._feed_busy(shown.params is not None)      # until its twin is clean
         self._set_image(self.real_label, shown.real)
         if self.model.twin is None:          # the first look's twin stays up until the refined one comes
             for label, text in ((self.synth_label, "rendering…"), (self.diff_label, "ΔE2000")):
@@ -360,10 +365,13 @@ class MainWindow(QMainWindow):
         self.result_info.setText("\n".join(lines))
 
     def _show_twin(self, t: review.TwinPreview) -> None:
+        if t.clean_enough and t.stage != "encoder":
+            self._feed_busy(False)
         self._set_image(self.synth_label, self.model.twin_image(t))
         self._set_image(self.diff_label, delta_e_colours(t.delta_e_map))
         shown = "denoised" if self.model.show_denoised and t.clean is not None else "raw"
-        self.twin_info.setText(f"twin: {t.spp} spp, {shown}; map mean ΔE {float(t.delta_e_map.mean()):.2f}")
+        scale = "" if t.scale == 1 else " at ½ resolution" if t.scale == 0.5 else f" at {t.scale:g}x"
+        self.twin_info.setText(f"twin: {t.spp} spp{scale}, {shown}; map mean ΔE {float(t.delta_e_map.mean()):.2f}")
         stage = "encoder's estimate" if t.stage == "encoder" else "refined estimate"
         self.match_label.setText(f"real vs synthetic: mean-colour ΔE2000 {t.delta_e:.2f} ({stage})")
         self.chip.setText("hair")
@@ -478,6 +486,7 @@ class MainWindow(QMainWindow):
             self.captured.emit(captured.result)
         task = self.run_task(self.model.capture_work(), done, name="capture")
         task.signals.finished.connect(lambda: self.capture_button.setEnabled(True))
+        task.signals.failed.connect(lambda _: self._feed_busy(False))
         return task
 
     def start_previews(self) -> None:

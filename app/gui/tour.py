@@ -68,7 +68,7 @@ def run_tour(window, out_dir: str | Path, timeout_s: float = 600.0) -> None:
             mark("first_refined_twin")
             if t.clean_enough:
                 mark("clean_twin")
-                info.setdefault("clean_twin_spp", t.spp)
+                info.setdefault("clean_twin", f"{t.spp} spp at {t.scale:g}x resolution")
             if t.final:
                 mark("final_twin")
                 info["real_vs_twin_mean_colour_de2000"] = round(t.delta_e, 3)
