@@ -65,3 +65,22 @@ def avr_build(tmp_path_factory):
     if reason:
         (pytest.fail if os.environ.get("CI") else pytest.skip)(f"cannot build the AVR firmware: {reason}")
     return build_firmware(tmp_path_factory.getbasetemp() / "avr-firmware")
+
+
+@pytest.fixture(scope="session")
+def xvfb():
+    """A real X server for pyvistaqt (the strand view needs GL on X), shared by the tests that open one."""
+    import shutil
+    import subprocess
+    import time
+
+    binary = shutil.which("Xvfb")
+    assert binary, "Xvfb is missing: the Makefile's system-deps step installs it (apt-get install xvfb)"
+    display = ":97"
+    proc = subprocess.Popen([binary, display, "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    time.sleep(1.0)
+    assert proc.poll() is None, "Xvfb did not start"
+    yield display
+    proc.terminate()
+    proc.wait(5)

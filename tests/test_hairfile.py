@@ -1,7 +1,6 @@
 """Cem Yuksel's ``.hair`` files: every flag combination reads back, renders and shows in the strand
 view; bad files fail with one clear line; a model in any units lands on the head."""
 import os
-import shutil
 import struct
 import subprocess
 import sys
@@ -105,20 +104,6 @@ STRAND_VIEW = textwrap.dedent("""
         print(path, hair)
     view.close_view()
 """)
-
-
-@pytest.fixture(scope="module")
-def xvfb():
-    binary = shutil.which("Xvfb")
-    assert binary, "Xvfb is missing: the Makefile's system-deps step installs it (apt-get install xvfb)"
-    display = ":96"
-    proc = subprocess.Popen([binary, display, "-screen", "0", "1280x1024x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    time.sleep(1.0)
-    assert proc.poll() is None, "Xvfb did not start"
-    yield display
-    proc.terminate()
-    proc.wait(5)
 
 
 def test_every_flag_combination_shows_in_the_strand_view(flag_files, xvfb):

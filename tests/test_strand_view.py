@@ -1,26 +1,9 @@
 """The pyvistaqt strand view and the whole window on a real X server (Xvfb), in a subprocess."""
 import os
-import shutil
 import subprocess
 import sys
 import textwrap
-import time
 
-import pytest
-
-
-@pytest.fixture(scope="module")
-def xvfb():
-    binary = shutil.which("Xvfb")
-    assert binary, "Xvfb is missing: the Makefile's system-deps step installs it (apt-get install xvfb)"
-    display = ":97"
-    proc = subprocess.Popen([binary, display, "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    time.sleep(1.0)
-    assert proc.poll() is None, "Xvfb did not start"
-    yield display
-    proc.terminate()
-    proc.wait(5)
 
 
 SCRIPT = textwrap.dedent("""
