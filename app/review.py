@@ -723,7 +723,9 @@ class ReviewModel:
         """Find the chart and check the exposure of one frame."""
         session = self.session
 
-        def work(report: Report, cancelled: Cancelled) -> FrameCheck:
+        def work(report: Report, cancelled: Cancelled) -> FrameCheck | None:
+            import cv2
+
             from hairdigi.inference.calibration import CalibrationError, detect_chart
 
             try:
@@ -732,6 +734,8 @@ class ReviewModel:
                 except CalibrationError:
                     box = None
                 return FrameCheck(box, session.exposure(image))
+            except cv2.error:    # cv2.mcc's assertion on an odd frame (seen once in ~20 tours): try the next one
+                return None
             finally:
                 self._checking = False
         return work
@@ -845,7 +849,8 @@ def bench_previews(out_dir: str | Path, quick: bool = False) -> list[str]:
                                                   ("clean pass", s.hairstyle_clean_spp)]}
     for scale, (_, size) in twins.items():
         firsts = [n for sc, n in s.twin_passes if sc == scale]
-        defaults[("twin", size[0])] = [("first pass", firsts[0]), ("clean pass", dict(s.twin_clean_spp)[scale])]
+        defaults[("twin", size[0])] = [(f"first pass at {scale:g}x resolution", firsts[0]),
+                                       ("clean pass", dict(s.twin_clean_spp)[scale])]
     lines = []
     for view, width in sorted({(r["view"], r["width"]) for r in rows}):
         best = cheapest_clean(rows, view, width)

@@ -156,9 +156,9 @@ class MainWindow(QMainWindow):
         self.synth_label = image_label("synthetic")
         self.diff_label = image_label("ΔE2000")
         for label in (self.real_label, self.synth_label, self.diff_label):
-            label.setMinimumSize(160, 190)
+            label.setMinimumSize(160, 215)    # the swatch's aspect (130 x 154 in the simulated rig's view)
             row.addWidget(label)
-        v.addLayout(row, 1)
+        v.addLayout(row)
         row = QHBoxLayout()
         self.twin_info = QLabel("twin: –")
         row.addWidget(self.twin_info, 1)
@@ -210,6 +210,7 @@ class MainWindow(QMainWindow):
         self.result_info.setWordWrap(True)
         v.addWidget(self.match_label)
         v.addWidget(self.result_info)
+        v.addStretch(1)
         return box
 
     def _hairstyle_panel(self, with_strand_view: bool) -> QWidget:
