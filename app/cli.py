@@ -7,7 +7,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from hairdigi.render.io.version import version
+from hairdigi.render.base.version import version
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # torch's OpenMP spinning starves a 2-core CPU
 
@@ -47,10 +47,10 @@ def _use_variant(name: str | None) -> str:
 # --- render -----------------------------------------------------------------------------------
 def cmd_render(args: argparse.Namespace) -> int:
     from hairdigi.render.io.images import save_exr, save_png
-    from hairdigi.render.params import load_params
+    from hairdigi.render.base.params import load_params
     from hairdigi.render.renderer import SceneSpec, render
     from hairdigi.render.scenes import PORTRAIT_CAMERA
-    from hairdigi.render.rig_geometry import CAMERA_DISTANCE, CameraPose
+    from hairdigi.render.base.rig_geometry import CAMERA_DISTANCE, CameraPose
 
     _use_variant(args.variant)
     params = load_params(args.params)
@@ -135,9 +135,9 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_file
     from hairdigi.inference.preprocess import Roi
-    from hairdigi.render.io.files import write_json_atomic
+    from hairdigi.render.base.files import write_json_atomic
 
-    from hairdigi.render.rig_geometry import RIG_SWATCH_POSE, CameraPose
+    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE, CameraPose
 
     encoder = Encoder(args.model)
     roi = Roi.parse(args.roi) if args.roi else None
@@ -337,7 +337,7 @@ def build_parser() -> argparse.ArgumentParser:
     from hairdigi.render.renderer import (MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH, MIN_SIZE,
                                  SCENE_NAMES)
     from hairdigi.render.scenes import ENVIRONMENTS
-    from hairdigi.render.rig_geometry import LIGHT_POSITIONS
+    from hairdigi.render.base.rig_geometry import LIGHT_POSITIONS
     from hairdigi.render.variant import CHOICES as VARIANTS
 
     size, spp = v.int_in(MIN_SIZE, MAX_SIZE), v.int_in(1, MAX_SPP)

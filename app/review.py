@@ -32,9 +32,9 @@ import numpy as np
 from hairdigi.app import rig_session as rs
 from hairdigi.render import denoise as dn
 from hairdigi.render.metrics import delta_e_map, mean_colour_delta_e
-from hairdigi.render.params import HairParams
+from hairdigi.render.base.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec
-from hairdigi.render.rig_geometry import CameraPose
+from hairdigi.render.base.rig_geometry import CameraPose
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
 
 Report = Callable[[object], None]
@@ -828,7 +828,7 @@ class ReviewModel:
 def _warm_refinement() -> None:
     """Build refinement's swatch scene once (its response curve may come from the disk cache)."""
     from hairdigi.inference.refine import refine
-    from hairdigi.render.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
 
     refine(HairParams(), np.array([0.08, 0.05, 0.03]), RIG_SWATCH_POSE)
 

@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.app.rig_session import RigSession
-from hairdigi.render.rig_geometry import N_LIGHTS
+from hairdigi.render.base.rig_geometry import N_LIGHTS
 
 
 def check_dead_lights(dead) -> set[int]:
     """The simulated dead lights as a set of light numbers; ValueError naming ``--dead`` for any other."""
-    from hairdigi.render.rig_geometry import LIGHT_POSITIONS
+    from hairdigi.render.base.rig_geometry import LIGHT_POSITIONS
 
     n = len(LIGHT_POSITIONS)
     wrong = [d for d in (dead or ()) if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d < n]
@@ -126,8 +126,8 @@ def detection_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16) -> list
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
     from hairdigi.render.camera_model import CameraModel, sensor_response
     from hairdigi.inference.calibration import CalibrationError, calibrate
-    from hairdigi.render import rig_geometry
-    from hairdigi.render.io.files import write_csv_atomic
+    from hairdigi.render.base import rig_geometry
+    from hairdigi.render.base.files import write_csv_atomic
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.renderer import Renderer, SceneSpec
     from tqdm import tqdm
@@ -188,13 +188,13 @@ def estimate_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16, twin_siz
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_image
     from hairdigi.inference.preprocess import Roi
-    from hairdigi.render import rig_geometry
-    from hairdigi.render.io.files import write_csv_atomic
+    from hairdigi.render.base import rig_geometry
+    from hairdigi.render.base.files import write_csv_atomic
     from hairdigi.render.camera_model import CameraModel, sensor_response
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.metrics import delta_e2000
-    from hairdigi.render.params import HairParams
-    from hairdigi.render.io.files import write_json_atomic
+    from hairdigi.render.base.params import HairParams
+    from hairdigi.render.base.files import write_json_atomic
     from hairdigi.render.renderer import Renderer, SceneSpec
     from hairdigi.render.srgb import srgb8_to_linear
 

@@ -19,8 +19,8 @@ from hairdigi.hardware.frame_source import FrameSource
 from hairdigi.hardware.lights import N_LIGHTS, LightController, LightError
 from hairdigi.inference.calibration import (CalibrationError, ChartDetection, apply_profile, calibrate, detect_chart,
                                    load_profile, profile_warnings, save_profile, staleness)
-from hairdigi.render.params import HairParams
-from hairdigi.render.io.files import write_json_atomic
+from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.files import write_json_atomic
 
 
 @dataclass
@@ -147,7 +147,7 @@ class RigSession:
     def prepare_refinement(self) -> float:
         """Render (or load) the refinement's response curve for the rig's camera; returns its seconds."""
         from hairdigi.inference.refine import RefineSettings, response_curve
-        from hairdigi.render.rig_geometry import RIG_SWATCH_POSE
+        from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
 
         return response_curve(RIG_SWATCH_POSE, RefineSettings()).seconds
 
@@ -277,7 +277,7 @@ def _estimate(result: CaptureResult, image: np.ndarray, encoder_or_reason, profi
     """Colour-correct ``image`` with ``profile``, estimate the swatch in ``roi`` and fill ``result``."""
     from hairdigi.inference.estimate import calibration_summary, estimate_image, record
     from hairdigi.inference.preprocess import Roi
-    from hairdigi.render.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
 
     encoder = encoder_or_reason() if callable(encoder_or_reason) else encoder_or_reason
     if isinstance(encoder, str):
@@ -378,7 +378,7 @@ def load_results(folder: str | Path) -> list[dict]:
 # --- the synthetic twin and exports (no Qt) ---------------------------------------------------
 def twin_spec(roi: tuple[int, int, int, int], frame_size: tuple[int, int]):
     """A swatch scene seen by the rig camera over exactly the ROI of a rig-view frame."""
-    from hairdigi.render import rig_geometry
+    from hairdigi.render.base import rig_geometry
     from hairdigi.render.renderer import SceneSpec
 
     width, _ = frame_size

@@ -197,7 +197,7 @@ def check_render(args: argparse.Namespace) -> None:
     """``hairdigi render``: the parameter file, the outputs, and size x spp, depth and camera together."""
     from hairdigi.render.renderer import check_camera, check_size_spp, defaults_for
     from hairdigi.render.scenes import PORTRAIT_CAMERA
-    from hairdigi.render.rig_geometry import CAMERA_DISTANCE, CameraPose
+    from hairdigi.render.base.rig_geometry import CAMERA_DISTANCE, CameraPose
 
     check_input_file(args.params, "--params")
     inputs = {"--params": args.params}
@@ -251,7 +251,7 @@ def check_dataset_folder(path: str | os.PathLike) -> None:
     manifest = Path(path) / "manifest.json"
     if not manifest.exists():
         return
-    from hairdigi.render.io.files import read_json
+    from hairdigi.render.base.files import read_json
 
     data = read_json(manifest, ArgumentError, "no manifest", "not a hairdigi dataset manifest ({exc})")
     if not isinstance(data, dict) or not isinstance(data.get("config"), dict):

@@ -11,7 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hairdigi.render.io.files import atomic_path
+from hairdigi.render.base.files import atomic_path
 
 
 def _atomic_bytes(path: Path, data: bytes) -> None:

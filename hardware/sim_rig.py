@@ -18,11 +18,11 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.hardware.cameras import Frame
-from hairdigi.render import rig_geometry
+from hairdigi.render.base import rig_geometry
 from hairdigi.render.camera_model import CameraModel, sensor_response
-from hairdigi.render.io.files import atomic_path
+from hairdigi.render.base.files import atomic_path
 from hairdigi.render.chart import colorchecker_reflectances
-from hairdigi.render.params import HairParams
+from hairdigi.render.base.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec
 
 SIM_SIZE = (400, 300)

@@ -22,10 +22,10 @@ import colour
 import cv2
 import numpy as np
 
-from hairdigi.render.io.files import read_json
+from hairdigi.render.base.files import read_json
 from hairdigi.render.chart import WHITE_PATCH, colorchecker_reflectances, rig_chart_targets
 from hairdigi.render.metrics import delta_e2000
-from hairdigi.render.io.files import write_json_atomic
+from hairdigi.render.base.files import write_json_atomic
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
 
 METHODS = ("Cheung 2004", "Finlayson 2015", "Vandermonde")

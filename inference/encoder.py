@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.inference.preprocess import Roi, encode, swatch_crop
-from hairdigi.render.params import VECTOR_FIELDS, HairParams
+from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
 from hairdigi.resources import MODELS
 
 DEFAULT_MODEL = MODELS / "encoder.onnx"

@@ -21,9 +21,9 @@ from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, read_image, swatch_crop
 from hairdigi.inference.refine import Refinement, RefineSettings, mean_linear, refine
 from hairdigi.inference.uncertainty import intervals, load_table
-from hairdigi.render.io.version import version
-from hairdigi.render.params import HairParams
-from hairdigi.render.rig_geometry import RIG_SWATCH_POSE, CameraPose
+from hairdigi.render.base.version import version
+from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE, CameraPose
 from hairdigi.resources import MODELS
 
 UNCERTAINTY_TABLE = MODELS / "uncertainty.json"

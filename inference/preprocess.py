@@ -13,7 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hairdigi.render.io.files import read_bytes
+from hairdigi.render.base.files import read_bytes
 from hairdigi.render.srgb import linear_to_srgb, srgb8_to_linear
 
 MIN_SIDE = 32          # smaller images hold too few strands to judge a colour

@@ -34,8 +34,8 @@ import numpy as np
 
 from hairdigi.render.absorption import albedo_from_sigma_a, hair_sigma_a
 from hairdigi.render.metrics import delta_e2000
-from hairdigi.render.params import HairParams
-from hairdigi.render.rig_geometry import CameraPose
+from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.rig_geometry import CameraPose
 
 #: Ladder of ``sigma_a`` levels (per fibre radius): white fibres to past the blackest Table 1 hair
 #: (melanin 1 gives about 8.2 in blue). 12 levels = 4 renders of three channels each.
@@ -150,7 +150,7 @@ def _response_curve(pose: CameraPose, settings: RefineSettings, renderer, cache:
             result.linear.reshape(-1, 3).mean(0)
     curve = ResponseCurve(levels, means, time.perf_counter() - start)
     if cache:
-        from hairdigi.render.io.files import write_json_atomic
+        from hairdigi.render.base.files import write_json_atomic
 
         write_json_atomic(path, {"pose": asdict(pose), "settings": asdict(settings), **curve.to_dict()})
     return curve

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hairdigi.render.params import HairParams
+from hairdigi.render.base.params import HairParams
 
 EUMELANIN_SIGMA_A = np.array([0.419, 0.697, 1.37])
 PHEOMELANIN_SIGMA_A = np.array([0.187, 0.4, 1.05])

@@ -23,9 +23,9 @@ from tqdm import tqdm
 
 from hairdigi.render import denoise as dn
 from hairdigi.render.io.figures import save_figure, save_table
-from hairdigi.render.io.files import atomic_path
+from hairdigi.render.base.files import atomic_path
 from hairdigi.render.metrics import delta_e2000, mean_colour_delta_e, pixel_delta_e
-from hairdigi.render.params import HairParams
+from hairdigi.render.base.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec
 
 #: The app's denoise modes: none, colour alone, colour with albedo and normal guides.

@@ -169,7 +169,7 @@ def hair_file_bytes(hair: HairFile) -> bytes:
 
 def write_hair_file(path: str | os.PathLike, hair: HairFile) -> Path:
     """Write ``hair`` as a ``.hair`` file, atomically."""
-    from hairdigi.render.io.files import write_bytes_atomic
+    from hairdigi.render.base.files import write_bytes_atomic
 
     return write_bytes_atomic(path, hair_file_bytes(hair))
 

@@ -16,11 +16,11 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from hairdigi.render import rig_geometry
+from hairdigi.render.base import rig_geometry
 from hairdigi.render import scenes
 from hairdigi.render.absorption import hair_bsdf, hair_sigma_a
 from hairdigi.render.hairfile import hair_model_strands
-from hairdigi.render.params import HairParams
+from hairdigi.render.base.params import HairParams
 from hairdigi.render.srgb import linear_to_srgb8
 from hairdigi.render.strands import HAIRSTYLES, STYLES, Strands, hairstyle_strands, swatch_strands
 from hairdigi.render.variant import is_jit, load_scene, mi, select_variant

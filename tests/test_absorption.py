@@ -3,7 +3,7 @@ import itertools
 import numpy as np
 
 from hairdigi.render.absorption import dye_sigma_a, hair_bsdf, hair_sigma_a, melanin_quantity
-from hairdigi.render.params import HairParams
+from hairdigi.render.base.params import HairParams
 
 
 def test_finite_and_non_negative_on_every_corner():

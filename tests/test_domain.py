@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from hairdigi.inference.domain import domain_stats, domain_warnings
-from hairdigi.render.params import HairParams
+from hairdigi.render.base.params import HairParams
 from hairdigi.render.renderer import SceneSpec, render
-from hairdigi.render.rig_geometry import CameraPose
+from hairdigi.render.base.rig_geometry import CameraPose
 
 RNG = np.random.default_rng(0)
 GARBAGE = {

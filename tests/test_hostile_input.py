@@ -58,7 +58,7 @@ def materials(tmp_path_factory):
     """A parameter file, a simulated rig frame with the chart in view, and a calibration profile from it."""
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, remove_fireflies
     from hairdigi.inference.calibration import calibrate
-    from hairdigi.render import rig_geometry
+    from hairdigi.render.base import rig_geometry
     from hairdigi.render.camera_model import CameraModel, sensor_response
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.renderer import Renderer, SceneSpec

@@ -9,9 +9,9 @@ from hairdigi.app.cli import main
 from hairdigi.inference.training.dataset import DatasetConfig, generate, load, sample_spec, shard_path
 from hairdigi.inference.encoder import Encoder
 from hairdigi.inference.preprocess import Roi, find_swatch_roi, swatch_crop
-from hairdigi.render.params import HairParams
+from hairdigi.render.base.params import HairParams
 from hairdigi.render.renderer import SceneSpec, render
-from hairdigi.render.rig_geometry import CameraPose, light_blocks_view
+from hairdigi.render.base.rig_geometry import CameraPose, light_blocks_view
 
 from conftest import TINY
 

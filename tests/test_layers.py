@@ -53,7 +53,7 @@ def _modules_after_import(statement: str) -> dict:
 
 
 def test_the_rig_geometry_imports_without_mitsuba():
-    seen = _modules_after_import("import hairdigi.render.rig_geometry, hairdigi.inference.preprocess")
+    seen = _modules_after_import("import hairdigi.render.base.rig_geometry, hairdigi.inference.preprocess")
     assert not seen["mitsuba"] and not seen["qt"] and not seen["torch"]
 
 

@@ -6,9 +6,9 @@ from hairdigi.inference.refine import (RefineSettings, fibre_appearance, mean_li
                               response_curve)
 from hairdigi.render.absorption import hair_sigma_a
 from hairdigi.render.metrics import delta_e2000
-from hairdigi.render.params import HairParams, sample_params
+from hairdigi.render.base.params import HairParams, sample_params
 from hairdigi.render.renderer import Renderer, SceneSpec
-from hairdigi.render.rig_geometry import CameraPose
+from hairdigi.render.base.rig_geometry import CameraPose
 
 SMALL = RefineSettings(size=24, spp=8, iterations=2, strand_seed=3)
 

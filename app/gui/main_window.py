@@ -20,7 +20,7 @@ from hairdigi.app import rig_session as rs
 from hairdigi.app import review
 from hairdigi.app.gui.images import DELTA_E_MAX, colour_scale, delta_e_colours, overlay, to_pixmap
 from hairdigi.app.gui.workers import POOL, FrameFeed, Task, start
-from hairdigi.render.params import VECTOR_FIELDS
+from hairdigi.render.base.params import VECTOR_FIELDS
 from hairdigi.render.scenes import ENVIRONMENTS
 from hairdigi.render.strands import HAIRSTYLES
 
@@ -583,7 +583,7 @@ class MainWindow(QMainWindow):
         from PySide6.QtWidgets import QMessageBox
 
         from hairdigi.inference.encoder import ModelError
-        from hairdigi.render.io.version import version
+        from hairdigi.render.base.version import version
         from hairdigi.render.variant import select_variant
 
         try:

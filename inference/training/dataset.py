@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.io.files import atomic_path
+from hairdigi.render.base.files import atomic_path
 
-from hairdigi.render.params import HairParams, sample_params
-from hairdigi.render.rig_geometry import CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
+from hairdigi.render.base.params import HairParams, sample_params
+from hairdigi.render.base.rig_geometry import CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
 
 MANIFEST = "manifest.json"
 STORES = ("linear16", "srgb8")
@@ -224,7 +224,7 @@ def _check_manifest(root: Path, config: DatasetConfig, variant: str | None = Non
             raise ValueError(f"{root} holds a dataset made with other settings {diff} (stored, asked); "
                              f"use another --out or the same settings to resume")
     else:
-        from hairdigi.render.io.files import write_json_atomic
+        from hairdigi.render.base.files import write_json_atomic
         from hairdigi.render.variant import mi
         write_json_atomic(path, {"config": asdict(config), "format": "shard-NNNNN.npz: images (N,S,S,3) "
                                  "linear float16 radiance (store linear16) or uint8 sRGB (srgb8); params (N,6) normalised Table 1 vector; cameras (N,3) "
@@ -244,7 +244,7 @@ def _check_variant(root: Path, variant: str, has_shards: bool) -> None:
     if has_shards:
         raise ValueError(f"{root} was rendered with Mitsuba variant {stored}, not {variant}; resume it with "
                          f"--variant {stored}, or use another --out")
-    from hairdigi.render.io.files import write_json_atomic
+    from hairdigi.render.base.files import write_json_atomic
     write_json_atomic(root / MANIFEST, {**manifest, "mitsuba_variant": variant})
 
 

@@ -30,8 +30,8 @@ import numpy as np
 from hairdigi.inference.training.dataset import DatasetConfig, generate, load, sample_spec, scene_of
 from hairdigi.inference.refine import RefineSettings, mean_linear, refine
 from hairdigi.render.metrics import delta_e2000, l1_255, ms_ssim
-from hairdigi.render.params import VECTOR_FIELDS, HairParams
-from hairdigi.render.io.files import atomic_path, write_json_atomic
+from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
+from hairdigi.render.base.files import atomic_path, write_json_atomic
 
 EVAL_SEED = 1_000_003  # training datasets use small seeds; this one is disjoint by construction
 SPANS = np.array([hi - lo for _, lo, hi in VECTOR_FIELDS])

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.inference.training.evaluate import evaluate
-from hairdigi.render.io.files import write_json_atomic, write_text_atomic
-from hairdigi.render.io.version import version
+from hairdigi.render.base.files import write_json_atomic, write_text_atomic
+from hairdigi.render.base.version import version
 
 
 def bench_encoders(onnx_paths: list[str | os.PathLike], out_dir: str | os.PathLike, n: int = 300,
@@ -19,7 +19,7 @@ def bench_encoders(onnx_paths: list[str | os.PathLike], out_dir: str | os.PathLi
     """Latency (ONNX, 1 thread, median) against the encoder-alone error of several encoders on one
     clean held-out set. Writes ``encoder_bench.csv`` and ``encoder_bench.png``."""
     from hairdigi.inference.encoder import Encoder
-    from hairdigi.render.io.files import write_csv_atomic
+    from hairdigi.render.base.files import write_csv_atomic
 
     out = Path(out_dir)
     data_root = Path(data_root) if data_root else out / "heldout"   # one held-out set for every variant

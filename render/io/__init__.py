@@ -1,2 +1,2 @@
-"""The base every layer writes and reads through: atomic files and JSON (``files``), images (``images``),
-figures and tables (``figures``)."""
+"""Images (``images``) and figures and tables (``figures``), written through the base's atomic writer
+(``hairdigi.render.base.files``)."""

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import matplotlib
 
-from hairdigi.render.io.files import atomic_path, write_csv_atomic
+from hairdigi.render.base.files import atomic_path, write_csv_atomic
 
 matplotlib.use("Agg")
 

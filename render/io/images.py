@@ -7,7 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hairdigi.render.io.files import atomic_path
+from hairdigi.render.base.files import atomic_path
 
 
 def _check_suffix(path: Path, suffix: str) -> None:

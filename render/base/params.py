@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from hairdigi.render.io.files import read_json, write_json_atomic
+from hairdigi.render.base.files import read_json, write_json_atomic
 
 # (name, low, high) for the six normalised components, in vector order.
 VECTOR_FIELDS: tuple[tuple[str, float, float], ...] = (
