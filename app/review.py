@@ -16,7 +16,7 @@ The order after a capture: the capture worker reports the encoder's estimate (th
 renders its first twin and hairstyle passes itself, then refines; the refined estimate's twin renders
 until it is clean, and only then its hairstyle passes take turns with it. The scenes are built by
 :meth:`ReviewModel.warm_work` when the window opens, so a capture only updates parameters. Every
-render in the process takes one lock (see :class:`PreviewRenderer`).
+render in the process takes one lock (``render.renderer.RENDER_LOCK``).
 """
 from __future__ import annotations
 
@@ -221,29 +221,6 @@ class FirstLook:
 _KEYS = itertools.count(1)
 
 
-class PreviewRenderer(Renderer):
-    """The previews' own scene cache (refinement's scenes and theirs never evict each other), rendering
-    under the process-wide renderer's lock, and counting the scenes it builds (a capture must only
-    update parameters).
-
-    One lock for every render in the process: two threads rendering at once, even on separate
-    Renderers, crash Dr.Jit's LLVM backend (measured: "jit_llvm_compile(): module could not be
-    verified", then a segmentation fault, within 3 rounds of a twin, a hairstyle and refinement
-    rendered side by side). So the twin goes first by priority (see ``ReviewModel``), not in parallel.
-    """
-
-    def __init__(self, max_cached: int = 4) -> None:
-        from hairdigi.render.renderer import default_renderer
-
-        super().__init__(max_cached)
-        self._lock = default_renderer()._lock
-        self.builds = 0
-
-    def _build(self, spec, size, params):
-        self.builds += 1
-        return super()._build(spec, size, params)
-
-
 # --- pure functions: views, passes, colours ----------------------------------------------------
 def twin_view(roi: tuple[int, int, int, int], frame_size: tuple[int, int], simulated: bool,
               scale: float = 1.0) -> tuple[SceneSpec, tuple]:
@@ -391,8 +368,8 @@ class ReviewModel:
         self.hair_file: Path | None = None           # a .hair model shown instead of the built-in style
         self.orbit = (0.0, 0.0)                      # azimuth, elevation (degrees)
         self.show_denoised = self.settings.denoise and dn.available()
-        self.twin_renderer = PreviewRenderer(max_cached=4)      # the twin at each scale
-        self.style_renderer = PreviewRenderer(max_cached=4)
+        self.twin_renderer = Renderer(max_cached=4)      # the twin at each scale
+        self.style_renderer = Renderer(max_cached=4)
         self._generation = {"twin": 0, "hairstyle": 0}
         self._twin_state = threading.Condition()
         self._twin_ready = 0                    # the twin generation that is clean (or done): the hairstyle waits for it
@@ -837,7 +814,8 @@ def bench_previews(out_dir: str | Path, quick: bool = False) -> list[str]:
     """``hairdigi bench previews``: render/bench_previews.py on the simulated rig's twin view (at the
     scales the app renders it) and the hairstyle; the summary lines say each default's measured error
     and the cheapest clean setting."""
-    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SIM_SIZE, swatch_roi
+    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SIM_SIZE
+    from hairdigi.render.base.rig_geometry import swatch_roi
     from hairdigi.render.bench_previews import CLEAN_DE, cheapest_clean, run_previews_bench
 
     s = PreviewSettings()

@@ -59,12 +59,7 @@ def default_views(twins: list[tuple[SceneSpec, tuple[int, int]]], quick: bool = 
 
 def _aux_images(renderer: Renderer, hair: HairParams, spec: SceneSpec, size, spp: int) -> tuple[np.ndarray, np.ndarray]:
     """OIDN's guides for a view: first-hit albedo in [0, 1] and shading normals in [-1, 1] (Mitsuba's ``aov``)."""
-    from hairdigi.render.variant import mi
-
-    with renderer._lock:        # the cached scene, as the renderer has set it up for this view
-        scene = renderer._scene_for(spec, size if isinstance(size, int) else tuple(size), hair)
-        integrator = mi.load_dict({"type": "aov", "aovs": "albedo:albedo,nn:sh_normal"})
-        image = np.array(mi.render(scene, integrator=integrator, spp=int(spp), seed=3), dtype=np.float32)
+    image = renderer.render_aov(hair, spec, "albedo:albedo,nn:sh_normal", size, spp).linear
     return (np.ascontiguousarray(np.clip(image[..., :3], 0, 1)),
             np.ascontiguousarray(np.clip(image[..., 3:6], -1, 1)))
 

@@ -12,7 +12,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -106,7 +106,8 @@ class SceneSpec:
     the training set, or ``"rig"``, the whole swatch on its holder. ``env`` applies to hairstyles.
     ``strands``, ``max_depth`` None take the scene's defaults. ``lights`` scales the three rig lights.
     ``chart`` adds a colour chart of (24, 3) linear reflectances beside the swatch (swatch only), at
-    ``chart_center`` on the holder (x, y; default ``rig_geometry.CHART_CENTER``).
+    ``chart_center`` on the holder (x, y; default ``rig_geometry.CHART_CENTER``). ``crop`` (swatch
+    only) renders just that x, y, w, h window of the film (``rig_geometry.RigRegion.render_plan``).
     """
 
     name: str = "swatch"
@@ -122,6 +123,7 @@ class SceneSpec:
     half_width: float | None = None
     chart_center: tuple[float, float] | None = None
     hair_file: str | None = None
+    crop: tuple[int, int, int, int] | None = None   # swatch: render only this x, y, w, h of the film
 
     def __post_init__(self) -> None:
         if isinstance(self.name, str) and self.name.lower().endswith(".hair") and self.hair_file is None:
@@ -205,16 +207,24 @@ class _Loaded:
     keys: dict = field(default_factory=dict)
 
 
+#: One render at a time in the whole process, whatever the ``Renderer``: two renders at once, even on
+#: separate Renderers and scenes, crash Dr.Jit's LLVM backend (measured: "jit_llvm_compile(): module
+#: could not be verified", then a segmentation fault, within 3 rounds of a twin, a hairstyle and
+#: refinement rendered side by side). Re-entrant: a render may build a scene under it.
+RENDER_LOCK = threading.RLock()
+
+
 class Renderer:
     """Holds loaded Mitsuba scenes and re-renders them with new hair parameters, cameras and lights.
 
-    Thread-safe: renders on one ``Renderer`` take turns (its scenes are updated in place), and a
-    progressive render lets others in between its passes.
+    Thread-safe: every render in the process, on any ``Renderer``, takes :data:`RENDER_LOCK` (scenes
+    are updated in place, and Dr.Jit's LLVM backend runs one render at a time); a progressive render
+    lets others in between its passes. ``builds`` counts the scenes built (an update is not a build).
     """
 
     def __init__(self, max_cached: int = 4) -> None:
         self.variant = select_variant()   # the entry point's choice, or the first that works
-        self._lock = threading.RLock()
+        self.builds = 0
         self._cache: dict[tuple, _Loaded] = {}
         self._max_cached = max_cached
         self._tmp = tempfile.TemporaryDirectory(prefix="hairdigi-curves-")
@@ -222,7 +232,7 @@ class Renderer:
     # -- scene cache -------------------------------------------------------------------------
     def _structure_key(self, spec: SceneSpec, size: int) -> tuple:
         key = (spec.name, spec.env, spec.framing, spec.n_strands, spec.depth, size, spec.chart,
-               spec.target, spec.half_width, spec.chart_center)
+               spec.target, spec.half_width, spec.chart_center, spec.crop)
         if spec.hair_file is not None:   # a model saved again is loaded again
             stat = os.stat(spec.hair_file)
             key += (spec.hair_file, stat.st_mtime_ns, stat.st_size)
@@ -231,6 +241,7 @@ class Renderer:
         return key
 
     def _build(self, spec: SceneSpec, size: int, params: HairParams) -> _Loaded:
+        self.builds += 1
         curve_file = Path(self._tmp.name) / f"curves-{len(self._cache)}-{time.monotonic_ns()}.txt"
         curve_file.write_text(strands_for(spec).with_dummy().to_curve_text())
         bsdf = hair_bsdf(params if isinstance(params, HairParams) else HairParams())  # sigma_a set on update
@@ -238,7 +249,8 @@ class Renderer:
             chart = None if spec.chart is None else np.asarray(spec.chart)
             moved = chart is not None and spec.chart_center is not None
             scene_dict = scenes.swatch_scene(str(curve_file), bsdf, spec.pose, size, spec.framing, spec.depth,
-                                             spec.lights, None if moved else chart, spec.target, spec.half_width)
+                                             spec.lights, None if moved else chart, spec.target, spec.half_width,
+                                             spec.crop)
             if moved:
                 scene_dict.update(scenes.chart_patches(chart, center=tuple(spec.chart_center)))
         else:
@@ -292,39 +304,69 @@ class Renderer:
 
         ``size`` is the side of a square image, or (width, height).
         """
+        spec, size, spp = self._request(spec, size, spp)
+        with RENDER_LOCK:
+            start, cpu = time.perf_counter(), time.process_time()
+            scene = self._scene_for(spec, size, params)
+            linear, nonfinite = finite_image(mi.render(scene, spp=spp, seed=int(seed)))
+            seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
+        return RenderResult(linear, linear_to_srgb8(linear), seconds, spp, cpu, nonfinite)
+
+    def render_aov(self, params: HairParams, spec: SceneSpec | str, aovs: str,
+                   size: int | tuple[int, int] | None = None, spp: int = 1, seed: int = 3) -> RenderResult:
+        """Mitsuba's ``aov`` integrator (``aovs`` as it takes them, e.g. ``"albedo:albedo,nn:sh_normal"``)
+        on the cached scene of ``spec``: the channels of each AOV side by side in ``linear``."""
+        spec, size, spp = self._request(spec, size, spp)
+        with RENDER_LOCK:
+            start, cpu = time.perf_counter(), time.process_time()
+            scene = self._scene_for(spec, size, params)
+            integrator = mi.load_dict({"type": "aov", "aovs": aovs})
+            linear, nonfinite = finite_image(mi.render(scene, integrator=integrator, spp=spp, seed=int(seed)))
+            seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
+        return RenderResult(linear, linear_to_srgb8(linear[..., :3]), seconds, spp, cpu, nonfinite)
+
+    @staticmethod
+    def _request(spec: SceneSpec | str, size, spp) -> tuple[SceneSpec, int | tuple[int, int], int]:
         if isinstance(spec, str):
             spec = SceneSpec(name=spec)
         size = defaults_for(spec.name).size if size is None else size
         spp = defaults_for(spec.name).spp if spp is None else spp
         check_size_spp(size, spp)
         size = (int(size[0]), int(size[1])) if isinstance(size, (tuple, list)) else int(size)
-        spp = int(spp)
-        with self._lock:
-            start, cpu = time.perf_counter(), time.process_time()
-            scene = self._scene_for(spec, size, params)
-            image = mi.render(scene, spp=spp, seed=int(seed))
-            linear = np.array(image, dtype=np.float32)
-            nonfinite = int(linear.size - np.count_nonzero(np.isfinite(linear)))
-            if nonfinite:   # counted, then replaced, so a NaN never reaches a PNG or a mean unseen
-                linear = np.nan_to_num(linear, nan=0.0, posinf=0.0, neginf=0.0)
-            seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
-        return RenderResult(linear, linear_to_srgb8(linear), seconds, spp, cpu, nonfinite)
+        return spec, size, int(spp)
 
-    def render_progressive(self, params: HairParams, spec: SceneSpec | str, size: int | None = None,
-                           spp_per_pass: int = 2, passes: int = 8, seed: int = 0,
-                           cancelled: Callable[[], bool] = lambda: False) -> Iterator[RenderResult]:
-        """Render in passes of ``spp_per_pass`` with new seeds, yielding the running mean after each."""
-        total, nonfinite = None, 0
+    def render_progressive(self, params: HairParams, spec: SceneSpec | str, size: int | tuple[int, int] | None = None,
+                           spp_per_pass: int | Sequence[int] = 2, passes: int = 8, seed: int = 0,
+                           cancelled: Callable[[], bool] = lambda: False,
+                           gate: Callable[[], None] | None = None) -> Iterator[RenderResult]:
+        """Render in passes with new seeds, yielding the running mean (weighted by spp) after each.
+
+        ``spp_per_pass``: the spp of every pass (``passes`` of them), or one spp per pass. ``gate()``
+        runs before each pass and may wait (a hairstyle lets the twin go first); ``cancelled()`` is
+        checked after it: a cancelled render stops before its next pass. ``nonfinite`` adds up.
+        """
+        schedule = [int(spp_per_pass)] * passes if isinstance(spp_per_pass, (int, np.integer)) else list(spp_per_pass)
+        total, spp, nonfinite, cpu = None, 0, 0, 0.0
         start = time.perf_counter()
-        for i in range(passes):
+        for i, n in enumerate(schedule):
+            if gate is not None:
+                gate()
             if cancelled():
                 return
-            result = self.render(params, spec, size, spp_per_pass, seed=seed * 1_000_003 + i)
-            total = result.linear if total is None else total + result.linear
-            nonfinite += result.nonfinite
-            mean = total / (i + 1)
-            yield RenderResult(mean, linear_to_srgb8(mean), time.perf_counter() - start, spp_per_pass * (i + 1),
-                               nonfinite=nonfinite)
+            result = self.render(params, spec, size, n, seed=seed * 1_000_003 + i)
+            total = result.linear * n if total is None else total + result.linear * n
+            spp, nonfinite, cpu = spp + n, nonfinite + result.nonfinite, cpu + result.cpu_seconds
+            mean = (total / spp).astype(np.float32)
+            yield RenderResult(mean, linear_to_srgb8(mean), time.perf_counter() - start, spp, cpu, nonfinite)
+
+
+def finite_image(image) -> tuple[np.ndarray, int]:
+    """A rendered image as float32 with NaN and Inf replaced by 0, and how many values were replaced."""
+    linear = np.array(image, dtype=np.float32)
+    nonfinite = int(linear.size - np.count_nonzero(np.isfinite(linear)))
+    if nonfinite:   # counted, then replaced, so a NaN never reaches a PNG or a mean unseen
+        linear = np.nan_to_num(linear, nan=0.0, posinf=0.0, neginf=0.0)
+    return linear, nonfinite
 
 
 _DEFAULT: Renderer | None = None

@@ -248,3 +248,48 @@ def test_renders_from_two_threads_take_turns(renderer):
     for name, images in results.items():
         for k, image in enumerate(images):
             assert np.array_equal(image, renderer.render(hairs[name], spec, 48, 4, k).linear), (name, k)
+
+
+def test_two_renderers_render_from_two_threads():
+    """Every Renderer takes the one process-wide lock: two threads rendering through two Renderers
+    (Dr.Jit's LLVM backend crashes on two renders at once) both finish, and never overlap."""
+    import threading
+
+    import hairdigi.render.renderer as rr
+
+    inside, overlaps, results = [0], [], {}
+    real = rr.mi.render
+
+    def counted(scene, **kw):
+        inside[0] += 1
+        overlaps.append(inside[0])
+        try:
+            return real(scene, **kw)
+        finally:
+            inside[0] -= 1
+
+    def work(name, spec):
+        renderer = Renderer(max_cached=1)
+        results[name] = [renderer.render(HairParams(), spec, 24, 2, seed).nonfinite for seed in range(3)]
+
+    rr.mi.render = counted
+    try:
+        threads = [threading.Thread(target=work, args=("swatch", swatch(framing="crop"))),
+                   threading.Thread(target=work, args=("bob", SceneSpec("bob", strands=100)))]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(120)
+    finally:
+        rr.mi.render = real
+    assert results == {"swatch": [0, 0, 0], "bob": [0, 0, 0]} and max(overlaps) == 1
+
+
+def test_aov_render_and_build_count():
+    r = Renderer(max_cached=2)
+    spec = swatch(framing="crop")
+    r.render(HairParams(), spec, 16, 1)
+    r.render(HairParams((255, 0, 0), 0.5, 0.3, 0.5), spec, 16, 1, seed=2)     # an update, not a build
+    aov = r.render_aov(HairParams(), spec, "albedo:albedo,nn:sh_normal", 16, 1)
+    assert r.builds == 1 and aov.linear.shape == (16, 16, 6) and aov.nonfinite == 0
+    assert aov.linear[..., :3].max() <= 1.0 + 1e-6 and np.abs(aov.linear[..., 3:]).max() > 0.1
