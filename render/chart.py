@@ -52,14 +52,17 @@ def patch_means(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
 
 
 def render_chart_targets(size: tuple[int, int] = (400, 300), spp: int = 256) -> np.ndarray:
-    """Render the rig with the chart under all three lights at full power; (24, 3) linear patch values."""
+    """Render the rig with the chart under all three lights at full power; (24, 3) linear patch values
+    (ValueError when the render had NaN or Inf samples)."""
     from hairdigi.render.base.params import HairParams
     from hairdigi.render.renderer import Renderer, SceneSpec
 
     spec = SceneSpec("swatch", framing="rig", chart=tuple(map(tuple, colorchecker_reflectances())),
                      target=rig_geometry.RIG_TARGET, half_width=rig_geometry.RIG_HALF_WIDTH, strands=200)
-    linear = Renderer(max_cached=1).render(HairParams(), spec, size, spp, seed=0).linear
-    return patch_means(linear, size)
+    result = Renderer(max_cached=1).render(HairParams(), spec, size, spp, seed=0)
+    if result.nonfinite:    # a zeroed sample would darken a patch: targets must not be made from it
+        raise ValueError(f"the chart render returned {result.nonfinite} NaN or Inf values; targets not made")
+    return patch_means(result.linear, size)
 
 
 def rig_chart_targets() -> tuple[np.ndarray, str]:

@@ -96,7 +96,11 @@ def denoise(linear: np.ndarray, albedo: np.ndarray | None = None, normal: np.nda
     image = np.asarray(linear, dtype=np.float32)
     if image.ndim != 3 or image.shape[2] != 3 or min(image.shape[:2]) < 1:
         raise ValueError(f"denoise takes an (H, W, 3) linear RGB image, got shape {image.shape}")
-    image = np.ascontiguousarray(np.clip(np.nan_to_num(image, nan=0.0, posinf=0.0), 0.0, None))
+    nonfinite = int(image.size - np.count_nonzero(np.isfinite(image)))
+    if nonfinite:   # the renderer counts and replaces them (RenderResult.nonfinite): never hidden here
+        raise ValueError(f"denoise takes a finite image, got {nonfinite} NaN or Inf values; denoise the "
+                         f"renderer's linear image, whose non-finite samples are counted and replaced")
+    image = np.ascontiguousarray(np.clip(image, 0.0, None))
     guides = [None if g is None else np.ascontiguousarray(g, dtype=np.float32) for g in (albedo, normal)]
     out = _oidn().denoise(image, guides[0], guides[1], hdr=True, quality=quality)
     out = np.clip(out, 0.0, None)

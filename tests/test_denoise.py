@@ -76,3 +76,11 @@ def test_denoising_loads_no_torch():
             "print('torch' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_nonfinite_input_is_refused_with_its_count():
+    """The renderer counts and replaces NaN and Inf (RenderResult.nonfinite); denoise never hides them."""
+    image = np.full((8, 8, 3), 0.2, np.float32)
+    image[0, 0] = (np.nan, np.inf, 0.2)
+    with pytest.raises(ValueError, match="2 NaN or Inf"):
+        dn.denoise(image)

@@ -66,6 +66,8 @@ def test_dataset_is_the_same_whatever_the_sharding(tmp_path):
     b, pb, cb, _ = load(tmp_path / "b")
     assert np.array_equal(pa, pb) and np.array_equal(ca, cb)   # the draws
     assert np.array_equal(a, b) and a.shape == (8, 32, 32, 3)   # and the renders
+    counts = np.load(shard_path(tmp_path / "b", 0))["nonfinite"]   # each sample's NaN/Inf count travels with it
+    assert counts.dtype == np.int64 and counts.tolist() == [0, 0, 0]
 
 
 def test_dataset_resumes_only_missing_shards(tmp_path):
@@ -241,6 +243,8 @@ def test_evaluate_judges_clean_inputs_and_measures_interval_coverage(tiny_model,
     assert set(summary["coverage"]) == {"dye_r", "dye_g", "dye_b", "dye_concentration", "melanin_concentration",
                                         "melanin_ratio"}
     assert "not computed" in summary["lpips"] and summary["latency_ms_median_1_thread"] > 0
+    samples = json.loads((tmp_path / "eval" / "samples.json").read_text())
+    assert summary["judge_nonfinite"] == 0 and all(r["judge_nonfinite"] == 0 for r in samples)
     table = json.loads((tmp_path / "eval" / "uncertainty.json").read_text())
     assert table["coverage"] == 0.68 and len(table["half_width"]["dye_r"]) == 3
     assert (tmp_path / "eval" / "evaluation.json").exists() and (tmp_path / "eval" / "samples.json").exists()

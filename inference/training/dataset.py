@@ -130,7 +130,8 @@ def _die_with_parent() -> None:
 
 
 #: The arrays of a shard file, in the order they are written.
-SHARD_FIELDS = ("images", "params", "cameras", "seeds", "indices")
+#: ``nonfinite``: per sample, the NaN or Inf values the path tracer returned (replaced by 0 in ``images``).
+SHARD_FIELDS = ("images", "params", "cameras", "seeds", "indices", "nonfinite")
 #: Where shards are rendered: ``local`` processes, or ``ray`` tasks (``inference.cluster``).
 BACKENDS = ("local", "ray")
 
@@ -182,7 +183,7 @@ def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
     if variant is not None:
         select_variant(variant)
     indices = shard_indices(config, shard)
-    images, vectors, cameras, seeds = [], [], [], []
+    images, vectors, cameras, seeds, nonfinite = [], [], [], [], []
     renderer = _renderer()
     for i in indices:
         s = sample_spec(config, i)
@@ -191,8 +192,10 @@ def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
         vectors.append(s.params.to_vector())
         cameras.append([s.camera.polar_deg, s.camera.azimuth_deg, s.camera.distance])
         seeds.append([s.strand_seed, s.render_seed])
+        nonfinite.append(result.nonfinite)
     return {"images": np.stack(images), "params": np.stack(vectors), "cameras": np.array(cameras),
-            "seeds": np.array(seeds, dtype=np.int64), "indices": np.array(list(indices))}
+            "seeds": np.array(seeds, dtype=np.int64), "indices": np.array(list(indices)),
+            "nonfinite": np.array(nonfinite, dtype=np.int64)}
 
 
 def write_shard(root: str | os.PathLike, shard: int, arrays: dict[str, np.ndarray]) -> Path:

@@ -100,7 +100,9 @@ def prepare_heldout(root: str | os.PathLike, n: int = 300, size: int = 64, spp: 
     _, vectors, _, _ = load(root)
     todo = [i for i in range(min(n, len(vectors))) if f"truth_{i}" not in have]
     for k, i in enumerate(tqdm(todo, desc="judge renders of the truth", unit="swatch", disable=not progress)):
-        have[f"truth_{i}"] = judge_render(config, i, HairParams.from_vector(vectors[i]), judge).linear.astype(np.float16)
+        result = judge_render(config, i, HairParams.from_vector(vectors[i]), judge)
+        have[f"truth_{i}"] = result.linear.astype(np.float16)
+        have[f"nonfinite_{i}"] = np.int64(result.nonfinite)    # NaN or Inf values the judge render returned
         if k % 20 == 19:
             _save_npz(cache, have)
     _save_npz(cache, have)
@@ -170,13 +172,17 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 64, 
                "warnings": domain_warnings(domain_stats(frame), max(est.view_spread.values()))}
         row.update(_image_row("floor", truth_judge, None, frame))   # L1 and MS-SSIM of the truth's render
         row["floor_mean_colour_de2000"] = floor_de(images[i], truth_judge)
-        row.update(_image_row("encoder", judge_render(config, i, est.params, judge).linear, truth_judge, frame))
+        judged = judge_render(config, i, est.params, judge)
+        row.update(_image_row("encoder", judged.linear, truth_judge, frame))
+        row["judge_nonfinite"] = int(truths.get(f"nonfinite_{i}", 0)) + judged.nonfinite
         if refine_colour:
             r = refine(est.params, mean_linear(frame), pose, settings)
             row.update({"refined": _named(r.params), "refine_s": r.seconds, "curve_s": r.curve_seconds,
                         "refine_iterations": r.iterations, "refine_residual_de2000": r.residual_de2000,
                         "refine_reachable": r.reachable})
-            row.update(_image_row("refined", judge_render(config, i, r.params, judge).linear, truth_judge, frame))
+            judged = judge_render(config, i, r.params, judge)
+            row.update(_image_row("refined", judged.linear, truth_judge, frame))
+            row["judge_nonfinite"] += judged.nonfinite
         rows.append(row)
     best = "refined" if refine_colour else "encoder"
     fit_rows = [{"estimate": r[best], "truth": r["truth"], "mean_colour_de2000": r[f"{best}_mean_colour_de2000"]}
@@ -194,6 +200,7 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 64, 
                     "seconds": time.perf_counter() - t0, "dataset": asdict(config), "date": time.strftime("%Y-%m-%d"),
                     "coverage": table["coverage_check"]["coverage"],
                     "heldout_flagged_out_of_domain": sum(1 for r in rows if r["warnings"]),
+                    "judge_nonfinite": sum(r["judge_nonfinite"] for r in rows),   # NaN/Inf values, all judge renders
                     "lpips": "not computed: it needs pretrained AlexNet/VGG weights, which no package here ships",
                     "paper_table_2": {"l1": "7.08 ± 11.79", "ms_ssim": "0.20 ± 0.04 (as printed)",
                                       "lpips": "0.12 ± 0.19"}})
