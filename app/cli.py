@@ -168,6 +168,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from hairdigi.inference.training.evaluate import evaluate, prepare_heldout
 
     _use_variant(args.variant)   # the held-out set's worker processes are given the same one
+    if args.dye:
+        from hairdigi.app.dye_cli import cmd_evaluate_dye
+        return cmd_evaluate_dye(args)
     data = Path(args.data) if args.data else _cache_dir() / "datasets" / (
         f"heldout-s1000003-{args.size}px-{args.spp}spp-linear16")
     if args.prepare_only:
@@ -440,6 +443,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="instead: estimate the first --sweep-n swatches from inputs rendered at these spp")
     p.add_argument("--sweep-n", type=v.int_in(1, v.MAX_DATASET_N), default=20)
     p.add_argument("--no-refine", action="store_true", help="judge the encoder alone")
+    p.add_argument("--dye", action="store_true", help="instead: dyes characterised on two natural bases, predicted "
+                   "on the third (--n: dyes, default 12)")
     p.add_argument("--workers", type=workers, default=2)
     p.add_argument("--data", help="held-out dataset folder (default: in the cache)")
     p.add_argument("--model", default=None)
@@ -461,6 +466,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--dead", type=v.int_in(0, len(LIGHT_POSITIONS) - 1), nargs="*",
                    help="simulated dead light(s), numbered from 0")
     p.add_argument("--spp", type=spp, default=32, help="samples per pixel of the simulated rig's light renders")
+    p.add_argument("--hidden", metavar="PARAMS.json",
+                   help="the simulated swatch's hidden parameters (Table 1, as render --params reads them); "
+                        "the chain's estimate is then judged against them")
     p.add_argument("--still", help="import a RAW still of the rig (DNG, CR2, NEF, ...; the chart in view) into "
                                    "the session and estimate it; needs no camera or light board")
     p.set_defaults(func=cmd_rig)
@@ -470,6 +478,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--session", default=None, help="session folder (default: from the settings)")
     p.add_argument("--tour", help="calibrate and capture once, time it, save a screenshot in this folder, quit")
     p.set_defaults(func=cmd_app)
+
+    from hairdigi.app.dye_cli import add_dye_parser
+    add_dye_parser(sub)
 
     p = sub.add_parser("model-card", help="write the model card from a run and its evaluation")
     p.add_argument("--run", required=True)

@@ -1,123 +1,140 @@
-"""The review of captures, free of Qt: what the window shows, and the long work behind it.
+"""The review of captures, free of Qt: what the window shows, and the work behind it.
 
-napari-style. :class:`ReviewModel` holds the review state: the shown capture (with its own
-calibration profile), its parameters, the twin preview (real, synthetic raw and denoised, the ΔE2000
-map, the mean-colour ΔE2000), the hairstyle choice, camera orbit and passes, and the strand preview.
-Widgets subscribe to its events (``model.events.twin.connect(callback)``).
+napari-style. :class:`ReviewModel` holds the review state: the session's records, the shown capture
+(with its own calibration profile), its parameters, the twin preview (real, synthetic raw and
+denoised, the ΔE2000 map, the mean-colour ΔE2000), the hairstyle choice, camera orbit and passes, the
+strand preview, the lights and the feed rate. Widgets subscribe to its events
+(``model.events.twin.connect(callback)``) and read its views (:meth:`ReviewModel.parameter_view`).
 
-Long work is plain functions ``work(report, cancelled)`` made by the model (``model.twin_work()``
-and so on). The window runs them in its workers and hands what they report and return back to
-:meth:`ReviewModel.apply` on the UI thread, which stores it and emits the event. A new capture, a
-new selection or new parameters bump the model's generation: stale work stops at its next pass, and
-whatever it still reports is dropped. A denoised image is for the eye only: every number (ΔE, the
-chip's colour, exports' metrics) comes from the raw path-traced image.
+Long work is a :class:`Work`: a generator function whose yields are progress and whose return is the
+result, as napari's ``thread_worker``. A worker runs it and hands each value to
+:meth:`ReviewModel.apply` on the model's thread, the only thread that changes the model's state; it
+stops at a yield when cancelled, and calls ``Work.ended`` on the model's thread at the end.
+:func:`run_now` does the same in the calling thread (tests, headless use). A new capture, a new
+selection or new parameters bump the model's generation: stale work stops before its next pass, and
+whatever it still yields is dropped.
 
-The order after a capture: the capture worker reports the encoder's estimate (the first look), then
-renders its first twin and hairstyle passes itself, then refines; the refined estimate's twin renders
-until it is clean, and only then its hairstyle passes take turns with it. The scenes are built by
-:meth:`ReviewModel.warm_work` when the window opens, so a capture only updates parameters. Every
-render in the process takes one lock (``render.renderer.RENDER_LOCK``).
+The order after a capture: the capture's work yields the encoder's estimate (the first look, from the
+session's ``on_encoder_estimate`` hook) and its first twin and hairstyle passes, then the refined
+record; the refined estimate's twin renders until it is clean, and only then its hairstyle passes
+take turns with it. The scenes are built by :meth:`ReviewModel.warm_work` when the window opens, so a
+capture only updates parameters. Every render in the process takes one lock
+(``render.renderer.RENDER_LOCK``).
 """
 from __future__ import annotations
 
 import itertools
+import queue
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable, Generator, Iterator
 
 import numpy as np
 
 from hairdigi.app import rig_session as rs
+from hairdigi.app.events import EventGroup
+from hairdigi.app.previews import (HairstylePass, PassTag, PreviewSettings, Stage, TwinPreview, hair_colour_rgb8,
+                                   hairstyle_passes, orbit_pose, scalp_linear, strand_colour, twin_passes, twin_view)
 from hairdigi.render import denoise as dn
-from hairdigi.render.metrics import delta_e_map, mean_colour_delta_e
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
+from hairdigi.render.base.records import (CalibrationProfile, EstimateRecord, EstimateWarning, RecordError,
+                                          WarningKind)
+from hairdigi.render.base.rig_geometry import N_LIGHTS
 from hairdigi.render.renderer import Renderer, SceneSpec
-from hairdigi.render.base.rig_geometry import CameraPose
-from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
+from hairdigi.render.srgb import linear_to_srgb8
 
-Report = Callable[[object], None]
+__all__ = ["Events", "ReviewModel", "Work", "run_now", "Shown", "Stage", "PreviewSettings", "TwinPreview",
+           "HairstylePass", "ParameterView", "Entry", "hair_colour_rgb8"]
+
 Cancelled = Callable[[], bool]
-Work = Callable[[Report, Cancelled], object]
 
 
-# --- events ----------------------------------------------------------------------------------
-class Event:
-    """Callbacks called with one value, in the order they connected."""
+# --- work ------------------------------------------------------------------------------------------
+@dataclass
+class Work:
+    """A generator function run by a worker: its yields are progress, its return value the result.
 
-    def __init__(self, name: str) -> None:
-        self.name = name
-        self._callbacks: list[Callable[[object], None]] = []
+    ``ended`` (when given) runs on the model's thread once the work is over: done, failed or cancelled.
+    """
 
-    def connect(self, callback: Callable[[object], None]) -> Callable[[object], None]:
-        self._callbacks.append(callback)
-        return callback
-
-    def disconnect(self, callback: Callable[[object], None]) -> None:
-        if callback in self._callbacks:
-            self._callbacks.remove(callback)
-
-    def emit(self, value: object = None) -> None:
-        for callback in list(self._callbacks):
-            callback(value)
+    name: str
+    run: Callable[[], Generator[object, None, object]]
+    ended: Callable[[], None] | None = None
 
 
-class Events:
+def run_now(work: Work | None, apply: Callable[[object], None], cancelled: Cancelled = lambda: False) -> object:
+    """Run ``work`` in this thread, handing what it yields and returns to ``apply``; returns the result."""
+    if work is None:
+        return None
+    result = None
+    try:
+        generator = work.run()
+        while True:
+            try:
+                value = next(generator)
+            except StopIteration as stop:
+                result = stop.value
+                break
+            if cancelled():           # stop at a yield
+                generator.close()
+                return None
+            apply(value)
+        if result is not None:
+            apply(result)
+        return result
+    finally:
+        if work.ended is not None:
+            work.ended()
+
+
+def _returns(fn: Callable[[], object]) -> Callable[[], Generator[object, None, object]]:
+    """A plain function as a work generator that yields nothing."""
+    def run():
+        return fn()
+        yield  # noqa: unreachable: makes this a generator
+    return run
+
+
+# --- events and payloads -----------------------------------------------------------------------------
+class Events(EventGroup):
     """The model's events; each carries the new value of the state it names."""
 
-    NAMES = ("records",      # list[dict]: the session's result records, oldest first
+    NAMES = ("records",      # list[Entry]: the session's result records, oldest first
+             "thumbnail",    # Thumbnail: a capture's small picture, read off the model's thread
              "shown",        # Shown: the capture under review (or its first look, before its record)
              "parameters",   # Shown: new parameters to preview (start the twin and hairstyle work)
              "twin",         # TwinPreview: a twin pass
              "hairstyle",    # HairstylePass: a hairstyle pass
+             "warnings",     # tuple[EstimateWarning]: the shown capture's warnings, previews' included
              "view",         # str: the hairstyle, environment, orbit or hair file changed (start the hairstyle work)
              "hair_model",   # HairModel: a .hair file opened (the view follows)
-             "strands",      # StrandPreview: the strands and colour of the 3-D view
-             "calibration",  # dict: a new calibration profile
+             "strands",      # StrandPreview: the strands and colours of the 3-D view
+             "calibration",  # CalibrationProfile: a new calibration profile
+             "lights",       # Lights: the light board's states
+             "feed_fps",     # float: the rate the live feed should run at now
              "warmed",       # Warmed: the preview scenes are built (captures now only update parameters)
              "frame_check",  # FrameCheck: the chart outline and exposure of a recent frame
              "display",      # bool: denoised (True) or raw passes shown
              "status",       # str: one line for the status bar
              "error")        # str: one line naming the problem and the fix
 
-    def __init__(self) -> None:
-        for name in self.NAMES:
-            setattr(self, name, Event(name))
 
-
-# --- settings and state ----------------------------------------------------------------------
 @dataclass(frozen=True)
-class PreviewSettings:
-    """How previews render; the defaults are chosen by ``hairdigi bench previews`` (render/bench_previews.py).
+class Entry:
+    """One capture of the session: its id and its result record."""
 
-    Mean per-pixel ΔE2000 against 1024 spp, not denoised (clean: 3 or less), OIDN without guides: the
-    twin (130 x 154) is 3.34 at 1 spp, 3.13 at 2, 3.06 at 4, 2.89 at 8 (clean), 2.75 at 16; raw it is
-    6.1 even at 64 spp. At half resolution (65 x 77, a quarter of the samples per spp) it is clean
-    at 4 spp: 3.1–3.6 at 1, 2.8–3.0 at 2, 2.69 at 4, in 0.19 s instead of 1.44 s for 8 spp at full
-    resolution; the half-resolution twin is flat, the full-resolution one shows the fibres' streaks,
-    so the twin goes from one to the other. The 512² hairstyle is clean from its first pass: 1.08 at
-    1 spp, 0.89 at 2 (raw: 6.0 and 4.6). Albedo and normal guides never helped (twin 3.48 at 1 spp,
-    3.13 at 8; hairstyle 1.08 at 1) and cost an AOV render.
+    id: str
+    record: EstimateRecord
 
-    ``fibre_px``: the ΔE2000 map smooths real and twin over 6 px (at full resolution; 3 at half), about a clump of fibres in the rig
-    view (0.04 swatch widths). Measured on a simulated capture whose mean colours differ by ΔE2000
-    0.47: the map's mean is 2.38 at 2 px (noise and single fibres), 1.47 at 4, 1.17 at 6, 1.04 at 8.
-    """
-
-    #: (scale, spp) of each twin pass: at half the capture's resolution first (running totals 1, 4),
-    #: then at full resolution (8, 16, 32) for the streaks of the fibres.
-    twin_passes: tuple[tuple[float, int], ...] = ((0.5, 1), (0.5, 3), (1.0, 8), (1.0, 8), (1.0, 16))
-    twin_clean_spp: tuple[tuple[float, int], ...] = ((0.5, 4), (1.0, 8))   # (scale, spp) from which it is clean
-    hairstyle_size: int = 512
-    hairstyle_strands: int | None = None                   # None: the scene's default
-    hairstyle_passes: tuple[int, ...] = (1, 1, 2, 4, 8)    # running totals 1, 2, 4, 8, 16
-    hairstyle_clean_spp: int = 1
-    first_look_passes: int = 1                             # passes rendered for the encoder's (unrefined) estimate
-    denoise: bool = True
-    fibre_px: float = 6.0                                  # smoothing of the ΔE2000 map (pixels), see below
-    view_strands: int = 1500                               # strands drawn in the 3-D view
-    warm: bool = True                                      # build the preview scenes before the first capture
+    @property
+    def title(self) -> str:
+        """A session-list line: the capture id and its estimate, or why there is none."""
+        h = self.record.hair
+        if h is None:
+            return f"{self.id}  (blocked)"
+        return f"{self.id}  rgb {[round(v) for v in h.dye_rgb]}  mel {h.melanin_concentration:.2f}"
 
 
 @dataclass
@@ -129,50 +146,21 @@ class Shown:
     roi: tuple[int, int, int, int]
     frame_size: tuple[int, int]     # (width, height) of the rig view
     params: HairParams | None
-    stage: str                      # "encoder" (first look), "refined" (the record's), "blocked"
-    record: dict = field(default_factory=dict)
+    stage: Stage
+    record: EstimateRecord | None = None   # None for the first look
     simulated: bool = True
     key: int = 0                    # one per capture under review: its first look and refined estimate share it
 
 
-@dataclass
-class TwinPreview:
-    """One pass of the synthetic twin beside the real swatch."""
+@dataclass(frozen=True)
+class ParameterView:
+    """The shown parameters as the window writes them: one line per parameter (with its measured 68%
+    interval), the dye chip, and the lines under them (provenance, refinement, warnings)."""
 
-    generation: int
-    raw: np.ndarray                 # linear float32, path-traced running mean: what every number uses
-    clean: np.ndarray | None        # denoised copy, for the eye only (None without a denoiser)
-    spp: int
-    final: bool                     # the last pass
-    clean_enough: bool              # spp >= PreviewSettings.twin_clean_spp
-    delta_e: float                  # mean-colour ΔE2000, real vs raw twin
-    delta_e_map: np.ndarray         # (h, w) ΔE2000 of real vs raw twin, both smoothed at the fibre scale
-    hair_linear: np.ndarray         # the raw twin's mean linear colour: the estimated hair colour
-    stage: str
-    seconds: float                  # since the work began
-    key: int = 0                    # the Shown.key it previews
-    scale: float = 1.0              # of the capture's resolution
-
-
-@dataclass
-class HairstylePass:
-    """One pass of the hairstyle render."""
-
-    generation: int
-    raw: np.ndarray
-    clean: np.ndarray | None
-    spp: int
-    index: int
-    passes: int
-    clean_enough: bool
-    label: str                      # "straight, studio" or the hair file's name
-    stage: str
-    seconds: float
-    key: int = 0
-
-    @property
-    def final(self) -> bool:
-        return self.index == self.passes
+    lines: tuple[tuple[str, str], ...]       # (parameter, "dye_r: 120 ± 14")
+    dye_rgb8: tuple[int, int, int] | None
+    dye_tooltip: str
+    info: str
 
 
 @dataclass
@@ -180,12 +168,13 @@ class StrandPreview:
     of: tuple                       # (style or hair file, strands): what the strands are of
     strands: object                 # render.strands.Strands
     colour_rgb8: tuple[int, int, int]
+    scalp_linear: tuple[float, float, float] | None = None   # the renderer's scalp colour (linear)
 
 
 @dataclass
 class FrameCheck:
     chart_box: np.ndarray | None    # the chart's corners in the frame, or None when not found
-    exposure: list                  # hardware.exposure.ExposureReport, swatch first
+    exposure: list | None           # hardware.exposure.ExposureReport, swatch first; None: the frame was unreadable
 
 
 @dataclass
@@ -207,6 +196,26 @@ class Captured:
 
 
 @dataclass
+class Calibrated:
+    profile: CalibrationProfile
+
+
+@dataclass
+class Lights:
+    """The light board: each light on or off, what it says it is, and where."""
+
+    on: tuple[bool, ...]
+    identity: str
+    port: str
+
+
+@dataclass
+class Thumbnail:
+    capture_id: str
+    rgb: np.ndarray | None          # None: its image is missing
+
+
+@dataclass
 class FirstLook:
     """The encoder's parameters, before refinement: what the operator sees within a second."""
 
@@ -217,134 +226,100 @@ class FirstLook:
     key: int
 
 
-#: Review keys: one per capture under review, unique in the process (the capture worker takes one).
+#: Review keys: one per capture under review, unique in the process.
 _KEYS = itertools.count(1)
 
 
-# --- pure functions: views, passes, colours ----------------------------------------------------
-def twin_view(roi: tuple[int, int, int, int], frame_size: tuple[int, int], simulated: bool,
-              scale: float = 1.0) -> tuple[SceneSpec, tuple]:
-    """The twin's scene and size: the rig camera over exactly the ROI (simulated geometry), or a crop;
-    ``scale`` < 1 renders the same view with fewer pixels."""
-    if simulated:
-        spec, (w, h) = rs.twin_spec(roi, frame_size)
-    else:
-        spec, (w, h) = SceneSpec("swatch", framing="crop"), (int(roi[2]), int(roi[3]))
-    return spec, (max(8, round(w * scale)), max(8, round(h * scale)))
+# --- records and their presentation -----------------------------------------------------------------
+def as_profile(profile) -> CalibrationProfile | None:
+    """A calibration profile, typed (from a profile or its JSON dict)."""
+    if profile is None or isinstance(profile, CalibrationProfile):
+        return profile
+    return CalibrationProfile.from_json(profile)
 
 
-def orbit_pose(azimuth_deg: float, elevation_deg: float, distance: float | None = None) -> CameraPose:
-    """The portrait camera turned ``azimuth_deg`` around the head and raised ``elevation_deg``.
-
-    Portrait poses are polar from the face direction, so the orbit stays in front of the face
-    (polar < 90°): ``|azimuth|`` and ``|elevation|`` are clipped to 80° and 60°.
-    """
-    from hairdigi.render.scenes import PORTRAIT_CAMERA
-
-    yaw, pitch = np.radians(np.clip(azimuth_deg, -80, 80)), np.radians(np.clip(elevation_deg, -60, 60))
-    d = np.array([np.sin(yaw) * np.cos(pitch), np.sin(pitch), np.cos(yaw) * np.cos(pitch)])
-    polar = float(np.degrees(np.arccos(np.clip(d[2], -1.0, 1.0))))
-    azimuth = float(np.degrees(np.arctan2(d[1], d[0]))) if polar > 1e-6 else PORTRAIT_CAMERA.azimuth_deg
-    return CameraPose(min(polar, 89.0), azimuth, distance or PORTRAIT_CAMERA.distance)
+def as_record(record) -> EstimateRecord:
+    """A result record, typed (from a record or its JSON dict)."""
+    return record if isinstance(record, EstimateRecord) else EstimateRecord.from_json(record)
 
 
-def denoised(raw: np.ndarray, on: bool, quality: str = "high") -> np.ndarray | None:
-    """The display copy of a pass (None when denoising is off or there is no denoiser)."""
-    if not on or not dn.available():
-        return None
-    return dn.denoise(raw, quality=quality)
+def entry_of(item) -> Entry:
+    """A session entry from what ``rig_session.load_results`` lists (a record, or its dict with ``id``)."""
+    record = as_record(item)
+    capture_id = item.get("id") if isinstance(item, dict) else None
+    return Entry(capture_id or Path(record.capture or "").stem, record)
 
 
-def progressive(renderer: Renderer, params: HairParams, spec: SceneSpec, size, schedule: tuple[int, ...],
-                cancelled: Cancelled, seed: int = 0, gate: Callable[[], None] | None = None
-                ) -> Iterator[tuple[np.ndarray, int, int]]:
-    """Render passes of ``schedule[i]`` spp with new seeds; yield (running mean, spp so far, pass number).
-
-    ``gate()`` is called before each pass (it may wait: the hairstyle lets the twin go first).
-    """
-    total, spp = None, 0
-    for i, n in enumerate(schedule):
-        if gate is not None:
-            gate()
-        if cancelled():
-            return
-        result = renderer.render(params, spec, size, int(n), seed=seed * 1_000_003 + i)
-        total = result.linear * n if total is None else total + result.linear * n
-        spp += n
-        yield (total / spp).astype(np.float32), spp, i + 1   # even if cancelled meanwhile: the model decides
-
-
-def scaled_progressive(renderer: Renderer, params: HairParams, view: Callable[[float], tuple[SceneSpec, tuple]],
-                       passes: tuple[tuple[float, int], ...], cancelled: Cancelled
-                       ) -> Iterator[tuple[np.ndarray, int, int, float]]:
-    """:func:`progressive` over (scale, spp) passes; each run of one scale accumulates on its own.
-    Yields (running mean, spp at this scale, pass number, scale)."""
-    done = 0
-    for scale, run in itertools.groupby(passes, key=lambda p: p[0]):
-        spec, size = view(scale)
-        spps = tuple(n for _, n in run)
-        for raw, spp, i in progressive(renderer, params, spec, size, spps, cancelled):
-            yield raw, spp, done + i, scale
-        done += len(spps)
-
-
-def hair_colour_rgb8(linear: np.ndarray) -> tuple[int, int, int]:
-    """An sRGB 8-bit chip colour from a mean linear colour."""
-    return tuple(int(v) for v in linear_to_srgb8(np.asarray(linear, dtype=np.float32)))
-
-
-def strand_colour(params: HairParams) -> tuple[int, int, int]:
-    """The strands' colour in the 3-D view: the fibre albedo, a little darkened (as lit hair looks)."""
-    from hairdigi.render.absorption import approximate_albedo
-
-    return hair_colour_rgb8(approximate_albedo(params) * 0.8)
-
-
-def record_title(rec: dict) -> str:
-    """A session-list line: the capture id and its estimate, or why there is none."""
-    if rec.get("blocked"):
-        return f"{rec['id']}  (blocked)"
-    h = rec.get("hair", {})
-    return f"{rec['id']}  rgb {[round(v) for v in h.get('dye_rgb', [])]}  mel {h.get('melanin_concentration', 0):.2f}"
-
-
-def thumbnail(folder: Path, rec: dict, size=(64, 48)) -> np.ndarray | None:
-    """A small RGB picture of a capture, or None when its image is missing."""
-    import cv2
-
-    path = Path(folder) / "captures" / rec.get("capture", "")
-    img = cv2.imread(str(path)) if path.is_file() else None
-    return None if img is None else cv2.resize(img[..., ::-1], size)
-
-
-def calibration_text(profile: dict | None, status: str, reasons: list[str], now: float | None = None) -> str:
+def calibration_text(profile: CalibrationProfile | None, status: str, reasons: list[str],
+                     now: float | None = None) -> str:
     """One line on the calibration: method, ΔE2000 before and after, age, and why it is stale."""
     if profile is None:
         return "calibration: none — press Calibrate with the chart in view"
-    age_min = ((now or time.time()) - profile["time"]) / 60
-    de = profile["delta_e2000"]
-    text = (f"calibration: {profile['method']}, ΔE2000 {de['before']['mean']:.2f} → {de['after']['mean']:.2f} "
+    age_min = ((now or time.time()) - profile.time) / 60
+    de = profile.delta_e2000
+    text = (f"calibration: {profile.method}, ΔE2000 {de['before']['mean']:.2f} → {de['after']['mean']:.2f} "
             f"(max {de['after']['max']:.2f}), {age_min:.0f} min old")
     if reasons:
         text += " — STALE: " + "; ".join(reasons)
     return text
 
 
-class _EncoderTap:
-    """The session's encoder, reporting each estimate as it returns (before refinement runs)."""
+def parameter_lines(params: HairParams, uncertainty: dict) -> tuple[tuple[str, str], ...]:
+    """Each Table 1 parameter with its measured 68% interval ("± w"), or "(undetermined)"."""
+    intervals = (uncertainty or {}).get("parameters", {})
+    values = dict(zip([f[0] for f in VECTOR_FIELDS], [*params.dye_rgb, params.dye_concentration,
+                                                      params.melanin_concentration, params.melanin_ratio]))
+    lines = []
+    for name, _, _ in VECTOR_FIELDS:
+        fmt = "{:.0f}" if name.startswith("dye_") and name[-1] in "rgb" else "{:.2f}"
+        iv = intervals.get(name)
+        if iv and not iv.get("determined", True):
+            u = " (undetermined)"
+        elif iv:
+            u = f" ± {fmt.format(iv['half_width'])}"
+        else:
+            u = ""
+        lines.append((name, f"{name}: {fmt.format(values[name])}{u}"))
+    return tuple(lines)
 
-    def __init__(self, encoder) -> None:
-        self._encoder = encoder
-        self.listener: Callable[[object, np.ndarray, object], None] | None = None
 
-    def estimate(self, image, roi=None, *args, **kwargs):
-        est = self._encoder.estimate(image, roi, *args, **kwargs)
-        if self.listener is not None:
-            self.listener(est, image, roi)
-        return est
+def parameter_view(shown: Shown, extra: tuple[EstimateWarning, ...] = ()) -> ParameterView:
+    """What the window writes for ``shown``: parameters, the dye chip and the lines under them."""
+    rec = shown.record
+    if shown.params is None:
+        reasons = list(rec.blocked) if rec is not None and rec.blocked else ["none saved"]
+        return ParameterView((), None, "", "no estimate: " + "; ".join(reasons))
+    p = shown.params
+    lines = parameter_lines(p, rec.uncertainty if rec is not None else {})
+    tooltip = f"dye colour alone, at concentration {p.dye_concentration:.2f}"
+    if shown.stage == Stage.ENCODER or rec is None:
+        return ParameterView(lines, tuple(int(v) for v in p.dye_rgb), tooltip,
+                             "encoder's estimate; refining by synthesis…")
+    prov = rec.provenance
+    info = [f"model {(prov.get('model') or {}).get('sha256', '')[:12]}, calibration "
+            f"{(prov.get('calibration') or {}).get('id')}"]
+    if rec.refinement.ran:
+        info.append(f"refined in {rec.refinement.seconds:.1f} s: residual ΔE2000 "
+                    f"{rec.refinement.residual_de2000:.2f}")
+    colour = rec.uncertainty.get("mean_colour_de2000_p68")
+    if colour is not None:
+        info.append(f"colour within ΔE2000 {colour:.2f} of the truth in 68% of held-out swatches")
+    info += [f"⚠ {w.message}" for w in (*rec.warnings, *extra)]
+    return ParameterView(lines, tuple(int(v) for v in p.dye_rgb), tooltip, "\n".join(info))
 
-    def __getattr__(self, name):
-        return getattr(self._encoder, name)
+
+def nonfinite_warning(what: str, count: int) -> EstimateWarning:
+    return EstimateWarning(WarningKind.NONFINITE, f"render: the {what} preview had {count} NaN or Inf values "
+                                                  f"(shown as black); its colours are not to be trusted")
+
+
+def read_thumbnail(folder: Path, entry: Entry, size=(64, 48)) -> np.ndarray | None:
+    """A small RGB picture of a capture, or None when its image is missing."""
+    import cv2
+
+    path = Path(folder) / "captures" / (entry.record.capture or "")
+    img = cv2.imread(str(path)) if path.is_file() else None
+    return None if img is None else cv2.resize(img[..., ::-1], size)
 
 
 # --- the model ---------------------------------------------------------------------------------
@@ -358,18 +333,21 @@ class ReviewModel:
         self.session = session
         self.settings = settings or PreviewSettings()
         self.events = Events()
-        self.records: list[dict] = []
+        self.records: list[Entry] = []
+        self.thumbnails: dict[str, np.ndarray | None] = {}
         self.shown: Shown | None = None
         self.twin: TwinPreview | None = None
         self.hairstyle: HairstylePass | None = None
         self.strands: StrandPreview | None = None
         self.frame_check: FrameCheck | None = None
+        self.preview_warnings: tuple[EstimateWarning, ...] = ()
         self.style, self.env = HAIRSTYLES[0], ENVIRONMENTS[0]
         self.hair_file: Path | None = None           # a .hair model shown instead of the built-in style
         self.orbit = (0.0, 0.0)                      # azimuth, elevation (degrees)
         self.show_denoised = self.settings.denoise and dn.available()
         self.twin_renderer = Renderer(max_cached=4)      # the twin at each scale
         self.style_renderer = Renderer(max_cached=4)
+        self._thread = threading.get_ident()       # the one thread that changes this state
         self._generation = {"twin": 0, "hairstyle": 0}
         self._twin_state = threading.Condition()
         self._twin_ready = 0                    # the twin generation that is clean (or done): the hairstyle waits for it
@@ -377,16 +355,20 @@ class ReviewModel:
         self._strand_cache: dict[tuple, object] = {}
         self._last_check = 0.0
         self._checking = False
-        self._tap: _EncoderTap | None = None
-        self._tap_lock = threading.Lock()
+        self._feed_fps = self.settings.feed_fps
+
+    def _owner(self) -> None:
+        if threading.get_ident() != self._thread:
+            raise RuntimeError("the review model's state changes on its own thread only: hand work results "
+                               "to apply() there")
 
     # -- generations: what makes running work stale ------------------------------------------
     def _bump(self, *kinds: str) -> None:
         for kind in kinds:
             self._generation[kind] += 1
 
-    def _stale(self, kind: str, generation: int, cancelled: Cancelled) -> Cancelled:
-        return lambda: cancelled() or self._generation[kind] != generation
+    def _stale(self, kind: str, generation: int) -> Cancelled:
+        return lambda: self._generation[kind] != generation
 
     def _twin_is_ready(self, generation: int) -> None:
         with self._twin_state:
@@ -403,40 +385,97 @@ class ReviewModel:
         self._bump("twin", "hairstyle")
         self._twin_is_ready(self._generation["twin"])
 
-    # -- records and selection (UI thread) ---------------------------------------------------
-    def reload(self) -> list[dict]:
-        self.records = rs.load_results(self.session.folder)
+    # -- the live feed and the lights ----------------------------------------------------------
+    def busy(self) -> bool:
+        """A capture is estimated, or the shown estimate's twin is not clean yet."""
+        return self._capturing or self._twin_ready < self._generation["twin"]
+
+    def _update_feed(self) -> None:
+        fps = self.settings.busy_feed_fps if self.busy() else self.settings.feed_fps
+        if fps != self._feed_fps:
+            self._feed_fps = fps
+            self.events.feed_fps.emit(fps)
+
+    def feed_period(self) -> float:
+        """Seconds between the live feed's frames, now."""
+        return 1.0 / self._feed_fps
+
+    @staticmethod
+    def light_count() -> int:
+        return N_LIGHTS
+
+    def lights_work(self) -> Work:
+        """Read the light board: each light's state, and what the board says it is."""
+        session = self.session
+        return Work("lights", _returns(lambda: Lights(tuple(st.on for st in session.light_states()),
+                                                      session.lights.identify(), session.lights.port_name)))
+
+    def set_light_work(self, index: int, on: bool) -> Work:
+        """Switch one light, then read the board back."""
+        session = self.session
+
+        def run():
+            session.set_light(index, on)
+            return (yield from self.lights_work().run())
+        return Work(f"light {index}", run)
+
+    def set_all_work(self, on: bool) -> Work:
+        session = self.session
+
+        def run():
+            session.set_all(on)
+            return (yield from self.lights_work().run())
+        return Work("lights", run)
+
+    # -- records and selection ----------------------------------------------------------------
+    def reload(self) -> list[Entry]:
+        self._owner()
+        entries = []
+        for item in rs.load_results(self.session.folder):
+            try:
+                entries.append(entry_of(item))
+            except RecordError as exc:
+                self.events.error.emit(f"a result record is unreadable and left out: {exc}")
+        self.records = entries
         self.events.records.emit(self.records)
         return self.records
+
+    def thumbnail_work(self) -> Work | None:
+        """Read the thumbnails not read yet, off the model's thread; None when there are none."""
+        folder, todo = self.session.folder, [e for e in self.records if e.id not in self.thumbnails]
+        if not todo:
+            return None
+
+        def run():
+            for entry in todo:
+                yield Thumbnail(entry.id, read_thumbnail(folder, entry))
+        return Work("thumbnails", run)
 
     def select(self, capture_id: str, same_capture: bool = False) -> Shown | None:
         """Review a saved capture with its own calibration profile; emits ``shown`` and ``parameters``.
 
         ``same_capture``: the capture whose first look is shown, now with its record (refined).
         """
+        self._owner()
         try:
             loaded = self.session.load_capture(capture_id)
+            rec = as_record(loaded.record)
         except (FileNotFoundError, OSError, ValueError) as exc:
             self.events.error.emit(str(exc))
             return None
         x, y, w, h = loaded.roi
-        rec = loaded.record
         frame_size = (loaded.frame.shape[1], loaded.frame.shape[0])
-        blocked = bool(rec.get("blocked")) or "hair" not in rec
+        blocked = rec.hair is None
         real = loaded.frame[y:y + h, x:x + w].copy() if blocked else loaded.corrected_swatch()
-        params = None if blocked else HairParams.from_dict(rec)
         same = self.shown is not None and (same_capture or self.shown.capture_id == capture_id)
-        shown = Shown(capture_id, real, tuple(loaded.roi), frame_size, params, "blocked" if blocked else "refined",
-                      {"id": capture_id, **rec}, self.session.simulated, self.shown.key if same else self._new_key())
-        if self.shown is not None and self.shown.capture_id == capture_id and self.shown.params == params:
+        shown = Shown(capture_id, real, tuple(loaded.roi), frame_size, rec.hair,
+                      Stage.BLOCKED if blocked else Stage.REFINED, rec, self.session.simulated,
+                      self.shown.key if same else next(_KEYS))
+        if self.shown is not None and self.shown.capture_id == capture_id and self.shown.params == rec.hair:
             self.shown = shown          # the same estimate again (a reload): keep the previews running
             return shown
         self._show(shown)
         return shown
-
-    @staticmethod
-    def _new_key() -> int:
-        return next(_KEYS)
 
     def _show(self, shown: Shown) -> None:
         """Show a capture (or new parameters of the shown one): running preview work goes stale. The
@@ -445,9 +484,11 @@ class ReviewModel:
         if self.shown is None or shown.key != self.shown.key:
             self.twin = self.hairstyle = None
         self.shown = shown
-        previews = shown.params is not None and shown.stage != "encoder"   # the capture renders the first look
+        self.preview_warnings = ()
+        previews = shown.params is not None and shown.stage == Stage.REFINED   # the capture renders the first look
         if not previews:
             self._twin_is_ready(self._generation["twin"])    # no twin work comes for this: nothing to wait for
+        self._update_feed()
         self.events.shown.emit(shown)
         if previews:
             self.events.parameters.emit(shown)
@@ -459,11 +500,16 @@ class ReviewModel:
             return True
         return self.shown is not None and payload.key == self.shown.key and showing is None
 
-    # -- state set by the window (UI thread) -------------------------------------------------
+    def parameter_view(self) -> ParameterView | None:
+        """The shown parameters, intervals, chip and lines, as the window writes them."""
+        return None if self.shown is None else parameter_view(self.shown, self.preview_warnings)
+
+    # -- state set by the window ---------------------------------------------------------------
     def set_view(self, style: str | None = None, env: str | None = None, orbit: tuple[float, float] | None = None,
                  hair_file: str | Path | None = None) -> None:
         """Change the hairstyle (a built-in style closes the hair file), environment, camera orbit or
         hair file; emits ``view``."""
+        self._owner()
         if style is not None:
             self.style, self.hair_file = style, None
         if hair_file is not None:
@@ -480,6 +526,7 @@ class ReviewModel:
 
     def set_denoised(self, on: bool) -> None:
         """Show the denoised passes (True) or the raw path-traced ones; no re-render."""
+        self._owner()
         self.show_denoised = bool(on) and dn.available()
         self.events.display.emit(self.show_denoised)
         if self.twin is not None:
@@ -496,35 +543,33 @@ class ReviewModel:
                              camera=pose)
         return SceneSpec(self.style, env=self.env, strands=strands, camera=pose)
 
-    # -- work: made here, run by the window's workers ----------------------------------------
+    # -- work: made here, run by a worker ------------------------------------------------------
     def warm_work(self) -> Work:
         """Build and compile the twin and hairstyle scenes (and refinement's) before any capture."""
         session, settings = self.session, self.settings
-        roi = session.swatch_roi
-        spec = self.hairstyle_spec()
+        roi, spec = session.swatch_roi, self.hairstyle_spec()
+        twin_renderer, style_renderer = self.twin_renderer, self.style_renderer
 
-        def work(report: Report, cancelled: Cancelled) -> Warmed:
+        def run():
             seconds = {}
             placeholder = HairParams()
             start = time.perf_counter()
             session.prepare_refinement()
-            self._install_tap()
             seconds["refinement_curve"] = time.perf_counter() - start
+            yield None
             if roi is not None:
                 frame = session.frames.latest() or session.frame()
                 start = time.perf_counter()
                 for scale in sorted({scale for scale, _ in settings.twin_passes}):
                     tspec, tsize = twin_view(roi, (frame.srgb.shape[1], frame.srgb.shape[0]), session.simulated,
                                              scale)
-                    self.twin_renderer.render(placeholder, tspec, tsize, 1)
+                    twin_renderer.render(placeholder, tspec, tsize, 1)
                 seconds["twin"] = time.perf_counter() - start
-            if cancelled():
-                return Warmed(seconds)
+            yield None
             start = time.perf_counter()
-            self.style_renderer.render(placeholder, spec, settings.hairstyle_size, 1)
+            style_renderer.render(placeholder, spec, settings.hairstyle_size, 1)
             seconds["hairstyle"] = time.perf_counter() - start
-            if cancelled():
-                return Warmed(seconds)
+            yield None
             if dn.available():          # OIDN's first call loads its kernels (2 s)
                 start = time.perf_counter()
                 dn.denoise(np.full((16, 16, 3), 0.1, np.float32))
@@ -533,85 +578,93 @@ class ReviewModel:
             _warm_refinement()
             seconds["refinement"] = time.perf_counter() - start
             return Warmed(seconds)
-        return work
-
-    def _install_tap(self) -> None:
-        """Wrap the session's encoder so the model sees the encoder's estimate before refinement."""
-        with self._tap_lock:
-            if self._tap is not None:
-                return
-            encoder = self.session.encoder_or_reason()
-            if isinstance(encoder, str):
-                return                    # the capture will say why it cannot estimate
-            self._tap = _EncoderTap(encoder)
-            self.session._encoder = self._tap   # RigSession has no hook for the encoder's stage yet
+        return Work("warm-up", run)
 
     def capture_work(self) -> Work:
-        """Capture, estimate and refine. Between the encoder and refinement the same worker reports
-        the :class:`FirstLook` and renders its first twin and hairstyle passes: the operator sees
-        parameters, a twin and a hairstyle before refinement takes the renderer."""
+        """Capture, estimate and refine. Between the encoder and refinement (the session's
+        ``on_encoder_estimate`` hook) the capture yields the :class:`FirstLook` and its first twin and
+        hairstyle passes: the operator sees parameters, a twin and a hairstyle before refinement takes
+        the renderer. The capture itself runs to its end even when the work is cancelled."""
+        self._owner()
         session, settings = self.session, self.settings
         spec, label = self.hairstyle_spec(), self.view_label()
+        on = self.show_denoised or settings.denoise
         self._bump("twin", "hairstyle")       # stale previews stop now and leave the cores to the capture
         self._twin_is_ready(self._generation["twin"])
         self._capturing = True
+        self._update_feed()
+        tag = PassTag(self._generation["twin"], next(_KEYS), Stage.ENCODER)
+        style_tag = PassTag(self._generation["hairstyle"], tag.key, Stage.ENCODER)
+        twin_renderer, style_renderer = self.twin_renderer, self.style_renderer
 
-        def work(report: Report, cancelled: Cancelled) -> Captured:
-            self._install_tap()
+        def run():
+            out: queue.Queue = queue.Queue()
+            done = object()
 
-            def first_look(est, image, roi) -> None:
-                x, y, w, h = (roi.x, roi.y, roi.w, roi.h) if roi is not None else (0, 0, image.shape[1], image.shape[0])
-                look = FirstLook(est.params, image[y:y + h, x:x + w].copy(), (x, y, w, h),
-                                 (image.shape[1], image.shape[0]), next(_KEYS))
-                report(look)
-                shown = Shown(None, look.real, look.roi, look.frame_size, look.params, "encoder", {},
-                              session.simulated, look.key)
+            def first_look(params: HairParams) -> None:
+                """In the capture's thread, between the encoder and refinement."""
+                look = _first_look(session, params, tag.key)
+                out.put(look)
                 n = settings.first_look_passes
-                self._twin_passes(shown, -1, settings.twin_passes[:n], report, cancelled)
-                self._hairstyle_passes(shown, -1, spec, label, settings.hairstyle_passes[:n], report, cancelled)
-            if self._tap is not None:
-                self._tap.listener = first_look
+                view = lambda scale: twin_view(look.roi, look.frame_size, session.simulated, scale)  # noqa: E731
+                for p in twin_passes(twin_renderer, params, look.real, view, settings.twin_passes[:n], settings,
+                                     on, tag):
+                    out.put(p)
+                for p in hairstyle_passes(style_renderer, params, spec, label, settings.hairstyle_passes[:n],
+                                          settings, on, style_tag):
+                    out.put(p)
+
+            def capture() -> None:
+                try:
+                    out.put(Captured(session.capture(on_encoder_estimate=first_look)))
+                except BaseException as exc:   # raised again in the worker
+                    out.put(exc)
+                finally:
+                    out.put(done)
+
+            thread = threading.Thread(target=capture, name="capture", daemon=True)
+            thread.start()
+            result = None
             try:
-                return Captured(session.capture())
+                while (item := out.get()) is not done:
+                    if isinstance(item, BaseException):
+                        raise item
+                    if isinstance(item, Captured):
+                        result = item
+                    else:
+                        yield item
             finally:
-                self._capturing = False
-                if self._tap is not None:
-                    self._tap.listener = None
-        return work
+                thread.join()                  # a capture is never left half-written
+            return result
+        return Work("capture", run, ended=self._capture_ended)
+
+    def import_still_work(self, path: str | Path) -> Work:
+        """A RAW still of the rig as a capture (copied, calibrated on its own chart, estimated)."""
+        session = self.session
+        return Work("RAW still", _returns(lambda: Captured(session.import_still(path))))
+
+    def _capture_ended(self) -> None:
+        self._capturing = False
+        self._update_feed()
 
     def twin_work(self) -> Work | None:
         """The twin's passes for the shown (refined) parameters; None when there is nothing to preview."""
         shown = self.shown
         if shown is None or shown.params is None:
             return None
-        generation, schedule = self._generation["twin"], self.settings.twin_passes
+        generation = self._generation["twin"]
+        tag = PassTag(generation, shown.key, shown.stage)
+        renderer, settings, on = self.twin_renderer, self.settings, self.show_denoised or self.settings.denoise
 
-        def work(report: Report, cancelled: Cancelled) -> None:
-            try:
-                self._twin_passes(shown, generation, schedule, report, self._stale("twin", generation, cancelled))
-            finally:
-                self._twin_is_ready(generation)
-        return work
+        def run():
+            view = lambda scale: twin_view(shown.roi, shown.frame_size, shown.simulated, scale)  # noqa: E731
+            yield from twin_passes(renderer, shown.params, shown.real, view, settings.twin_passes, settings, on, tag,
+                                   self._stale("twin", generation))
+        return Work("twin", run, ended=lambda: self._twin_done(generation))
 
-    def _twin_passes(self, shown: Shown, generation: int, schedule: tuple[tuple[float, int], ...],
-                     report: Report, stale: Cancelled) -> None:
-        import cv2
-
-        settings = self.settings
-        clean_at = dict(settings.twin_clean_spp)
-        real_full = srgb8_to_linear(shown.real)
-        on, start = self.show_denoised or settings.denoise, time.perf_counter()
-        view = lambda scale: twin_view(shown.roi, shown.frame_size, shown.simulated, scale)   # noqa: E731
-        for raw, spp, i, scale in scaled_progressive(self.twin_renderer, shown.params, view, schedule, stale):
-            real = real_full if raw.shape == real_full.shape else \
-                cv2.resize(real_full, (raw.shape[1], raw.shape[0]), interpolation=cv2.INTER_AREA)
-            clean = spp >= clean_at.get(scale, spp + 1)
-            report(TwinPreview(generation, raw, denoised(raw, on), spp, i == len(schedule), clean,
-                               mean_colour_delta_e(real, raw), delta_e_map(real, raw, settings.fibre_px * scale),
-                               raw.reshape(-1, 3).mean(0), shown.stage, time.perf_counter() - start, shown.key,
-                               scale))
-            if clean and generation >= 0:
-                self._twin_is_ready(generation)   # clean: the hairstyle's passes may take turns with the twin
+    def _twin_done(self, generation: int) -> None:
+        self._twin_is_ready(generation)
+        self._update_feed()
 
     def hairstyle_work(self) -> Work | None:
         """The hairstyle's passes for the shown parameters, in the chosen view, after the twin is clean."""
@@ -619,31 +672,18 @@ class ReviewModel:
         if shown is None or shown.params is None:
             return None
         generation, spec, label = self._generation["hairstyle"], self.hairstyle_spec(), self.view_label()
-        schedule = self.settings.hairstyle_passes
-        def work(report: Report, cancelled: Cancelled) -> None:
-            self._hairstyle_passes(shown, generation, spec, label, schedule, report,
-                                   self._stale("hairstyle", generation, cancelled), self._wait_for_twin)
-        return work
+        tag = PassTag(generation, shown.key, shown.stage)
+        renderer, settings, on = self.style_renderer, self.settings, self.show_denoised or self.settings.denoise
 
-    def _hairstyle_passes(self, shown: Shown, generation: int, spec: SceneSpec, label: str,
-                          schedule: tuple[int, ...], report: Report, stale: Cancelled, gate=None) -> None:
-        settings = self.settings
-        on, start = self.show_denoised or settings.denoise, time.perf_counter()
-        for raw, spp, i in progressive(self.style_renderer, shown.params, spec, settings.hairstyle_size, schedule,
-                                       stale, gate=gate):
-            # OIDN's "fast" on the first pass: 0.22 s instead of 0.47 s at 512², per-pixel ΔE 1.50 for 1.48
-            report(HairstylePass(generation, raw, denoised(raw, on, "fast" if i == 1 else "high"), spp, i,
-                                 len(schedule), spp >= settings.hairstyle_clean_spp, label, shown.stage,
-                                 time.perf_counter() - start, shown.key))
+        def run():
+            yield from hairstyle_passes(renderer, shown.params, spec, label, settings.hairstyle_passes, settings, on,
+                                        tag, self._stale("hairstyle", generation), self._wait_for_twin)
+        return Work("hairstyle", run)
 
     def warm_view_work(self) -> Work:
         """Build the chosen hairstyle's scene before any capture needs it (a style picked before a capture)."""
         spec, size, renderer = self.hairstyle_spec(), self.settings.hairstyle_size, self.style_renderer
-
-        def work(report: Report, cancelled: Cancelled) -> None:
-            if not cancelled():
-                renderer.render(HairParams(), spec, size, 1)
-        return work
+        return Work("hairstyle", _returns(lambda: renderer.render(HairParams(), spec, size, 1) and None))
 
     def _strand_key(self) -> tuple:
         return (str(self.hair_file) if self.hair_file else self.style, self.settings.view_strands)
@@ -652,24 +692,23 @@ class ReviewModel:
         """The 3-D view's strands (fewer than the render's) in the estimated colour, once the twin is
         clean; None when the view already shows them. Strands are grown once per style or hair file."""
         shown = self.shown
-        if shown is None or shown.params is None or shown.stage == "encoder":
+        if shown is None or shown.params is None or shown.stage == Stage.ENCODER:
             return None
         which, colour = self._strand_key(), strand_colour(shown.params)
         if self.strands is not None and (self.strands.of, self.strands.colour_rgb8) == (which, colour):
             return None
-        style, hair_file, n, cache = self.style, self.hair_file, self.settings.view_strands, self._strand_cache
+        style, hair_file, n = self.style, self.hair_file, self.settings.view_strands
+        grown, scalp = self._strand_cache.get(which), scalp_linear(shown.params)
 
-        def work(report: Report, cancelled: Cancelled) -> StrandPreview | None:
+        def run():
             from hairdigi.render.hairfile import hair_model_strands
             from hairdigi.render.strands import hairstyle_strands
 
             self._wait_for_twin()
-            if cancelled():
-                return None
-            if which not in cache:
-                cache[which] = hair_model_strands(hair_file, n) if hair_file else hairstyle_strands(style, n, seed=0)
-            return StrandPreview(which, cache[which], colour)
-        return work
+            yield None                  # cancelled meanwhile: stop here
+            strands = grown or (hair_model_strands(hair_file, n) if hair_file else hairstyle_strands(style, n, seed=0))
+            return StrandPreview(which, strands, colour, scalp)
+        return Work("strands", run)
 
     def open_hair_work(self, path: str | Path) -> Work:
         """Read, check and fit a ``.hair`` model; a bad file raises its one-line error (HairFileError)."""
@@ -677,7 +716,7 @@ class ReviewModel:
 
         n = self.settings.hairstyle_strands or defaults_for("hairstyle").strands
 
-        def work(report: Report, cancelled: Cancelled) -> HairModel:
+        def run() -> HairModel:
             from hairdigi.render.hairfile import hair_model_strands, model_summary
 
             model = Path(path)
@@ -685,13 +724,13 @@ class ReviewModel:
                 raise FileNotFoundError(f"{model}: no such .hair file; choose another")
             hair_model_strands(model, n)        # read once here: the render and the 3-D view reuse it
             return HairModel(model, model_summary(model, n))
-        return work
+        return Work("hair model", _returns(run))
 
     def frame_check_due(self, period_s: float = 1.5) -> bool:
         """True when a frame should be checked for the chart and exposure (none running, ``period_s`` since)."""
+        self._owner()
         now = time.monotonic()
-        busy = self._capturing or self._twin_ready < self._generation["twin"]   # a capture and its twin first
-        if busy or self._checking or now - self._last_check < period_s:
+        if self.busy() or self._checking or now - self._last_check < period_s:   # a capture and its twin first
             return False
         self._checking, self._last_check = True, now
         return True
@@ -700,7 +739,7 @@ class ReviewModel:
         """Find the chart and check the exposure of one frame."""
         session = self.session
 
-        def work(report: Report, cancelled: Cancelled) -> FrameCheck | None:
+        def run() -> FrameCheck:
             import cv2
 
             from hairdigi.inference.calibration import CalibrationError, detect_chart
@@ -712,56 +751,103 @@ class ReviewModel:
                     box = None
                 return FrameCheck(box, session.exposure(image))
             except cv2.error:    # cv2.mcc's assertion on an odd frame (seen once in ~20 tours): try the next one
-                return None
-            finally:
-                self._checking = False
-        return work
+                return FrameCheck(None, None)
+        return Work("chart", _returns(run), ended=self._check_ended)
+
+    def _check_ended(self) -> None:
+        self._checking = False
 
     def calibrate_work(self) -> Work:
         session = self.session
-        return lambda report, cancelled: session.calibrate()
+        return Work("calibration", _returns(lambda: Calibrated(as_profile(session.calibrate()))))
 
-    # -- results back from work (UI thread) --------------------------------------------------
+    # -- results back from work (the model's thread) --------------------------------------------
     def apply(self, payload: object) -> None:
-        """Store what a work function reported or returned, and emit its event; stale passes are dropped."""
-        if isinstance(payload, TwinPreview):
-            if self._current(payload, "twin", self.twin):
-                self.twin = payload
-                self.events.twin.emit(payload)
-        elif isinstance(payload, HairstylePass):
-            if self._current(payload, "hairstyle", self.hairstyle):
-                self.hairstyle = payload
-                self.events.hairstyle.emit(payload)
-        elif isinstance(payload, StrandPreview):
-            if payload.of == self._strand_key():
-                self.strands = payload
-                self.events.strands.emit(payload)
-        elif isinstance(payload, FirstLook):
-            self._show(Shown(None, payload.real, payload.roi, payload.frame_size, payload.params, "encoder",
-                             {}, self.session.simulated, payload.key))
-        elif isinstance(payload, Captured):
-            first_look = self.shown is not None and self.shown.capture_id is None
-            self.select(payload.result.capture_id, same_capture=first_look)
-            self.reload()
-        elif isinstance(payload, HairModel):
-            self.events.hair_model.emit(payload)
-            self.events.status.emit(payload.summary)
-            self.set_view(hair_file=payload.path)
-        elif isinstance(payload, FrameCheck):
-            self.frame_check = payload
-            self.events.frame_check.emit(payload)
-        elif isinstance(payload, Warmed):
-            parts = ", ".join(f"{k} {v:.1f} s" for k, v in payload.seconds.items())
-            self.events.status.emit(f"previews ready ({parts})")
-            self.events.warmed.emit(payload)
-        elif isinstance(payload, dict) and "delta_e2000" in payload:   # a calibration profile
-            self.events.calibration.emit(payload)
+        """Store what a work yielded or returned, and emit its event; stale passes are dropped."""
+        self._owner()
+        if payload is None:
+            return
+        handler = self._HANDLERS.get(type(payload))
+        if handler is None:
+            raise TypeError(f"the review model has no use for {type(payload).__name__}")
+        handler(self, payload)
+
+    def _apply_twin(self, t: TwinPreview) -> None:
+        if not self._current(t, "twin", self.twin):
+            return
+        self.twin = t
+        if t.clean_enough and t.stage == Stage.REFINED and t.generation == self._generation["twin"]:
+            self._twin_is_ready(t.generation)   # clean: the hairstyle's passes may take turns with the twin
+            self._update_feed()
+        if t.nonfinite:
+            self._warn(nonfinite_warning("twin", t.nonfinite))
+        self.events.twin.emit(t)
+
+    def _apply_hairstyle(self, p: HairstylePass) -> None:
+        if not self._current(p, "hairstyle", self.hairstyle):
+            return
+        self.hairstyle = p
+        if p.nonfinite:
+            self._warn(nonfinite_warning("hairstyle", p.nonfinite))
+        self.events.hairstyle.emit(p)
+
+    def _warn(self, warning: EstimateWarning) -> None:
+        if warning.kind not in {w.kind for w in self.preview_warnings}:
+            self.preview_warnings += (warning,)
+            self.events.warnings.emit(self.preview_warnings)
+
+    def _apply_strands(self, s: StrandPreview) -> None:
+        self._strand_cache[s.of] = s.strands
+        if s.of == self._strand_key():
+            self.strands = s
+            self.events.strands.emit(s)
+
+    def _apply_first_look(self, look: FirstLook) -> None:
+        self._show(Shown(None, look.real, look.roi, look.frame_size, look.params, Stage.ENCODER, None,
+                         self.session.simulated, look.key))
+
+    def _apply_captured(self, captured: Captured) -> None:
+        self._capture_ended()
+        first_look = self.shown is not None and self.shown.capture_id is None
+        self.reload()
+        self.select(captured.result.capture_id, same_capture=first_look)
+
+    def _apply_hair_model(self, model: HairModel) -> None:
+        self.events.hair_model.emit(model)
+        self.events.status.emit(model.summary)
+        self.set_view(hair_file=model.path)
+
+    def _apply_frame_check(self, check: FrameCheck) -> None:
+        self._checking = False
+        if check.exposure is not None:
+            self.frame_check = check
+            self.events.frame_check.emit(check)
+
+    def _apply_warmed(self, warmed: Warmed) -> None:
+        parts = ", ".join(f"{k} {v:.1f} s" for k, v in warmed.seconds.items())
+        self.events.status.emit(f"previews ready ({parts})")
+        self.events.warmed.emit(warmed)
+
+    def _apply_calibrated(self, calibrated: Calibrated) -> None:
+        self.events.calibration.emit(calibrated.profile)
+
+    def _apply_lights(self, lights: Lights) -> None:
+        self.events.lights.emit(lights)
+
+    def _apply_thumbnail(self, thumb: Thumbnail) -> None:
+        self.thumbnails[thumb.capture_id] = thumb.rgb
+        self.events.thumbnail.emit(thumb)
+
+    _HANDLERS = {TwinPreview: _apply_twin, HairstylePass: _apply_hairstyle, StrandPreview: _apply_strands,
+                 FirstLook: _apply_first_look, Captured: _apply_captured, HairModel: _apply_hair_model,
+                 FrameCheck: _apply_frame_check, Warmed: _apply_warmed, Calibrated: _apply_calibrated,
+                 Lights: _apply_lights, Thumbnail: _apply_thumbnail}
 
     # -- what the window reads ---------------------------------------------------------------
     def calibration(self) -> tuple[str, str]:
         """(status, one line) of the session's calibration."""
         status, reasons = self.session.calibration_status()
-        return status, calibration_text(self.session.profile, status, reasons)
+        return status, calibration_text(as_profile(self.session.profile), status, reasons)
 
     def twin_image(self, preview: TwinPreview | None = None) -> np.ndarray | None:
         """The twin as shown (denoised or raw), sRGB 8-bit."""
@@ -780,9 +866,9 @@ class ReviewModel:
         """Write the shown ``"hairstyle"`` or ``"twin"`` render as ``path`` (.png) and beside it linear .exr."""
         from hairdigi.render.io.images import save_exr, save_png
 
-        item = self.hairstyle if which == "hairstyle" else self.twin if which == "twin" else None
         if which not in ("hairstyle", "twin"):
             raise ValueError(f"save which render? 'hairstyle' or 'twin', got {which!r}")
+        item = self.hairstyle if which == "hairstyle" else self.twin
         if item is None:
             raise ValueError(f"no {which} render yet: capture or select a swatch first")
         linear = item.clean if self.show_denoised and item.clean is not None else item.raw
@@ -794,12 +880,25 @@ class ReviewModel:
 
     def export(self, path: str | Path, all_: bool = True) -> Path:
         """The estimates as JSON: all of the session's, or the shown capture's."""
-        records = [r for r in self.records if not r.get("blocked") and "hair" in r]
+        entries = [e for e in self.records if e.record.hair is not None]
         if not all_ and self.shown is not None and self.shown.capture_id is not None:
-            records = [r for r in records if r["id"] == self.shown.capture_id]
-        if not records:
+            entries = [e for e in entries if e.id == self.shown.capture_id]
+        if not entries:
             raise ValueError("nothing to export: no capture has an estimate yet")
-        return rs.export_records(records, path)
+        return rs.export_records([{"id": e.id, **e.record.to_json()} for e in entries], path)
+
+
+def _first_look(session: rs.RigSession, params: HairParams, key: int) -> FirstLook:
+    """The encoder's parameters with the swatch they came from: the captured frame's swatch area,
+    corrected with the session's profile (as the estimate saw it)."""
+    from hairdigi.inference.calibration import apply_profile
+
+    image = session.last_frame.srgb
+    x, y, w, h = session.swatch_roi or (0, 0, image.shape[1], image.shape[0])
+    real = image[y:y + h, x:x + w].copy()
+    if session.profile is not None:
+        real = apply_profile(real, session.profile)
+    return FirstLook(params, real, (x, y, w, h), (image.shape[1], image.shape[0]), key)
 
 
 def _warm_refinement() -> None:
@@ -810,35 +909,15 @@ def _warm_refinement() -> None:
     refine(HairParams(), np.array([0.08, 0.05, 0.03]), RIG_SWATCH_POSE)
 
 
-def bench_previews(out_dir: str | Path, quick: bool = False) -> list[str]:
-    """``hairdigi bench previews``: render/bench_previews.py on the simulated rig's twin view (at the
-    scales the app renders it) and the hairstyle; the summary lines say each default's measured error
-    and the cheapest clean setting."""
-    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SIM_SIZE
-    from hairdigi.render.base.rig_geometry import swatch_roi
-    from hairdigi.render.bench_previews import CLEAN_DE, cheapest_clean, run_previews_bench
-
-    s = PreviewSettings()
-    roi = swatch_roi(SIM_SIZE)
-    twins = {scale: twin_view(roi, SIM_SIZE, True, scale) for scale, _ in s.twin_passes}
-    rows = run_previews_bench(out_dir, list(twins.values()), DEFAULT_HIDDEN, quick)
-    mode = "oidn" if s.denoise and any(r["mode"] == "oidn" for r in rows) else "raw"
-    defaults = {("hairstyle", s.hairstyle_size): [("first pass", s.hairstyle_passes[0]),
-                                                  ("clean pass", s.hairstyle_clean_spp)]}
-    for scale, (_, size) in twins.items():
-        firsts = [n for sc, n in s.twin_passes if sc == scale]
-        defaults[("twin", size[0])] = [(f"first pass at {scale:g}x resolution", firsts[0]),
-                                       ("clean pass", dict(s.twin_clean_spp)[scale])]
-    lines = []
-    for view, width in sorted({(r["view"], r["width"]) for r in rows}):
-        best = cheapest_clean(rows, view, width)
-        lines.append(f"{view} {width}px: cheapest clean (per-pixel ΔE2000 <= {CLEAN_DE:g}): "
-                     + (f"{best['spp']} spp {best['mode']}, {best['total_s']:.2f} s, ΔE {best['pixel_de2000']:.2f}"
-                        if best else "none"))
-        for label, spp in defaults.get((view, width), []):
-            row = next((r for r in rows if (r["view"], r["width"], r["spp"], r["mode"]) == (view, width, spp, mode)),
-                       None)
-            if row is not None:
-                lines.append(f"  app default {label}: {spp} spp {mode}: per-pixel ΔE2000 {row['pixel_de2000']:.2f}, "
-                             f"mean colour {row['mean_colour_de2000']:.2f}, {row['total_s']:.2f} s")
-    return lines
+def passes_of(work: Work | None) -> Iterator[object]:
+    """What a work yields, then what it returns (tests and headless use, in this thread)."""
+    if work is None:
+        return
+    generator = work.run()
+    while True:
+        try:
+            yield next(generator)
+        except StopIteration as stop:
+            if stop.value is not None:
+                yield stop.value
+            return

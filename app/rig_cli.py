@@ -32,6 +32,10 @@ def open_session(args) -> RigSession:
 
         simulated = {"camera_model": CameraModel(exposure_ev=args.exposure, cast=tuple(args.cast)),
                      "dead": check_dead_lights(args.dead), "spp": args.spp}
+        if getattr(args, "hidden", None):
+            from hairdigi.render.base.params import load_params
+
+            simulated["hidden"] = load_params(args.hidden)
     roi = tuple(int(v) for v in args.roi.split(",")) if args.roi else None
     return open_rig(args.session, args.sim, args.camera, args.port, roi, require_lights=False, **simulated)[0]
 
@@ -62,9 +66,9 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
     for report in session.exposure():
         say(f"exposure: {report.message}")
     profile = session.calibrate()
-    de = profile["delta_e2000"]
+    de = profile.delta_e2000
     out["delta_e2000"] = de
-    say(f"calibration ({profile['method']}, targets: {profile['targets']}): ΔE2000 mean "
+    say(f"calibration ({profile.method}, targets: {profile.targets}): ΔE2000 mean "
         f"{de['before']['mean']:.2f} -> {de['after']['mean']:.2f}, max {de['before']['max']:.2f} -> "
         f"{de['after']['max']:.2f}; profile {session.profile_path}")
     result = session.capture(estimate=estimate)
@@ -78,19 +82,34 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
             f"{tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
             f"{p.melanin_concentration:.2f}, ratio {p.melanin_ratio:.2f}")
         out["params"] = p.to_dict()
-        refinement = result.record.get("refinement", {})
-        if refinement.get("ran"):
-            say(f"refined to the swatch's mean colour: residual ΔE2000 {refinement['residual_de2000']:.2f} "
-                f"in {refinement['seconds']:.2f} s (six parameters reach the image through three absorption "
-                "values, so other parameters can render the same colour: compare colours, not parameters)")
-        for warning in result.record.get("warnings", []):
-            say(f"warning: {warning}")
+        say_record(result.record, say)
         hidden = getattr(session.camera, "hidden", None)
         if hidden is not None:
             say(f"hidden truth of the simulated swatch:  dye rgb {tuple(round(v) for v in hidden.dye_rgb)} at "
                 f"{hidden.dye_concentration:.2f}, melanin {hidden.melanin_concentration:.2f}, "
                 f"ratio {hidden.melanin_ratio:.2f}")
+            from hairdigi.render.judge import judge
+
+            verdict = judge(hidden, result.record.refinement.sigma_a or p)
+            out["truth_de2000"] = verdict.de2000
+            say(f"against the hidden truth (both rendered at the rig's swatch pose, {verdict.spp} spp, common "
+                f"seed): mean-colour ΔE2000 {verdict.de2000:.2f}")
     return out
+
+
+def say_record(record, say=print) -> None:
+    """The refinement's residual, the chain's stated colour interval, and the warnings of a record."""
+    refinement = record.refinement
+    if refinement.ran:
+        say(f"refined to the swatch's mean colour: residual ΔE2000 {refinement.residual_de2000:.2f} "
+            f"in {refinement.seconds:.2f} s (six parameters reach the image through three absorption "
+            "values, so other parameters can render the same colour: compare colours, not parameters)")
+    u = record.uncertainty
+    if "mean_colour_de2000_p68" in u:
+        say(f"stated colour interval: within ΔE2000 {u['mean_colour_de2000_p68']:.2f} of the truth in 68% and "
+            f"{u['mean_colour_de2000_p95']:.2f} in 95% of held-out captures ({u.get('mean_colour_source', '')})")
+    for warning in record.warnings:
+        say(f"warning: {warning.message}")
 
 
 def report_still(session_folder: str | Path, still: str | Path, say=print) -> int:
@@ -106,18 +125,19 @@ def report_still(session_folder: str | Path, still: str | Path, say=print) -> in
 
     result = import_still(session_folder, still, encoder)
     say(f"still: {result.image_path} (+ {result.meta_path.name}), copied before processing")
-    profile = json.loads(result.meta_path.with_suffix(".result.json").read_text()).get("calibration_profile")
+    from hairdigi.render.base.records import CaptureRecord, read_record
+
+    profile = read_record(result.meta_path, CaptureRecord).calibration
     if profile is not None:
-        say(f"calibrated on the still's own chart: ΔE2000 mean {profile['delta_e2000']['before']['mean']:.2f} "
-            f"-> {profile['delta_e2000']['after']['mean']:.2f}")
+        say(f"calibrated on the still's own chart: ΔE2000 mean {profile.delta_e2000['before']['mean']:.2f} "
+            f"-> {profile.delta_e2000['after']['mean']:.2f}")
     if result.blocked:
         say("estimate blocked: " + "; ".join(result.blocked))
-        return 1
+        return 2    # an input the still cannot serve (no chart, clipped), not a bug
     p = result.params
     say(f"estimate in {result.seconds:.1f} s: dye rgb {tuple(round(v) for v in p.dye_rgb)} at "
         f"{p.dye_concentration:.2f}, melanin {p.melanin_concentration:.2f}, ratio {p.melanin_ratio:.2f}")
-    for warning in result.record.get("warnings", []):
-        say(f"warning: {warning}")
+    say_record(result.record, say)
     return 0
 
 
@@ -183,7 +203,7 @@ def estimate_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16, twin_siz
     """
     from tqdm import tqdm
 
-    from hairdigi.hardware.sim_rig import remove_fireflies
+    from hairdigi.render.camera_model import spread_glints
     from hairdigi.inference.calibration import CalibrationError, apply_profile, calibrate
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_image
@@ -210,7 +230,7 @@ def estimate_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16, twin_siz
         pose = rig_geometry.CameraPose(polar, azimuth)
         spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET, half_width=half_width,
                          camera=pose)
-        linear = remove_fireflies(renderer.render(hidden, spec, size, spp, seed=11).linear)
+        linear = spread_glints(renderer.render(hidden, spec, size, spp, seed=11).linear)
         corners = np.array([(x, y, 0.0) for x in (-0.3, 0.3) for y in (-0.35, 0.35)])
         uv = rig_geometry.project(corners, pose, rig_geometry.RIG_TARGET, half_width, size)
         x0, y0 = np.ceil(uv.min(0)).astype(int)

@@ -5,10 +5,11 @@ and holds no science of its own. Every capture is written to disk before anythin
 """
 from __future__ import annotations
 
-import json
+import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -17,10 +18,13 @@ from hairdigi.hardware.capture import save_capture
 from hairdigi.hardware.exposure import ExposureReport, check_exposure, dead_lights
 from hairdigi.hardware.frame_source import FrameSource
 from hairdigi.hardware.lights import N_LIGHTS, LightController, LightError
-from hairdigi.inference.calibration import (CalibrationError, ChartDetection, apply_profile, calibrate, detect_chart,
-                                   load_profile, profile_warnings, save_profile, staleness)
-from hairdigi.render.base.params import HairParams
+from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, correction_warnings,
+                                            detect_chart, load_profile, profile_warnings, save_profile, staleness)
 from hairdigi.render.base.files import write_json_atomic
+from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.records import (CalibrationProfile, CaptureRecord, EstimateRecord, EstimateWarning,
+                                          RecordError, WarningKind, capture_profile, read_record, write_record)
+from hairdigi.render.base.rig_geometry import RigRegion
 
 
 @dataclass
@@ -29,39 +33,44 @@ class CaptureResult:
     image_path: Path
     meta_path: Path
     params: HairParams | None = None
-    record: dict = field(default_factory=dict)
+    record: EstimateRecord | None = None
     blocked: list[str] = field(default_factory=list)   # why no estimate was made
-    corrected: np.ndarray | None = None                # the colour-corrected frame that was estimated
+    corrected: np.ndarray | None = None                # the colour-corrected frame that was estimated (linear)
     seconds: float = 0.0
 
 
 @dataclass
 class LoadedCapture:
-    """A capture read back for review: its frame, swatch area, result record and own calibration."""
+    """A capture read back for review: its frame, swatch area, records and own calibration."""
 
     capture_id: str
     frame: np.ndarray                  # RGB, as captured (before colour correction)
     roi: tuple[int, int, int, int]
-    record: dict
-    profile: dict | None               # the profile it was corrected with; None if uncalibrated
+    record: EstimateRecord | None      # None: no result was saved (or it could not be read)
+    profile: CalibrationProfile | None  # the profile it was corrected with; None if uncalibrated
+    capture: CaptureRecord | None = None
+    linear: np.ndarray | None = None   # linear RGB where the source has it (a RAW still)
+    problems: list[str] = field(default_factory=list)   # files of this capture that could not be read
+
+    def corrected_swatch_linear(self) -> np.ndarray:
+        """The swatch area, colour-corrected with the capture's own profile, in linear light."""
+        from hairdigi.inference.preprocess import to_linear
+
+        x, y, w, h = self.roi
+        source = self.linear if self.linear is not None else self.frame
+        real = source[y:y + h, x:x + w]
+        return to_linear(real) if self.profile is None else apply_profile(real, self.profile)
 
     def corrected_swatch(self) -> np.ndarray:
-        """The swatch area, colour-corrected with the capture's own profile."""
-        x, y, w, h = self.roi
-        real = self.frame[y:y + h, x:x + w].copy()
-        return real if self.profile is None else apply_profile(real, self.profile)
+        """The swatch area, colour-corrected with the capture's own profile, as 8-bit sRGB for display."""
+        from hairdigi.render.srgb import linear_to_srgb8
+
+        return linear_to_srgb8(self.corrected_swatch_linear())
 
 
-def white_patch_box(detection: ChartDetection) -> tuple[int, int, int, int]:
-    """A box inside the chart's white patch, from the chart's corners (patch 19 of 24: row 4, column 1)."""
-    box = detection.box  # tl, tr, br, bl
-    def at(u, v):
-        top = box[0] + (box[1] - box[0]) * u
-        bottom = box[3] + (box[2] - box[3]) * u
-        return top + (bottom - top) * v
-    centre = at((0 + 0.5) / 6, (3 + 0.5) / 4)
-    half = 0.25 * np.linalg.norm(box[1] - box[0]) / 6
-    return int(centre[0] - half), int(centre[1] - half), int(2 * half), int(2 * half)
+def rig_region(frame_size: tuple[int, int], roi) -> RigRegion:
+    """The swatch area ``roi`` of a frame of the bench camera: what the refinement fits and renders."""
+    return RigRegion((int(frame_size[0]), int(frame_size[1])), tuple(int(v) for v in roi))
 
 
 class RigSession:
@@ -79,7 +88,8 @@ class RigSession:
         self._encoder = encoder
         self.simulated = simulated
         self.profile_path = self.folder / "calibration.json"
-        self.profile = load_profile(self.profile_path) if self.profile_path.exists() else None
+        self.notices: list[str] = []     # what the session set aside on opening, for the operator
+        self.profile = self._load_profile()
         self.last_frame = None
         self._board = None
 
@@ -108,6 +118,19 @@ class RigSession:
         if self._board is not None:
             self._board.close()
         self.frames.close()
+
+    def _load_profile(self) -> CalibrationProfile | None:
+        """The session's profile; a corrupt one is set aside (kept, renamed) and the rig starts
+        uncalibrated, so one bad file never locks the operator out."""
+        if not self.profile_path.exists():
+            return None
+        try:
+            return load_profile(self.profile_path)
+        except CalibrationError as exc:
+            aside = self.profile_path.with_name(f"calibration.unreadable-{time.strftime('%Y%m%d-%H%M%S')}.json")
+            self.profile_path.replace(aside)
+            self.notices.append(f"{exc}; it was set aside as {aside.name}: calibrate again with the chart in view")
+            return None
 
     @property
     def encoder(self):
@@ -145,17 +168,17 @@ class RigSession:
         return s
 
     def prepare_refinement(self) -> float:
-        """Render (or load) the refinement's response curve for the rig's camera; returns its seconds."""
+        """Render (or load) the refinement's response curve for the rig's swatch area; returns its seconds."""
         from hairdigi.inference.refine import RefineSettings, response_curve
-        from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
 
-        return response_curve(RIG_SWATCH_POSE, RefineSettings()).seconds
+        srgb = self.frame().srgb
+        return response_curve(rig_region((srgb.shape[1], srgb.shape[0]), self._roi(srgb)), RefineSettings()).seconds
 
     # -- checks ------------------------------------------------------------------------------
     def exposure(self, image: np.ndarray | None = None) -> list[ExposureReport]:
         image = self.frame().srgb if image is None else image
         try:
-            white = white_patch_box(detect_chart(image))
+            white = detect_chart(image).white_patch_box()
         except CalibrationError:
             white = None
         return check_exposure(image, self._roi(image), white)
@@ -183,13 +206,15 @@ class RigSession:
         return r.x, r.y, r.w, r.h
 
     # -- calibration -------------------------------------------------------------------------
-    def calibrate(self, method: str | None = None, frames: int = 4) -> dict:
-        """Fit a CCM on the mean of a few frames (less noise) and save the profile."""
+    def calibrate(self, method: str | None = None, frames: int = 4) -> CalibrationProfile:
+        """Fit a CCM on the mean of a few frames, averaged in linear light (less noise), and save the profile."""
         from hairdigi.inference.calibration import DEFAULT_METHOD
+        from hairdigi.inference.preprocess import to_linear
+        from hairdigi.render.srgb import linear_to_srgb8
 
-        stack = np.mean([self.frame().srgb.astype(np.float32) for _ in range(frames)], axis=0)
-        image = np.round(stack).astype(np.uint8)
-        self.profile = calibrate(image, method or DEFAULT_METHOD, settings=self.settings())
+        linear = np.mean([to_linear(self.frame().srgb) for _ in range(frames)], axis=0)
+        self.profile = calibrate(linear_to_srgb8(linear), method or DEFAULT_METHOD, settings=self.settings(),
+                                 linear=linear)
         save_profile(self.profile_path, self.profile)
         return self.profile
 
@@ -200,49 +225,73 @@ class RigSession:
         return ("stale" if reasons else "ok"), reasons
 
     # -- capture -----------------------------------------------------------------------------
-    def capture(self, estimate: bool = True) -> CaptureResult:
-        """Save the frame and its metadata first; then check, correct and estimate, or say why not."""
+    def capture(self, estimate: bool = True,
+                on_encoder_estimate: Callable[[HairParams], None] | None = None) -> CaptureResult:
+        """Save the frame and its capture record first; then check, correct and estimate, or say why not.
+
+        ``on_encoder_estimate`` is told the encoder's parameters before refinement starts."""
         start = time.perf_counter()
         frame = self.frame()
-        meta = {"lights": self.settings().get("lights"), "frame_meta": frame.meta,
-                "calibration_id": None if self.profile is None else self.profile["id"],
-                "calibration": self.profile,   # the capture keeps its own profile: a later one replaces the file
-                "simulated": self.simulated, "swatch_roi": list(self._roi(frame.srgb))}
-        image_path, meta_path = save_capture(self.folder / "captures", frame.srgb, meta=meta)
-        result = CaptureResult(image_path.stem, image_path, meta_path)
+        roi = self._roi(frame.srgb)
+        image_path, meta_path, capture = save_capture(
+            self.folder / "captures", frame.srgb, lights=self.settings().get("lights"), frame_meta=frame.meta,
+            calibration=self.profile, simulated=self.simulated, swatch_roi=roi)
+        result = CaptureResult(capture.id, image_path, meta_path)
         result.blocked = self.blockers(frame.srgb)
         if estimate and not result.blocked:
-            _estimate(result, frame.srgb, self.encoder_or_reason, self.profile, self._roi(frame.srgb),
-                      profile_warnings(self.profile, self.settings()))
+            _estimate(result, frame.srgb, None, self.encoder_or_reason, self.profile, roi,
+                      profile_warnings(self.profile, self.settings()), on_encoder_estimate)
         result.seconds = time.perf_counter() - start
-        record = {"capture": image_path.name, "blocked": result.blocked, **result.record}
-        write_json_atomic(self.folder / "captures" / f"{result.capture_id}.result.json", record)
+        _write_result(self.folder, result, roi)
         return result
 
     def load_capture(self, capture_id: str) -> "LoadedCapture":
         """A saved capture with what reviewing it needs: the frame, its swatch area, its result record,
-        and the calibration profile it was taken with (not the session's current one)."""
+        and the calibration profile it was taken with (not the session's current one). A result or
+        capture record that cannot be read is named in ``problems``, and the frame is still shown."""
         import cv2
 
         folder = self.folder / "captures"
+        problems: list[str] = []
+        result_path = folder / f"{capture_id}.result.json"
+        result_data, record = None, None
+        if result_path.exists():
+            try:
+                from hairdigi.render.base.files import read_json
+
+                result_data = read_json(result_path, RecordError, "missing", "not a result record ({exc})")
+                record = EstimateRecord.from_json(result_data)
+            except RecordError as exc:
+                problems.append(f"{result_path.name}: {exc}")
+                result_data = result_data if isinstance(result_data, dict) else None
         meta_path = folder / f"{capture_id}.json"
-        meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
-        image = folder / meta.get("image", f"{capture_id}.png")
+        capture = None
+        if meta_path.exists():
+            try:
+                legacy = capture_profile(None, result_data)
+                capture = read_record(meta_path, CaptureRecord, legacy_profile=legacy)
+            except RecordError as exc:
+                problems.append(str(exc))
+        image = folder / (capture.image if capture else f"{capture_id}.png")
+        linear = None
         if image.suffix.lower() in RAW_EXTENSIONS:
-            rgb = read_raw(image).srgb
+            still = read_raw(image)
+            rgb, linear = still.srgb, still.linear
         else:
-            bgr = cv2.imread(str(image))
+            bgr = cv2.imread(str(image)) if image.is_file() else None
             if bgr is None:
                 raise FileNotFoundError(f"{image}: the capture's image is missing or not one OpenCV reads")
             rgb = bgr[..., ::-1].copy()
-        result_path = folder / f"{capture_id}.result.json"
-        record = json.loads(result_path.read_text()) if result_path.exists() else {}
-        profile = meta.get("calibration") or record.get("calibration_profile")   # a still calibrates itself
-        if profile is None and self.profile is not None and meta.get("calibration_id") == self.profile["id"]:
-            profile = self.profile          # captures saved before profiles were kept with them
-        roi = tuple(record.get("swatch_roi") or meta.get("swatch_roi") or self.swatch_roi
-                    or (0, 0, rgb.shape[1], rgb.shape[0]))
-        return LoadedCapture(capture_id, rgb, roi, record, profile)
+        profile = capture.calibration if capture else None
+        if profile is None and capture is None and result_data is not None:
+            try:
+                legacy = capture_profile(None, result_data)
+                profile = None if legacy is None else CalibrationProfile.from_json(legacy)
+            except RecordError as exc:
+                problems.append(f"{result_path.name}: {exc}")
+        roi = ((record.swatch_roi if record else None) or (capture.swatch_roi if capture else None)
+               or self.swatch_roi or (0, 0, rgb.shape[1], rgb.shape[0]))
+        return LoadedCapture(capture_id, rgb, tuple(roi), record, profile, capture, linear, problems)
 
     def import_still(self, path: str | Path) -> CaptureResult:
         """A RAW still of the rig as a capture, in this session (see :func:`import_still`)."""
@@ -272,23 +321,40 @@ class RigSession:
             reasons.append(swatch.message)
         return reasons
 
-def _estimate(result: CaptureResult, image: np.ndarray, encoder_or_reason, profile: dict | None,
-              roi: tuple[int, int, int, int], calibration_warnings: list[str]) -> None:
-    """Colour-correct ``image`` with ``profile``, estimate the swatch in ``roi`` and fill ``result``."""
+
+def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | None, encoder_or_reason,
+              profile: CalibrationProfile, roi: tuple[int, int, int, int], stale: list[str],
+              on_encoder_estimate: Callable[[HairParams], None] | None = None) -> None:
+    """Colour-correct the frame (``linear`` where the source has it, else the 8-bit ``image``) with
+    ``profile``, keep it linear, estimate the swatch area ``roi`` as the rig sees it, and fill ``result``."""
     from hairdigi.inference.estimate import calibration_summary, estimate_image, record
-    from hairdigi.inference.preprocess import Roi
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.inference.preprocess import to_linear
+    from hairdigi.inference.refine import fitted_pixels, mean_linear
 
     encoder = encoder_or_reason() if callable(encoder_or_reason) else encoder_or_reason
     if isinstance(encoder, str):
         result.blocked.append(encoder)
         return
-    corrected = apply_profile(image, profile)
-    estimate = estimate_image(corrected, encoder, Roi(*roi), RIG_SWATCH_POSE, extra_warnings=calibration_warnings)
+    source = image if linear is None else linear
+    corrected = apply_profile(source, profile)
+    view = rig_region((image.shape[1], image.shape[0]), roi)
+    warnings = [EstimateWarning(WarningKind.CALIBRATION, w) for w in stale + correction_warnings(
+        profile, mean_linear(fitted_pixels(to_linear(source), view)), mean_linear(fitted_pixels(corrected, view)))]
+    estimate = estimate_image(corrected, encoder, view=view, extra_warnings=warnings,
+                              on_encoder_estimate=on_encoder_estimate)
     result.params = estimate.params
     result.corrected = corrected
     result.record = record(estimate, encoder, result.image_path.read_bytes(), result.image_path,
-                           calibration_summary(profile), RIG_SWATCH_POSE)
+                           calibration_summary(profile), view)
+
+
+def _write_result(folder: Path, result: CaptureResult, roi) -> None:
+    """The capture's result record: its estimate (when one was made), or why it was blocked."""
+    base = result.record if result.record is not None else EstimateRecord(hair=None)
+    done = replace(base, capture=result.image_path.name, blocked=tuple(result.blocked),
+                   swatch_roi=None if roi is None else tuple(int(v) for v in roi))
+    result.record = done if result.record is not None else None
+    write_record(Path(folder) / "captures" / f"{result.capture_id}.result.json", done)
 
 
 def import_still(folder: str | Path, path: str | Path, encoder_or_reason) -> CaptureResult:
@@ -306,13 +372,14 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason) -> Cap
                          "open images and videos with hairdigi estimate")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such RAW file")
-    image_path, meta_path = save_capture(Path(folder) / "captures", raw_path=path,
-                                         meta={"source": "raw still", "original": path.name})
-    result = CaptureResult(image_path.stem, image_path, meta_path)
+    image_path, meta_path, capture = save_capture(Path(folder) / "captures", raw_path=path, source="raw still",
+                                                  original=path.name)
+    result = CaptureResult(capture.id, image_path, meta_path)
     still = read_raw(image_path)
     profile = None
     try:
-        profile = calibrate(still.srgb, settings={"camera": still.meta.get("camera"), "still": image_path.name})
+        profile = calibrate(still.srgb, settings={"camera": still.meta.get("camera"), "still": image_path.name},
+                            linear=still.linear)
     except CalibrationError as exc:
         result.blocked.append(f"the still cannot calibrate itself: {exc}")
     roi = None
@@ -324,12 +391,13 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason) -> Cap
         swatch = check_exposure(still.srgb, roi)[0]
         if swatch.status == "over":
             result.blocked.append(swatch.message)
+        # the still's own profile belongs in its capture record, as a live capture's does
+        capture = replace(capture, calibration=profile, swatch_roi=roi)
+        write_record(meta_path, capture)
     if not result.blocked:
-        _estimate(result, still.srgb, encoder_or_reason, profile, roi, profile_warnings(profile, None))
+        _estimate(result, still.srgb, still.linear, encoder_or_reason, profile, roi, profile_warnings(profile, None))
     result.seconds = time.perf_counter() - start
-    record = {"capture": image_path.name, "blocked": result.blocked, "swatch_roi": list(roi) if roi else None,
-              "calibration_profile": profile, **result.record}
-    write_json_atomic(Path(folder) / "captures" / f"{result.capture_id}.result.json", record)
+    _write_result(Path(folder), result, roi)
     return result
 
 
@@ -364,52 +432,31 @@ def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", por
     return RigSession.simulated_rig(folder, **simulated), reason
 
 
-def load_results(folder: str | Path) -> list[dict]:
-    """Every capture's result record in a session folder, oldest first."""
-    out = []
+def load_results(folder: str | os.PathLike) -> list[tuple[str, EstimateRecord | str]]:
+    """Every capture's result record in a session folder, oldest first, as (capture id, record); a
+    record that cannot be read comes as (id, the one-line reason), so one bad file hides nothing else."""
+    out: list[tuple[str, EstimateRecord | str]] = []
     for path in sorted((Path(folder) / "captures").glob("*.result.json")):
+        capture_id = path.name.split(".")[0]
         try:
-            out.append({"id": path.name.split(".")[0], **json.loads(path.read_text())})
-        except json.JSONDecodeError:
-            continue
+            out.append((capture_id, read_record(path, EstimateRecord)))
+        except RecordError as exc:
+            out.append((capture_id, str(exc)))
     return out
 
 
-# --- the synthetic twin and exports (no Qt) ---------------------------------------------------
-def twin_spec(roi: tuple[int, int, int, int], frame_size: tuple[int, int]):
-    """A swatch scene seen by the rig camera over exactly the ROI of a rig-view frame."""
-    from hairdigi.render.base import rig_geometry
-    from hairdigi.render.renderer import SceneSpec
+def twin_spec(roi: tuple[int, int, int, int], frame_size: tuple[int, int], scale: float = 1.0):
+    """The twin: the bench camera over exactly the swatch area ``roi`` of a rig-view frame (the
+    region the refinement fits), with about ``scale``² of its pixels; returns (scene, film size)."""
+    from hairdigi.inference.refine import RefineSettings, scene_for
 
-    width, _ = frame_size
-    scale = width / (2 * rig_geometry.RIG_HALF_WIDTH)       # pixels per holder unit in the rig view
-    x, y, w, h = roi
-    cx = (x + w / 2 - frame_size[0] / 2) / scale + rig_geometry.RIG_TARGET[0]
-    cy = rig_geometry.RIG_TARGET[1] - (y + h / 2 - frame_size[1] / 2) / scale
-    return SceneSpec("swatch", framing="rig", target=(cx, cy, 0.0), half_width=w / 2 / scale), (w, h)
+    region = rig_region(frame_size, roi)
+    side = max(8, int(round(np.sqrt(roi[2] * roi[3]) * scale)))
+    return scene_for(region, RefineSettings(size=side))
 
 
-def render_twin(params: HairParams, roi, frame_size, spp: int = 16, seed: int = 0, simulated: bool = True):
-    """Render the estimate as the rig camera saw the swatch (simulated geometry), or a crop view."""
-    from hairdigi.render.renderer import SceneSpec, render
-
-    if simulated:
-        spec, size = twin_spec(roi, frame_size)
-        return render(params, spec, size, spp, seed)
-    return render(params, SceneSpec("swatch", framing="crop"), (roi[2], roi[3]), spp, seed)
-
-
-def compare(real_srgb: np.ndarray, synthetic_srgb: np.ndarray) -> tuple[float, np.ndarray]:
-    """Mean-colour ΔE2000 between the real and synthetic swatch, and a difference image (x4)."""
-    from hairdigi.render.metrics import mean_colour_delta_e
-    from hairdigi.render.srgb import srgb8_to_linear
-
-    de = mean_colour_delta_e(srgb8_to_linear(real_srgb), srgb8_to_linear(synthetic_srgb))
-    diff = np.clip(np.abs(real_srgb.astype(int) - synthetic_srgb.astype(int)) * 4, 0, 255).astype(np.uint8)
-    return de, diff
-
-
-def export_records(records: list[dict], path: str | Path) -> Path:
+def export_records(records: list[EstimateRecord], path: str | Path) -> Path:
     """One record as it is, several as ``{"swatches": [...]}``; written atomically."""
-    data = records[0] if len(records) == 1 else {"swatches": records, "count": len(records)}
+    data = [r.to_json() for r in records]
+    data = data[0] if len(data) == 1 else {"swatches": data, "count": len(data)}
     return write_json_atomic(path, data)

@@ -12,6 +12,7 @@ import cv2
 import numpy as np
 
 from hairdigi.render.base.files import atomic_path
+from hairdigi.render.base.records import CaptureRecord
 
 
 def _atomic_bytes(path: Path, data: bytes) -> None:
@@ -28,10 +29,11 @@ def new_capture_id(now: float | None = None) -> str:
 
 
 def save_capture(folder: str | os.PathLike, srgb: np.ndarray | None = None, raw_path: str | os.PathLike | None = None,
-                 meta: dict | None = None, capture_id: str | None = None) -> tuple[Path, Path]:
-    """Write ``<id>.png`` (lossless, as captured) or a copy of the RAW file, then ``<id>.json``.
+                 capture_id: str | None = None, **fields) -> tuple[Path, Path, CaptureRecord]:
+    """Write ``<id>.png`` (lossless, as captured) or a copy of the RAW file, then its capture record
+    ``<id>.json`` (``fields`` are ``CaptureRecord``'s). Nothing is processed before both are on disk.
 
-    Returns (image path, metadata path). Nothing is processed before both are on disk.
+    Returns (image path, record path, record).
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -50,8 +52,10 @@ def save_capture(folder: str | os.PathLike, srgb: np.ndarray | None = None, raw_
     else:
         raise ValueError("a capture needs a frame or a RAW file")
     digest = hashlib.sha256(image_path.read_bytes()).hexdigest()
-    record = {"id": capture_id, "image": image_path.name, "image_sha256": digest,
-              "captured": time.strftime("%Y-%m-%dT%H:%M:%S%z"), **(meta or {})}
+    if fields.get("swatch_roi") is not None:
+        fields["swatch_roi"] = tuple(int(v) for v in fields["swatch_roi"])
+    record = CaptureRecord(id=capture_id, image=image_path.name, image_sha256=digest,
+                           captured=time.strftime("%Y-%m-%dT%H:%M:%S%z"), **fields)
     meta_path = folder / f"{capture_id}.json"
-    _atomic_bytes(meta_path, (json.dumps(record, indent=2, default=str) + "\n").encode())
-    return image_path, meta_path
+    _atomic_bytes(meta_path, (json.dumps(record.to_json(), indent=2, default=str) + "\n").encode())
+    return image_path, meta_path, record

@@ -3,7 +3,9 @@
 Each light is rendered alone once (and cached on disk); a frame is the sum of the lights that the
 simulated board has switched on, times their intensity, passed through a camera model (exposure,
 gain, a white-balance cast, shot and read noise, clipping, sRGB and 8 bits: ``render.camera_model``,
-the same model that training applies to its renders). Toggling a light
+the same model that training applies to its renders). The renders' glints are spread over their
+neighbours with their energy kept (``spread_glints``), as a sensor integrates them: removing them
+took real light away from hair. Toggling a light
 changes the feed at once, with no re-render.
 """
 from __future__ import annotations
@@ -19,7 +21,7 @@ import numpy as np
 
 from hairdigi.hardware.cameras import Frame
 from hairdigi.render.base import rig_geometry
-from hairdigi.render.camera_model import CameraModel, sensor_response
+from hairdigi.render.camera_model import CameraModel, sensor_response, spread_glints
 from hairdigi.render.base.files import atomic_path
 from hairdigi.render.chart import colorchecker_reflectances
 from hairdigi.render.base.params import HairParams
@@ -28,26 +30,7 @@ from hairdigi.render.renderer import Renderer, SceneSpec
 SIM_SIZE = (400, 300)
 #: The hidden swatch of the demo: a copper-dyed light brown.
 DEFAULT_HIDDEN = HairParams((190, 80, 40), 0.5, 0.5, 0.6)
-CACHE_VERSION = 3  # bumped when the absorption mapping or the light images change
-
-
-def swatch_roi(size: tuple[int, int] = SIM_SIZE, margin: float = 0.05) -> tuple[int, int, int, int]:
-    """The swatch's visible area in the rig view, as x, y, w, h pixels (inset by ``margin`` units)."""
-    half_w, half_l = 0.5 - margin, 0.58 - margin
-    (x0, x1), (y0, y1) = rig_geometry.rig_pixel(np.array([-half_w, half_w]), np.array([half_l, -half_l]), size)
-    return int(np.ceil(x0)), int(np.ceil(y0)), int(x1 - x0), int(y1 - y0)
-
-
-def remove_fireflies(linear: np.ndarray, ratio: float = 3.0, margin: float = 0.05) -> np.ndarray:
-    """Replace Monte Carlo outliers (over ``ratio`` x their 3x3 median + ``margin``) by that median.
-
-    Fireflies are render noise, not the scene: a camera would not see them, and they would clip.
-    """
-    import cv2
-
-    img = np.ascontiguousarray(linear, dtype=np.float32)
-    median = cv2.medianBlur(img, 3)
-    return np.where(img > ratio * median + margin, median, img)
+CACHE_VERSION = 4  # bumped when the absorption mapping or the light images change (4: glints spread, not removed)
 
 
 def _cache_root() -> Path:
@@ -70,7 +53,7 @@ def render_light_images(hidden: HairParams, size=SIM_SIZE, spp: int = 32, strand
         spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET,
                          half_width=rig_geometry.RIG_HALF_WIDTH, lights=lights, strand_seed=strand_seed)
         images.append(renderer.render(hidden, spec, size, spp, seed=17 + i).linear)
-    stack = np.stack([remove_fireflies(im) for im in images]).astype(np.float32)
+    stack = np.stack([spread_glints(im) for im in images]).astype(np.float32)
     if cache:
         with atomic_path(path, ".npy") as tmp:
             np.save(tmp, stack)
@@ -124,4 +107,4 @@ class SimRig:
 
     @property
     def roi(self) -> tuple[int, int, int, int]:
-        return swatch_roi(self.size)
+        return rig_geometry.swatch_roi(self.size)

@@ -22,11 +22,11 @@ import colour
 import cv2
 import numpy as np
 
-from hairdigi.render.base.files import read_json
+from hairdigi.inference.preprocess import to_linear
+from hairdigi.render.base.records import CalibrationProfile, CaptureRecord, RecordError, read_record, write_record
 from hairdigi.render.chart import WHITE_PATCH, colorchecker_reflectances, rig_chart_targets
 from hairdigi.render.metrics import delta_e2000
-from hairdigi.render.base.files import write_json_atomic
-from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
+from hairdigi.render.srgb import srgb8_to_linear
 
 METHODS = ("Cheung 2004", "Finlayson 2015", "Vandermonde")
 DEFAULT_METHOD = "Finlayson 2015"
@@ -42,6 +42,32 @@ class ChartDetection:
     patches_srgb8: np.ndarray   # (24, 3) mean 8-bit sRGB of each patch, in the standard order
     box: np.ndarray             # (4, 2) corners of the chart in pixels
     cost: float
+    quads: np.ndarray | None = None   # (24, 4, 2) corners of each patch in pixels
+
+    def patch_linear(self, linear: np.ndarray, inset: float = 0.6) -> np.ndarray:
+        """(24, 3) mean linear RGB of each patch's central ``inset``, averaged in linear light.
+
+        Averaging 8-bit codes and then linearising (as ``cv2.mcc``'s own means do) reads a noisy
+        patch dark; the mean of the linearised pixels is the light that reached the sensor.
+        """
+        if self.quads is None:
+            return srgb8_to_linear(self.patches_srgb8)
+        out = np.empty((24, 3))
+        for i, quad in enumerate(self.quads):
+            centre = quad.mean(0)
+            inner = centre + inset * (quad - centre)
+            mask = np.zeros(linear.shape[:2], np.uint8)
+            cv2.fillConvexPoly(mask, np.round(inner).astype(np.int32), 1)
+            pixels = linear[mask.astype(bool)]
+            out[i] = pixels.mean(0) if len(pixels) else srgb8_to_linear(self.patches_srgb8[i])
+        return out
+
+    def white_patch_box(self) -> tuple[int, int, int, int]:
+        """A box (x, y, w, h) inside the chart's white patch."""
+        x0, y0 = self.quads[WHITE_PATCH].min(0) if self.quads is not None else self.box.min(0)
+        x1, y1 = self.quads[WHITE_PATCH].max(0) if self.quads is not None else self.box.max(0)
+        cx, cy, half = (x0 + x1) / 2, (y0 + y1) / 2, 0.25 * (x1 - x0)
+        return int(cx - half), int(cy - half), max(1, int(2 * half)), max(1, int(2 * half))
 
 
 def detect_chart(image_rgb8: np.ndarray) -> ChartDetection:
@@ -55,7 +81,9 @@ def detect_chart(image_rgb8: np.ndarray) -> ChartDetection:
     checker = detector.getBestColorChecker()
     stats = np.asarray(checker.getChartsRGB())          # (72, 5): per patch and channel: size, mean, sd, max, min
     means = stats[:, 1].reshape(24, 3)
-    return ChartDetection(means, np.asarray(checker.getBox(), float), float(checker.getCost()))
+    quads = np.asarray(checker.getColorCharts(), float)
+    return ChartDetection(means, np.asarray(checker.getBox(), float), float(checker.getCost()),
+                          quads.reshape(24, 4, 2) if quads.size == 24 * 4 * 2 else None)
 
 
 def _perceptual_scale(targets: np.ndarray) -> float:
@@ -85,51 +113,85 @@ def correct_linear(linear: np.ndarray, ccm: np.ndarray, method: str, degree: int
     return np.asarray(out).reshape(shape)
 
 
-def calibrate(image_rgb8: np.ndarray, method: str = DEFAULT_METHOD, degree: int = 1,
-              settings: dict | None = None) -> dict:
-    """Detect the chart, fit the CCM, and return the profile (not yet saved)."""
-    detection = detect_chart(image_rgb8)
+def calibrate(image: np.ndarray, method: str = DEFAULT_METHOD, degree: int = 1,
+              settings: dict | None = None, linear: np.ndarray | None = None) -> CalibrationProfile:
+    """Detect the chart in the 8-bit ``image``, fit the CCM on its patches in linear light (from
+    ``linear``, the same view as linear RGB, when the source has it: a RAW still), and return the
+    profile (not yet saved)."""
+    detection = detect_chart(image)
     if (detection.patches_srgb8 >= 254).any():
         raise CalibrationError("chart patches are clipped: lower the exposure, then calibrate again")
     targets, source = rig_chart_targets()
-    measured = srgb8_to_linear(detection.patches_srgb8)
+    measured = detection.patch_linear(to_linear(image) if linear is None else linear)
     ccm = fit_ccm(measured, targets, method, degree)
     corrected = correct_linear(measured, ccm, method, degree)
-    profile = {
+    s = _perceptual_scale(targets)
+    shift = delta_e2000(measured * s, corrected * s)
+    data = {
         "method": method, "degree": degree, "matrix": ccm.tolist(),
-        "delta_e2000": {"before": delta_e_stats(measured, targets), "after": delta_e_stats(corrected, targets)},
+        "delta_e2000": {"before": delta_e_stats(measured, targets), "after": delta_e_stats(corrected, targets),
+                        "patch_shift_max": float(shift.max())},
         "targets": source, "chart_box": detection.box.tolist(), "detection_cost": detection.cost,
         "time": time.time(), "time_iso": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "settings": settings or {},
     }
-    profile["id"] = hashlib.sha256(json.dumps(profile, sort_keys=True).encode()).hexdigest()[:12]
-    return profile
+    data["id"] = hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:12]
+    return CalibrationProfile.from_json(data)
 
 
 #: Pixels corrected at once: bounds the float64 temporaries of a large frame to about 100 MB.
 APPLY_CHUNK_PIXELS = 1 << 20
 
 
-def apply_profile(image_rgb8: np.ndarray, profile: dict) -> np.ndarray:
-    """Colour-correct an 8-bit sRGB image with a profile: linearise, CCM, re-encode (in row chunks)."""
-    ccm = np.asarray(profile["matrix"])
-    lut = srgb8_to_linear(np.arange(256))
-    out = np.empty_like(image_rgb8)
-    rows = max(1, APPLY_CHUNK_PIXELS // max(1, image_rgb8.shape[1]))
-    for y in range(0, image_rgb8.shape[0], rows):
-        linear = lut[image_rgb8[y:y + rows]]
-        out[y:y + rows] = linear_to_srgb8(correct_linear(linear, ccm, profile["method"], profile.get("degree", 1)))
-    return out
+def apply_profile(image: np.ndarray, profile: CalibrationProfile) -> np.ndarray:
+    """Colour-correct an image (8-bit sRGB, or linear float) with a profile: linear float32 RGB out.
+
+    The result stays linear and unquantised all the way to the estimate: hair is dark (linear
+    0.02-0.2), where 8-bit sRGB codes are coarse (in row chunks, to bound memory).
+    """
+    ccm = np.asarray(profile.matrix)
+    out = np.empty(image.shape, np.float32)
+    rows = max(1, APPLY_CHUNK_PIXELS // max(1, image.shape[1]))
+    for y in range(0, image.shape[0], rows):
+        out[y:y + rows] = correct_linear(to_linear(image[y:y + rows]), ccm, profile.method, profile.degree)
+    return np.clip(out, 0.0, None)
 
 
-def save_profile(path: str | os.PathLike, profile: dict) -> Path:
-    return write_json_atomic(path, profile)
+def correction_warnings(profile: CalibrationProfile, raw_linear: np.ndarray, corrected_linear: np.ndarray,
+                        max_after_de: float = 1.5, margin_de: float = 1.0) -> list[str]:
+    """Warnings when the calibration may not fit the hair: a large residual on the chart, or a CCM
+    that moves the hair's mean colour more than it moved any chart patch (the hair then lies
+    outside what the chart constrains)."""
+    warnings = []
+    after = profile.after_mean
+    if after is not None and after > max_after_de:
+        warnings.append(f"calibration: the chart's residual after correction is ΔE2000 {after:.2f} (over "
+                        f"{max_after_de}): the correction does not fit this camera and light; check the chart "
+                        f"is flat, evenly lit and unclipped, then calibrate again")
+    patch_shift = profile.delta_e2000.get("patch_shift_max")
+    if patch_shift is not None:
+        s = _perceptual_scale(rig_chart_targets()[0])
+        hair_shift = float(delta_e2000(np.asarray(raw_linear) * s, np.asarray(corrected_linear) * s))
+        if hair_shift > patch_shift + margin_de:
+            warnings.append(f"calibration: the correction moves the hair's colour by ΔE2000 {hair_shift:.1f}, more "
+                            f"than any chart patch ({patch_shift:.1f}): the hair lies outside what the chart "
+                            f"constrains; check the camera's white balance and exposure, then calibrate again")
+    return warnings
 
 
-def load_profile(path: str | os.PathLike) -> dict:
-    """Read a saved profile; a missing, malformed or corrupt one raises CalibrationError naming the field."""
+def save_profile(path: str | os.PathLike, profile: CalibrationProfile) -> Path:
+    return write_record(path, profile)
+
+
+def load_profile(path: str | os.PathLike) -> CalibrationProfile:
+    """Read a saved profile (either layout); a missing, malformed or corrupt one raises
+    CalibrationError naming the file and the field."""
     path = Path(path)
-    profile = read_json(path, CalibrationError, "no calibration profile; calibrate the rig first",
-                        "not a calibration profile ({exc}); calibrate again")
+    try:
+        profile = read_record(path, CalibrationProfile)
+    except RecordError as exc:
+        text = str(exc)
+        hint = "calibrate the rig first" if "no such" in text else "calibrate again"
+        raise CalibrationError(f"{text}; {hint}") from None
     try:
         check_profile(profile)
     except CalibrationError as exc:
@@ -141,83 +203,65 @@ def _is_real(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and bool(np.isfinite(value))
 
 
-def check_profile(profile: dict) -> None:
-    """Raise CalibrationError naming the first field of ``profile`` that is missing or corrupt."""
+def check_profile(profile: CalibrationProfile) -> None:
+    """Raise CalibrationError when the profile's method is unknown or its matrix does not fit it."""
     def bad(field: str, what: str) -> CalibrationError:
         return CalibrationError(f"the profile's {field!r} {what}; calibrate again")
 
-    if not isinstance(profile, dict):
-        raise CalibrationError(f"a calibration profile is a JSON object, not {type(profile).__name__}; "
-                               f"calibrate again")
-    for key in ("matrix", "method", "time"):
-        if key not in profile:
-            raise bad(key, "is missing")
-    if profile["method"] not in METHODS:
-        raise bad("method", f"is {profile['method']!r}, not one of {', '.join(METHODS)}")
-    degree = profile.get("degree", 1)
-    if not isinstance(degree, int) or isinstance(degree, bool) or not 1 <= degree <= 4:
-        raise bad("degree", f"is {degree!r}, not a whole number from 1 to 4")
-    if not _is_real(profile["time"]) or profile["time"] <= 0:
-        raise bad("time", f"is {profile['time']!r}, not a time in seconds since 1970")
-    matrix = profile["matrix"]
-    rows_ok = isinstance(matrix, list) and len(matrix) == 3 and all(
-        isinstance(row, list) and len(row) == len(matrix[0]) and all(_is_real(v) for v in row) for row in matrix)
-    if not rows_ok:
-        raise bad("matrix", "is not 3 rows of finite numbers")
+    if profile.method not in METHODS:
+        raise bad("method", f"is {profile.method!r}, not one of {', '.join(METHODS)}")
     try:
-        out = correct_linear(np.full((1, 3), 0.5), np.asarray(matrix, float), profile["method"], degree)
+        out = correct_linear(np.full((1, 3), 0.5), np.asarray(profile.matrix, float), profile.method, profile.degree)
     except Exception:   # colour-science raises several types for a matrix of the wrong width
         out = None
     if out is None or not np.all(np.isfinite(out)):
-        raise bad("matrix", f"does not fit method {profile['method']!r} at degree {degree}")
-    for key, kind in (("settings", dict), ("delta_e2000", dict), ("id", str)):
-        if key in profile and not isinstance(profile[key], kind):
-            raise bad(key, f"is {type(profile[key]).__name__}, not {'an object' if kind is dict else 'a string'}")
+        raise bad("matrix", f"does not fit method {profile.method!r} at degree {profile.degree}")
+    if not np.any(np.asarray(profile.matrix)):
+        raise bad("matrix", "is all zeros (it would make every image black)")
 
 
-def staleness(profile: dict, settings: dict | None = None, now: float | None = None,
+def staleness(profile: CalibrationProfile, settings: dict | None = None, now: float | None = None,
               max_age_s: float = STALE_AFTER_S) -> list[str]:
     """Reasons the profile should be renewed: age, or camera/light settings that changed since."""
     reasons = []
-    age = (now or time.time()) - float(profile["time"])
+    age = (now or time.time()) - profile.time
     if age > max_age_s:
         reasons.append(f"the calibration is {age / 3600:.1f} h old (limit {max_age_s / 3600:.0f} h)")
     if settings is not None:
-        changed = sorted(k for k in set(settings) | set(profile.get("settings", {}))
-                         if settings.get(k) != profile.get("settings", {}).get(k))
+        changed = sorted(k for k in set(settings) | set(profile.settings)
+                         if settings.get(k) != profile.settings.get(k))
         if changed:
             reasons.append(f"settings changed since calibration: {', '.join(changed)}")
     return reasons
 
 
-def profile_warnings(profile: dict, current_settings: dict | None = None, now: float | None = None) -> list[str]:
+def profile_warnings(profile: CalibrationProfile, current_settings: dict | None = None, now: float | None = None) -> list[str]:
     """Human-readable warnings for a profile that should be renewed (the rule is ``staleness``), each
     with the fix; ``now`` is when the image was taken (default: now)."""
     now = time.time() if now is None else now
     warnings = [f"calibration: {reason}; calibrate again with the chart in view"
                 for reason in staleness(profile, current_settings, now)]
-    if float(profile["time"]) > now + 300:
-        warnings.append(f"calibration: the profile is dated {(float(profile['time']) - now) / 3600:.1f} h after "
+    if profile.time > now + 300:
+        warnings.append(f"calibration: the profile is dated {(profile.time - now) / 3600:.1f} h after "
                         f"the image; check the computer's clock, then calibrate again")
     return warnings
 
 
 def capture_settings(image_path: str | os.PathLike) -> tuple[dict | None, float | None]:
-    """The settings and time of a rig capture, from the ``<id>.json`` saved beside it (None, None for
-    an image without one): the same keys as ``RigSession.settings``, to compare with a profile's."""
+    """The settings and time of a rig capture, from its capture record saved beside it (None, None
+    for an image without one): the same keys as ``RigSession.settings``, to compare with a profile's."""
     import datetime
-    import hashlib
 
     image_path = Path(image_path)
     try:
-        record = json.loads(image_path.with_suffix(".json").read_text(encoding="utf-8"))
-        if record.get("image_sha256") != hashlib.sha256(image_path.read_bytes()).hexdigest():
+        record = read_record(image_path.with_suffix(".json"), CaptureRecord)
+        if record.image_sha256 != hashlib.sha256(image_path.read_bytes()).hexdigest():
             return None, None    # not this image's record
-    except (OSError, ValueError, AttributeError):
+    except (OSError, RecordError):
         return None, None
-    frame = record.get("frame_meta") or {}
+    frame = record.frame_meta
     settings = {}
-    if isinstance(frame, dict) and "camera" in frame:
+    if "camera" in frame:
         settings["camera"] = frame["camera"]
         camera = frame.get("camera_settings")
         model = frame.get("camera_model")       # records made before cameras reported their settings
@@ -225,11 +269,11 @@ def capture_settings(image_path: str | os.PathLike) -> tuple[dict | None, float 
             settings.update(camera)
         elif isinstance(model, dict):
             settings.update({k: v for k, v in model.items() if k in ("exposure_ev", "gain")})
-    if record.get("lights") is not None:
-        settings["lights"] = record["lights"]
+    if record.lights is not None:
+        settings["lights"] = record.lights
     try:
-        taken = datetime.datetime.strptime(record["captured"], "%Y-%m-%dT%H:%M:%S%z").timestamp()
-    except (KeyError, TypeError, ValueError):
+        taken = datetime.datetime.strptime(record.captured, "%Y-%m-%dT%H:%M:%S%z").timestamp()
+    except ValueError:
         taken = None
     return settings or None, taken
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from hairdigi.inference.preprocess import encode
+from hairdigi.inference.preprocess import encode, to_srgb8
 
 
 @dataclass(frozen=True)
@@ -49,8 +49,9 @@ class DomainStats:
 
 
 def domain_stats(crop: np.ndarray) -> DomainStats:
-    """Texture statistics of an 8-bit RGB swatch crop, on the encoder's 48² input."""
+    """Texture statistics of a swatch crop (8-bit sRGB or linear float), on the encoder's 48² input."""
     x = encode(crop, INPUT_SIZE)
+    crop = to_srgb8(crop)
     luminance = (x + 0.5).mean(0) * 255.0
     gx = cv2.Sobel(luminance, cv2.CV_32F, 1, 0)
     gy = cv2.Sobel(luminance, cv2.CV_32F, 0, 1)

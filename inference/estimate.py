@@ -13,20 +13,27 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from hairdigi.inference.domain import domain_stats, domain_warnings
 from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, read_image, swatch_crop
-from hairdigi.inference.refine import Refinement, RefineSettings, mean_linear, refine
+from hairdigi.inference.refine import Refinement, RefineSettings, View, fitted_pixels, mean_linear, refine
 from hairdigi.inference.uncertainty import intervals, load_table
 from hairdigi.render.base.version import version
 from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE, CameraPose
+from hairdigi.render.base.records import (CalibrationProfile, EstimateRecord, EstimateWarning, RefinementRecord,
+                                          UNRELIABLE, WarningKind)
+from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE, CameraPose, RigRegion
 from hairdigi.resources import MODELS
 
 UNCERTAINTY_TABLE = MODELS / "uncertainty.json"
+
+
+#: The colour's ΔE2000 through the whole simulated rig chain (``hairdigi evaluate --rig``).
+CHAIN_TABLE = MODELS / "chain_uncertainty.json"
 
 
 @dataclass
@@ -36,7 +43,7 @@ class EstimateResult:
     params: HairParams                   # refined when refinement ran, else the encoder's
     encoder: Estimate
     refinement: Refinement | None
-    warnings: list[str] = field(default_factory=list)
+    warnings: list[EstimateWarning] = field(default_factory=list)
     domain: dict = field(default_factory=dict)
     uncertainty: dict = field(default_factory=dict)
     seconds: float = 0.0
@@ -44,51 +51,80 @@ class EstimateResult:
     @property
     def reliable(self) -> bool:
         """False when a warning says the input is not a swatch the encoder knows."""
-        return not any(w.startswith(("out of domain", "unreachable")) for w in self.warnings)
+        return not any(w.kind in UNRELIABLE for w in self.warnings)
 
 
-def estimate_image(image: np.ndarray, encoder: Encoder, roi: Roi | None = None,
-                   camera: CameraPose = RIG_SWATCH_POSE, refine_colour: bool = True,
-                   settings: RefineSettings = RefineSettings(), extra_warnings: list[str] | None = None,
+def _warn(kind: WarningKind, messages) -> list[EstimateWarning]:
+    return [EstimateWarning(kind, m) for m in messages]
+
+
+def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = None,
+                   view: View = RIG_SWATCH_POSE, refine_colour: bool = True,
+                   settings: RefineSettings = RefineSettings(), extra_warnings: list[EstimateWarning] = (),
+                   on_encoder_estimate: Callable[[HairParams], None] | None = None,
                    renderer=None) -> EstimateResult:
-    """Estimate an 8-bit, colour-corrected RGB image (a rig frame or an all-hair crop).
+    """Estimate a colour-corrected image: linear float RGB (a corrected capture) or 8-bit sRGB; a rig
+    frame or a crop that is all hair.
 
-    ``camera`` is the pose from which the camera sees the swatch (the rig's by default); the
-    refinement renders the swatch from there.
+    ``view`` says what the fitted pixels show: a ``RigRegion`` of a rig-view frame (the capture's
+    swatch area, which the refinement fits and renders exactly), or the camera pose of an all-hair
+    crop (the rig's swatch pose by default). ``on_encoder_estimate`` is told the encoder's parameters
+    before refinement starts (the app shows them at once).
     """
     start = time.perf_counter()
+    if isinstance(view, RigRegion):
+        roi = Roi(*view.roi)
     crop, roi = swatch_crop(image, roi)
     est = encoder.estimate(image, roi)
+    if on_encoder_estimate is not None:
+        on_encoder_estimate(est.params)
     stats = domain_stats(crop)
     spread = max(est.view_spread.values()) if est.view_spread else None
-    warnings = domain_warnings(stats, spread)
+    warnings = _warn(WarningKind.OUT_OF_DOMAIN, domain_warnings(stats, spread))
     refinement = None
     params = est.params
     if refine_colour:
-        refinement = refine(est.params, mean_linear(crop), camera, settings, renderer)
+        fitted = fitted_pixels(image, view) if isinstance(view, RigRegion) else crop
+        refinement = refine(est.params, mean_linear(fitted), view, settings, renderer)
         params = refinement.params
         if not refinement.reachable:
-            warnings.append(f"unreachable: no Table 1 hair renders this swatch's colour (residual ΔE2000 "
-                            f"{refinement.residual_de2000:.2f}); the parameters are the nearest colour")
+            warnings += _warn(WarningKind.UNREACHABLE, [
+                f"unreachable: no Table 1 hair renders this swatch's colour (residual ΔE2000 "
+                f"{refinement.residual_de2000:.2f}); the parameters are the nearest colour"])
+        if refinement.nonfinite:
+            warnings += _warn(WarningKind.NONFINITE, [
+                f"render: the refinement's renders returned {refinement.nonfinite} NaN or Inf values (counted "
+                f"as 0); run again, and report it if it repeats"])
     if est.at_range_edge:
-        warnings.append(f"at the edge of the range: {', '.join(est.at_range_edge)} (the encoder pressed "
-                        "against the limit of what it was trained on)")
-    warnings += list(extra_warnings or [])
-    return EstimateResult(params, est, refinement, warnings, stats.to_dict(),
-                          intervals(params, load_table(UNCERTAINTY_TABLE)), time.perf_counter() - start)
+        warnings += _warn(WarningKind.RANGE_EDGE, [
+            f"at the edge of the range: {', '.join(est.at_range_edge)} (the encoder pressed "
+            "against the limit of what it was trained on)"])
+    warnings += list(extra_warnings)
+    chain = load_table(CHAIN_TABLE) if isinstance(view, RigRegion) else None
+    uncertainty = intervals(params, load_table(UNCERTAINTY_TABLE), chain)
+    if refinement is not None and "mean_colour_de2000_p68" in uncertainty \
+            and refinement.residual_de2000 > uncertainty["mean_colour_de2000_p68"]:
+        warnings += _warn(WarningKind.INTERVAL, [
+            f"interval: the twin misses this capture by ΔE2000 {refinement.residual_de2000:.2f}, more than the "
+            f"stated 68% colour interval ({uncertainty['mean_colour_de2000_p68']:.2f}); the stated intervals "
+            f"do not hold for it"])
+    return EstimateResult(params, est, refinement, warnings, stats.to_dict(), uncertainty,
+                          time.perf_counter() - start)
 
 
 def record(result: EstimateResult, encoder: Encoder, image_bytes: bytes | None = None,
            image_path: str | os.PathLike | None = None, calibration: dict | None = None,
-           camera: CameraPose = RIG_SWATCH_POSE, **extra) -> dict:
-    """The JSON record of an estimate: parameters, warnings, intervals and provenance."""
+           view: View = RIG_SWATCH_POSE, **extra) -> EstimateRecord:
+    """The record of an estimate: parameters, warnings, intervals and provenance."""
     est = result.encoder
+    pose = view.pose if isinstance(view, RigRegion) else view
     provenance = {
         "hairdigi_version": version(),
         "model": {"path": str(encoder.path), "sha256": encoder.sha256, "input_size": encoder.input_size},
         "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         "roi": None if est.roi is None else [est.roi.x, est.roi.y, est.roi.w, est.roi.h],
-        "camera": {"polar_deg": camera.polar_deg, "azimuth_deg": camera.azimuth_deg, "distance": camera.distance},
+        "camera": {"polar_deg": pose.polar_deg, "azimuth_deg": pose.azimuth_deg, "distance": pose.distance},
+        "view": view.to_dict() if isinstance(view, RigRegion) else "crop",
         "encoder_ms": round(est.seconds * 1000.0, 3),
         "seconds": round(result.seconds, 3),
         "calibration": calibration,
@@ -99,20 +135,16 @@ def record(result: EstimateResult, encoder: Encoder, image_bytes: bytes | None =
     if image_bytes is not None:
         provenance["image_sha256"] = hashlib.sha256(image_bytes).hexdigest()
     provenance.update(extra)
-    return {"hair": result.params.to_dict(),
-            "reliable": result.reliable,
-            "warnings": list(result.warnings),
-            "uncertainty": result.uncertainty,
-            "encoder": {"hair": est.params.to_dict(), "at_range_edge": est.at_range_edge,
-                        "view_spread": est.view_spread},
-            "refinement": result.refinement.to_record() if result.refinement else {"ran": False},
-            "provenance": provenance}
+    return EstimateRecord(
+        hair=result.params, warnings=tuple(result.warnings), uncertainty=result.uncertainty,
+        encoder={"hair": est.params.to_dict(), "at_range_edge": est.at_range_edge, "view_spread": est.view_spread},
+        refinement=result.refinement.to_record() if result.refinement else RefinementRecord(),
+        provenance=provenance)
 
 
-def calibration_summary(profile: dict, path: str | os.PathLike | None = None) -> dict:
+def calibration_summary(profile: CalibrationProfile, path: str | os.PathLike | None = None) -> dict:
     """What an estimate records of the calibration profile it was corrected with."""
-    summary = {"id": profile.get("id"), "method": profile.get("method"),
-               "delta_e2000_after": profile.get("delta_e2000", {}).get("after")}
+    summary = {"id": profile.id, "method": profile.method, "delta_e2000_after": profile.delta_e2000.get("after")}
     if path is not None:
         summary["path"] = str(path)
     return summary
@@ -120,20 +152,45 @@ def calibration_summary(profile: dict, path: str | os.PathLike | None = None) ->
 
 def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | None = None,
                   calibration_path: str | os.PathLike | None = None, camera: CameraPose = RIG_SWATCH_POSE,
-                  refine_colour: bool = True, settings: RefineSettings = RefineSettings()
-                  ) -> tuple[EstimateResult, dict, np.ndarray]:
+                  refine_colour: bool = True, settings: RefineSettings = RefineSettings(),
+                  rig_view: bool | None = None) -> tuple[EstimateResult, EstimateRecord, np.ndarray]:
     """Read, colour-correct (when a calibration profile is given) and estimate; returns the result,
-    its JSON record and the corrected image."""
+    its record and the corrected image (linear float when corrected, else as read).
+
+    ``rig_view``: the image is a whole frame of the bench camera (the swatch's region is then fitted
+    and rendered as the rig sees it); None decides by whether a ColorChecker is in view.
+    """
+    from hairdigi.inference.preprocess import find_swatch_roi
+
     image_path = Path(image_path)
     image = read_image(image_path)
-    calibration, stale = None, []
+    if rig_view is None:
+        from hairdigi.inference.calibration import CalibrationError, detect_chart
+
+        try:
+            detect_chart(image)
+            rig_view = True
+        except CalibrationError:
+            rig_view = False
+    view: View = camera
+    if rig_view:
+        found = roi or find_swatch_roi(image)
+        view = RigRegion((image.shape[1], image.shape[0]), (found.x, found.y, found.w, found.h))
+    calibration, extra = None, []
     if calibration_path is not None:
-        from hairdigi.inference.calibration import apply_profile, calibration_warnings, load_profile
+        from hairdigi.inference.calibration import (apply_profile, calibration_warnings, correction_warnings,
+                                                    load_profile)
+        from hairdigi.inference.preprocess import to_linear
 
         profile = load_profile(calibration_path)
+        raw = image
         image = apply_profile(image, profile)
         calibration = calibration_summary(profile, calibration_path)
         # against the capture's own settings and time when the rig's record sits beside the image
-        stale = calibration_warnings(calibration_path, image_path)
-    result = estimate_image(image, encoder, roi, camera, refine_colour, settings, stale)
-    return result, record(result, encoder, image_path.read_bytes(), image_path, calibration, camera), image
+        extra = _warn(WarningKind.CALIBRATION, calibration_warnings(calibration_path, image_path))
+        if rig_view:
+            extra += _warn(WarningKind.CALIBRATION, correction_warnings(
+                profile, mean_linear(fitted_pixels(to_linear(raw), view)), mean_linear(fitted_pixels(image, view))))
+    result = estimate_image(image, encoder, roi=roi, view=view, refine_colour=refine_colour, settings=settings,
+                            extra_warnings=extra)
+    return result, record(result, encoder, image_path.read_bytes(), image_path, calibration, view), image

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from hairdigi.render.base.files import read_bytes
-from hairdigi.render.srgb import linear_to_srgb, srgb8_to_linear
+from hairdigi.render.srgb import linear_to_srgb, linear_to_srgb8, srgb8_to_linear
 
 MIN_SIDE = 32          # smaller images hold too few strands to judge a colour
 ROI_CENTRAL = 0.7      # share of the swatch area's shorter side kept at inference, away from its edges
@@ -124,17 +124,27 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
+def to_srgb8(img: np.ndarray) -> np.ndarray:
+    """8-bit sRGB of an image: 8-bit sRGB as it is, linear float RGB (a corrected capture) encoded."""
+    return img if img.dtype == np.uint8 else linear_to_srgb8(img)
+
+
+def to_linear(img: np.ndarray) -> np.ndarray:
+    """Linear float32 RGB of an image: 8-bit sRGB decoded, linear float as it is."""
+    return _LINEAR_LUT[img] if img.dtype == np.uint8 else np.asarray(img, np.float32)
+
+
 def validate_image(img: np.ndarray, name: str = "image") -> np.ndarray:
-    """Check an in-memory RGB image: 8-bit, 3 channels, big enough, and not flat."""
-    if img.dtype != np.uint8:
-        raise ImageError(f"{name}: {img.dtype} data; the encoder takes 8-bit sRGB (uint8)")
+    """Check an in-memory RGB image: 8-bit sRGB or linear float, 3 channels, big enough, and not flat."""
+    if img.dtype != np.uint8 and img.dtype not in (np.float32, np.float64):
+        raise ImageError(f"{name}: {img.dtype} data; the encoder takes 8-bit sRGB (uint8) or linear float RGB")
     if img.ndim != 3 or img.shape[2] != 3:
         raise ImageError(f"{name}: shape {img.shape}; expected height x width x 3 (RGB)")
     if min(img.shape[:2]) < MIN_SIDE:
         raise ImageError(f"{name}: {img.shape[1]}x{img.shape[0]} px is too small; the swatch needs at "
                          f"least {MIN_SIDE}x{MIN_SIDE} px")
     step = max(1, int(np.sqrt(img.shape[0] * img.shape[1] / 1e6)))   # about a million pixels decide it
-    if float(img[::step, ::step].reshape(-1, 3).std(axis=0).max()) < 1.0:   # per channel: one colour is flat
+    if float(to_srgb8(img[::step, ::step]).reshape(-1, 3).std(axis=0).max()) < 1.0:   # per channel: one colour is flat
         raise ImageError(f"{name}: the image is flat (one colour): no swatch in view? Check the "
                          f"lens cap, the lights and the exposure")
     return img
@@ -274,14 +284,14 @@ _LINEAR_LUT = srgb8_to_linear(np.arange(256)).astype(np.float32)
 
 
 def encode(img: np.ndarray, size: int) -> np.ndarray:
-    """Resize an 8-bit sRGB image to ``size``² in linear light and encode it for the net.
+    """Resize an image (8-bit sRGB or linear float) to ``size``² in linear light and encode it for the net.
 
     The area filter averages linear radiance, as a camera with fewer pixels would: the input's
     mean colour is then the same whatever the source's resolution (averaging sRGB codes would
     darken textured hair more the larger the source). Returns float32 (3, size, size): sRGB
     values (unquantised) in [-0.5, 0.5].
     """
-    linear = _LINEAR_LUT[img]
+    linear = to_linear(img)
     if img.shape[0] != size or img.shape[1] != size:
         linear = cv2.resize(linear, (size, size), interpolation=cv2.INTER_AREA)
     return (linear_to_srgb(linear) - np.float32(0.5)).transpose(2, 0, 1).copy()

@@ -35,7 +35,12 @@ import numpy as np
 from hairdigi.render.absorption import albedo_from_sigma_a, hair_sigma_a
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.rig_geometry import CameraPose
+from hairdigi.render.base.records import RefinementRecord
+from hairdigi.render.base.rig_geometry import CameraPose, RigRegion
+
+#: Where the refinement looks: a camera pose over the crop framing's centre (an all-hair image), or
+#: a region of a rig-view frame (``RigRegion``: the capture's swatch area, rendered exactly).
+View = CameraPose | RigRegion
 
 #: Ladder of ``sigma_a`` levels (per fibre radius): white fibres to past the blackest Table 1 hair
 #: (melanin 1 gives about 8.2 in blue). 12 levels = 4 renders of three channels each.
@@ -107,28 +112,46 @@ def _cache_root() -> Path:
     return Path(os.environ.get("HAIRDIGI_CACHE", Path.home() / ".cache" / "hairdigi")) / "response"
 
 
-def _scene(pose: CameraPose, settings: RefineSettings):
+def scene_for(view: View, settings: RefineSettings):
+    """The scene and render size that show what the capture's fitted pixels show."""
     from hairdigi.render.renderer import SceneSpec
 
-    return SceneSpec("swatch", camera=pose, framing=settings.framing, strand_seed=settings.strand_seed)
+    if isinstance(view, RigRegion):
+        film, crop, _ = view.render_plan(settings.size * settings.size)
+        return SceneSpec("swatch", camera=view.pose, framing="rig", target=view.target,
+                         half_width=view.half_width, crop=crop, strand_seed=settings.strand_seed), film
+    return SceneSpec("swatch", camera=view, framing=settings.framing, strand_seed=settings.strand_seed), settings.size
+
+
+def fitted_pixels(image: np.ndarray, view: View) -> np.ndarray:
+    """The pixels of ``image`` whose mean the refinement fits: a rig view's region exactly as it is
+    rendered, or (an all-hair crop) the whole image."""
+    if isinstance(view, RigRegion):
+        x, y, w, h = view.render_plan()[2]
+        return image[y:y + h, x:x + w]
+    return image
 
 
 _CURVE_LOCK = threading.Lock()   # one curve at a time: the app's warm-up and a capture must not both render it
 
 
-def response_curve(pose: CameraPose, settings: RefineSettings = RefineSettings(), renderer=None,
+def response_curve(view: View, settings: RefineSettings = RefineSettings(), renderer=None,
                    cache: bool = True) -> ResponseCurve:
-    """The swatch's response curve at ``pose``: ``len(levels) / 3`` renders, cached on disk."""
+    """The swatch's response curve seen from ``view``: ``len(levels) / 3`` renders, cached on disk."""
     with _CURVE_LOCK:
-        return _response_curve(pose, settings, renderer, cache)
+        return _response_curve(view, settings, renderer, cache)
 
 
-def _response_curve(pose: CameraPose, settings: RefineSettings, renderer, cache: bool) -> ResponseCurve:
+def _view_key(view: View) -> dict:
+    return view.to_dict() if isinstance(view, RigRegion) else asdict(view)
+
+
+def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool) -> ResponseCurve:
     from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()
-    spec = _scene(pose, settings)
-    key_data = [1, asdict(settings), asdict(pose), spec.n_strands, spec.depth, renderer.variant]
+    spec, size = scene_for(view, settings)
+    key_data = [2, asdict(settings), _view_key(view), spec.n_strands, spec.depth, renderer.variant]
     key = hashlib.sha256(json.dumps(key_data, sort_keys=True).encode()).hexdigest()[:16]
     path = _cache_root() / f"curve-{key}.json"
     if cache and path.exists():
@@ -145,14 +168,14 @@ def _response_curve(pose: CameraPose, settings: RefineSettings, renderer, cache:
     # interleave low and high levels in one render, so each render's noise spreads over the curve
     order = levels.reshape(3, -1).T
     for triple_idx, triple in enumerate(order):
-        result = renderer.render(triple, spec, settings.size, settings.spp, settings.seed)
+        result = renderer.render(triple, spec, size, settings.spp, settings.seed)
         means[[triple_idx, triple_idx + len(order), triple_idx + 2 * len(order)]] = \
             result.linear.reshape(-1, 3).mean(0)
     curve = ResponseCurve(levels, means, time.perf_counter() - start)
     if cache:
         from hairdigi.render.base.files import write_json_atomic
 
-        write_json_atomic(path, {"pose": asdict(pose), "settings": asdict(settings), **curve.to_dict()})
+        write_json_atomic(path, {"view": _view_key(view), "settings": asdict(settings), **curve.to_dict()})
     return curve
 
 
@@ -171,20 +194,22 @@ class Refinement:
     curve_seconds: float               # what the response curve cost to render (now or when cached)
     curve_cached: bool = False
     history: list[float] = field(default_factory=list)   # residual ΔE2000 after each step
+    nonfinite: int = 0                 # NaN or Inf samples in its renders (counted, replaced by 0)
+    region: dict = field(default_factory=dict)            # what it fitted and rendered
 
     @property
     def polish_seconds(self) -> float:
         """The cost once the pose's response curve is cached: inversion, checks and the Table 1 fit."""
         return self.seconds - (0.0 if self.curve_cached else self.curve_seconds)
 
-    def to_record(self) -> dict:
-        return {"ran": True, "iterations": self.iterations, "residual_de2000": round(self.residual_de2000, 4),
-                "seconds": round(self.seconds, 3), "curve_seconds": round(self.curve_seconds, 3),
-                "curve_cached": self.curve_cached,
-                "reachable": self.reachable, "sigma_a": [round(float(v), 6) for v in self.sigma_a],
-                "target_linear_rgb": [round(float(v), 6) for v in self.target],
-                "rendered_linear_rgb": [round(float(v), 6) for v in self.rendered],
-                "residual_history": [round(v, 4) for v in self.history]}
+    def to_record(self) -> RefinementRecord:
+        return RefinementRecord(
+            ran=True, sigma_a=tuple(round(float(v), 6) for v in self.sigma_a),
+            residual_de2000=round(self.residual_de2000, 4), iterations=self.iterations, reachable=self.reachable,
+            seconds=round(self.seconds, 3), curve_seconds=round(self.curve_seconds, 3), curve_cached=self.curve_cached,
+            target_linear_rgb=tuple(round(float(v), 6) for v in self.target),
+            rendered_linear_rgb=tuple(round(float(v), 6) for v in self.rendered),
+            residual_history=tuple(round(v, 4) for v in self.history), nonfinite=self.nonfinite, region=self.region)
 
 
 def fibre_appearance(sigma: np.ndarray) -> np.ndarray:
@@ -215,29 +240,35 @@ def params_for_sigma(sigma: np.ndarray, prior: HairParams, weight: float = 300.0
     return params, bool(mismatch < 2e-3)
 
 
-def mean_linear(srgb8: np.ndarray) -> np.ndarray:
-    """Mean linear RGB of an 8-bit sRGB image (what the swatch's colour is judged by)."""
+def mean_linear(image: np.ndarray) -> np.ndarray:
+    """Mean linear RGB of an image, 8-bit sRGB or linear float (what the swatch's colour is judged by)."""
+    if image.dtype != np.uint8:
+        return np.asarray(image, np.float64).reshape(-1, 3).mean(0)
     from hairdigi.render.srgb import srgb8_to_linear
 
-    return srgb8_to_linear(srgb8).reshape(-1, 3).mean(0)
+    return srgb8_to_linear(image).reshape(-1, 3).mean(0)
 
 
-def refine(prior: HairParams, target: np.ndarray, pose: CameraPose = CameraPose(),
+def refine(prior: HairParams, target: np.ndarray, view: View = CameraPose(),
            settings: RefineSettings = RefineSettings(), renderer=None) -> Refinement:
-    """Refine ``prior`` so that the swatch at ``pose`` renders with mean linear colour ``target``."""
+    """Refine ``prior`` so that the swatch seen from ``view`` renders with mean linear colour ``target``
+    (the mean of ``fitted_pixels``)."""
     from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()
     start = time.perf_counter()
     target = np.asarray(target, float)
-    curve = response_curve(pose, settings, renderer)
+    curve = response_curve(view, settings, renderer)
     goal = target.copy()
     sigma, _ = curve.inverse(goal)
     rendered = curve(sigma)          # with no iterations, the curve's own prediction
     history: list[float] = []
-    spec = _scene(pose, settings)
+    spec, size = scene_for(view, settings)
+    nonfinite = 0
     for k in range(settings.iterations):
-        rendered = renderer.render(sigma, spec, settings.size, settings.spp, settings.seed).linear.reshape(-1, 3).mean(0)
+        result = renderer.render(sigma, spec, size, settings.spp, settings.seed)
+        nonfinite += result.nonfinite
+        rendered = result.linear.reshape(-1, 3).mean(0)
         history.append(float(delta_e2000(rendered, target)))
         if history[-1] < settings.tolerance_de or k == settings.iterations - 1:
             break   # the returned sigma is always the last one rendered, with its measured residual
@@ -250,4 +281,5 @@ def refine(prior: HairParams, target: np.ndarray, pose: CameraPose = CameraPose(
     final = rendered + curve(hair_sigma_a(params)) - curve(sigma)
     residual = float(delta_e2000(np.clip(final, 1e-9, None), target))
     return Refinement(params, hair_sigma_a(params), target, np.asarray(final, float), residual, len(history),
-                      residual < REACHABLE_DE, time.perf_counter() - start, curve.seconds, curve.cached, history)
+                      residual < REACHABLE_DE, time.perf_counter() - start, curve.seconds, curve.cached, history,
+                      nonfinite, view.to_dict() if isinstance(view, RigRegion) else {"crop_pose": asdict(view)})

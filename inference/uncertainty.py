@@ -66,8 +66,12 @@ def load_table(path: str | Path) -> dict | None:
         return None
 
 
-def intervals(params: HairParams, table: dict | None) -> dict:
-    """Each parameter with its measured 68% interval, or flagged undetermined; and the colour's ΔE."""
+def intervals(params: HairParams, table: dict | None, colour_table: dict | None = None) -> dict:
+    """Each parameter with its measured 68% interval, or flagged undetermined; and the colour's ΔE.
+
+    ``colour_table`` (``chain_uncertainty.json``, from ``hairdigi evaluate --rig``) gives the colour's
+    ΔE2000 for a capture through the whole rig chain; without it the colour's figure is the crop
+    renders' (``table``)."""
     values = params.to_dict()
     flat = {"dye_r": params.dye_rgb[0], "dye_g": params.dye_rgb[1], "dye_b": params.dye_rgb[2],
             "dye_concentration": params.dye_concentration,
@@ -85,7 +89,9 @@ def intervals(params: HairParams, table: dict | None) -> dict:
                  "half_width": round(w, 4)}
         entry["determined"] = bool(w <= UNDETERMINED_SHARE * (hi - lo))
         out["parameters"][name] = entry
-    if "mean_colour_de2000" in table:
-        out["mean_colour_de2000_p68"] = round(table["mean_colour_de2000"]["p68"], 3)
-        out["mean_colour_de2000_p95"] = round(table["mean_colour_de2000"]["p95"], 3)
+    colour = colour_table if colour_table and "mean_colour_de2000" in colour_table else table
+    if "mean_colour_de2000" in colour:
+        out["mean_colour_de2000_p68"] = round(colour["mean_colour_de2000"]["p68"], 3)
+        out["mean_colour_de2000_p95"] = round(colour["mean_colour_de2000"]["p95"], 3)
+        out["mean_colour_source"] = colour.get("source", "held-out clean crop renders (hairdigi evaluate)")
     return out

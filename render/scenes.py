@@ -33,15 +33,19 @@ def placed(center, half_size, z: float = 0.0):
 
 
 def sensor(camera_pose: CameraPose, target, size: int | tuple[int, int], fov_deg: float,
-           spp: int = 16) -> dict:
+           spp: int = 16, crop: tuple[int, int, int, int] | None = None) -> dict:
     width, height = (size, size) if isinstance(size, int) else size
+    film = {"type": "hdrfilm", "width": width, "height": height, "pixel_format": "rgb",
+            "rfilter": {"type": "box"}}
+    if crop is not None:
+        film.update(crop_offset_x=int(crop[0]), crop_offset_y=int(crop[1]), crop_width=int(crop[2]),
+                    crop_height=int(crop[3]))
     return {
         "type": "perspective",
         "fov": fov_deg,
         "fov_axis": "x",
         "to_world": look_at(camera_pose.position(target), np.asarray(target, float)),
-        "film": {"type": "hdrfilm", "width": width, "height": height, "pixel_format": "rgb",
-                 "rfilter": {"type": "box"}},
+        "film": film,
         "sampler": {"type": "independent", "sample_count": spp},
     }
 
@@ -95,13 +99,14 @@ PORTRAIT_FOV = 36.0
 
 def swatch_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: int, framing: str = "crop",
                  max_depth: int = 16, lights=(1.0,) * N_LIGHTS, chart: np.ndarray | None = None,
-                 target=(0.0, 0.0, 0.0), half_width: float | None = None) -> dict:
+                 target=(0.0, 0.0, 0.0), half_width: float | None = None,
+                 crop: tuple[int, int, int, int] | None = None) -> dict:
     """The bench: holder, swatch, its lights and a camera on a sphere around the holder's normal."""
     fov = framing_fov(framing, camera_pose.distance, half_width)
     scene = {
         "type": "scene",
         "integrator": integrator(max_depth),
-        "sensor": sensor(camera_pose, target, size, fov),
+        "sensor": sensor(camera_pose, target, size, fov, crop=crop),
         "holder": {
             "type": "rectangle",
             "to_world": placed(HOLDER_CENTER, (HOLDER_SIZE[0] / 2, HOLDER_SIZE[1] / 2)),

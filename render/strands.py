@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hairdigi.render import head
+from hairdigi.render.base.rig_geometry import SWATCH_HALF
 
 
 @dataclass(frozen=True)
@@ -120,8 +121,8 @@ class Strands:
 
 # --- the swatch -------------------------------------------------------------------------------
 
-SWATCH_WIDTH = 1.0
-SWATCH_LENGTH = 1.4
+SWATCH_WIDTH = 2 * SWATCH_HALF[0]
+SWATCH_LENGTH = 2 * SWATCH_HALF[1]
 
 
 def swatch_strands(n_strands: int = 2000, seed: int = 0, radius: float = 0.004,

@@ -56,7 +56,8 @@ def refused(run: subprocess.CompletedProcess, *needles: str, code: int = 2) -> s
 @pytest.fixture(scope="module")
 def materials(tmp_path_factory):
     """A parameter file, a simulated rig frame with the chart in view, and a calibration profile from it."""
-    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, remove_fireflies
+    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
+    from hairdigi.render.camera_model import spread_glints
     from hairdigi.inference.calibration import calibrate
     from hairdigi.render.base import rig_geometry
     from hairdigi.render.camera_model import CameraModel, sensor_response
@@ -67,7 +68,7 @@ def materials(tmp_path_factory):
     (root / "p.json").write_text(json.dumps({"hair": DEFAULT_HIDDEN.to_dict()}))
     spec = SceneSpec("swatch", framing="rig", chart=tuple(map(tuple, colorchecker_reflectances())),
                      target=rig_geometry.RIG_TARGET, half_width=rig_geometry.RIG_HALF_WIDTH, strands=1000)
-    linear = remove_fireflies(Renderer(max_cached=1).render(DEFAULT_HIDDEN, spec, SIM, 4, seed=1).linear)
+    linear = spread_glints(Renderer(max_cached=1).render(DEFAULT_HIDDEN, spec, SIM, 4, seed=1).linear)
     frame = sensor_response(linear, CameraModel(), np.random.default_rng(0))
     cv2.imwrite(str(root / "photo.png"), frame[..., ::-1])
     profile = calibrate(frame, settings={"camera": "sim-rig", "exposure_ev": 0.0, "gain": 1.0})
@@ -122,7 +123,7 @@ def test_an_output_linked_to_an_input_is_refused(ws):
 
 # --- 2. the swatch, not the chart -----------------------------------------------------------
 def test_estimate_finds_the_swatch_beside_the_chart_and_records_it(ws, expect):
-    from hairdigi.hardware.sim_rig import swatch_roi
+    from hairdigi.render.base.rig_geometry import swatch_roi
 
     run = hairdigi("estimate", "photo.png", "--out", "e.json", *no_refine(), cwd=ws)
     expect |= {"e.json"}

@@ -69,7 +69,8 @@ def overlap(a, b) -> int:
 @pytest.fixture(scope="module")
 def rig_frames():
     """{chart centre: simulated rig frame (8-bit sRGB through the camera model)}, tiny renders."""
-    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, remove_fireflies
+    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
+    from hairdigi.render.camera_model import spread_glints
     from hairdigi.render.base import rig_geometry
     from hairdigi.render.camera_model import CameraModel, sensor_response
     from hairdigi.render.chart import colorchecker_reflectances
@@ -82,13 +83,13 @@ def rig_frames():
     for centre in chart_positions():
         spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET,
                          half_width=rig_geometry.RIG_HALF_WIDTH, chart_center=centre, strands=1000)
-        linear = remove_fireflies(renderer.render(DEFAULT_HIDDEN, spec, SIM, 4, seed=1).linear)
+        linear = spread_glints(renderer.render(DEFAULT_HIDDEN, spec, SIM, 4, seed=1).linear)
         frames[centre] = sensor_response(linear, CameraModel(), rng)
     return frames
 
 
 def test_chart_positions_cover_the_rig():
-    from hairdigi.hardware.sim_rig import swatch_roi
+    from hairdigi.render.base.rig_geometry import swatch_roi
 
     positions = chart_positions()
     assert len(positions) == 7 and len(set(positions)) == 7
@@ -99,7 +100,7 @@ def test_chart_positions_cover_the_rig():
 
 
 def test_the_swatch_is_found_beside_the_chart_wherever_the_chart_is(rig_frames):
-    from hairdigi.hardware.sim_rig import swatch_roi
+    from hairdigi.render.base.rig_geometry import swatch_roi
 
     truth = swatch_roi(SIM)
     for centre, frame in rig_frames.items():

@@ -8,7 +8,8 @@ import pytest
 from hairdigi.app.rig_session import RigSession
 from hairdigi.hardware.cameras import FileCamera
 from hairdigi.hardware.exposure import check_region
-from hairdigi.hardware.sim_rig import SimRig, swatch_roi
+from hairdigi.hardware.sim_rig import SIM_SIZE, SimRig
+from hairdigi.render.base.rig_geometry import swatch_roi
 from hairdigi.render.camera_model import CameraModel
 from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, detect_chart, load_profile,
                                    staleness)
@@ -48,7 +49,7 @@ def test_targets_are_the_rendered_chart():
 
 
 def test_exposure_check_flags_over_and_under_exposure():
-    roi = swatch_roi()
+    roi = swatch_roi(SIM_SIZE)
     over = check_region(frame(CameraModel(exposure_ev=2.5)), roi, "swatch")
     under = check_region(frame(CameraModel(exposure_ev=-5.0)), roi, "swatch")
     fine = check_region(frame(), roi, "swatch")
@@ -119,7 +120,7 @@ def test_profile_staleness_and_errors(tmp_path):
 def test_session_replays_a_recorded_frame(tmp_path):
     import cv2
     cv2.imwrite(str(tmp_path / "f.png"), frame()[..., ::-1])
-    session = RigSession(FileCamera(tmp_path / "f.png"), None, tmp_path / "s", swatch_roi())
+    session = RigSession(FileCamera(tmp_path / "f.png"), None, tmp_path / "s", swatch_roi(SIM_SIZE))
     profile = session.calibrate()
     assert profile["delta_e2000"]["after"]["mean"] < 2
     result = session.capture(estimate=False)

@@ -292,7 +292,7 @@ class MainWindow(QMainWindow):
         for event, callback in self._subscriptions:
             event.disconnect(callback)
 
-    def _show_records(self, records: list[dict]) -> None:
+    def _show_records(self, records: list) -> None:
         shown = self.model.shown
         select = shown.capture_id if shown is not None else None
         self.session_list.blockSignals(True)
@@ -305,13 +305,13 @@ class MainWindow(QMainWindow):
             self.session_list.addItem(item)
         self.session_list.blockSignals(False)
         if records:
-            ids = [r["id"] for r in records]
+            ids = [capture_id for capture_id, _ in records]
             row = ids.index(select) if select in ids else len(ids) - 1
             self.session_list.setCurrentRow(row)
 
     def _on_select(self, row: int) -> None:
         if 0 <= row < len(self.model.records):
-            self.model.select(self.model.records[row]["id"])
+            self.model.select(self.model.records[row][0])
 
     def _feed_busy(self, busy: bool) -> None:
         self.session.frames.period = 1.0 / self.opts["busy_feed_fps" if busy else "feed_fps"]
@@ -326,14 +326,15 @@ class MainWindow(QMainWindow):
             self.chip.setText("hair\n…")
             self.chip.setStyleSheet("background:#1e1e22; color:#aaa; border:1px solid #888; font-size:10px")
         if shown.params is None:
-            self.result_info.setText("no estimate: " + "; ".join(shown.record.get("blocked") or ["none saved"]))
+            blocked = shown.record.blocked if shown.record is not None else ()
+            self.result_info.setText("no estimate: " + "; ".join(blocked or ["none saved"]))
             return
         self._show_params(shown)
 
     def _show_params(self, shown: review.Shown) -> None:
         """Parameters with their measured 68% intervals, the dye chip, and the warnings."""
         p, rec = shown.params, shown.record
-        intervals = (rec.get("uncertainty") or {}).get("parameters", {})
+        intervals = (rec.uncertainty if rec is not None else {}).get("parameters", {})
         values = dict(zip([f[0] for f in VECTOR_FIELDS], [*p.dye_rgb, p.dye_concentration,
                                                             p.melanin_concentration, p.melanin_ratio]))
         for name, label in self.param_labels.items():
@@ -352,17 +353,18 @@ class MainWindow(QMainWindow):
         if shown.stage == "encoder":
             self.result_info.setText("encoder's estimate; refining by synthesis…")
             return
-        prov = rec.get("provenance", {})
-        refinement = rec.get("refinement") or {}
+        prov = rec.provenance
+        refinement = rec.refinement
         lines = [f"model {prov.get('model', {}).get('sha256', '')[:12]}, calibration "
                  f"{(prov.get('calibration') or {}).get('id')}"]
-        if refinement.get("ran"):
-            lines.append(f"refined in {refinement['seconds']:.1f} s: residual ΔE2000 "
-                         f"{refinement['residual_de2000']:.2f}")
-        colour = (rec.get("uncertainty") or {}).get("mean_colour_de2000_p68")
+        if refinement.ran:
+            lines.append(f"refined in {refinement.seconds:.1f} s: residual ΔE2000 "
+                         f"{refinement.residual_de2000:.2f}")
+        colour = rec.uncertainty.get("mean_colour_de2000_p68")
         if colour is not None:
-            lines.append(f"colour within ΔE2000 {colour:.2f} of the truth in 68% of held-out swatches")
-        lines += [f"⚠ {w}" for w in rec.get("warnings", [])]
+            lines.append(f"colour within ΔE2000 {colour:.2f} of the truth in 68% of held-out captures "
+                         f"({rec.uncertainty.get('mean_colour_source', 'held-out swatches')})")
+        lines += [f"⚠ {w.message}" for w in rec.warnings]
         self.result_info.setText("\n".join(lines))
 
     def _show_twin(self, t: review.TwinPreview) -> None:

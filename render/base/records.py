@@ -205,7 +205,7 @@ class CaptureRecord:
     image: str                                  # the image's file name, beside this record
     image_sha256: str
     captured: str                               # local time, %Y-%m-%dT%H:%M:%S%z
-    lights: tuple | None = None                 # [[on, intensity], ...] per light
+    lights: list | None = None                  # [[on, intensity], ...] per light, as the board reports
     frame_meta: dict = field(default_factory=dict)
     calibration: CalibrationProfile | None = None   # the profile it is corrected with (live or still)
     simulated: bool = False
@@ -224,7 +224,7 @@ class CaptureRecord:
     def to_json(self) -> dict:
         return {"kind": self.KIND, "schema_version": SCHEMA_VERSION, "id": self.id, "image": self.image,
                 "image_sha256": self.image_sha256, "captured": self.captured,
-                "lights": None if self.lights is None else [list(v) for v in self.lights],
+                "lights": self.lights,
                 "frame_meta": self.frame_meta, "calibration_id": self.calibration_id,
                 "calibration": None if self.calibration is None else self.calibration.to_json(),
                 "simulated": self.simulated, "swatch_roi": None if self.swatch_roi is None else list(self.swatch_roi),
@@ -241,8 +241,7 @@ class CaptureRecord:
         return cls(id=_need(data, "id", str, what), image=_need(data, "image", str, what),
                    image_sha256=_need(data, "image_sha256", str, what, "", required=False),
                    captured=_need(data, "captured", str, what, "", required=False),
-                   lights=None if lights is None else tuple(tuple(_floats(v, None, "lights", what)) for v in lights)
-                   if isinstance(lights, list) else _bad(what, "lights", lights),
+                   lights=lights if lights is None or isinstance(lights, list) else _bad(what, "lights", lights),
                    frame_meta=_need(data, "frame_meta", dict, what, {}, required=False),
                    calibration=None if profile is None else CalibrationProfile.from_json(profile),
                    simulated=bool(data.get("simulated", False)),

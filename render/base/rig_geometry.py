@@ -205,3 +205,63 @@ def holder_point(u, v, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     scale = rig_scale(size)
     return ((np.asarray(u) - width / 2) / scale + RIG_TARGET[0],
             RIG_TARGET[1] - (np.asarray(v) - height / 2) / scale)
+
+
+# --- a region of a rig-view frame --------------------------------------------------------------
+@dataclass(frozen=True)
+class RigRegion:
+    """A region (``roi``: x, y, w, h pixels) of a frame of ``frame_size`` taken by the rig camera at
+    ``pose`` around ``target``, whose field of view shows ``half_width`` at the target.
+
+    The refinement fits the capture's mean colour over exactly this region and renders exactly this
+    region (the same camera, its film cropped), so the rig's light fall-off and the view's angles
+    across the swatch are in both. The twin shows it too.
+    """
+
+    frame_size: tuple[int, int]
+    roi: tuple[int, int, int, int]
+    pose: CameraPose = CameraPose()
+    target: tuple[float, float, float] = RIG_TARGET
+    half_width: float = RIG_HALF_WIDTH
+
+    def __post_init__(self) -> None:
+        x, y, w, h = self.roi
+        width, height = self.frame_size
+        if w < 1 or h < 1 or x < 0 or y < 0 or x + w > width or y + h > height:
+            raise ValueError(f"region {self.roi} is not inside the {width}x{height} frame")
+
+    def render_plan(self, pixels: int = 48 * 48) -> tuple[tuple[int, int], tuple[int, int, int, int],
+                                                          tuple[int, int, int, int]]:
+        """A render of about ``pixels`` pixels over the region: (film size, crop x, y, w, h in film
+        pixels, and the frame's region that crop shows exactly, x, y, w, h in frame pixels)."""
+        x, y, w, h = self.roi
+        width, height = self.frame_size
+        scale = min(1.0, float(np.sqrt(pixels / (w * h))))
+        film = (max(1, int(round(width * scale))), max(1, int(round(height * scale))))
+        sx, sy = film[0] / width, film[1] / height
+        cx0, cy0 = int(np.floor(x * sx + 1e-9)), int(np.floor(y * sy + 1e-9))
+        cx1 = min(film[0], max(cx0 + 1, int(np.ceil((x + w) * sx - 1e-9))))
+        cy1 = min(film[1], max(cy0 + 1, int(np.ceil((y + h) * sy - 1e-9))))
+        fx0, fy0 = int(round(cx0 / sx)), int(round(cy0 / sy))
+        fx1, fy1 = min(width, int(round(cx1 / sx))), min(height, int(round(cy1 / sy)))
+        return film, (cx0, cy0, cx1 - cx0, cy1 - cy0), (fx0, fy0, fx1 - fx0, fy1 - fy0)
+
+    def to_dict(self) -> dict:
+        return {"frame_size": list(self.frame_size), "roi": list(self.roi),
+                "pose": [self.pose.polar_deg, self.pose.azimuth_deg, self.pose.distance],
+                "target": list(self.target), "half_width": self.half_width}
+
+
+#: The swatch's extent on the holder (x and y half-sizes): 1 x 1.4 scene units, centred at the origin.
+SWATCH_HALF = (0.5, 0.7)
+
+
+def swatch_roi(size: tuple[int, int], margin: float = 0.05, visible_half_length: float = 0.58
+               ) -> tuple[int, int, int, int]:
+    """The swatch's visible area in the bench camera's rig view, as x, y, w, h pixels, inset by
+    ``margin`` units (Mitsuba's B-spline stops short of its end points: the swatch shows about
+    ``visible_half_length`` of its 0.7 half-length)."""
+    half_w, half_l = SWATCH_HALF[0] - margin, visible_half_length - margin
+    (x0, x1), (y0, y1) = rig_pixel(np.array([-half_w, half_w]), np.array([half_l, -half_l]), size)
+    return int(np.ceil(x0)), int(np.ceil(y0)), int(x1 - x0), int(y1 - y0)
+
