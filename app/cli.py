@@ -171,6 +171,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     if args.dye:
         from hairdigi.app.dye_cli import cmd_evaluate_dye
         return cmd_evaluate_dye(args)
+    if args.rig:
+        return evaluate_rig_command(args)
     data = Path(args.data) if args.data else _cache_dir() / "datasets" / (
         f"heldout-s1000003-{args.size}px-{args.spp}spp-linear16")
     if args.prepare_only:
@@ -443,6 +445,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="instead: estimate the first --sweep-n swatches from inputs rendered at these spp")
     p.add_argument("--sweep-n", type=v.int_in(1, v.MAX_DATASET_N), default=20)
     p.add_argument("--no-refine", action="store_true", help="judge the encoder alone")
+    p.add_argument("--rig", action="store_true", help="instead: the whole chain on the simulated rig (calibrate, "
+                   "capture live and RAW, estimate) against the hidden truth; --rig-random N random hidden swatches "
+                   "beside the hard cases; --ship writes the chain's colour interval into the model")
+    p.add_argument("--rig-random", type=v.int_in(0, 200), default=5)
+    p.add_argument("--ship", action="store_true", help="with --rig: ship the measured colour interval "
+                   "(resources/models/chain_uncertainty.json)")
     p.add_argument("--dye", action="store_true", help="instead: dyes characterised on two natural bases, predicted "
                    "on the third (--n: dyes, default 12)")
     p.add_argument("--workers", type=workers, default=2)

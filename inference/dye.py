@@ -85,18 +85,19 @@ def sigma_interval(sigma: np.ndarray, de68: float, curve: ResponseCurve) -> tupl
     if de68 <= 0:
         return sigma.copy(), sigma.copy()
     c = colour_of(sigma, curve)
-    bounds = []
-    for sign in (+1.0, -1.0):          # lighter colour (lower sigma), darker colour (higher sigma)
-        lo, hi = np.zeros(3), np.full(3, 6.0)
-        for _ in range(40):            # bisect the log-factor per channel, all three at once
-            t = 0.5 * (lo + hi)
-            moved = np.tile(c, (3, 1))
-            moved[np.arange(3), np.arange(3)] *= np.exp(sign * t)
-            de = delta_e2000(np.clip(moved, 1e-9, None), np.tile(c, (3, 1)))
-            lo, hi = np.where(de < de68, t, lo), np.where(de < de68, hi, t)
-        value, _ = curve.inverse(c * np.exp(sign * lo))
-        bounds.append(value)
-    lighter, darker = bounds
+    # rows: each channel made lighter (x e^t), then each made darker (x e^-t); bisect t for all six at once
+    sign = np.repeat([1.0, -1.0], 3)
+    channel = np.tile(np.arange(3), 2)
+    reference = np.tile(c, (6, 1))
+    lo, hi = np.zeros(6), np.full(6, 6.0)
+    for _ in range(30):
+        t = 0.5 * (lo + hi)
+        moved = reference.copy()
+        moved[np.arange(6), channel] *= np.exp(sign * t)
+        inside = delta_e2000(np.clip(moved, 1e-9, None), reference) < de68
+        lo, hi = np.where(inside, t, lo), np.where(inside, hi, t)
+    lighter, _ = curve.inverse(c * np.exp(lo[:3]))
+    darker, _ = curve.inverse(c * np.exp(-lo[3:]))
     return np.minimum(lighter, sigma), np.maximum(darker, sigma)
 
 
@@ -112,6 +113,7 @@ class HairSample:
     calibration: str | None = None
     colour_de68: float = DEFAULT_COLOUR_DE68
     interval_source: str = "assumed"      # "record": the record's own interval; "assumed": DEFAULT_COLOUR_DE68
+    _intervals: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def label(self) -> str:
@@ -161,11 +163,20 @@ def load_sample(path: str | Path) -> HairSample:
 
 
 # --- checks ------------------------------------------------------------------------------------------
+def interval_of(sample: HairSample, curve: ResponseCurve) -> tuple[np.ndarray, np.ndarray]:
+    """The sample's 68% ``sigma_a`` interval (computed once per sample and curve)."""
+    cache = sample._intervals
+    key = id(curve)
+    if key not in cache:
+        cache[key] = sigma_interval(sample.sigma_a, sample.colour_de68, curve)
+    return cache[key]
+
+
 def check_explainable(base: HairSample, dyed: HairSample, curve: ResponseCurve) -> None:
     """Refuse a pair whose dyed hair is lighter than its base beyond what any lift and deposit explain."""
     m, s = base.sigma_a, dyed.sigma_a
-    m_lo, m_hi = sigma_interval(m, base.colour_de68, curve)
-    s_lo, s_hi = sigma_interval(s, dyed.colour_de68, curve)
+    m_lo, _ = interval_of(base, curve)
+    _, s_hi = interval_of(dyed, curve)
     # the least lift a channel needs, giving the pair every benefit of its intervals
     needed = np.where(m_lo > 1e-6, 1.0 - s_hi / np.maximum(m_lo, 1e-12), 0.0)
     worst = int(np.argmax(needed))
@@ -259,7 +270,7 @@ def characterise(pairs: list[tuple[HairSample, HairSample]], name: str, curve: R
             samples.setdefault(key, s)
             pair_keys.append(key)
         keys.append(pair_keys)
-    intervals = {k: sigma_interval(s.sigma_a, s.colour_de68, curve) for k, s in samples.items()}
+    intervals = {k: interval_of(s, curve) for k, s in samples.items()}
     half = {k: np.maximum(0.5 * (hi - lo), 1e-4 + 0.01 * samples[k].sigma_a) for k, (lo, hi) in intervals.items()}
     bases = np.array([samples[b].sigma_a for b, _ in keys])
     dyed = np.array([samples[d].sigma_a for _, d in keys])
@@ -344,7 +355,7 @@ def _spread(dye: DyeRecord, base: HairSample, dose: float, curve: ResponseCurve,
             seed: int = 0) -> tuple[np.ndarray, np.ndarray, float]:
     """68% interval of the predicted ``sigma_a`` and its colour's ΔE2000 p68: dye and base both drawn."""
     rng = np.random.default_rng(seed)
-    lo, hi = sigma_interval(base.sigma_a, base.colour_de68, curve)
+    lo, hi = interval_of(base, curve)
     bases = _draw(base.sigma_a, lo, hi, rng, draws)
     dep = np.asarray(dye.deposit_sigma_a)
     deps = _draw(dep, np.asarray(dye.deposit_low or dep), np.asarray(dye.deposit_high or dep), rng, draws)

@@ -1,0 +1,96 @@
+"""The shade card of a dye: its prediction on the ten natural levels, each rendered and measured.
+
+Each level (``inference.levels``) and the dye's prediction on it are rendered as small all-hair
+swatches (Mitsuba, one sampler seed for both: their difference is the dye's, not the sampler's).
+The labels come from the renders: the result's mean colour as sRGB and CIE L*a*b* (D65), and the
+ΔE2000 from base to result. Written as PNG and PDF (matplotlib; the PDF prints) and a JSON table.
+"""
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+
+from hairdigi.inference.dye import apply, describe_colour, sample_of
+from hairdigi.inference.levels import LEVEL_NAMES, LEVELS, natural_base
+from hairdigi.render.absorption import hair_sigma_a
+from hairdigi.render.base.dye_record import DyeRecord
+from hairdigi.render.base.files import atomic_path, write_json_atomic
+from hairdigi.render.base.records import EstimateRecord
+from hairdigi.render.metrics import delta_e2000
+
+CARD_SIZE, CARD_SPP, CARD_SEED = 64, 16, 3
+
+
+def card_rows(dye: DyeRecord, size: int = CARD_SIZE, spp: int = CARD_SPP, seed: int = CARD_SEED,
+              dose: float = 1.0, curve=None) -> list[dict]:
+    """Render each natural level and the dye on it; the measured colours and ΔE2000 per level."""
+    from hairdigi.render.renderer import SceneSpec, default_renderer
+
+    renderer = default_renderer()
+    spec = SceneSpec("swatch", framing="crop")
+    rows = []
+    for level in LEVELS:
+        hair = natural_base(level)
+        base = sample_of(EstimateRecord(hair=hair), path=f"level {level}")
+        pred = apply(dye, base, dose, curve)
+        start = time.perf_counter()
+        before = renderer.render(hair_sigma_a(hair), spec, size, spp, seed)
+        after = renderer.render(pred.sigma_a, spec, size, spp, seed)
+        mean_before = before.linear.reshape(-1, 3).mean(0)
+        mean_after = after.linear.reshape(-1, 3).mean(0)
+        rows.append({"level": level, "name": LEVEL_NAMES[level], "base": describe_colour(mean_before),
+                     "result": describe_colour(mean_after), "hair": pred.params.to_dict(),
+                     "sigma_a": [round(float(v), 6) for v in pred.sigma_a],
+                     "de2000": round(float(delta_e2000(mean_before, mean_after)), 2),
+                     "render_s": round(time.perf_counter() - start, 3),
+                     "_images": (before.srgb, after.srgb)})
+    return rows
+
+
+def draw_card(dye: DyeRecord, rows: list[dict], dose: float = 1.0):
+    """The card as a matplotlib figure: the natural levels above, the dye's result below, labelled."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, len(rows), figsize=(1.25 * len(rows) + 0.6, 4.6))
+    lift = (f"lift {dye.lift:.2f}" + ("" if dye.lift_measured else " (assumed: one base)"))
+    dep = ", ".join(f"{v:.3f}" for v in dye.deposit_sigma_a)
+    fig.suptitle(f"{dye.name}{'' if dose == 1 else f' at dose {dose:g}'}: deposit sigma_a ({dep}), {lift}",
+                 fontsize=10)
+    for col, row in enumerate(rows):
+        top, bottom = axes[0, col], axes[1, col]
+        top.imshow(row["_images"][0], interpolation="nearest")
+        bottom.imshow(row["_images"][1], interpolation="nearest")
+        for ax in (top, bottom):
+            ax.set_xticks([])
+            ax.set_yticks([])
+        top.set_title(f"level {row['level']}\n{row['base']['srgb']}", fontsize=7)
+        lab = row["result"]["lab"]
+        bottom.set_xlabel(f"{row['result']['srgb']}\nL*a*b* {lab[0]:.0f} {lab[1]:.0f} {lab[2]:.0f}\n"
+                          f"ΔE00 {row['de2000']:.1f}", fontsize=7)
+    axes[0, 0].set_ylabel("natural", fontsize=8)
+    axes[1, 0].set_ylabel("dyed", fontsize=8)
+    fig.text(0.01, 0.01, "predicted by hairdigi (Kips et al. 2022 Table 1 absorption; deposit + lift); "
+                         "colours are the rendered swatches' means, sRGB D65", fontsize=6)
+    fig.tight_layout(rect=(0, 0.03, 1, 0.95))
+    return fig
+
+
+def shade_card(dye: DyeRecord, out_png: str | os.PathLike, dose: float = 1.0, size: int = CARD_SIZE,
+               spp: int = CARD_SPP, curve=None) -> tuple[Path, Path, Path, list[dict]]:
+    """Write the card as PNG, PDF (beside it) and JSON; returns the three paths and the rows."""
+    from hairdigi.render.io.figures import save_figure
+
+    out_png = Path(out_png)
+    rows = card_rows(dye, size, spp, dose=dose, curve=curve)
+    fig = draw_card(dye, rows, dose)
+    pdf = out_png.with_suffix(".pdf")
+    with atomic_path(pdf, ".pdf") as tmp:
+        fig.savefig(tmp, format="pdf")
+    save_figure(fig, out_png, dpi=150)
+    table = out_png.with_suffix(".json")
+    clean = [{k: v for k, v in r.items() if not k.startswith("_")} for r in rows]
+    write_json_atomic(table, {"dye": dye.name, "dose": dose, "render": {"size": size, "spp": spp, "seed": CARD_SEED,
+                                                                          "framing": "crop"}, "levels": clean})
+    return out_png, pdf, table, clean

@@ -1,0 +1,259 @@
+"""``hairdigi evaluate --dye``: dyes characterised on two natural bases, predicted on the third.
+
+The held-out protocol of issue 19, through the whole estimate chain:
+
+1. **Truth.** Three natural bases (``inference.levels.EVALUATION_LEVELS``: light, medium, dark) and
+   ``dyes`` random dyes: deposit ``dye_sigma_a(rgb, concentration)`` with the colour and the
+   concentration drawn uniformly over Table 1's dye range (Kips et al. 2022), lift uniform in
+   [0, 0.6]. Dyed truth: ``(1 - lift) * sigma_melanin(base) + deposit``.
+2. **Captures.** Each base and each dyed swatch is rendered (all-hair crop at the rig's pose, 64 spp,
+   its own strand layout and seed), shot through the camera model (sensor noise, 12-bit ADC, 8-bit
+   sRGB; as ``hairdigi evaluate`` does) and estimated by the real estimator
+   (``inference.estimate.estimate_image``: encoder + refinement by synthesis). The records are
+   written and read back as ``hairdigi dye`` reads them.
+3. **Two-pair fit.** For each dye and each base held out, ``characterise`` on the other two pairs and
+   ``apply`` to the held-out base's *estimated* record.
+4. **The judge.** The prediction's ``sigma_a`` and the truth's are rendered with one strand layout and
+   one common sampler seed; the mean-colour ΔE2000 of the two renders is the error.
+5. **One-pair fits** (lift assumed): the fitted lift against the true one, and the one-pair
+   prediction on each other base, judged the same way.
+
+Timings of characterise, apply and dose (in process) and of one shade card are recorded.
+"""
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hairdigi.inference.dye import apply, characterise, colour_of, dose, load_sample, rig_curve
+from hairdigi.inference.levels import EVALUATION_LEVELS, natural_base
+from hairdigi.render.absorption import dye_sigma_a, hair_sigma_a
+from hairdigi.render.base.files import write_json_atomic
+from hairdigi.render.base.records import EstimateRecord, write_record
+from hairdigi.render.metrics import delta_e2000
+
+GOAL_MEDIAN, GOAL_P95 = 1.0, 2.0
+
+
+@dataclass(frozen=True)
+class DyeEvalConfig:
+    """The held-out dye set and its render settings."""
+
+    dyes: int = 12
+    seed: int = 190_019
+    lift_max: float = 0.6
+    size: int = 64              # input renders (as hairdigi evaluate's held-out swatches)
+    spp: int = 64
+    judge_size: int = 64
+    judge_spp: int = 16
+    judge_seed: int = 424_242
+    judge_strands_seed: int = 777
+
+
+def draw_dyes(config: DyeEvalConfig) -> list[dict]:
+    """The random dyes: Table 1 dye colour and concentration (uniform), and a lift in [0, lift_max]."""
+    rng = np.random.default_rng(config.seed)
+    dyes = []
+    for k in range(config.dyes):
+        rgb = rng.uniform(0.0, 255.0, 3)
+        conc = float(rng.uniform(0.0, 1.0))
+        lift = float(rng.uniform(0.0, config.lift_max))
+        dyes.append({"dye": k, "dye_rgb": [round(float(v), 2) for v in rgb], "dye_concentration": round(conc, 4),
+                     "lift": round(lift, 4), "deposit": dye_sigma_a(tuple(rgb), conc)})
+    return dyes
+
+
+def _capture(linear: np.ndarray, key: list[int]) -> np.ndarray:
+    from hairdigi.render.camera_model import CameraModel, sensor_response
+
+    return sensor_response(np.asarray(linear, np.float32), CameraModel(), np.random.default_rng(key))
+
+
+def _estimate_record(sigma: np.ndarray, index: int, encoder, config: DyeEvalConfig, path: Path) -> tuple[Path, float]:
+    """Render ``sigma`` as a capture, estimate it with the real estimator, write its record."""
+    from hairdigi.inference.estimate import estimate_image, record
+    from hairdigi.inference.preprocess import Roi
+    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.renderer import SceneSpec, default_renderer
+
+    spec = SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop", strand_seed=1000 + index)
+    linear = default_renderer().render(sigma, spec, config.size, config.spp, seed=index).linear
+    frame = _capture(linear, [config.seed, index])
+    start = time.perf_counter()
+    result = estimate_image(frame, encoder, roi=Roi(0, 0, frame.shape[1], frame.shape[0]))
+    seconds = time.perf_counter() - start
+    rec = record(result, encoder, frame.tobytes())
+    if isinstance(rec, dict):        # an estimator that still returns the first layout's dict
+        rec = EstimateRecord.from_json(rec)
+    write_record(path, rec)
+    return path, seconds
+
+
+def _judge(sigma: np.ndarray, config: DyeEvalConfig) -> np.ndarray:
+    """The mean linear colour of ``sigma`` rendered at the judge's layout and common seed."""
+    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.renderer import SceneSpec, default_renderer
+
+    spec = SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop", strand_seed=config.judge_strands_seed)
+    out = default_renderer().render(np.clip(sigma, 0, None), spec, config.judge_size, config.judge_spp,
+                                    config.judge_seed)
+    return out.linear.reshape(-1, 3).mean(0)
+
+
+def _stats(values) -> dict:
+    a = np.asarray(values, float)
+    return {"median": float(np.median(a)), "p95": float(np.quantile(a, 0.95)), "max": float(a.max()),
+            "mean": float(a.mean()), "n": int(a.size)}
+
+
+def evaluate_dye(encoder, out_dir: str | os.PathLike, config: DyeEvalConfig = DyeEvalConfig(),
+                 progress: bool = True) -> dict:
+    """Run the protocol; write ``dye_eval.json``, ``dye_eval.csv``, ``dye_eval.png``; return the summary."""
+    from tqdm import tqdm
+
+    from hairdigi.render.base.files import write_csv_atomic
+
+    t_all = time.perf_counter()
+    out = Path(out_dir)
+    records = out / "records"
+    records.mkdir(parents=True, exist_ok=True)
+    curve = rig_curve()
+    bases = {name: hair_sigma_a(natural_base(level)) for name, level in EVALUATION_LEVELS.items()}
+    dyes = draw_dyes(config)
+    # --- captures, estimated -------------------------------------------------------------------
+    jobs = [(f"base-{b}", bases[b]) for b in bases]
+    truth = {}
+    for d in dyes:
+        for b, m in bases.items():
+            truth[(d["dye"], b)] = (1.0 - d["lift"]) * m + d["deposit"]
+            jobs.append((f"dye{d['dye']:02d}-{b}", truth[(d["dye"], b)]))
+    estimate_s = []
+    for index, (name, sigma) in enumerate(tqdm(jobs, desc="capture + estimate", unit="swatch", disable=not progress)):
+        _, s = _estimate_record(sigma, index, encoder, config, records / f"{name}.json")
+        estimate_s.append(s)
+    sample = {name: load_sample(records / f"{name}.json") for name, _ in jobs}
+    judge_truth = {key: _judge(sigma, config) for key, sigma in
+                   tqdm(truth.items(), desc="judge renders of the truth", disable=not progress)}
+    # --- two-pair fits, predicted on the held-out base ---------------------------------------------
+    rows, one_rows, times = [], [], {"characterise_s": [], "apply_s": [], "dose_s": []}
+    for d in tqdm(dyes, desc="characterise + predict", disable=not progress):
+        k = d["dye"]
+        for held in bases:
+            train = [b for b in bases if b != held]
+            pairs = [(sample[f"base-{b}"], sample[f"dye{k:02d}-{b}"]) for b in train]
+            t0 = time.perf_counter()
+            dye = characterise(pairs, f"dye {k}", curve)
+            t1 = time.perf_counter()
+            pred = apply(dye, sample[f"base-{held}"], 1.0, curve)
+            t2 = time.perf_counter()
+            dose(dye, sample[f"base-{held}"], colour_of(truth[(k, held)], curve), curve)
+            t3 = time.perf_counter()
+            times["characterise_s"].append(t1 - t0)
+            times["apply_s"].append(t2 - t1)
+            times["dose_s"].append(t3 - t2)
+            de = float(delta_e2000(_judge(pred.sigma_a, config), judge_truth[(k, held)]))
+            rows.append({"dye": k, "held_out": held, "fitted_on": "+".join(train), "true_lift": d["lift"],
+                         "lift": round(dye.lift, 4), "lift_low": round(dye.lift_low, 4), "lift_high": round(dye.lift_high, 4),
+                         "true_deposit": [round(float(v), 5) for v in d["deposit"]],
+                         "deposit": [round(float(v), 5) for v in dye.deposit_sigma_a],
+                         "fit_residual_de2000": round(dye.residual_de2000_max, 3),
+                         "prediction_de2000": round(de, 3),
+                         "prediction_de2000_curve": round(float(delta_e2000(
+                             colour_of(pred.sigma_a, curve), colour_of(truth[(k, held)], curve))), 3),
+                         "predicted_interval_de2000_p68": pred.record.uncertainty.get("mean_colour_de2000_p68")})
+        # one pair (lift assumed): the fitted lift against the truth, and the prediction on each other base
+        for b in bases:
+            dye1 = characterise([(sample[f"base-{b}"], sample[f"dye{k:02d}-{b}"])], f"dye {k} on {b}", curve)
+            for other in bases:
+                if other == b:
+                    continue
+                pred = apply(dye1, sample[f"base-{other}"], 1.0, curve)
+                de = float(delta_e2000(_judge(pred.sigma_a, config), judge_truth[(k, other)]))
+                one_rows.append({"dye": k, "fitted_on": b, "predicted": other, "true_lift": d["lift"],
+                                 "one_pair_lift": round(dye1.lift, 4), "lift_error": round(dye1.lift - d["lift"], 4),
+                                 "prediction_de2000": round(de, 3)})
+    # --- a shade card, timed -----------------------------------------------------------------------------
+    from hairdigi.inference.dye_card import shade_card
+
+    t0 = time.perf_counter()
+    shade_card(characterise([(sample[f"base-{b}"], sample[f"dye00-{b}"]) for b in bases], "dye 0", curve),
+               out / "card-dye0.png", curve=curve)
+    card_s = time.perf_counter() - t0
+    # --- summary --------------------------------------------------------------------------------------------
+    de = [r["prediction_de2000"] for r in rows]
+    one_de = [r["prediction_de2000"] for r in one_rows]
+    lift_err = [abs(r["lift_error"]) for r in one_rows[::2]]       # one row per (dye, fitted base)
+    two_lift_err = [abs(r["lift"] - r["true_lift"]) for r in rows]
+    summary = {
+        "config": asdict(config), "levels": EVALUATION_LEVELS, "date": time.strftime("%Y-%m-%d"),
+        "prediction_de2000": _stats(de),
+        "prediction_de2000_by_held_out": {b: _stats([r["prediction_de2000"] for r in rows if r["held_out"] == b])
+                                          for b in bases},
+        "goal": {"median": GOAL_MEDIAN, "p95": GOAL_P95,
+                 "met": bool(np.median(de) <= GOAL_MEDIAN and np.quantile(de, 0.95) <= GOAL_P95)},
+        "two_pair_lift_abs_error": _stats(two_lift_err),
+        "one_pair_lift_abs_error": _stats(lift_err),
+        "one_pair_prediction_de2000": _stats(one_de),
+        "estimate_s": _stats(estimate_s),
+        "seconds": {k: _stats(v) for k, v in times.items()} | {"card_s": card_s},
+        "total_s": time.perf_counter() - t_all,
+        "clean_renders_only": "simulated-rig captures through the CCM are not part of this run",
+    }
+    summary["text"] = _text(summary)
+    write_json_atomic(out / "dye_eval.json", {**summary, "rows": rows, "one_pair_rows": one_rows})
+    write_csv_atomic(out / "dye_eval.csv", [{k: (v if not isinstance(v, list) else " ".join(map(str, v)))
+                                             for k, v in r.items()} for r in rows])
+    write_csv_atomic(out / "dye_eval_one_pair.csv", one_rows)
+    _plot(rows, one_rows, out / "dye_eval.png")
+    return summary
+
+
+def _text(s: dict) -> list[str]:
+    p, o = s["prediction_de2000"], s["one_pair_prediction_de2000"]
+    sec = s["seconds"]
+    lines = [f"two bases -> the third: mean-colour ΔE2000 median {p['median']:.2f}, p95 {p['p95']:.2f}, worst "
+             f"{p['max']:.2f} over {p['n']} predictions (goal median <= {GOAL_MEDIAN}, p95 <= {GOAL_P95}: "
+             f"{'met' if s['goal']['met'] else 'NOT met'})"]
+    lines += [f"  held out {b}: median {v['median']:.2f}, p95 {v['p95']:.2f}"
+              for b, v in s["prediction_de2000_by_held_out"].items()]
+    lines.append(f"lift |error|: two bases median {s['two_pair_lift_abs_error']['median']:.3f} (worst "
+                 f"{s['two_pair_lift_abs_error']['max']:.3f}); one base (lift assumed) median "
+                 f"{s['one_pair_lift_abs_error']['median']:.3f} (worst {s['one_pair_lift_abs_error']['max']:.3f}); "
+                 f"one-pair predictions on the other bases ΔE2000 median {o['median']:.2f}, p95 {o['p95']:.2f}")
+    lines.append(f"times: estimate {s['estimate_s']['median']:.2f} s/swatch; characterise "
+                 f"{sec['characterise_s']['median']:.3f} s, apply {sec['apply_s']['median']:.3f} s, dose "
+                 f"{sec['dose_s']['median']:.3f} s (medians, in process); shade card {sec['card_s']:.1f} s; "
+                 f"all {s['total_s']:.0f} s")
+    return lines
+
+
+def _plot(rows: list[dict], one_rows: list[dict], path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    from hairdigi.render.io.figures import save_figure
+
+    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+    held = sorted({r["held_out"] for r in rows})
+    a.boxplot([[r["prediction_de2000"] for r in rows if r["held_out"] == h] for h in held])
+    a.boxplot([[r["prediction_de2000"] for r in one_rows if r["predicted"] == h] for h in held],
+              positions=np.arange(1, len(held) + 1) + 0.3, widths=0.2)
+    a.set_xticks(np.arange(1, len(held) + 1), held)
+    a.axhline(GOAL_MEDIAN, ls="--", c="g", lw=0.8, label="goal: median 1.0")
+    a.axhline(GOAL_P95, ls=":", c="r", lw=0.8, label="goal: p95 2.0")
+    a.set_ylabel("mean-colour ΔE2000, prediction vs truth")
+    a.set_xlabel("held-out base (left: two-pair fit; right: one-pair fits)")
+    a.legend(fontsize=7)
+    tl = [r["true_lift"] for r in rows]
+    b.plot([0, 0.65], [0, 0.65], "k-", lw=0.5)
+    b.scatter(tl, [r["lift"] for r in rows], s=12, label="two bases")
+    b.scatter([r["true_lift"] for r in one_rows[::2]], [r["one_pair_lift"] for r in one_rows[::2]], s=12, marker="x",
+              label="one base (lift assumed)")
+    b.set_xlabel("true lift")
+    b.set_ylabel("fitted lift")
+    b.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path)
