@@ -265,6 +265,9 @@ BENCH_OUT = "out/bench"
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    if args.what == "library":   # issue 20: find in a library of --n swatches (default 10,000)
+        from hairdigi.app.library_cli import bench_library
+        return bench_library(args)
     out = Path(args.out)
     if args.what == "refine":
         from hairdigi.inference.training.bench_refine import bench_refine
@@ -503,7 +506,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_model_card)
 
     p = sub.add_parser("bench", help="speed against error tables and plots")
-    p.add_argument("what", choices=("render", "rig", "encoder", "refine", "dataset", "previews"))
+    p.add_argument("what", choices=("render", "rig", "encoder", "refine", "dataset", "previews", "library"))
     p.add_argument("--models", nargs="*", help="encoder: the ONNX models to compare")
     p.add_argument("--n", type=int, default=None, help="held-out swatches (encoder: 300, refine: 10); "
                    "dataset: swatches per case (16)")
@@ -514,6 +517,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--estimate", action="store_true",
                    help="rig: estimate simulated captures over poses, casts and exposures; real vs twin ΔE")
     p.set_defaults(func=cmd_bench)
+
+    from hairdigi.app import export_cli, library_cli   # issue 20: export, library
+    export_cli.add_parser(sub)
+    library_cli.add_parser(sub)
     return parser
 
 

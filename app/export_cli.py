@@ -1,0 +1,53 @@
+"""``hairdigi export RECORD.json --format materialx|blender --out FILE``: an estimate for other renderers."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from hairdigi.render.base.records import EstimateRecord, read_record
+from hairdigi.render.interchange import FORMATS, HairLook, look_from_record, write_look
+
+SUFFIXES = {"materialx": ".mtlx", "blender": ".py"}
+
+
+def load_look(path: str | Path, name: str | None = None) -> HairLook:
+    """The look of an estimate record (or a dye prediction, which has the same layout)."""
+    path = Path(path)
+    record = read_record(path, EstimateRecord)
+    stem = path.name.removesuffix(".json").removesuffix(".result")
+    return look_from_record(record, name or stem, source=path.name)
+
+
+def export_record(record: str | Path, fmt: str, out: str | Path, blend: str | Path | None = None,
+                  name: str | None = None) -> list[Path]:
+    """Write the export (and, for Blender with ``blend``, a .blend with the swatch groom); the paths written."""
+    if fmt not in FORMATS:
+        raise ValueError(f"unknown export format {fmt!r}; choose one of {', '.join(FORMATS)}")
+    if blend and fmt != "blender":
+        raise ValueError("--blend goes with --format blender")
+    look = load_look(record, name)
+    written = [write_look(look, fmt, out)]
+    if blend:
+        from hairdigi.render.blender_run import write_blend
+
+        written.append(write_blend(look, blend))
+    return written
+
+
+def cmd_export_look(args: argparse.Namespace) -> int:
+    out = args.out or str(Path(args.record).with_suffix("").with_suffix(SUFFIXES[args.format]))
+    for path in export_record(args.record, args.format, out, args.blend, args.name):
+        print(f"wrote {path}")
+    return 0
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("export", help="an estimate as MaterialX (chiang_hair_bsdf) or a Blender script")
+    p.add_argument("record", help="an estimate record (hairdigi estimate --out, a capture's .result.json) "
+                                  "or a dye prediction")
+    p.add_argument("--format", choices=FORMATS, required=True)
+    p.add_argument("--out", help="file to write (default: the record's name with .mtlx or .py)")
+    p.add_argument("--blend", help="blender: also write a .blend with the material on a swatch groom "
+                                   "(needs Blender: HAIRDIGI_BLENDER, a Python with bpy, or blender on the PATH)")
+    p.add_argument("--name", help="material name (default: from the record's file name)")
+    p.set_defaults(func=cmd_export_look)

@@ -1,0 +1,167 @@
+"""Run an exported Blender script with a Blender that hairdigi does not import: a ``.blend`` with the
+swatch groom, and the Cycles-against-Mitsuba check of an export.
+
+``bpy`` 5.0.1 (the Blender-as-a-module package, 374 MB, Python 3.11) pins ``numpy<2``, while
+hairdigi's OpenCV 5 and colour-science need numpy 2: the two cannot share one environment. So
+Blender runs in its own process: ``HAIRDIGI_BLENDER`` names a Python that has ``bpy`` (a separate
+venv) or a ``blender`` executable; without it, ``blender`` on the PATH is used.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hairdigi.render.base import rig_geometry as rg
+from hairdigi.render.interchange import HairLook, blender_script_text
+from hairdigi.render.strands import SWATCH_LENGTH, SWATCH_WIDTH, Strands
+
+
+class BlenderError(RuntimeError):
+    """No Blender to run, or Blender failed; the message says which and how to fix it."""
+
+
+def blender_command() -> list[str] | None:
+    """How to run a script in Blender: ``[python]`` (a Python with bpy) or ``[blender, -b, --python]``."""
+    chosen = os.environ.get("HAIRDIGI_BLENDER") or shutil.which("blender")
+    if not chosen:
+        return None
+    if not Path(chosen).exists() and not shutil.which(chosen):
+        raise BlenderError(f"HAIRDIGI_BLENDER is {chosen!r}: no such program; name a Python that has bpy "
+                           f"or a blender executable")
+    if "blender" in Path(chosen).name.lower():
+        return [chosen, "-b", "--factory-startup", "--python"]
+    return [chosen]
+
+
+def run_script(script: Path, args: list[str], timeout: float = 1800.0) -> str:
+    """Run ``script`` in Blender with ``args`` (after ``--``); returns its output."""
+    command = blender_command()
+    if command is None:
+        raise BlenderError("no Blender found: set HAIRDIGI_BLENDER to a Python that has bpy (python3.11 -m venv "
+                           "VENV && VENV/bin/pip install bpy==5.0.1) or to a blender executable")
+    proc = subprocess.run([*command, str(script), "--", *args], capture_output=True, text=True, timeout=timeout)
+    if proc.returncode != 0:
+        tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:] or ["no output"]
+        raise BlenderError(f"Blender failed (exit {proc.returncode}): {tail[0]}")
+    return proc.stdout
+
+
+#: The check's swatch: fibres in staggered layers that never pass through one another. The rig's own
+#: swatch (``strands.swatch_strands``) lets fibres interpenetrate; Mitsuba's curves let a ray that
+#: starts inside a fibre leave through it, Cycles intersects it, and the two then differ by up to ΔE2000
+#: 6.4 for light hair (measured here, README). On these strands they agree, so the check compares the
+#: BSDF mapping, not how each renderer handles fibres inside fibres.
+CHECK_LAYERS, CHECK_RADIUS, CHECK_GAP = 3, 0.004, 1.25
+
+
+def layered_swatch(layers: int = CHECK_LAYERS, radius: float = CHECK_RADIUS, gap: float = CHECK_GAP,
+                   points: int = 12) -> Strands:
+    """A swatch (1 x 1.4, strands along y, root at -y) of straight fibres in staggered layers, none touching."""
+    pitch = 2 * radius * gap
+    xs = np.arange(-SWATCH_WIDTH / 2, SWATCH_WIDTH / 2, pitch)
+    y = np.linspace(-SWATCH_LENGTH / 2, SWATCH_LENGTH / 2, points)
+    grid = [np.stack([np.full(points, x), y, np.full(points, radius * (1.01 + 1.74 * gap * k))], 1)
+            for k in range(layers) for x in xs + (pitch / 2 if k % 2 else 0.0)]
+    return Strands.from_grid(np.array(grid), radius)
+
+
+def rig_for_blender(strands: Strands, pose: rg.CameraPose = rg.RIG_SWATCH_POSE, framing: str = "crop",
+                    size: int | tuple[int, int] = 64, max_depth: int = 32) -> dict:
+    """hairdigi's swatch rig as the Blender script builds it: ``strands`` as Mitsuba draws them (its
+    B-splines sampled 4 times a segment), the holder, the three lights and the camera at ``pose``."""
+    from hairdigi.render import scenes
+
+    curves = strands.curves(per_segment=4)
+    m = rg.look_at_matrix(pose.position(), np.zeros(3))
+    width, height = (size, size) if isinstance(size, int) else size
+    (cx, cy), (w, h) = rg.HOLDER_CENTER, rg.HOLDER_SIZE
+    return {
+        "strands": {"points": curves.points.astype(float).ravel().tolist(),
+                    "radii": curves.radii.astype(float).tolist(), "counts": curves.counts.tolist()},
+        "holder": {"corners": [[cx - w / 2, cy - h / 2, 0], [cx + w / 2, cy - h / 2, 0], [cx + w / 2, cy + h / 2, 0],
+                               [cx - w / 2, cy + h / 2, 0]], "albedo": scenes.HOLDER_ALBEDO},
+        "lights": [{"corners": rg.light_corners(i).tolist(), "radiance": scenes.LIGHT_RADIANCE}
+                   for i in range(rg.N_LIGHTS)],
+        "camera": {"origin": m[:3, 3].tolist(), "left": m[:3, 0].tolist(), "up": m[:3, 1].tolist(),
+                   "forward": m[:3, 2].tolist(), "fov_deg": rg.framing_fov(framing, pose.distance)},
+        "size": [width, height], "max_depth": max_depth,
+    }
+
+
+def mitsuba_mean(look: HairLook, strands: Strands, pose: rg.CameraPose = rg.RIG_SWATCH_POSE,
+                 framing: str = "crop", size: int = 64, spp: int = 256, max_depth: int = 32) -> tuple[np.ndarray, float]:
+    """hairdigi's twin of ``look`` on ``strands`` in the rig (Mitsuba): mean linear colour and seconds."""
+    import time
+
+    import mitsuba as mi
+
+    from hairdigi.render import scenes
+    from hairdigi.render.renderer import RENDER_LOCK
+    from hairdigi.render.variant import select_variant
+
+    select_variant(None)
+    bsdf = {"type": "hair", "sigma_a": {"type": "rgb", "value": list(look.sigma_a)},
+            "longitudinal_roughness": look.longitudinal_roughness, "azimuthal_roughness": look.azimuthal_roughness,
+            "scale_tilt": look.tilt_deg, "int_ior": look.ior}
+    with tempfile.TemporaryDirectory(prefix="hairdigi-twin-") as tmp, RENDER_LOCK:
+        curve_file = Path(tmp) / "strands.txt"
+        curve_file.write_text(strands.with_dummy().to_curve_text())
+        scene = mi.load_dict(scenes.swatch_scene(str(curve_file), bsdf, pose, size, framing=framing,
+                                                 max_depth=max_depth))
+        start = time.perf_counter()
+        image = np.array(mi.render(scene, spp=spp, seed=0))
+    return image.reshape(-1, 3).mean(0), time.perf_counter() - start
+
+
+def write_blend(look: HairLook, out: str | Path, size: int = 256) -> Path:
+    """A ``.blend`` with the look on a small groom of the swatch (``layered_swatch``), in the rig, ready to render."""
+    out = Path(out).resolve()
+    with tempfile.TemporaryDirectory(prefix="hairdigi-blend-") as tmp:
+        script, rig = Path(tmp) / "hair.py", Path(tmp) / "rig.json"
+        script.write_text(blender_script_text(look))
+        rig.write_text(json.dumps(rig_for_blender(layered_swatch(), size=size)))
+        blend = Path(tmp) / out.name
+        run_script(script, ["--scene", str(rig), "--blend", str(blend)])
+        from hairdigi.render.base.files import atomic_path
+
+        with atomic_path(out) as target:
+            shutil.copyfile(blend, target)
+    return out
+
+
+@dataclass
+class CyclesCheck:
+    """One colour rendered by Cycles from the export and by Mitsuba as hairdigi's twin."""
+
+    sigma_a: tuple[float, float, float]
+    cycles_linear: tuple[float, float, float]
+    mitsuba_linear: tuple[float, float, float]
+    delta_e2000: float
+    cycles_seconds: float
+    mitsuba_seconds: float
+
+
+def cycles_check(look: HairLook, size: int = 48, spp: int = 64, mitsuba_spp: int = 256,
+                 pose: rg.CameraPose = rg.RIG_SWATCH_POSE, threads: int = 0) -> CyclesCheck:
+    """Render the exported script in Cycles and hairdigi's Mitsuba twin on the same strands, at the rig's
+    pose (hair only in view); the ΔE2000 of their mean colours."""
+    from hairdigi.render.metrics import delta_e2000
+
+    strands = layered_swatch()
+    with tempfile.TemporaryDirectory(prefix="hairdigi-cycles-") as tmp:
+        script, rig, result = Path(tmp) / "hair.py", Path(tmp) / "rig.json", Path(tmp) / "mean.json"
+        script.write_text(blender_script_text(look))
+        rig.write_text(json.dumps(rig_for_blender(strands, pose, "crop", size)))
+        run_script(script, ["--scene", str(rig), "--render", str(result), "--spp", str(spp),
+                            "--threads", str(threads)])
+        cycles = json.loads(result.read_text())
+    mitsuba, seconds = mitsuba_mean(look, strands, pose, "crop", size, mitsuba_spp)
+    return CyclesCheck(look.sigma_a, tuple(cycles["mean_linear"]), tuple(float(v) for v in mitsuba),
+                       float(delta_e2000(np.asarray(cycles["mean_linear"]), mitsuba)), cycles["seconds"], seconds)
