@@ -1,0 +1,426 @@
+"""The swatch library: every capture, estimate (and dye prediction) a lab made, searchable by colour.
+
+One embedded SQLite file in the user's data folder (WAL mode; ``~/.local/share/hairdigi/library.sqlite``),
+or one PostgreSQL database shared by several benches, with the same schema and the same SQL.
+``HAIRDIGI_LIBRARY`` (a file path or a ``postgresql://`` URL) overrides the default. The schema
+evolves by numbered migrations (``MIGRATIONS``), each applied once, in a transaction.
+
+Every write is one transaction: a session's import is all there or not there, whatever kills the
+process; two processes writing at once queue (SQLite: ``BEGIN IMMEDIATE`` and a busy timeout;
+PostgreSQL: its own locking). Qt-free: the window's Library panel only shows this.
+"""
+from __future__ import annotations
+
+import json
+import os
+import sqlite3
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+
+from hairdigi.app.swatch_colour import ILLUMINANTS, delta_e
+
+KINDS = ("capture", "estimate", "dye")   # dye: predictions of issue "Hair-dye development", same layout
+BUSY_TIMEOUT_S = 60.0
+
+
+class LibraryError(ValueError):
+    """The library cannot be opened or does not hold what was asked; the message says which."""
+
+
+def default_location() -> Path:
+    """``$XDG_DATA_HOME/hairdigi/library.sqlite`` (``~/.local/share/hairdigi/library.sqlite``)."""
+    base = os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share"
+    return Path(base) / "hairdigi" / "library.sqlite"
+
+
+def location() -> str:
+    """Where the library is: ``HAIRDIGI_LIBRARY`` (path or ``postgresql://`` URL), else the default file."""
+    return os.environ.get("HAIRDIGI_LIBRARY") or str(default_location())
+
+
+def is_url(where: str) -> bool:
+    return where.startswith(("postgresql://", "postgres://"))
+
+
+# --- schema ----------------------------------------------------------------------------------------
+#: Numbered migrations; a database at version N gets N+1... applied in order. Portable SQL only.
+MIGRATIONS: tuple[tuple[int, str, tuple[str, ...]], ...] = (
+    (1, "swatches, their colours, imported sessions", (
+        """CREATE TABLE swatches (
+            id TEXT PRIMARY KEY,
+            kind TEXT NOT NULL,
+            session TEXT,
+            capture_id TEXT,
+            captured TEXT,
+            imported TEXT NOT NULL,
+            image_path TEXT,
+            record_path TEXT,
+            record_sha256 TEXT,
+            reliable INTEGER NOT NULL DEFAULT 0,
+            hair TEXT,
+            sigma_r DOUBLE PRECISION, sigma_g DOUBLE PRECISION, sigma_b DOUBLE PRECISION,
+            record TEXT NOT NULL,
+            note TEXT NOT NULL DEFAULT '')""",
+        """CREATE TABLE colours (
+            swatch_id TEXT NOT NULL REFERENCES swatches(id) ON DELETE CASCADE,
+            illuminant TEXT NOT NULL,
+            l DOUBLE PRECISION NOT NULL, a DOUBLE PRECISION NOT NULL, b DOUBLE PRECISION NOT NULL,
+            PRIMARY KEY (swatch_id, illuminant))""",
+        "CREATE INDEX colours_by_illuminant ON colours (illuminant, l)",
+        "CREATE TABLE sessions (path TEXT PRIMARY KEY, imported TEXT NOT NULL, captures INTEGER NOT NULL)",
+    )),
+    (2, "tags and library settings", (
+        """CREATE TABLE tags (
+            swatch_id TEXT NOT NULL REFERENCES swatches(id) ON DELETE CASCADE,
+            tag TEXT NOT NULL,
+            PRIMARY KEY (swatch_id, tag))""",
+        "CREATE INDEX tags_by_tag ON tags (tag)",
+        "CREATE TABLE settings (key TEXT PRIMARY KEY, value TEXT NOT NULL)",
+    )),
+)
+SCHEMA_VERSION = MIGRATIONS[-1][0]
+
+
+@dataclass
+class SwatchRow:
+    """One swatch as written: its identity, where it came from, its record and colours."""
+
+    id: str
+    kind: str
+    record: dict
+    session: str | None = None
+    capture_id: str | None = None
+    captured: str | None = None
+    image_path: str | None = None
+    record_path: str | None = None
+    record_sha256: str | None = None
+    reliable: bool = False
+    hair: dict | None = None
+    sigma_a: tuple[float, float, float] | None = None
+    labs: dict[str, tuple[float, float, float]] = field(default_factory=dict)   # illuminant -> CIELAB
+
+
+@dataclass
+class Swatch:
+    """One swatch as read back, with its tags and note."""
+
+    id: str
+    kind: str
+    session: str | None
+    capture_id: str | None
+    captured: str | None
+    imported: str
+    image_path: str | None
+    record_path: str | None
+    reliable: bool
+    hair: dict | None
+    sigma_a: tuple[float, float, float] | None
+    note: str
+    tags: tuple[str, ...] = ()
+    labs: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+
+    @property
+    def name(self) -> str:
+        return self.capture_id or Path(self.record_path or self.id).name
+
+
+# --- connections -----------------------------------------------------------------------------------
+class _Db:
+    """One connection, SQLite or PostgreSQL, behind the same few calls (SQL written with ``?``)."""
+
+    def __init__(self, where: str) -> None:
+        self.where = where
+        self.postgres = is_url(where)
+        if self.postgres:
+            try:
+                import psycopg
+            except ModuleNotFoundError:
+                raise LibraryError("a PostgreSQL library needs psycopg: pip install 'psycopg[binary]'") from None
+            try:
+                self.conn = psycopg.connect(where, autocommit=True, connect_timeout=10)
+            except psycopg.Error as exc:
+                raise LibraryError(f"cannot connect to the library at {_redact(where)}: "
+                                   f"{str(exc).strip().splitlines()[0]}") from None
+        else:
+            path = Path(where).expanduser()
+            path.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                self.conn = sqlite3.connect(path, timeout=BUSY_TIMEOUT_S, isolation_level=None,
+                                            check_same_thread=False)
+                self.conn.execute("PRAGMA journal_mode=WAL")
+            except sqlite3.DatabaseError as exc:
+                raise LibraryError(f"{path}: not a hairdigi library ({exc})") from None
+            self.conn.execute("PRAGMA synchronous=NORMAL")
+            self.conn.execute("PRAGMA foreign_keys=ON")
+            self.conn.execute(f"PRAGMA busy_timeout={int(BUSY_TIMEOUT_S * 1000)}")
+
+    def _sql(self, sql: str) -> str:
+        return sql.replace("?", "%s") if self.postgres else sql
+
+    def execute(self, sql: str, params: tuple | list = ()):
+        return self.conn.execute(self._sql(sql), params)
+
+    def executemany(self, sql: str, rows: list) -> None:
+        if self.postgres:
+            with self.conn.cursor() as cur:
+                cur.executemany(self._sql(sql), rows)
+        else:
+            self.conn.executemany(sql, rows)
+
+    def query(self, sql: str, params: tuple | list = ()) -> list[tuple]:
+        return list(self.execute(sql, params).fetchall())
+
+    @contextmanager
+    def transaction(self) -> Iterator[None]:
+        """One transaction: committed when the block ends, rolled back if it raises."""
+        if self.postgres:
+            with self.conn.transaction():
+                yield
+            return
+        self.conn.execute("BEGIN IMMEDIATE")   # take the write lock now: two writers queue, never deadlock
+        try:
+            yield
+        except BaseException:
+            self.conn.execute("ROLLBACK")
+            raise
+        self.conn.execute("COMMIT")
+
+    def has_table(self, name: str) -> bool:
+        if self.postgres:
+            return bool(self.query("SELECT 1 FROM information_schema.tables WHERE table_name = ?", (name,)))
+        return bool(self.query("SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?", (name,)))
+
+    def close(self) -> None:
+        self.conn.close()
+
+
+def _redact(url: str) -> str:
+    """A URL without its password, for messages."""
+    import re
+
+    return re.sub(r"(://[^:/@]+):[^@]*@", r"\1:***@", url)
+
+
+def _now() -> str:
+    return time.strftime("%Y-%m-%dT%H:%M:%S%z")
+
+
+# --- the library -----------------------------------------------------------------------------------
+class Library:
+    """A library connection: migrate on open, then import, find, tag, note and export."""
+
+    def __init__(self, where: str | os.PathLike | None = None, migrate_to: int = SCHEMA_VERSION) -> None:
+        self.where = str(where) if where is not None else location()
+        self.db = _Db(self.where)
+        self.migrate(migrate_to)
+
+    def close(self) -> None:
+        self.db.close()
+
+    def __enter__(self) -> "Library":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- schema -----------------------------------------------------------------------------
+    @property
+    def version(self) -> int:
+        if not self.db.has_table("schema_version"):
+            return 0
+        rows = self.db.query("SELECT MAX(version) FROM schema_version")
+        return int(rows[0][0] or 0)
+
+    def migrate(self, to: int = SCHEMA_VERSION) -> list[int]:
+        """Apply the migrations this library lacks, each in its own transaction; the versions applied."""
+        applied = []
+        with self.db.transaction():
+            if self.db.postgres:
+                self.db.execute("SELECT pg_advisory_xact_lock(20020)")   # one migrator at a time
+            self.db.execute("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER PRIMARY KEY, "
+                            "description TEXT NOT NULL, applied TEXT NOT NULL)")
+        current = self.version
+        if current > SCHEMA_VERSION:
+            raise LibraryError(f"the library at {_redact(self.where)} has schema version {current}, newer than "
+                               f"this hairdigi knows ({SCHEMA_VERSION}); update hairdigi")
+        for version, description, statements in MIGRATIONS:
+            if version > to:
+                break
+            with self.db.transaction():
+                if self.db.postgres:
+                    self.db.execute("SELECT pg_advisory_xact_lock(20020)")
+                if self.db.query("SELECT 1 FROM schema_version WHERE version = ?", (version,)):
+                    continue   # another process applied it first
+                for statement in statements:
+                    self.db.execute(statement)
+                self.db.execute("INSERT INTO schema_version (version, description, applied) VALUES (?, ?, ?)",
+                                (version, description, _now()))
+                applied.append(version)
+        return applied
+
+    # -- writes -----------------------------------------------------------------------------
+    def add(self, rows: list[SwatchRow], session: str | None = None) -> int:
+        """Write ``rows`` (new or replacing the same ids, keeping tags and notes) in one transaction;
+        ``session`` marks that folder imported in the same transaction."""
+        imported = _now()
+        swatch_sql = ("INSERT INTO swatches (id, kind, session, capture_id, captured, imported, image_path, record_path, "
+                      "record_sha256, reliable, hair, sigma_r, sigma_g, sigma_b, record) "
+                      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT (id) DO UPDATE SET "
+                      "kind = excluded.kind, session = excluded.session, capture_id = excluded.capture_id, "
+                      "captured = excluded.captured, imported = excluded.imported, image_path = excluded.image_path, "
+                      "record_path = excluded.record_path, record_sha256 = excluded.record_sha256, "
+                      "reliable = excluded.reliable, hair = excluded.hair, sigma_r = excluded.sigma_r, "
+                      "sigma_g = excluded.sigma_g, sigma_b = excluded.sigma_b, record = excluded.record")
+        swatches, colours = [], []
+        for r in rows:
+            if r.kind not in KINDS:
+                raise LibraryError(f"swatch {r.id}: kind {r.kind!r} is not one of {', '.join(KINDS)}")
+            sigma = r.sigma_a or (None, None, None)
+            swatches.append((r.id, r.kind, r.session, r.capture_id, r.captured, imported, r.image_path, r.record_path,
+                             r.record_sha256, int(bool(r.reliable)), None if r.hair is None else json.dumps(r.hair),
+                             *(None if s is None else float(s) for s in sigma), json.dumps(r.record)))
+            colours += [(r.id, ill, *map(float, lab)) for ill, lab in r.labs.items()]
+        with self.db.transaction():
+            self.db.executemany(swatch_sql, swatches)
+            ids = [(r.id,) for r in rows]
+            self.db.executemany("DELETE FROM colours WHERE swatch_id = ?", ids)
+            self.db.executemany("INSERT INTO colours (swatch_id, illuminant, l, a, b) VALUES (?, ?, ?, ?, ?)", colours)
+            if session is not None:
+                self.db.execute("INSERT INTO sessions (path, imported, captures) VALUES (?, ?, ?) ON CONFLICT (path) "
+                                "DO UPDATE SET imported = excluded.imported, captures = excluded.captures",
+                                (session, imported, len(rows)))
+        return len(rows)
+
+    def resolve(self, key: str) -> str:
+        """The full id of the one swatch whose id (or capture id) starts with ``key``."""
+        key = key.strip().lstrip("#")
+        rows = self.db.query("SELECT id FROM swatches WHERE id LIKE ? OR capture_id = ? LIMIT 2", (key + "%", key))
+        if not rows:
+            raise LibraryError(f"no swatch {key!r} in the library; see hairdigi library find")
+        if len(rows) > 1:
+            raise LibraryError(f"{key!r} names more than one swatch; give more of its id")
+        return rows[0][0]
+
+    def tag(self, key: str, tags: list[str], remove: bool = False) -> tuple[str, ...]:
+        """Add (or remove) tags; the swatch's tags after."""
+        swatch_id = self.resolve(key)
+        clean = [t.strip() for t in tags if t.strip()]
+        if not clean:
+            raise LibraryError("give at least one non-empty tag")
+        with self.db.transaction():
+            if remove:
+                self.db.executemany("DELETE FROM tags WHERE swatch_id = ? AND tag = ?", [(swatch_id, t) for t in clean])
+            else:
+                self.db.executemany("INSERT INTO tags (swatch_id, tag) VALUES (?, ?) ON CONFLICT DO NOTHING",
+                                    [(swatch_id, t) for t in clean])
+        return self.tags_of(swatch_id)
+
+    def note(self, key: str, text: str) -> str:
+        swatch_id = self.resolve(key)
+        with self.db.transaction():
+            self.db.execute("UPDATE swatches SET note = ? WHERE id = ?", (text, swatch_id))
+        return swatch_id
+
+    def set_setting(self, key: str, value: str) -> None:
+        with self.db.transaction():
+            self.db.execute("INSERT INTO settings (key, value) VALUES (?, ?) ON CONFLICT (key) "
+                            "DO UPDATE SET value = excluded.value", (key, value))
+
+    def setting(self, key: str) -> str | None:
+        rows = self.db.query("SELECT value FROM settings WHERE key = ?", (key,))
+        return rows[0][0] if rows else None
+
+    # -- reads ------------------------------------------------------------------------------
+    def count(self) -> int:
+        return int(self.db.query("SELECT COUNT(*) FROM swatches")[0][0])
+
+    def sessions(self) -> list[tuple[str, str, int]]:
+        return [tuple(r) for r in self.db.query("SELECT path, imported, captures FROM sessions ORDER BY path")]
+
+    def tags_of(self, swatch_id: str) -> tuple[str, ...]:
+        return tuple(r[0] for r in self.db.query("SELECT tag FROM tags WHERE swatch_id = ? ORDER BY tag", (swatch_id,)))
+
+    _COLUMNS = ("id, kind, session, capture_id, captured, imported, image_path, record_path, reliable, hair, "
+                "sigma_r, sigma_g, sigma_b, note")
+
+    def _swatches(self, where: str = "", params: tuple = ()) -> list[Swatch]:
+        rows = self.db.query(f"SELECT {self._COLUMNS} FROM swatches {where}", params)
+        if not rows:
+            return []
+        ids = [r[0] for r in rows]
+        tags: dict[str, list[str]] = {}
+        labs: dict[str, dict] = {}
+        for chunk in range(0, len(ids), 500):
+            part = ids[chunk:chunk + 500]
+            marks = ", ".join("?" * len(part))
+            for sid, tag in self.db.query(f"SELECT swatch_id, tag FROM tags WHERE swatch_id IN ({marks}) ORDER BY tag", part):
+                tags.setdefault(sid, []).append(tag)
+            for sid, ill, l, a, b in self.db.query(
+                    f"SELECT swatch_id, illuminant, l, a, b FROM colours WHERE swatch_id IN ({marks})", part):
+                labs.setdefault(sid, {})[ill] = (l, a, b)
+        out = []
+        for (sid, kind, session, cap, captured, imported, image, record, reliable, hair, r, g, b, note) in rows:
+            out.append(Swatch(sid, kind, session, cap, captured, imported, image, record, bool(reliable),
+                              None if hair is None else json.loads(hair), None if r is None else (r, g, b), note or "",
+                              tuple(tags.get(sid, ())), labs.get(sid, {})))
+        return out
+
+    def get(self, key: str) -> Swatch:
+        return self._swatches("WHERE id = ?", (self.resolve(key),))[0]
+
+    def record_of(self, key: str) -> dict:
+        """The record as imported."""
+        return json.loads(self.db.query("SELECT record FROM swatches WHERE id = ?", (self.resolve(key),))[0][0])
+
+    def all(self, text: str = "", order: str = "captured") -> list[Swatch]:
+        """Swatches whose id, capture, session, note or a tag contains ``text``; by capture time or colour
+        (lightness under daylight, darkest last)."""
+        where, params = "", ()
+        if text:
+            like = f"%{text}%"
+            where = ("WHERE id LIKE ? OR capture_id LIKE ? OR session LIKE ? OR note LIKE ? "
+                     "OR id IN (SELECT swatch_id FROM tags WHERE tag LIKE ?)")
+            params = (like,) * 5
+        swatches = self._swatches(where, params)
+        if order == "colour":
+            def key(s: Swatch):
+                lab = s.labs.get("daylight")
+                return (lab is None, -(lab[0] if lab else 0), np.arctan2(lab[2], lab[1]) if lab else 0)
+            return sorted(swatches, key=key)
+        return sorted(swatches, key=lambda s: s.captured or s.imported, reverse=True)
+
+    def find(self, lab: np.ndarray, under: str = "daylight", k: int = 10) -> list[tuple[Swatch, float]]:
+        """The ``k`` swatches nearest ``lab`` (CIELAB) under ``under``, by ΔE2000 of the mean colour."""
+        if under not in ILLUMINANTS:
+            raise LibraryError(f"unknown light {under!r}; choose one of {', '.join(ILLUMINANTS)}")
+        rows = self.db.query("SELECT swatch_id, l, a, b FROM colours WHERE illuminant = ?", (under,))
+        if not rows:
+            return []
+        ids = [r[0] for r in rows]
+        labs = np.array([r[1:] for r in rows], float)
+        de = delta_e(labs, np.asarray(lab, float)[None, :])
+        best = np.argsort(de, kind="stable")[:max(1, int(k))]
+        chosen = [ids[i] for i in best]
+        marks = ", ".join("?" * len(chosen))
+        by_id = {s.id: s for s in self._swatches(f"WHERE id IN ({marks})", tuple(chosen))}
+        return [(by_id[ids[i]], float(de[i])) for i in best]
+
+    def integrity(self) -> list[str]:
+        """Problems found: SQLite's own check, and colours or tags of swatches that are not there."""
+        problems = []
+        if not self.db.postgres:
+            problems += [r[0] for r in self.db.query("PRAGMA integrity_check") if r[0] != "ok"]
+        orphans = self.db.query("SELECT COUNT(*) FROM colours WHERE swatch_id NOT IN (SELECT id FROM swatches)")[0][0]
+        if orphans:
+            problems.append(f"{orphans} colours of missing swatches")
+        return problems
+
+
+def open_library(where: str | None = None) -> Library:
+    """The library at ``where`` (default: :func:`location`), migrated to this hairdigi's schema."""
+    return Library(where)

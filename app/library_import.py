@@ -1,0 +1,131 @@
+"""Session folders and record files into the library: one transaction per session (all or nothing)."""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from hairdigi.app.library import Library, LibraryError, SwatchRow
+from hairdigi.app.swatch_colour import swatch_labs
+from hairdigi.render.absorption import hair_sigma_a
+from hairdigi.render.base.files import read_json
+from hairdigi.render.base.records import CaptureRecord, EstimateRecord, RecordError, record_sha256
+
+FIRST_RUN_KEY = "first_run_import"
+
+
+def _short(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def _sigma(record: EstimateRecord | None) -> tuple[float, float, float] | None:
+    if record is None or (record.hair is None and record.sigma_a is None):
+        return None
+    sigma = record.sigma_a if record.sigma_a is not None else hair_sigma_a(record.hair)
+    return tuple(float(s) for s in sigma)
+
+
+def _with_colours(rows: list[SwatchRow]) -> list[SwatchRow]:
+    """Fill every row's CIELAB under each light from its ``sigma_a``, all at once."""
+    coloured = [r for r in rows if r.sigma_a is not None]
+    if coloured:
+        labs = swatch_labs(np.array([r.sigma_a for r in coloured]))
+        for i, r in enumerate(coloured):
+            r.labs = {ill: tuple(float(v) for v in lab[i]) for ill, lab in labs.items()}
+    return rows
+
+
+def capture_rows(folder: str | Path) -> list[SwatchRow]:
+    """One row per capture of a session folder (``captures/<id>.json`` and its ``.result.json``)."""
+    folder = Path(folder).resolve()
+    captures = folder / "captures"
+    if not captures.is_dir():
+        raise LibraryError(f"{folder}: not a session folder (no captures/ in it)")
+    rows = []
+    for meta_path in sorted(captures.glob("*.json")):
+        if meta_path.name.endswith(".result.json") or meta_path.name.startswith("."):
+            continue
+        capture_id = meta_path.stem
+        result_path = captures / f"{capture_id}.result.json"
+        result_data = read_json(result_path, RecordError, "no result", "not a result record ({exc})") \
+            if result_path.exists() else None
+        meta = read_json(meta_path, RecordError, "no capture record", "not a capture record ({exc})")
+        try:
+            capture = CaptureRecord.from_json({"id": capture_id, "image": f"{capture_id}.png", **meta},
+                                              legacy_profile=(result_data or {}).get("calibration_profile"))
+            estimate = None if result_data is None else EstimateRecord.from_json(result_data)
+        except RecordError as exc:
+            raise LibraryError(f"{meta_path}: {exc}") from None
+        identity = capture.image_sha256 or f"{folder}/{capture_id}"
+        rows.append(SwatchRow(
+            id="c" + _short(identity)[:15], kind="capture", session=str(folder), capture_id=capture_id,
+            captured=capture.captured or None, image_path=str(captures / capture.image),
+            record_path=str(result_path if result_data is not None else meta_path),
+            record_sha256=record_sha256(result_path) if result_data is not None else None,
+            reliable=bool(estimate and estimate.reliable),
+            hair=None if estimate is None or estimate.hair is None else estimate.hair.to_dict(),
+            sigma_a=_sigma(estimate),
+            record={"capture": capture.to_json(), "result": None if estimate is None else estimate.to_json()}))
+    return _with_colours(rows)
+
+
+def record_row(path: str | Path) -> SwatchRow:
+    """A lone estimate record (``hairdigi estimate --out``) or a dye prediction."""
+    path = Path(path).resolve()
+    data = read_json(path, RecordError, "no such record", "not a record ({exc})")
+    try:
+        record = EstimateRecord.from_json(data)
+    except RecordError as exc:
+        raise LibraryError(f"{path}: {exc}") from None
+    kind = "dye" if isinstance(data, dict) and str(data.get("kind", "")).startswith("dye") else "estimate"
+    sha = record_sha256(path)
+    when = (record.provenance or {}).get("time")
+    row = SwatchRow(id=("d" if kind == "dye" else "e") + sha[:15], kind=kind, captured=str(when) if when else None,
+                    record_path=str(path), record_sha256=sha, reliable=record.reliable,
+                    hair=None if record.hair is None else record.hair.to_dict(), sigma_a=_sigma(record),
+                    record=record.to_json())
+    return _with_colours([row])[0]
+
+
+def import_paths(library: Library, paths: list[str | Path], progress=print) -> int:
+    """Import session folders (one transaction each) and record files; the swatches written."""
+    total = 0
+    for path in paths:
+        path = Path(path)
+        if path.is_dir():
+            rows = capture_rows(path)
+            progress(f"writing {len(rows)} captures of {path.resolve()}")
+            total += library.add(rows, session=str(path.resolve()))
+        elif path.is_file():
+            total += library.add([record_row(path)])
+        else:
+            raise LibraryError(f"{path}: no such session folder or record file")
+    return total
+
+
+def first_run_sessions() -> list[Path]:
+    """Session folders written before the library: ``HAIRDIGI_SESSIONS`` (folders, ``os.pathsep``-separated;
+    each a session or a folder of sessions), else the app's default ``~/hairdigi-sessions``."""
+    roots = os.environ.get("HAIRDIGI_SESSIONS")
+    candidates = [Path(p) for p in roots.split(os.pathsep) if p] if roots is not None \
+        else [Path.home() / "hairdigi-sessions"]
+    found = []
+    for root in candidates:
+        if (root / "captures").is_dir():
+            found.append(root)
+        elif root.is_dir():
+            found += sorted(p for p in root.iterdir() if (p / "captures").is_dir())
+    return found
+
+
+def first_run(library: Library, progress=print) -> int:
+    """On a library's first open: import the sessions written before it; once (remembered in the library)."""
+    if library.setting(FIRST_RUN_KEY) is not None:
+        return 0
+    sessions = first_run_sessions()
+    total = import_paths(library, sessions, progress) if sessions else 0
+    library.set_setting(FIRST_RUN_KEY, json.dumps({"sessions": [str(s) for s in sessions], "swatches": total}))
+    return total

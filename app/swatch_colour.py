@@ -1,0 +1,91 @@
+"""A swatch's digitized colour, as the library stores and searches it: CIELAB under two lights.
+
+The colour is the swatch's **rendered mean colour** in the rig at the bench camera's pose: each RGB
+channel of the mean depends on that channel's ``sigma_a`` alone through the rig's response curve
+(``inference.refine.response_curve``, rendered once per pose and cached), so it costs no render at import.
+
+- ``daylight``: the rig's white lights, which in hairdigi's linear Rec.709 are D65; CIELAB against D65.
+- ``studio``: the same swatch under 3200 K tungsten studio lamps, approximated the way an RGB renderer
+  lights it (the per-channel product of the lamp's linear Rec.709 colour, scaled to luminance 1, and the
+  daylight colour), and seen without chromatic adaptation, as a daylight-balanced photograph shows it
+  (CIELAB against D65). Both are approximations: no spectra, one lamp colour.
+"""
+from __future__ import annotations
+
+import functools
+import re
+
+import numpy as np
+
+ILLUMINANTS = ("daylight", "studio")
+STUDIO_CCT = 3200.0
+_HEX = re.compile(r"^#?([0-9a-fA-F]{6})$")
+
+
+@functools.lru_cache(maxsize=1)
+def studio_light_rgb() -> np.ndarray:
+    """A 3200 K lamp in linear Rec.709, luminance 1."""
+    import colour
+
+    xy = colour.temperature.CCT_to_xy_Planck(STUDIO_CCT)
+    xyz = colour.xy_to_XYZ(xy)
+    rgb = colour.XYZ_to_RGB(xyz, colour.RGB_COLOURSPACES["sRGB"], apply_cctf_encoding=False)
+    return rgb / (rgb @ np.array([0.2126, 0.7152, 0.0722]))
+
+
+@functools.lru_cache(maxsize=1)
+def _curve():
+    from hairdigi.inference.refine import RefineSettings, response_curve
+    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+
+    return response_curve(RIG_SWATCH_POSE, RefineSettings())
+
+
+def rendered_linear(sigma_a: np.ndarray) -> np.ndarray:
+    """(..., 3) mean linear Rec.709 colour of the rig's swatch for (..., 3) ``sigma_a`` (daylight)."""
+    return _curve()(np.asarray(sigma_a, float))
+
+
+def lab_under(linear_daylight: np.ndarray) -> dict[str, np.ndarray]:
+    """CIELAB of the rendered colour under each illuminant (see the module's docstring)."""
+    from hairdigi.render.metrics import linear_rgb_to_lab
+
+    rgb = np.asarray(linear_daylight, float)
+    return {"daylight": linear_rgb_to_lab(rgb), "studio": linear_rgb_to_lab(rgb * studio_light_rgb())}
+
+
+def swatch_labs(sigma_a: np.ndarray) -> dict[str, np.ndarray]:
+    """CIELAB under each illuminant of swatches of these ``sigma_a`` (any shape ending in 3)."""
+    return lab_under(rendered_linear(sigma_a))
+
+
+def hex_lab(text: str) -> np.ndarray:
+    """CIELAB (D65) of an sRGB colour written ``#RRGGBB``."""
+    from hairdigi.render.metrics import linear_rgb_to_lab
+    from hairdigi.render.srgb import srgb8_to_linear
+
+    match = _HEX.match(text.strip())
+    if not match:
+        raise ValueError(f"colour {text!r} is not #RRGGBB (six hexadecimal digits)")
+    value = int(match.group(1), 16)
+    srgb = np.array([(value >> 16) & 255, (value >> 8) & 255, value & 255], float)
+    return linear_rgb_to_lab(srgb8_to_linear(srgb))
+
+
+def lab_hex(lab: np.ndarray) -> str:
+    """``#RRGGBB`` of a CIELAB (D65) colour, clipped to sRGB."""
+    import colour
+
+    from hairdigi.render.srgb import linear_to_srgb8
+
+    rgb = colour.XYZ_to_RGB(colour.Lab_to_XYZ(np.asarray(lab, float), colour.RGB_COLOURSPACES["sRGB"].whitepoint),
+                            colour.RGB_COLOURSPACES["sRGB"], apply_cctf_encoding=False)
+    r, g, b = (int(v) for v in linear_to_srgb8(rgb))
+    return f"#{r:02x}{g:02x}{b:02x}"
+
+
+def delta_e(lab_a: np.ndarray, lab_b: np.ndarray) -> np.ndarray:
+    """CIEDE2000 between CIELAB colours (broadcasting)."""
+    import colour
+
+    return colour.delta_E(np.asarray(lab_a, float), np.asarray(lab_b, float), method="CIE 2000")
