@@ -36,6 +36,13 @@ MAX_CAST = 10.0                  # simulated white-balance gain per channel
 MIN_FREE_BYTES = 1 << 20         # an output folder on a disk with less than this left counts as full
 
 
+def _models_folder() -> str:
+    """The shipped model's folder: ``export-onnx`` and ``model-card`` may replace the files there."""
+    from hairdigi.resources import MODELS
+
+    return str(MODELS)
+
+
 class ArgumentError(ValueError):
     """An argument cannot be used; the message names it and says what would work."""
 
@@ -141,7 +148,7 @@ def _writable_folder(folder: Path, flag: str, shown: Path) -> None:
 
 
 def check_output_file(path: str | os.PathLike, flag: str, suffixes: Iterable[str], fmt: str,
-                      inputs: dict[str, str | os.PathLike | None] | None = None) -> Path:
+                      inputs: dict[str, str | os.PathLike | None] | None = None, allow: tuple = ()) -> Path:
     """``path`` is where a ``fmt`` file will be written: the right extension, not a folder, not one of
     ``inputs`` (flag: path), in a folder that exists or can be made, and writable."""
     text = os.fspath(path)
@@ -156,12 +163,46 @@ def check_output_file(path: str | os.PathLike, flag: str, suffixes: Iterable[str
     if p.suffix.lower() not in suffixes:
         raise ArgumentError(f"{flag} {text}: this writes {fmt}; name it with {' or '.join(suffixes)}, e.g. "
                             f"{p.with_suffix(suffixes[0]).name}")
+    check_not_protected(p, flag, allow)
+    _name_fits(p, flag)
+    if p.is_file() and not p.stat().st_mode & 0o222:
+        raise ArgumentError(f"{flag} {text}: the file is read-only (chmod 444), so it is kept; make it writable "
+                            f"(chmod u+w) or choose another name")
     _writable_folder(p.parent, flag, p)
     return p
 
 
+def check_not_protected(path: str | os.PathLike, flag: str, allow: tuple = ()) -> None:
+    """``path`` must not be a file hairdigi reads back: a session's, a dataset's or the package's."""
+    from hairdigi.render.base.files import protected_reason
+
+    reason = protected_reason(path, allow)
+    if reason:
+        raise ArgumentError(f"{flag} {os.fspath(path)} {reason}; writing over it is refused: choose another "
+                            f"output name")
+
+
+def _name_fits(p: Path, flag: str) -> None:
+    """The file name and the whole path must fit the file system's limits (checked before the work)."""
+    probe = p.parent
+    while not probe.exists() and probe.parent != probe:
+        probe = probe.parent
+    try:
+        name_max = os.pathconf(probe, "PC_NAME_MAX")
+        path_max = os.pathconf(probe, "PC_PATH_MAX")
+    except (OSError, ValueError):
+        name_max, path_max = 255, 4096
+    for part in p.parts:
+        if len(os.fsencode(part)) > name_max:
+            raise ArgumentError(f"{flag} {p}: the name {part[:40]}... is {len(os.fsencode(part))} bytes, over the "
+                                f"file system's {name_max}; use a shorter name")
+    if len(os.fsencode(str(p.absolute()))) >= path_max:
+        raise ArgumentError(f"{flag} {p}: the path is longer than the file system's {path_max} bytes; use a "
+                            f"shorter path")
+
+
 def check_output_dir(path: str | os.PathLike, flag: str,
-                     inputs: dict[str, str | os.PathLike | None] | None = None) -> Path:
+                     inputs: dict[str, str | os.PathLike | None] | None = None, dataset_ok: bool = False) -> Path:
     """``path`` is a folder that will be written into: not a file, not an input, creatable, writable."""
     p = Path(path)
     if p.exists() and not p.is_dir():
@@ -169,8 +210,27 @@ def check_output_dir(path: str | os.PathLike, flag: str,
     for other_flag, other in (inputs or {}).items():
         if other is not None and _same(p, Path(other)):
             raise ArgumentError(f"{flag} {p} is also the {other_flag} input; choose another folder")
+    _not_a_protected_folder(p, flag, dataset_ok)
+    _name_fits(p / "x", flag)
     _writable_folder(p, flag, p)
     return p
+
+
+def _not_a_protected_folder(p: Path, flag: str, dataset_ok: bool) -> None:
+    """An output folder must not be the package's, a session's captures, or (but for ``dataset``) a dataset."""
+    from hairdigi.render.base.files import _checkout_protected, _is_session, _within, package_folders
+
+    real = p.resolve()
+    folders = package_folders()
+    if any(_within(real, f) for f in folders + _checkout_protected(folders)[0]):
+        raise ArgumentError(f"{flag} {p} is inside the hairdigi package (its code, tests or resources); "
+                            f"writing there is refused: choose another folder")
+    if real.name == "captures" and _is_session(real.parent) or real.parent.name == "captures" and _is_session(real.parent.parent):
+        raise ArgumentError(f"{flag} {p} is the captures folder of the rig session {real.parent}; writing there "
+                            f"is refused: choose another folder")
+    if not dataset_ok and (real / "manifest.json").is_file():
+        raise ArgumentError(f"{flag} {p} is a dataset folder (it holds manifest.json); writing there is "
+                            f"refused: choose another folder")
 
 
 def check_distinct(outputs: dict[str, str | os.PathLike | None]) -> None:
@@ -242,6 +302,8 @@ def check_estimate(args: argparse.Namespace) -> None:
         check_input_file(args.model, "--model")
     check_distinct({"--out": args.out, "--render": args.render})
     check_output_file(args.out, "--out", (".json",), "JSON", inputs)
+    if not getattr(args, "no_refine", False):
+        check_cache_writable()   # refinement stores the camera pose's response curve there
     if args.render:
         check_output_file(args.render, "--render", (".png",), "an 8-bit PNG", inputs)
 
@@ -262,13 +324,13 @@ def check_dataset_folder(path: str | os.PathLike) -> None:
 def check_dataset(args: argparse.Namespace) -> None:
     """``hairdigi dataset``: the output folder, and its manifest when resuming."""
     if args.out:
-        check_output_dir(args.out, "--out")
+        check_output_dir(args.out, "--out", dataset_ok=True)
         check_dataset_folder(args.out)
 
 
 def check_rig(args: argparse.Namespace) -> None:
     """``hairdigi rig``: the session folder, the swatch area, and a RAW still to import."""
-    check_output_dir(args.session, "--session")
+    check_session_folder(args.session, "--session")
     if args.roi:
         _parse_roi(args.roi, "--roi")
     if getattr(args, "still", None):
@@ -278,6 +340,49 @@ def check_rig(args: argparse.Namespace) -> None:
         if still.suffix.lower() not in RAW_EXTENSIONS:
             raise ArgumentError(f"--still {still}: not a RAW still ({', '.join(sorted(RAW_EXTENSIONS))}); "
                                 "estimate images with hairdigi estimate")
+
+
+def check_session_folder(path: str | os.PathLike, flag: str) -> Path:
+    """A session folder: usable as an output folder, its ``captures`` a folder and its calibration a file."""
+    p = check_output_dir(path, flag)
+    captures, calibration = p / "captures", p / "calibration.json"
+    if captures.exists() and not captures.is_dir():
+        raise ArgumentError(f"{flag} {p}: {captures} is a file, where the session keeps its captures folder; "
+                            f"move that file away or choose another session folder")
+    if calibration.is_dir():
+        raise ArgumentError(f"{flag} {p}: {calibration} is a folder, where the session keeps its calibration "
+                            f"file; move it away or choose another session folder")
+    return p
+
+
+def check_cache_writable() -> None:
+    """The cache folder (``HAIRDIGI_CACHE``) must be writable before work that stores results there."""
+    cache = Path(os.environ.get("HAIRDIGI_CACHE", Path.home() / ".cache" / "hairdigi"))
+    try:
+        _writable_folder(cache, "HAIRDIGI_CACHE", cache)
+    except ArgumentError as exc:
+        raise ArgumentError(f"{exc}; or set HAIRDIGI_CACHE to a writable folder") from None
+
+
+def check_display() -> None:
+    """A window needs a display: on Linux, a reachable X server or Wayland, or an offscreen Qt platform."""
+    import sys
+
+    platform = os.environ.get("QT_QPA_PLATFORM", "")
+    if not sys.platform.startswith("linux") or platform.split(":")[0] in ("offscreen", "minimal", "vnc", "eglfs",
+                                                                         "linuxfb"):
+        return
+    fix = "run it on the desktop, or without one under a virtual X server: xvfb-run hairdigi app ..."
+    wayland, display = os.environ.get("WAYLAND_DISPLAY"), os.environ.get("DISPLAY")
+    if wayland:
+        return
+    if not display:
+        raise ArgumentError(f"no display: DISPLAY is not set (no X server or Wayland to open the window on); {fix}")
+    host, _, number = display.partition(":")
+    number = number.split(".")[0]
+    if host in ("", "unix") and number.isdigit() and not Path(f"/tmp/.X11-unix/X{number}").exists():
+        raise ArgumentError(f"no display: DISPLAY={display} names no running X server (no "
+                            f"/tmp/.X11-unix/X{number}); {fix}")
 
 
 def _parse_roi(text: str, flag: str) -> tuple[int, int, int, int]:
@@ -301,7 +406,7 @@ def check_train(args: argparse.Namespace) -> None:
 def check_export(args: argparse.Namespace) -> None:
     """``hairdigi export-onnx``: the run folder exists; the model file is new or a model."""
     check_input_dir(args.run, "--run")
-    check_output_file(args.out, "--out", (".onnx",), "an ONNX model", {"--run": args.run})
+    check_output_file(args.out, "--out", (".onnx",), "an ONNX model", {"--run": args.run}, allow=(_models_folder(),))
 
 
 def check_evaluate(args: argparse.Namespace) -> None:
@@ -319,8 +424,11 @@ def check_model_card(args: argparse.Namespace) -> None:
         if path:
             check_input_file(path, flag)
     check_input_dir(args.run, "--run")
-    out = check_output_file(args.out, "--out", (".md",), "Markdown", inputs)
-    check_output_file(out.with_suffix(".json"), "--out (its .json twin)", (".json",), "JSON", inputs)
+    out = check_output_file(args.out, "--out", (".md",), "Markdown", inputs, allow=(_models_folder(),))
+    check_output_file(out.with_suffix(".json"), "--out (its .json twin)", (".json",), "JSON", inputs,
+                      allow=(_models_folder(),))
+    check_output_file(out.with_name("uncertainty.json"), "--out (the intervals beside it)", (".json",), "JSON",
+                      inputs, allow=(_models_folder(),))
 
 
 def check_bench(args: argparse.Namespace) -> None:
@@ -337,8 +445,9 @@ def check_folder_out(args: argparse.Namespace) -> None:
 
 def check_app(args: argparse.Namespace) -> None:
     """``hairdigi app``: the session and tour folders, when given."""
+    check_display()
     if args.session:
-        check_output_dir(args.session, "--session")
+        check_session_folder(args.session, "--session")
     if args.tour:
         check_output_dir(args.tour, "--tour")
 

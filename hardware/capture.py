@@ -23,9 +23,17 @@ def _atomic_bytes(path: Path, data: bytes) -> None:
         os.fsync(f.fileno())
 
 
+_last_capture_ms = [0]
+
+
 def new_capture_id(now: float | None = None) -> str:
-    t = now or time.time()
-    return time.strftime("%Y%m%d-%H%M%S", time.localtime(t)) + f"-{int((t % 1) * 1000):03d}"
+    """``YYYYmmdd-HHMMSS-mmm`` of ``now``; never the same twice in a process (a second capture in the same
+    millisecond takes the next one), so a capture never replaces another."""
+    t = time.time() if now is None else now
+    ms = max(int(t * 1000), _last_capture_ms[0] + 1) if now is None else int(t * 1000)
+    _last_capture_ms[0] = max(_last_capture_ms[0], ms)
+    seconds, milli = divmod(ms, 1000)
+    return time.strftime("%Y%m%d-%H%M%S", time.localtime(seconds)) + f"-{milli:03d}"
 
 
 def save_capture(folder: str | os.PathLike, srgb: np.ndarray | None = None, raw_path: str | os.PathLike | None = None,

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numbers
+import re
 import threading
 import time
 from dataclasses import dataclass
@@ -19,6 +20,10 @@ except ImportError:  # Windows
 
 BAUDRATE = 115200
 IDENT_PREFIX = "OK HAIRDIGI-LIGHTS"
+MAX_COMMAND = 32          # characters a command may hold, its line ending not counted (PROTOCOL.md)
+#: A board unplugged and plugged back (USB re-enumerates) is reopened for about this long, with backoff.
+RECONNECT_S = 1.6
+_STATUS_PART = re.compile(r"([01]):(0|[1-9][0-9]{0,2})")
 
 
 class LightError(RuntimeError):
@@ -52,7 +57,10 @@ def check_command(command: str) -> None:
     if "\n" in command or "\r" in command:
         raise LightArgumentError(f"command {command!r} contains a line break; send one command per call")
     if not all(" " <= c <= "~" for c in command):
-        raise LightArgumentError(f"command {command!r} may hold only printable ASCII characters (space to '~')")
+        raise LightArgumentError(f"command {command[:40]!r} may hold only printable ASCII characters (space to '~')")
+    if len(command) > MAX_COMMAND:
+        raise LightArgumentError(f"command {command[:40]!r}... is {len(command)} characters; the protocol allows "
+                                 f"at most {MAX_COMMAND}")
 
 
 def check_index(index: int) -> int:
@@ -82,11 +90,10 @@ def parse_status(reply: str) -> tuple[LightState, ...]:
         raise LightProtocolError(f"malformed STATUS reply {reply!r}")
     states = []
     for part in parts[1:]:
-        try:
-            on, intensity = part.split(":")
-            states.append(LightState(on == "1", int(intensity)))
-        except ValueError:
-            raise LightProtocolError(f"malformed STATUS reply {reply!r}") from None
+        match = _STATUS_PART.fullmatch(part)
+        if match is None or int(match.group(2)) > 255:   # on is 0 or 1; an intensity 0 to 255, digits only
+            raise LightProtocolError(f"malformed STATUS reply {reply!r}")
+        states.append(LightState(match.group(1) == "1", int(match.group(2))))
     return tuple(states)
 
 
@@ -115,6 +122,19 @@ class LightController:
         except (serial.SerialException, OSError) as exc:
             raise LightLinkError(f"cannot open the light board on {self.port_name} ({exc}); check the USB "
                                  f"cable, or run 'hairdigi rig --list-ports' to find the board") from None
+
+    def _reopen(self) -> bool:
+        """Open the port again, retrying with backoff for about ``RECONNECT_S`` (a replug takes a moment)."""
+        deadline, delay = time.monotonic() + RECONNECT_S, 0.05
+        while True:
+            time.sleep(delay)
+            try:
+                self._open()
+                return True
+            except LightLinkError:
+                if time.monotonic() + delay > deadline:
+                    return False
+                delay = min(2 * delay, 0.4)
 
     def close(self) -> None:
         if self._serial is not None:
@@ -184,11 +204,10 @@ class LightController:
                 time.sleep(self.timeout / 2)
             except (*LINK_ERRORS, LightLinkError) as exc:
                 self.close()
-                if reconnected:
+                if reconnected or not self._reopen():
                     raise LightLinkError(f"lost the light board on {self.port_name} during {command!r} "
                                          f"({exc}); check the USB cable and power, then reconnect") from None
                 reconnected = True
-                time.sleep(0.05)
                 last = exc
         raise type(last)(f"{last} (after {self.retries + 1} tries)") if isinstance(last, LightError) else \
             LightTimeout(f"no valid reply to {command!r} after {self.retries + 1} tries")

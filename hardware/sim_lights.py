@@ -75,6 +75,20 @@ def handle(line: str, state: BoardState, serial_no: str = "SIM0001") -> str:
     return "ERR E1 unknown command"
 
 
+def _terminated(signum, frame) -> None:
+    """SIGTERM: unwind like an exit, so ``finally`` blocks and ``atexit`` remove what the run made."""
+    raise SystemExit(128 + signum)
+
+
+def _remove_on_exit(folder: Path) -> None:
+    """Remove ``folder`` when the process exits, by SIGTERM too (the default SIGTERM skips ``atexit``)."""
+    import atexit
+
+    atexit.register(shutil.rmtree, str(folder), True)
+    if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _terminated)
+
+
 class SimulatedLightBoard:
     """Runs the board in a thread behind a pty; ``port`` is the path to open with pyserial."""
 
@@ -82,6 +96,8 @@ class SimulatedLightBoard:
         self.state = BoardState()
         self._own_dir = link_dir is None  # made here, removed on close
         self._dir = Path(link_dir or tempfile.mkdtemp(prefix="hairdigi-serial-"))
+        if self._own_dir:
+            _remove_on_exit(self._dir)
         self.port = str(self._dir / "ttyHAIRDIGI0")
         self.received: list[str] = []
         self.faults: list[str] = []   # queue: "drop", "garbage", "partial", "slow"

@@ -105,10 +105,44 @@ class HairFile:
                                                *other.default_colour])))
 
 
+#: The largest model read: 8 M points (Cem Yuksel's largest models hold about 4 M), 1 M strands. Loading
+#: one keeps its arrays and a few float64 copies while fitting it to the head: well under 2 GB.
+MAX_FILE_POINTS = 8_000_000
+MAX_FILE_STRANDS = 1_000_000
+
+
+def _check_bounds(path: Path, n_strands: int, n_points: int, file_size: int) -> None:
+    """Refuse a model over the point or strand bound, from its header, before its arrays are read."""
+    if n_points > MAX_FILE_POINTS or n_strands > MAX_FILE_STRANDS:
+        raise HairFileError(f"{path}: its header claims {n_strands} strands and {n_points} points, more than "
+                            f"hairdigi loads ({MAX_FILE_STRANDS} strands, {MAX_FILE_POINTS} points, "
+                            f"{file_size / 1e6:.0f} MB file); use a decimated copy of the model")
+
+
+def _read_prefix(path: Path) -> tuple[bytes, int]:
+    """The file's first bytes, as many as its header says its arrays need (bounded), and its size."""
+    try:
+        with open(path, "rb") as f:
+            size = os.fstat(f.fileno()).st_size
+            header = f.read(_HEADER.size)
+            if len(header) < _HEADER.size:
+                return header, size
+            _, n_strands, n_points, flags = _HEADER.unpack(header)[:4]
+            _check_bounds(path, n_strands, n_points, size)
+            need = _HEADER.size + 2 * n_strands * bool(flags & HAS_SEGMENTS) + 12 * n_points + 32 * n_points
+            return header + f.read(need - _HEADER.size), size
+    except HairFileError:
+        raise
+    except IsADirectoryError:
+        raise HairFileError(f"{path}: is a folder, not a .hair file; give the file's path") from None
+    except OSError as exc:
+        raise HairFileError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+
+
 def read_hair_file(path: str | os.PathLike) -> HairFile:
     """Read and check a ``.hair`` file; a :class:`HairFileError` names what is wrong in one line."""
     path = Path(path)
-    data = path.read_bytes()
+    data, _ = _read_prefix(path)
     if len(data) < _HEADER.size:
         raise HairFileError(f"{path}: truncated: {len(data)} bytes, but a .hair header alone needs 128; "
                             f"the file is cut short, copy it again")
@@ -145,12 +179,26 @@ def read_hair_file(path: str | os.PathLike) -> HairFile:
     if not finite.all():
         raise HairFileError(f"{path}: {int((~finite).sum())} points are not finite (NaN or Inf), the first is "
                             f"point {int(np.argmin(finite))}; the model is corrupt")
+    _check_not_degenerate(path, points, segments.astype(np.int64) + 1 if segments is not None
+                          else np.full(n_strands, def_segments + 1, np.int64))
     colour = arrays.get("colour")
     return HairFile(points.astype(np.float32), int(n_strands), segments,
                     arrays.get("thickness"), arrays.get("transparency"),
                     None if colour is None else colour.reshape(-1, 3),
                     int(def_segments), float(def_thickness), float(def_transparency), (float(r), float(g), float(b)),
                     info.split(b"\0", 1)[0].decode("utf-8", "replace"))
+
+
+def _check_not_degenerate(path: Path, points: np.ndarray, counts: np.ndarray) -> None:
+    """Refuse a model with nothing to draw: no strand of 2 points, or every strand of zero length."""
+    if not (counts >= 2).any():
+        raise HairFileError(f"{path}: no strand has 2 or more points (all {len(counts)} are single points), "
+                            f"so there is no hair to render; the model is degenerate")
+    steps = np.linalg.norm(np.diff(points, axis=0), axis=1)   # float32: 4 bytes a point
+    steps[(np.cumsum(counts) - 1)[:-1]] = 0.0                 # from one strand's last point to the next's first
+    if not steps.any():
+        raise HairFileError(f"{path}: every strand has zero length (all its points at one place), so there is "
+                            f"no hair to render; the model is degenerate")
 
 
 def hair_file_bytes(hair: HairFile) -> bytes:

@@ -4,8 +4,10 @@ no reader ever sees half a file and a failed write leaves the old file in place.
 from __future__ import annotations
 
 import csv
+import errno
 import json
 import os
+import re
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -29,21 +31,59 @@ def publish(tmp: str | os.PathLike, path: str | os.PathLike) -> Path:
     return Path(path)
 
 
+def _temp_suffix(path: Path, suffix: str | None) -> str:
+    """The temporary file's suffix: the target's extension (writers choose the format by it), kept short."""
+    ext = suffix or path.suffix or ".tmp"
+    return ext if len(ext) <= 16 else ".tmp"
+
+
+def _refuse_read_only(path: Path) -> None:
+    """An existing target with no write permission bit was made read-only on purpose: never replace it."""
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return
+    if path.is_file() and not mode & 0o222:
+        raise PermissionError(errno.EACCES, "the file is read-only (no write permission); make it writable "
+                              "(chmod u+w) or choose another name", str(path))
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
     """A temporary path beside ``path`` to write to; published as ``path`` when the block succeeds.
 
     ``suffix`` (default: ``path``'s) matters to writers that choose the format by extension
-    (``cv2.imwrite``, ``np.savez``)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=suffix or path.suffix or ".tmp")
-    os.close(fd)
+    (``cv2.imwrite``, ``np.savez``). The temporary name is short (``.hd-XXXXXXXX.ext``), so any
+    name the file system takes can be written; a read-only target is refused before the work."""
+    with atomic_paths(path, suffixes=(suffix,)) as (tmp,):
+        yield tmp
+
+
+@contextmanager
+def atomic_paths(*paths: str | os.PathLike | None, suffixes: tuple = ()) -> Iterator[tuple]:
+    """Temporary paths beside each of ``paths`` (None stays None); all are published together when the
+    block succeeds, none when it fails (a disk filling on the second file leaves the first untouched)."""
+    targets = [None if p is None else Path(p) for p in paths]
+    temps: list[Path | None] = []
     try:
-        yield Path(tmp)
-        publish(tmp, path)
+        for i, path in enumerate(targets):
+            if path is None:
+                temps.append(None)
+                continue
+            _refuse_read_only(path)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            suffix = suffixes[i] if i < len(suffixes) else None
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".hd-", suffix=_temp_suffix(path, suffix))
+            os.close(fd)
+            temps.append(Path(tmp))
+        yield tuple(temps)
+        for tmp, path in zip(temps, targets):
+            if tmp is not None:
+                publish(tmp, path)
     finally:
-        Path(tmp).unlink(missing_ok=True)
+        for tmp in temps:
+            if tmp is not None:
+                tmp.unlink(missing_ok=True)
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
@@ -108,8 +148,119 @@ def read_json(path: str | os.PathLike, error: type[Exception], missing: str, inv
     except UnicodeDecodeError:
         raise error(f"{path}: {invalid.format(exc='not UTF-8 text')}") from None
     try:
-        return json.loads(text)
+        return json.loads(text, object_pairs_hook=_unique_keys)
+    except _DuplicateKey as exc:
+        raise error(f"{path}: {invalid.format(exc=f'the key {exc.args[0]!r} appears twice')}") from None
     except json.JSONDecodeError as exc:
         raise error(f"{path}: {invalid.format(exc=exc)}") from None
     except RecursionError:
         raise error(f"{path}: {invalid.format(exc='nested too deeply')}") from None
+    except ValueError as exc:   # a number with more digits than Python converts (over 4300)
+        raise error(f"{path}: {invalid.format(exc=' '.join(str(exc).split())[:120])}") from None
+
+
+class _DuplicateKey(ValueError):
+    """A JSON object names one key twice: which value was meant is unknown."""
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict:
+    """``json.loads``'s object hook: an object, refusing a key given twice (JSON would keep the last)."""
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise _DuplicateKey(key)
+        out[key] = value
+    return out
+
+
+# --- files hairdigi itself reads: never overwritten by a command's output ---------------------
+#: The package's folders (as installed: a checkout's source folders in an editable install).
+PACKAGE_PARTS = ("app", "render", "hardware", "inference", "resources")
+#: In a checkout, beside the package's folders: what the tests and docs read.
+CHECKOUT_PARTS = ("tests",)
+CHECKOUT_FILES = ("pyproject.toml", "README.md", "Makefile", "setup.py", "setup.cfg")
+#: Top-level keys by which an existing JSON file is recognised as one hairdigi reads back.
+_RECORD_KINDS = {"calibration": "a session's calibration profile", "capture": "a capture's record"}
+
+
+def package_folders() -> list[Path]:
+    """The folders the installed hairdigi package is made of."""
+    import importlib.util
+
+    found = []
+    for part in PACKAGE_PARTS:
+        try:
+            spec = importlib.util.find_spec(f"hairdigi.{part}")
+        except (ImportError, ValueError):
+            spec = None
+        for location in (spec.submodule_search_locations or []) if spec else []:
+            found.append(Path(location).resolve())
+    return found
+
+
+def _checkout_protected(folders: list[Path]) -> tuple[list[Path], list[Path]]:
+    """A checkout's protected folders and files: beside the package's folders, under a pyproject.toml."""
+    roots = {f.parent for f in folders if (f.parent / "pyproject.toml").is_file()}
+    return ([r / part for r in roots for part in CHECKOUT_PARTS],
+            [r / name for r in roots for name in CHECKOUT_FILES])
+
+
+def _within(path: Path, folder: Path) -> bool:
+    return path == folder or folder in path.parents
+
+
+def _is_session(folder: Path) -> bool:
+    """A rig session folder: its calibration, or captures with their records."""
+    captures = folder / "captures"
+    return (folder / "calibration.json").is_file() or (captures.is_dir() and any(captures.glob("*.json")))
+
+
+def _record_kind(path: Path) -> str | None:
+    """What hairdigi record an existing JSON file is (calibration profile, capture record, manifest)."""
+    try:
+        if path.suffix.lower() != ".json" or not path.is_file() or path.stat().st_size > 1 << 20:
+            return None
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(data, dict):
+        return None
+    if data.get("kind") in _RECORD_KINDS:
+        return _RECORD_KINDS[data["kind"]]
+    if "matrix" in data and "method" in data:
+        return _RECORD_KINDS["calibration"]
+    if "image_sha256" in data and "image" in data:
+        return _RECORD_KINDS["capture"]
+    if isinstance(data.get("config"), dict) and "format" in data:
+        return "a dataset's manifest"
+    return None
+
+
+def protected_reason(path: str | os.PathLike, allow: tuple = ()) -> str | None:
+    """Why ``path`` must not be written over: it belongs to a rig session (its calibration, its
+    captures), a dataset (manifest, shards) or the hairdigi package (its folders, a checkout's tests
+    and top files); None when it may be written. ``allow`` lists folders where the package's files may
+    be replaced (``export-onnx`` and ``model-card`` write the shipped model and its card)."""
+    given = Path(path).absolute()
+    try:
+        real = Path(path).resolve()
+    except (OSError, RuntimeError):
+        real = given
+    for p in dict.fromkeys((given, real)):
+        parent = p.parent
+        if parent.name == "captures" and _is_session(parent.parent):
+            return f"is part of the rig session {parent.parent} (its captures)"
+        if p.name == "calibration.json" and (p.exists() or _is_session(parent)):
+            return f"is the calibration of the rig session {parent}"
+        if (parent / "manifest.json").is_file() and (p.name == "manifest.json" or re.match(r"shard-\d+\.npz$", p.name)):
+            return f"is part of the dataset {parent}"
+        folders = package_folders()
+        extra_folders, extra_files = _checkout_protected(folders)
+        if any(_within(p, f) for f in folders + extra_folders) and not any(_within(p, Path(a).resolve()) for a in allow):
+            return "is part of the hairdigi package (its code, tests or resources)"
+        if p in extra_files:
+            return "is part of the hairdigi checkout"
+    kind = _record_kind(real)
+    if kind:
+        return f"is {kind}, which hairdigi reads back"
+    return None
