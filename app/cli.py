@@ -63,14 +63,18 @@ def cmd_render(args: argparse.Namespace) -> int:
         from hairdigi.render.hairfile import model_summary
 
         print(model_summary(spec.hair_file, spec.n_strands))
-    save_png(args.out, result.srgb)
+    from hairdigi.render.base.files import atomic_paths
+
+    with atomic_paths(args.out, args.exr) as (png, exr):   # both written, then both published: a failed
+        save_png(png, result.srgb)                         # EXR leaves the old PNG in place
+        if exr is not None:
+            save_exr(exr, result.linear)
     print(f"wrote {args.out} ({result.srgb.shape[1]}x{result.srgb.shape[0]}, {result.spp} spp, "
           f"{result.seconds:.2f} s, {result.nonfinite} non-finite values)")
     if result.nonfinite:
         print(f"warning: the path tracer returned {result.nonfinite} NaN or Inf values, written as 0 (black); "
               f"the image may have dark specks", file=sys.stderr)
     if args.exr:
-        save_exr(args.exr, result.linear)
         print(f"wrote {args.exr} (linear RGB)")
     return 0
 
@@ -265,6 +269,9 @@ BENCH_OUT = "out/bench"
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    if args.what == "memory":   # issue 22: peak memory and time of the largest inputs hairdigi accepts
+        from hairdigi.app.bench_memory import bench_memory
+        return bench_memory(args)
     if args.what == "library":   # issue 20: find in a library of --n swatches (default 10,000)
         from hairdigi.app.library_cli import bench_library
         return bench_library(args)
@@ -506,9 +513,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_model_card)
 
     p = sub.add_parser("bench", help="speed against error tables and plots")
-    p.add_argument("what", choices=("render", "rig", "encoder", "refine", "dataset", "previews", "library"))
+    p.add_argument("what", choices=("render", "rig", "encoder", "refine", "dataset", "previews", "memory", "library"))
     p.add_argument("--models", nargs="*", help="encoder: the ONNX models to compare")
-    p.add_argument("--n", type=int, default=None, help="held-out swatches (encoder: 300, refine: 10); "
+    p.add_argument("--n", type=v.int_in(1, v.MAX_DATASET_N), default=None, help="held-out swatches (encoder: 300, refine: 10); "
                    "dataset: swatches per case (16)")
     p.add_argument("--data", help="encoder, refine: held-out dataset folder to reuse")
     p.add_argument("--model", default=None, help="refine: the encoder giving the prior (default: shipped)")
