@@ -32,6 +32,7 @@ class Thresholds:
 
 
 THRESHOLDS = Thresholds()
+SAMPLE_PIXELS = 1 << 22   # greyscale and clipped shares are judged on at most this many pixels
 INPUT_SIZE = 48
 
 
@@ -51,7 +52,8 @@ class DomainStats:
 def domain_stats(crop: np.ndarray) -> DomainStats:
     """Texture statistics of a swatch crop (8-bit sRGB or linear float), on the encoder's 48² input."""
     x = encode(crop, INPUT_SIZE)
-    crop = to_srgb8(crop)
+    step = max(1, int(np.ceil(np.sqrt(crop.shape[0] * crop.shape[1] / SAMPLE_PIXELS))))
+    crop = to_srgb8(crop[::step, ::step])   # the pixel statistics below, on a bounded sample
     luminance = (x + 0.5).mean(0) * 255.0
     gx = cv2.Sobel(luminance, cv2.CV_32F, 1, 0)
     gy = cv2.Sobel(luminance, cv2.CV_32F, 0, 1)

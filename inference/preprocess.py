@@ -291,7 +291,30 @@ def encode(img: np.ndarray, size: int) -> np.ndarray:
     darken textured hair more the larger the source). Returns float32 (3, size, size): sRGB
     values (unquantised) in [-0.5, 0.5].
     """
-    linear = to_linear(img)
-    if img.shape[0] != size or img.shape[1] != size:
+    linear = reduced_linear(img)
+    if linear.shape[0] != size or linear.shape[1] != size:
         linear = cv2.resize(linear, (size, size), interpolation=cv2.INTER_AREA)
     return (linear_to_srgb(linear) - np.float32(0.5)).transpose(2, 0, 1).copy()
+
+
+#: Pixels an image is reduced to, in linear light, before anything else works on it whole (encode,
+#: domain checks): 4 MP of float32 RGB is 48 MB, whatever the source's size.
+MAX_WORK_PIXELS = 1 << 22
+_BAND_PIXELS = 1 << 20   # source pixels converted to float at once
+
+
+def reduced_linear(img: np.ndarray, max_pixels: int = MAX_WORK_PIXELS) -> np.ndarray:
+    """Linear float32 RGB of ``img``; above ``max_pixels``, block means (k x k, in linear light, band by
+    band) so that memory stays bounded whatever the image's size (the area filter then finishes)."""
+    h, w = img.shape[:2]
+    k = int(np.ceil(np.sqrt(h * w / max_pixels)))
+    if k <= 1:
+        return to_linear(img)
+    rows, cols = h // k, w // k
+    out = np.empty((rows, cols, 3), np.float32)
+    band = max(1, _BAND_PIXELS // (k * k * cols))
+    for r in range(0, rows, band):
+        r1 = min(rows, r + band)
+        block = to_linear(img[r * k:r1 * k, :cols * k]).reshape(r1 - r, k, cols, k, 3)
+        out[r:r1] = block.mean(axis=(1, 3), dtype=np.float32)
+    return out

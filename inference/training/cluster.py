@@ -43,6 +43,30 @@ def require_ray():
     return ray
 
 
+#: Seconds to wait for a cluster's port to answer before the run is refused.
+CONNECT_TIMEOUT_S = 3.0
+
+
+def check_address(address: str | None, timeout: float = CONNECT_TIMEOUT_S) -> None:
+    """Refuse a ``HOST:PORT`` or ``ray://HOST:PORT`` address whose port does not accept a connection
+    within ``timeout`` (Ray itself would wait for minutes); ``auto`` and None are left to Ray."""
+    import socket
+
+    if not address or address in ("auto", "local"):
+        return
+    rest = address.split("://", 1)[-1]
+    host, sep, port = rest.rpartition(":")
+    if not sep or not port.isdigit() or not host:
+        raise ClusterError(f"--address {address}: give HOST:PORT (e.g. 10.0.0.5:6379), ray://HOST:10001 or auto")
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=timeout):
+            pass
+    except OSError as exc:
+        raise ClusterError(f"cannot reach the Ray cluster at {address} ({exc.strerror or exc}); start its head "
+                           f"with `ray start --head`, check the address, or leave out --address for a local "
+                           f"instance") from None
+
+
 def _render_task(config_dict: dict, shard: int, variant: str, threads: int) -> dict:
     """One Ray task: render shard ``shard`` with ``variant`` and return its arrays."""
     from hairdigi.inference.training.dataset import DatasetConfig, render_shard

@@ -206,6 +206,48 @@ def write_shard(root: str | os.PathLike, shard: int, arrays: dict[str, np.ndarra
     return path
 
 
+class DatasetError(ValueError):
+    """A dataset's file is damaged or not what it should be; the message names the file and the fix."""
+
+
+def read_shard(path: Path, expected: range | None = None) -> dict[str, np.ndarray]:
+    """A shard's arrays (``SHARD_FIELDS``); a truncated, garbage or mismatched file raises DatasetError
+    naming it. ``expected``: the sample indices it must hold."""
+    import zipfile
+
+    fix = "delete it and run hairdigi dataset again with the same settings to render it again"
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            missing = [name for name in SHARD_FIELDS if name not in npz.files]
+            if missing:
+                raise DatasetError(f"{path}: damaged dataset shard (no {', '.join(missing)} array); {fix}")
+            arrays = {name: npz[name] for name in (("indices",) if expected is not None else SHARD_FIELDS)}
+    except DatasetError:
+        raise
+    except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError, TypeError) as exc:
+        why = " ".join(str(exc).split())[:100] or type(exc).__name__
+        raise DatasetError(f"{path}: damaged dataset shard ({why}); {fix}") from None
+    if expected is not None and not np.array_equal(arrays["indices"], np.asarray(list(expected))):
+        raise DatasetError(f"{path}: the shard holds other samples than its name says; {fix}")
+    return arrays
+
+
+def _damaged_shards(root: Path, config: DatasetConfig) -> list[int]:
+    """Shards on disk that cannot be read back (truncated, garbage, other samples): rendered again."""
+    import sys
+
+    damaged = []
+    for s in range(config.n_shards):
+        path = shard_path(root, s)
+        if path.exists():
+            try:
+                read_shard(path, shard_indices(config, s))
+            except DatasetError as exc:
+                print(f"dataset: {str(exc).split('; delete')[0]}; rendering it again", file=sys.stderr)
+                damaged.append(s)
+    return damaged
+
+
 def _render_shard(args: tuple) -> tuple[int, int, float]:
     """Render one shard in a worker process and write it atomically; returns (shard, count, seconds).
 
@@ -279,15 +321,17 @@ def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, p
     if backend not in BACKENDS:
         raise ValueError(f"unknown dataset backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     if backend == "ray":
-        from hairdigi.inference.training.cluster import require_ray
+        from hairdigi.inference.training.cluster import check_address, require_ray
         require_ray()   # before anything is written: without Ray, one line saying how to install it
+        check_address(address)   # an unreachable cluster fails now, in seconds, leaving no manifest
     variant = _resolve_variant(variant, set_here=backend == "local")
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
     _check_manifest(root, config, variant)
     for stray in root.glob(".shard-*.npz"):   # half-written by a killed run
         stray.unlink(missing_ok=True)
-    todo = [s for s in range(config.n_shards) if not shard_path(root, s).exists()]
+    damaged = set(_damaged_shards(root, config))
+    todo = [s for s in range(config.n_shards) if s in damaged or not shard_path(root, s).exists()]
     if todo:
         _check_variant(root, variant, has_shards=len(todo) < config.n_shards)
     done = config.n - sum(len(shard_indices(config, s)) for s in todo)
@@ -334,11 +378,15 @@ def load(root: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, d
     root = Path(root)
     if not (root / MANIFEST).exists():
         raise FileNotFoundError(f"{root} is not a hairdigi dataset (no {MANIFEST}); make one with hairdigi dataset")
-    manifest = json.loads((root / MANIFEST).read_text())
+    from hairdigi.render.base.files import read_json
+
+    manifest = read_json(root / MANIFEST, DatasetError, "no manifest", "not a hairdigi dataset manifest ({exc})")
+    if not isinstance(manifest, dict) or not isinstance(manifest.get("config"), dict):
+        raise DatasetError(f"{root / MANIFEST}: not a hairdigi dataset manifest (no \"config\" object)")
     manifest["config"] = {**LEGACY_DEFAULTS, **manifest["config"]}
     shards = sorted(root.glob("shard-*.npz"))
     if not shards:
         raise FileNotFoundError(f"{root} has no finished shards yet")
-    parts = [np.load(p) for p in shards]
+    parts = [read_shard(p) for p in shards]
     return (np.concatenate([p["images"] for p in parts]), np.concatenate([p["params"] for p in parts]),
             np.concatenate([p["cameras"] for p in parts]), manifest)

@@ -144,7 +144,7 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
     ckpt = out / "checkpoint.pt"
     start_epoch = 0
     if ckpt.exists():
-        state = torch.load(ckpt, weights_only=False)
+        state = _load_checkpoint(ckpt)
         if state["encoder"] != encoder_config.to_dict() or state["train"] != asdict(config):
             raise ValueError(f"{ckpt} was made with other settings; use another output folder or the same settings")
         model.load_state_dict(state["model"])
@@ -199,13 +199,32 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
     return history
 
 
+def _load_checkpoint(path: Path) -> dict:
+    """A training checkpoint; a damaged one raises DatasetError naming the file (one line)."""
+    import torch
+
+    from hairdigi.inference.training.dataset import DatasetError
+
+    try:
+        state = torch.load(path, weights_only=False)
+    except FileNotFoundError:
+        raise
+    except Exception as exc:   # torch raises pickle, zip and runtime errors for a damaged file
+        why = " ".join(str(exc).split())[:100] or type(exc).__name__
+        raise DatasetError(f"{path}: damaged training checkpoint ({why}); delete it to train afresh, or "
+                           f"restore it from a copy") from None
+    if not isinstance(state, dict) or not {"encoder", "model"} <= set(state):
+        raise DatasetError(f"{path}: not a hairdigi training checkpoint; delete it to train afresh")
+    return state
+
+
 def load_trained(out_dir: str | os.PathLike):
     """The model from a training folder's checkpoint, in eval mode."""
     import torch
 
     from hairdigi.inference.training.model import EncoderConfig, HairEncoder
 
-    state = torch.load(Path(out_dir) / "checkpoint.pt", weights_only=False)
+    state = _load_checkpoint(Path(out_dir) / "checkpoint.pt")
     model = HairEncoder(EncoderConfig(**state["encoder"]))
     model.load_state_dict(state["model"])
     return model.eval(), state["history"]
