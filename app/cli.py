@@ -325,7 +325,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         print(f"wrote {out / 'dataset_bench.csv'} and {out / 'dataset_bench.png'}")
         return 0
     if args.what == "previews":
-        from hairdigi.app.review import bench_previews
+        from hairdigi.app.previews import bench_previews
 
         out = out / "previews" if args.out == BENCH_OUT else out
         for line in bench_previews(out, quick=args.quick):

@@ -29,7 +29,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Generator, Iterator
+from typing import Callable, Generator
 
 import numpy as np
 
@@ -39,8 +39,7 @@ from hairdigi.app.previews import (HairstylePass, PassTag, PreviewSettings, Stag
                                    hairstyle_passes, orbit_pose, scalp_linear, strand_colour, twin_passes, twin_view)
 from hairdigi.render import denoise as dn
 from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
-from hairdigi.render.base.records import (CalibrationProfile, EstimateRecord, EstimateWarning, RecordError,
-                                          WarningKind)
+from hairdigi.render.base.records import CalibrationProfile, EstimateRecord, EstimateWarning, WarningKind
 from hairdigi.render.base.rig_geometry import N_LIGHTS
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.srgb import linear_to_srgb8
@@ -238,18 +237,6 @@ def as_profile(profile) -> CalibrationProfile | None:
     return CalibrationProfile.from_json(profile)
 
 
-def as_record(record) -> EstimateRecord:
-    """A result record, typed (from a record or its JSON dict)."""
-    return record if isinstance(record, EstimateRecord) else EstimateRecord.from_json(record)
-
-
-def entry_of(item) -> Entry:
-    """A session entry from what ``rig_session.load_results`` lists (a record, or its dict with ``id``)."""
-    record = as_record(item)
-    capture_id = item.get("id") if isinstance(item, dict) else None
-    return Entry(capture_id or Path(record.capture or "").stem, record)
-
-
 def calibration_text(profile: CalibrationProfile | None, status: str, reasons: list[str],
                      now: float | None = None) -> str:
     """One line on the calibration: method, ΔE2000 before and after, age, and why it is stale."""
@@ -431,11 +418,11 @@ class ReviewModel:
     def reload(self) -> list[Entry]:
         self._owner()
         entries = []
-        for item in rs.load_results(self.session.folder):
-            try:
-                entries.append(entry_of(item))
-            except RecordError as exc:
-                self.events.error.emit(f"a result record is unreadable and left out: {exc}")
+        for capture_id, record in rs.load_results(self.session.folder):
+            if isinstance(record, str):     # unreadable: named, and the others still listed
+                self.events.error.emit(f"capture {capture_id} is left out: {record}")
+            else:
+                entries.append(Entry(capture_id, record))
         self.records = entries
         self.events.records.emit(self.records)
         return self.records
@@ -459,10 +446,12 @@ class ReviewModel:
         self._owner()
         try:
             loaded = self.session.load_capture(capture_id)
-            rec = as_record(loaded.record)
         except (FileNotFoundError, OSError, ValueError) as exc:
             self.events.error.emit(str(exc))
             return None
+        if loaded.problems:
+            self.events.error.emit("; ".join(loaded.problems))
+        rec = loaded.record if loaded.record is not None else EstimateRecord(hair=None)
         x, y, w, h = loaded.roi
         frame_size = (loaded.frame.shape[1], loaded.frame.shape[0])
         blocked = rec.hair is None
@@ -809,8 +798,8 @@ class ReviewModel:
     def _apply_captured(self, captured: Captured) -> None:
         self._capture_ended()
         first_look = self.shown is not None and self.shown.capture_id is None
-        self.reload()
         self.select(captured.result.capture_id, same_capture=first_look)
+        self.reload()
 
     def _apply_hair_model(self, model: HairModel) -> None:
         self.events.hair_model.emit(model)
@@ -885,7 +874,7 @@ class ReviewModel:
             entries = [e for e in entries if e.id == self.shown.capture_id]
         if not entries:
             raise ValueError("nothing to export: no capture has an estimate yet")
-        return rs.export_records([{"id": e.id, **e.record.to_json()} for e in entries], path)
+        return rs.export_records([e.record for e in entries], path)
 
 
 def _first_look(session: rs.RigSession, params: HairParams, key: int) -> FirstLook:
@@ -897,7 +886,7 @@ def _first_look(session: rs.RigSession, params: HairParams, key: int) -> FirstLo
     x, y, w, h = session.swatch_roi or (0, 0, image.shape[1], image.shape[0])
     real = image[y:y + h, x:x + w].copy()
     if session.profile is not None:
-        real = apply_profile(real, session.profile)
+        real = linear_to_srgb8(apply_profile(real, session.profile))
     return FirstLook(params, real, (x, y, w, h), (image.shape[1], image.shape[0]), key)
 
 
@@ -907,17 +896,3 @@ def _warm_refinement() -> None:
     from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
 
     refine(HairParams(), np.array([0.08, 0.05, 0.03]), RIG_SWATCH_POSE)
-
-
-def passes_of(work: Work | None) -> Iterator[object]:
-    """What a work yields, then what it returns (tests and headless use, in this thread)."""
-    if work is None:
-        return
-    generator = work.run()
-    while True:
-        try:
-            yield next(generator)
-        except StopIteration as stop:
-            if stop.value is not None:
-                yield stop.value
-            return

@@ -44,7 +44,7 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output):
 
     with qtbot.waitSignal(win.calibrated, timeout=120000) as cal:
         win.calibrate_button.click()
-    assert cal.args[0]["delta_e2000"]["after"]["mean"] < cal.args[0]["delta_e2000"]["before"]["mean"]
+    assert cal.args[0].delta_e2000["after"]["mean"] < cal.args[0].delta_e2000["before"]["mean"]
     assert "ΔE2000" in win.calibration_label.text()
 
     with qtbot.waitSignal(win.captured, timeout=120000) as cap:
@@ -89,17 +89,19 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output):
     win.style_box.setCurrentText("straight")
     assert win.model.hair_file is None
 
-    # a new selection cancels the stale render and starts another
+    # a new selection cancels the stale render and starts another (no event is processed in between:
+    # the job started for "straight" is still the window's)
     old = win.render_task
+    assert old is not None and not old.is_cancelled
     win.style_box.setCurrentText("curly")
-    assert old is None or old.is_cancelled
+    assert old.is_cancelled and win.render_task is not old
     with qtbot.waitSignal(win.hairstyle_done, timeout=120000):
         pass
 
     exported = win.export(tmp_path / "all.json")
     record = json.loads(exported.read_text())
     assert record["hair"]["dye_rgb"] and record["provenance"]["model"]["sha256"] == Encoder(onnx_path).sha256
-    assert record["provenance"]["calibration"]["id"] == session.profile["id"]
+    assert record["provenance"]["calibration"]["id"] == session.profile.id
     # refined after the capture, off the UI thread, and the residual is shown with the warnings list
     assert record["refinement"]["ran"] and record["refinement"]["residual_de2000"] >= 0
     assert isinstance(record["warnings"], list) and "residual ΔE2000" in win.result_info.text()
@@ -119,7 +121,7 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output):
 
     # restart: the session, its calibration and its capture come back
     win2, session2 = open_window(qtbot, folder, onnx_path)
-    assert win2.session_list.count() == 1 and session2.profile["id"] == cal.args[0]["id"]
+    assert win2.session_list.count() == 1 and session2.profile.id == cal.args[0].id
     assert "blocked" not in win2.session_list.item(0).text()
     win2.close()
     session2.close()

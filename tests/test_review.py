@@ -44,7 +44,7 @@ def test_events_call_their_subscribers_in_order():
 
 def test_a_capture_shows_the_encoder_first_then_the_refined_estimate_in_warm_scenes(calibrated, tmp_path):
     model = review.ReviewModel(calibrated, SMALL)
-    warmed = model.warm_work()(model.apply, lambda: False)
+    warmed = review.run_now(model.warm_work(), model.apply)
     assert {"twin", "hairstyle"} <= set(warmed.seconds)
     assert (model.twin_renderer.builds, model.style_renderer.builds) == (2, 1)   # the twin at 2 scales
 
@@ -53,11 +53,10 @@ def test_a_capture_shows_the_encoder_first_then_the_refined_estimate_in_warm_sce
     model.events.parameters.connect(lambda shown: run_previews(model))
     model.events.twin.connect(twins.append)
     model.events.hairstyle.connect(passes.append)
-    captured = model.capture_work()(model.apply, lambda: False)
-    model.apply(captured)
+    captured = review.run_now(model.capture_work(), model.apply)
 
-    assert stages == ["encoder", "refined"]
-    assert model.shown.capture_id == captured.result.capture_id and model.shown.record["refinement"]["ran"]
+    assert stages == [review.Stage.ENCODER, review.Stage.REFINED]
+    assert model.shown.capture_id == captured.result.capture_id and model.shown.record.refinement.ran
     # the encoder's look renders one pass; the refined estimate its whole schedule
     # half resolution first, then full; the first look is one pass, rendered by the capture worker
     assert [(t.stage, t.scale, t.spp) for t in twins] == [("encoder", 0.5, 1), ("refined", 0.5, 1), ("refined", 1.0, 1)]
@@ -65,15 +64,17 @@ def test_a_capture_shows_the_encoder_first_then_the_refined_estimate_in_warm_sce
     # the warm scenes were reused: the capture only updated parameters
     assert (model.twin_renderer.builds, model.style_renderer.builds) == (2, 1)
     twin = model.twin
-    assert twin.final and twin.clean_enough and twin.raw.shape == twin.clean.shape == (*model.shown.real.shape[:2], 3)
-    assert twin.delta_e_map.shape == model.shown.real.shape[:2] and np.isfinite(twin.delta_e)
+    assert twin.final and twin.clean_enough and twin.raw.shape == twin.clean.shape and twin.nonfinite == 0
+    # the twin's film is the swatch area (to the bench camera's rounding); the map is the film's
+    assert np.abs(np.subtract(twin.raw.shape[:2], model.shown.real.shape[:2])).max() <= 2
+    assert twin.delta_e_map.shape == twin.raw.shape[:2] and np.isfinite(twin.delta_e)
     # numbers come from the raw pass: the chip is the raw twin's mean
     np.testing.assert_allclose(twin.hair_linear, twin.raw.reshape(-1, 3).mean(0))
 
     # the orbit moves the camera of the warm scene: no rebuild
     model.set_view(orbit=(30, 10))
     before = model.hairstyle.raw.copy()
-    model.hairstyle_work()(model.apply, lambda: False)
+    review.run_now(model.hairstyle_work(), model.apply)
     assert model.style_renderer.builds == 1 and not np.allclose(model.hairstyle.raw, before)
 
     written = model.save_render("hairstyle", tmp_path / "look")
@@ -83,29 +84,31 @@ def test_a_capture_shows_the_encoder_first_then_the_refined_estimate_in_warm_sce
 def run_previews(model):
     """What the window does on ``parameters``: the twin's and the hairstyle's passes (here, in turn)."""
     for work in (model.twin_work(), model.hairstyle_work()):
-        work(model.apply, lambda: False)
+        review.run_now(work, model.apply)
 
 
 def test_a_new_capture_cancels_stale_renders(calibrated):
     model = review.ReviewModel(calibrated, dataclasses.replace(SMALL, hairstyle_passes=(1,) * 40, warm=False))
-    model.apply(model.capture_work()(model.apply, lambda: False))
+    review.run_now(model.capture_work(), model.apply)
     first = model.shown.capture_id
-    model.twin_work()(model.apply, lambda: False)                   # the twin goes first, as in the window
+    review.run_now(model.twin_work(), model.apply)                  # the twin goes first, as in the window
     reported, started = [], threading.Event()
 
-    def report(p):
-        reported.append(p)
-        started.set()
-    work = model.hairstyle_work()
-    thread = threading.Thread(target=work, args=(report, lambda: False))
+    def worker(work):                                               # a worker thread: it yields, the model applies
+        for p in work.run():
+            reported.append(p)
+            started.set()
+    thread = threading.Thread(target=worker, args=(model.hairstyle_work(),))
     thread.start()
     assert started.wait(120)
-    captured = model.capture_work()(model.apply, lambda: False)   # a new capture, while the render runs
+    kept = []                                                       # a new capture, while the render runs
+    captured = review.run_now(model.capture_work(), lambda x: kept.append(x) if isinstance(x, review.Captured)
+                              else model.apply(x))
     thread.join(120)
     assert not thread.is_alive() and 1 <= len(reported) < 40        # it stopped at its next pass
     for stale in reported:                                          # and what it reported late is dropped
         model.apply(stale)
-    assert model.hairstyle.stage == "encoder" and model.hairstyle.key == model.shown.key   # the new first look
+    assert model.hairstyle.stage == review.Stage.ENCODER and model.hairstyle.key == model.shown.key   # the new first look
     assert all(stale.key != model.shown.key for stale in reported)
     model.apply(captured)
     assert model.shown.capture_id != first and model.hairstyle.key == model.shown.key
@@ -133,3 +136,38 @@ def test_one_open_rig_serves_the_command_line_and_the_window(tmp_path):
         assert session.simulated and "no camera at" in why and why.endswith("using the simulated rig")
     finally:
         session.close()
+
+
+def test_a_pass_with_nonfinite_values_becomes_a_warning_of_the_shown_capture():
+    """A NaN or Inf count in a pass is a NONFINITE warning under the shown parameters, once."""
+    from hairdigi.render.base.params import HairParams
+    from hairdigi.render.base.records import EstimateRecord, WarningKind
+
+    model = review.ReviewModel(session=None)
+    seen = []
+    model.events.warnings.connect(seen.append)
+    rec = EstimateRecord(hair=HairParams(), uncertainty={"parameters": {"dye_r": {"determined": False}}})
+    model.shown = review.Shown("c1", np.zeros((8, 8, 3), np.uint8), (0, 0, 8, 8), (8, 8), rec.hair,
+                               review.Stage.REFINED, rec, key=7)
+    raw = np.zeros((8, 8, 3), np.float32)
+    for n in (3, 5):
+        model.apply(review.TwinPreview(model._generation["twin"], raw, None, 1, False, False, 0.0, raw[..., 0],
+                                       raw[0, 0], review.Stage.REFINED, 0.1, 7, 1.0, nonfinite=n))
+    assert [[w.kind for w in ws] for ws in seen] == [[WarningKind.NONFINITE]]
+    view = model.parameter_view()
+    assert "3 NaN or Inf" in view.info and dict(view.lines)["dye_r"].endswith("(undetermined)")
+
+
+def test_model_state_changes_on_its_own_thread_only():
+    model = review.ReviewModel(session=None)
+    errors = []
+
+    def elsewhere():
+        try:
+            model.set_view(style="bob")
+        except RuntimeError as exc:
+            errors.append(str(exc))
+    thread = threading.Thread(target=elsewhere)
+    thread.start()
+    thread.join(30)
+    assert errors and "own thread" in errors[0] and model.style != "bob"

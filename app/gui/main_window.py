@@ -1,9 +1,9 @@
 """The main window: rig panel, result panel, hairstyle panel and the session list.
 
 The window holds widgets and workers only. The review state and the work behind it are in
-app/review.py (``ReviewModel``, free of Qt): the window runs the model's work functions in its
-workers, hands what they report back to ``model.apply`` on the UI thread, and redraws on the
-model's events.
+app/review.py (``ReviewModel``, free of Qt): the window runs the model's works in its workers,
+hands what they yield and return back to ``model.apply`` on the UI thread, and redraws on the
+model's events, from the model's views (parameters, lights, feed rate, thumbnails).
 """
 from __future__ import annotations
 
@@ -16,18 +16,17 @@ from PySide6.QtWidgets import (QCheckBox, QComboBox, QFileDialog, QGridLayout, Q
                                QListWidget, QListWidgetItem, QMainWindow, QProgressBar, QPushButton, QSlider,
                                QSplitter, QVBoxLayout, QWidget)
 
+from hairdigi.app import previews, review
 from hairdigi.app import rig_session as rs
-from hairdigi.app import review
 from hairdigi.app.gui.images import DELTA_E_MAX, colour_scale, delta_e_colours, overlay, to_pixmap
 from hairdigi.app.gui.workers import POOL, FrameFeed, Task, start
+from hairdigi.app.previews import Stage
 from hairdigi.render.base.params import VECTOR_FIELDS
 from hairdigi.render.scenes import ENVIRONMENTS
 from hairdigi.render.strands import HAIRSTYLES
 
-#: Window options; the preview ones are ``review.PreviewSettings`` fields. While a capture is estimated
-#: and its twin renders, the live feed slows to ``busy_feed_fps``: on 2 cores the simulated feed at
-#: 20 fps took a fifth of a core that the first twin and hairstyle passes need.
-DEFAULTS = {"feed_fps": 20, "busy_feed_fps": 4}
+#: Window options beyond ``previews.PreviewSettings``' fields (which include the feed rates).
+DEFAULTS: dict = {}
 
 
 def image_label(text: str, size=(260, 200)) -> QLabel:
@@ -44,15 +43,15 @@ def chip_style(rgb8) -> str:
     return f"background: rgb({r},{g},{b}); color:{text}; border:1px solid #888; font-size:10px"
 
 
-def preview_settings(opts: dict) -> review.PreviewSettings:
+def preview_settings(opts: dict) -> previews.PreviewSettings:
     """The preview fields of the window's options, with tuples where the settings want them."""
-    fields = {f.name for f in dataclasses.fields(review.PreviewSettings)}
+    fields = {f.name for f in dataclasses.fields(previews.PreviewSettings)}
     chosen = {k: (tuple(v) if isinstance(v, list) else v) for k, v in opts.items() if k in fields}
-    return review.PreviewSettings(**chosen)
+    return previews.PreviewSettings(**chosen)
 
 
 class MainWindow(QMainWindow):
-    calibrated = Signal(dict)
+    calibrated = Signal(object)             # the new CalibrationProfile
     captured = Signal(object)
     preview_ready = Signal(float)           # mean-colour ΔE2000 of real vs synthetic (each twin pass)
     hairstyle_pass = Signal(int)            # spp so far
@@ -70,7 +69,7 @@ class MainWindow(QMainWindow):
         self.last_frame = None
         self._build(strand_view)
         self._connect_model()
-        session.frames.period = 1.0 / self.opts["feed_fps"]
+        session.frames.period = self.model.feed_period()
         self.feed = FrameFeed(session.frames)
         self.feed.frame.connect(self._on_frame)
         self.feed.failed.connect(self.show_banner)
@@ -80,7 +79,7 @@ class MainWindow(QMainWindow):
         source = "simulated rig (no camera or light board found, or --sim)" if session.simulated else "camera"
         self.statusBar().showMessage(f"{source}; session {session.folder}")
         if self.model.settings.warm:   # the preview scenes are built before the first capture needs them
-            self.run_task(self.model.warm_work(), name="warm-up")
+            self.run_task(self.model.warm_work())
         self.model.reload()
 
     # -- layout ------------------------------------------------------------------------------
@@ -107,7 +106,7 @@ class MainWindow(QMainWindow):
         v.addWidget(self.feed_label)
         row = QHBoxLayout()
         self.light_buttons = []
-        for i in range(3):
+        for i in range(self.model.light_count()):
             b = QPushButton(f"Light {i}")
             b.setCheckable(True)
             b.clicked.connect(lambda on, i=i: self.set_light(i, on))
@@ -282,6 +281,9 @@ class MainWindow(QMainWindow):
             (ev.parameters, lambda _: self.start_previews()), (ev.view, lambda _: self.start_hairstyle()),
             (ev.twin, self._show_twin), (ev.hairstyle, self._show_hairstyle), (ev.strands, self._show_strands),
             (ev.frame_check, self._show_frame_check), (ev.calibration, self._on_calibrated),
+            (ev.lights, self._show_lights), (ev.thumbnail, self._show_thumbnail),
+            (ev.warnings, lambda _: self._show_parameters()),
+            (ev.feed_fps, lambda fps: setattr(self.session.frames, "period", 1.0 / fps)),
             (ev.status, lambda text: self.statusBar().showMessage(text)), (ev.error, self.show_banner),
             (ev.hair_model, self._on_hair_model)]
         for event, callback in self._subscriptions:
@@ -292,32 +294,34 @@ class MainWindow(QMainWindow):
         for event, callback in self._subscriptions:
             event.disconnect(callback)
 
-    def _show_records(self, records: list) -> None:
+    def _show_records(self, records: list[review.Entry]) -> None:
         shown = self.model.shown
         select = shown.capture_id if shown is not None else None
         self.session_list.blockSignals(True)
         self.session_list.clear()
-        for rec in records:
-            item = QListWidgetItem(review.record_title(rec))
-            thumb = review.thumbnail(self.session.folder, rec)
+        for entry in records:
+            item = QListWidgetItem(entry.title)
+            thumb = self.model.thumbnails.get(entry.id)
             if thumb is not None:
                 item.setIcon(to_pixmap(thumb))
             self.session_list.addItem(item)
         self.session_list.blockSignals(False)
         if records:
-            ids = [capture_id for capture_id, _ in records]
+            ids = [e.id for e in records]
             row = ids.index(select) if select in ids else len(ids) - 1
             self.session_list.setCurrentRow(row)
+        self.run_job("thumbnails", self.model.thumbnail_work())
+
+    def _show_thumbnail(self, thumb: review.Thumbnail) -> None:
+        ids = [e.id for e in self.model.records]
+        if thumb.rgb is not None and thumb.capture_id in ids:
+            self.session_list.item(ids.index(thumb.capture_id)).setIcon(to_pixmap(thumb.rgb))
 
     def _on_select(self, row: int) -> None:
         if 0 <= row < len(self.model.records):
-            self.model.select(self.model.records[row][0])
-
-    def _feed_busy(self, busy: bool) -> None:
-        self.session.frames.period = 1.0 / self.opts["busy_feed_fps" if busy else "feed_fps"]
+            self.model.select(self.model.records[row].id)
 
     def _show_capture(self, shown: review.Shown) -> None:
-        self._feed_busy(shown.params is not None)      # until its twin is clean
         self._set_image(self.real_label, shown.real)
         if self.model.twin is None:          # the first look's twin stays up until the refined one comes
             for label, text in ((self.synth_label, "rendering…"), (self.diff_label, "ΔE2000")):
@@ -325,57 +329,29 @@ class MainWindow(QMainWindow):
                 label.setText(text if shown.params is not None else "–")
             self.chip.setText("hair\n…")
             self.chip.setStyleSheet("background:#1e1e22; color:#aaa; border:1px solid #888; font-size:10px")
-        if shown.params is None:
-            blocked = shown.record.blocked if shown.record is not None else ()
-            self.result_info.setText("no estimate: " + "; ".join(blocked or ["none saved"]))
-            return
-        self._show_params(shown)
+        self._show_parameters()
 
-    def _show_params(self, shown: review.Shown) -> None:
-        """Parameters with their measured 68% intervals, the dye chip, and the warnings."""
-        p, rec = shown.params, shown.record
-        intervals = (rec.uncertainty if rec is not None else {}).get("parameters", {})
-        values = dict(zip([f[0] for f in VECTOR_FIELDS], [*p.dye_rgb, p.dye_concentration,
-                                                            p.melanin_concentration, p.melanin_ratio]))
-        for name, label in self.param_labels.items():
-            fmt = "{:.0f}" if name.startswith("dye_") and name[-1] in "rgb" else "{:.2f}"
-            iv = intervals.get(name)
-            if iv and not iv["determined"]:
-                u = " (undetermined)"
-            elif iv:
-                u = f" ± {fmt.format(iv['half_width'])}"
-            else:
-                u = ""
-            label.setText(f"{name}: {fmt.format(values[name])}{u}")
-        self.dye_chip.setText("dye")
-        self.dye_chip.setStyleSheet(chip_style(p.dye_rgb))
-        self.dye_chip.setToolTip(f"dye colour alone, at concentration {p.dye_concentration:.2f}")
-        if shown.stage == "encoder":
-            self.result_info.setText("encoder's estimate; refining by synthesis…")
+    def _show_parameters(self) -> None:
+        """Parameters with their measured 68% intervals, the dye chip, and the lines under them."""
+        view = self.model.parameter_view()
+        if view is None:
             return
-        prov = rec.provenance
-        refinement = rec.refinement
-        lines = [f"model {prov.get('model', {}).get('sha256', '')[:12]}, calibration "
-                 f"{(prov.get('calibration') or {}).get('id')}"]
-        if refinement.ran:
-            lines.append(f"refined in {refinement.seconds:.1f} s: residual ΔE2000 "
-                         f"{refinement.residual_de2000:.2f}")
-        colour = rec.uncertainty.get("mean_colour_de2000_p68")
-        if colour is not None:
-            lines.append(f"colour within ΔE2000 {colour:.2f} of the truth in 68% of held-out captures "
-                         f"({rec.uncertainty.get('mean_colour_source', 'held-out swatches')})")
-        lines += [f"⚠ {w.message}" for w in rec.warnings]
-        self.result_info.setText("\n".join(lines))
+        texts = dict(view.lines)
+        for name, label in self.param_labels.items():
+            label.setText(texts.get(name, f"{name}: –"))
+        if view.dye_rgb8 is not None:
+            self.dye_chip.setText("dye")
+            self.dye_chip.setStyleSheet(chip_style(view.dye_rgb8))
+            self.dye_chip.setToolTip(view.dye_tooltip)
+        self.result_info.setText(view.info)
 
     def _show_twin(self, t: review.TwinPreview) -> None:
-        if t.clean_enough and t.stage != "encoder":
-            self._feed_busy(False)
         self._set_image(self.synth_label, self.model.twin_image(t))
         self._set_image(self.diff_label, delta_e_colours(t.delta_e_map))
         shown = "denoised" if self.model.show_denoised and t.clean is not None else "raw"
         scale = "" if t.scale == 1 else " at ½ resolution" if t.scale == 0.5 else f" at {t.scale:g}x"
         self.twin_info.setText(f"twin: {t.spp} spp{scale}, {shown}; map mean ΔE {float(t.delta_e_map.mean()):.2f}")
-        stage = "encoder's estimate" if t.stage == "encoder" else "refined estimate"
+        stage = "encoder's estimate" if t.stage == Stage.ENCODER else "refined estimate"
         self.match_label.setText(f"real vs synthetic: mean-colour ΔE2000 {t.delta_e:.2f} ({stage})")
         self.chip.setText("hair")
         self.chip.setStyleSheet(chip_style(review.hair_colour_rgb8(t.hair_linear)))
@@ -393,7 +369,7 @@ class MainWindow(QMainWindow):
 
     def _show_strands(self, s: review.StrandPreview) -> None:
         if self.strand_view is not None:
-            self.strand_view.show_strands(s.strands, s.colour_rgb8)
+            self.strand_view.show_strands(s.strands, s.colour_rgb8, scalp_linear=s.scalp_linear)
 
     def _show_frame_check(self, check: review.FrameCheck) -> None:
         reports = check.exposure
@@ -408,24 +384,27 @@ class MainWindow(QMainWindow):
                                                   Qt.TransformationMode.SmoothTransformation))
 
     # -- tasks -------------------------------------------------------------------------------
-    def run_task(self, fn, on_done=None, on_progress=None, name="task") -> Task:
-        """Run ``fn(report, cancelled)`` in a worker; what it reports and returns goes to the model by default."""
-        task = Task(fn, name)
+    def run_task(self, work: review.Work, on_done=None, on_progress=None) -> Task:
+        """Run the model's ``work`` in a worker; what it yields and returns goes to the model by default,
+        and its ``ended`` runs here on the UI thread when it is over."""
+        task = Task(work.run, work.name)
         task.signals.done.connect(on_done or self.model.apply)
         task.signals.progress.connect(on_progress or self.model.apply)
         task.signals.failed.connect(self.show_banner)
         task.signals.finished.connect(lambda t=task: self.tasks.remove(t) if t in self.tasks else None)
+        if work.ended is not None:
+            task.signals.finished.connect(work.ended)
         self.tasks.append(task)
         return start(task, POOL)
 
-    def run_job(self, name: str, work) -> Task | None:
+    def run_job(self, name: str, work: review.Work | None) -> Task | None:
         """Run the model's ``work`` as the one job called ``name``; the previous one is cancelled."""
         old = self.jobs.pop(name, None)
         if old is not None:
             old.cancel()
         if work is None:
             return None
-        task = self.jobs[name] = self.run_task(work, name=name)
+        task = self.jobs[name] = self.run_task(work)
         task.signals.finished.connect(lambda: self.jobs.pop(name) if self.jobs.get(name) is task else None)
         return task
 
@@ -441,26 +420,22 @@ class MainWindow(QMainWindow):
                       self.zebra_box.isChecked())
         self.feed_label.setPixmap(to_pixmap(img).scaled(self.feed_label.size(), Qt.AspectRatioMode.KeepAspectRatio))
         if self.model.frame_check_due():
-            self.run_task(self.model.frame_check_work(frame.srgb), name="chart")
+            self.run_task(self.model.frame_check_work(frame.srgb))
 
-    def refresh_lights(self) -> None:
-        def work(report, cancelled):
-            return self.session.light_states(), self.session.lights.identify()
+    def refresh_lights(self) -> Task:
+        return self.run_task(self.model.lights_work())
 
-        def done(result):
-            states, ident = result
-            for b, st in zip(self.light_buttons, states):
-                b.setChecked(st.on)
-            self.link_label.setText(f"light board: {ident} on {self.session.lights.port_name} — linked")
-            self.refresh_calibration()
-        self.run_task(work, done, name="lights")
+    def _show_lights(self, lights: review.Lights) -> None:
+        for b, on in zip(self.light_buttons, lights.on):
+            b.setChecked(on)
+        self.link_label.setText(f"light board: {lights.identity} on {lights.port} — linked")
+        self.refresh_calibration()
 
     def set_light(self, index: int, on: bool) -> Task:
-        return self.run_task(lambda r, c: self.session.set_light(index, on), lambda _: self.refresh_lights(),
-                             name=f"light {index}")
+        return self.run_task(self.model.set_light_work(index, on))
 
     def set_all(self, on: bool) -> Task:
-        return self.run_task(lambda r, c: self.session.set_all(on), lambda _: self.refresh_lights(), name="lights")
+        return self.run_task(self.model.set_all_work(on))
 
     def refresh_calibration(self) -> None:
         status, text = self.model.calibration()
@@ -469,11 +444,11 @@ class MainWindow(QMainWindow):
 
     def calibrate(self) -> Task:
         self.calibrate_button.setEnabled(False)
-        task = self.run_task(self.model.calibrate_work(), name="calibration")
+        task = self.run_task(self.model.calibrate_work())
         task.signals.finished.connect(lambda: self.calibrate_button.setEnabled(True))
         return task
 
-    def _on_calibrated(self, profile: dict) -> None:
+    def _on_calibrated(self, profile) -> None:
         self.refresh_calibration()
         self.calibrated.emit(profile)
 
@@ -487,9 +462,8 @@ class MainWindow(QMainWindow):
         def done(captured: review.Captured) -> None:
             self.model.apply(captured)
             self.captured.emit(captured.result)
-        task = self.run_task(self.model.capture_work(), done, name="capture")
+        task = self.run_task(self.model.capture_work(), done)
         task.signals.finished.connect(lambda: self.capture_button.setEnabled(True))
-        task.signals.failed.connect(lambda _: self._feed_busy(False))
         return task
 
     def start_previews(self) -> None:
@@ -515,9 +489,7 @@ class MainWindow(QMainWindow):
         def done(captured: review.Captured) -> None:
             self.model.apply(captured)
             self.captured.emit(captured.result)
-        session = self.model.session
-        return self.run_task(lambda report, cancelled: review.Captured(session.import_still(path)), done,
-                             name="RAW still")
+        return self.run_task(self.model.import_still_work(path), done)
 
     def import_still_dialog(self) -> None:
         from hairdigi.hardware.cameras import RAW_EXTENSIONS
@@ -530,7 +502,7 @@ class MainWindow(QMainWindow):
 
     def open_hair_model(self, path: str | Path) -> Task:
         """Read and check a .hair model in a worker; a bad file shows its error in the banner."""
-        return self.run_task(self.model.open_hair_work(path), name="hair model")
+        return self.run_task(self.model.open_hair_work(path))
 
     def open_hair_dialog(self) -> None:
         path, _ = QFileDialog.getOpenFileName(self, "Open a hair model", str(Path.home()),

@@ -13,8 +13,8 @@ import pyvista as pv
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 
 from hairdigi.render.head import HeadMesh, head_mesh, split_scalp
-from hairdigi.render.scenes import PORTRAIT_CAMERA, PORTRAIT_FOV, PORTRAIT_TARGET, SKIN_ALBEDO
-from hairdigi.render.srgb import linear_to_srgb8
+from hairdigi.render.scenes import PORTRAIT_CAMERA, PORTRAIT_FOV, PORTRAIT_TARGET, SCALP_SHADE, SKIN_ALBEDO
+from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
 from hairdigi.render.strands import Strands
 
 #: Per-strand brightness spread and how much darker a root is than its tip (a view-only touch).
@@ -54,6 +54,11 @@ def head_polydata(mesh: HeadMesh | None = None) -> pv.PolyData:
     return data
 
 
+def _display(linear) -> np.ndarray:
+    """A linear RGB colour as the [0, 1] sRGB triple VTK takes."""
+    return linear_to_srgb8(np.asarray(linear, np.float32).reshape(1, 1, 3))[0, 0] / 255
+
+
 @functools.lru_cache(maxsize=4)
 def _head_parts(part_x: float | None) -> tuple[pv.PolyData, pv.PolyData]:
     """Skin and scalp PolyData of the bust for a parting at ``part_x`` (built once each)."""
@@ -73,17 +78,20 @@ class StrandView(QWidget):
         layout.addWidget(self.plotter.interactor)
         self.plotter.set_background("#2b2b30")
 
-    def show_strands(self, strands: Strands, colour_rgb8, head: bool = True, part_x: float | None = None) -> None:
-        """Show ``strands`` in ``colour_rgb8`` (sRGB 0–255) on the head; the scalp takes a darker hair
-        colour, as in the render, except on a parting at ``part_x``."""
+    def show_strands(self, strands: Strands, colour_rgb8, head: bool = True, part_x: float | None = None,
+                     scalp_linear=None) -> None:
+        """Show ``strands`` in ``colour_rgb8`` (sRGB 0–255) on the head. The scalp takes the renderer's
+        colour, ``scalp_linear`` (linear RGB, ``scenes.scalp_albedo``), or else the strands' colour
+        darkened by ``scenes.SCALP_SHADE`` in linear light; a parting at ``part_x`` shows skin."""
         self.plotter.clear()
         self.plotter.enable_lightkit()   # clear() removes the lights too
         colour = np.asarray(colour_rgb8, float)
         if head:   # no render per mesh: one at the end (software GL takes ~0.2 s a frame)
             skin, scalp = _head_parts(part_x)
-            skin_rgb = linear_to_srgb8(np.asarray(SKIN_ALBEDO, np.float32)[None, None])[0, 0] / 255
-            self.plotter.add_mesh(skin, color=skin_rgb, smooth_shading=True, render=False)
-            self.plotter.add_mesh(scalp, color=colour * ROOT_SHADE * 0.6 / 255, smooth_shading=True, render=False)
+            if scalp_linear is None:
+                scalp_linear = SCALP_SHADE * srgb8_to_linear(np.asarray(colour_rgb8, np.uint8))
+            self.plotter.add_mesh(skin, color=_display(SKIN_ALBEDO), smooth_shading=True, render=False)
+            self.plotter.add_mesh(scalp, color=_display(scalp_linear), smooth_shading=True, render=False)
         self.plotter.add_mesh(strand_polydata(strands, colour_rgb8=colour), scalars="rgb", rgb=True,
                               line_width=2.0, render_lines_as_tubes=True, render=False)
         position = np.asarray(PORTRAIT_TARGET) + PORTRAIT_CAMERA.distance * np.array([0.0, 0.0, 1.0])

@@ -3,7 +3,7 @@
 Writes ``tour.json`` (seconds from the capture click to the encoder's parameters, the refined ones,
 the first and the clean twin, the first and the clean hairstyle pass) and ``window.png``, then quits.
 "Clean" is the pass whose spp the preview benchmark found within ΔE2000 3 of a 1024-spp reference
-(``review.PreviewSettings``). Used for documentation and release checks.
+(``previews.PreviewSettings``). Used for documentation and release checks.
 """
 from __future__ import annotations
 

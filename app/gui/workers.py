@@ -1,6 +1,7 @@
 """Work off the UI thread: a cancellable task runner, and the live feed relayed from the frame source."""
 from __future__ import annotations
 
+import inspect
 import threading
 import traceback
 from typing import Callable
@@ -16,13 +17,14 @@ class TaskSignals(QObject):
 
 
 class Task(QRunnable):
-    """Runs ``fn(report, cancelled)`` in a thread pool (:data:`POOL` for the window).
+    """Runs ``fn()`` in a thread pool (:data:`POOL` for the window), napari ``thread_worker`` style.
 
-    ``report(x)`` emits ``progress``; ``cancelled()`` is true once :meth:`cancel` was called, and the
-    function should return early then. Its return value is emitted as ``done`` unless cancelled.
+    When ``fn()`` returns a generator, each value it yields is emitted as ``progress``, and
+    :meth:`cancel` stops it at its next yield (the generator is closed there); its return value is
+    emitted as ``done`` unless cancelled. A plain function's return value is ``done``.
     """
 
-    def __init__(self, fn: Callable, name: str = "task") -> None:
+    def __init__(self, fn: Callable[[], object], name: str = "task") -> None:
         super().__init__()
         self.fn = fn
         self.name = name
@@ -39,7 +41,9 @@ class Task(QRunnable):
 
     def run(self) -> None:
         try:
-            result = self.fn(self.signals.progress.emit, self._cancel.is_set)
+            result = self.fn()
+            if inspect.isgenerator(result):
+                result = self._iterate(result)
             if not self._cancel.is_set():
                 self.signals.done.emit(result)
         except Exception as exc:  # shown to the operator as a banner, never swallowed
@@ -47,6 +51,18 @@ class Task(QRunnable):
             self.signals.failed.emit(f"{self.name}: {exc}")
         finally:
             self.signals.finished.emit()
+
+    def _iterate(self, generator) -> object:
+        while True:
+            if self._cancel.is_set():      # stop at a yield
+                generator.close()
+                return None
+            try:
+                value = next(generator)
+            except StopIteration as stop:
+                return stop.value
+            if not self._cancel.is_set():
+                self.signals.progress.emit(value)
 
 
 #: The window's workers. More threads than cores: most tasks wait (on Mitsuba's own thread pool, the
