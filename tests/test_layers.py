@@ -33,14 +33,66 @@ def test_the_wheel_installs_one_top_level_package(wheel):
     assert not [n for n in names if n.endswith((".log", ".pyc"))]
 
 
-def test_import_contracts_hold_on_the_built_package(wheel, tmp_path):
-    zipfile.ZipFile(wheel).extractall(tmp_path)
+def lint_imports(site: Path) -> subprocess.CompletedProcess:
+    """import-linter on the package installed in ``site``, with the checkout's contracts."""
     exe = shutil.which("lint-imports") or str(Path(sys.executable).with_name("lint-imports"))
-    env = {"PATH": "/usr/bin:/bin", "PYTHONPATH": str(tmp_path)}
-    result = subprocess.run([exe], cwd=ROOT, capture_output=True, text=True, timeout=300, env=env)
+    env = {"PATH": "/usr/bin:/bin", "PYTHONPATH": str(site)}
+    return subprocess.run([exe], cwd=ROOT, capture_output=True, text=True, timeout=300, env=env)
+
+
+@pytest.fixture(scope="module")
+def site(wheel, tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("site")
+    zipfile.ZipFile(wheel).extractall(path)
+    return path
+
+
+def test_import_contracts_hold_on_the_built_package(site):
+    result = lint_imports(site)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-2000:]
     assert "4 kept, 0 broken" in result.stdout
     assert "Analyzed 0 files" not in result.stdout
+
+
+def test_a_stray_import_breaks_the_contracts(site, tmp_path):
+    """The contracts are rules: a copy of the package with an ``app.review -> PySide6`` and a
+    ``render -> inference`` import (modules no contract lists) fails them."""
+    shutil.copytree(site / "hairdigi", tmp_path / "hairdigi")
+    with open(tmp_path / "hairdigi" / "app" / "review.py", "a") as f:
+        f.write("\nimport PySide6  # stray\n")
+    with open(tmp_path / "hairdigi" / "render" / "metrics.py", "a") as f:
+        f.write("\nfrom hairdigi.inference import estimate  # stray\n")
+    result = lint_imports(tmp_path)
+    assert result.returncode != 0 and "2 broken" in result.stdout, result.stdout[-3000:]
+    assert "hairdigi.app.review -> PySide6" in result.stdout
+    assert "hairdigi.render.metrics -> hairdigi.inference.estimate" in result.stdout
+
+
+def base_imports(site: Path) -> dict[str, list[str]]:
+    """What each module of render.base imports directly (external packages by their top-level name),
+    read by grimp from the package in ``site`` (in a subprocess: this one imports the checkout's)."""
+    import json
+
+    code = ("import grimp, json; g = grimp.build_graph('hairdigi', include_external_packages=True, cache_dir=None); "
+            "print(json.dumps({m: sorted(g.find_modules_directly_imported_by(m)) "
+            "for m in g.find_descendants('hairdigi.render.base')}))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True,
+                         env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(site)})
+    return json.loads(out.stdout)
+
+
+def test_render_base_imports_numpy_and_the_standard_library_only(site, tmp_path):
+    allowed = set(sys.stdlib_module_names) | {"numpy"}
+
+    def strays(imports: dict[str, set[str]]) -> set[str]:
+        return {f"{m} -> {i}" for m, targets in imports.items() for i in targets
+                if not i.startswith("hairdigi.render.base") and i.split(".")[0] not in allowed}
+    assert base_imports(site) and strays(base_imports(site)) == set()
+    shutil.copytree(site / "hairdigi", tmp_path / "hairdigi")      # and the rule can fail
+    with open(tmp_path / "hairdigi" / "render" / "base" / "params.py", "a") as f:
+        f.write("\nfrom hairdigi.render import renderer  # stray\nimport cv2  # stray\n")
+    assert strays(base_imports(tmp_path)) == {"hairdigi.render.base.params -> hairdigi.render.renderer",
+                                              "hairdigi.render.base.params -> cv2"}
 
 
 def _modules_after_import(statement: str) -> dict:
