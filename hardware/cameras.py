@@ -124,6 +124,13 @@ class FileCamera:
             self.capture.release()
 
 
+#: RAW stills above this many pixels are decoded at half size (2x2 Bayer blocks: 48 MP gives 12 MP).
+HALF_SIZE_ABOVE = 16_000_000
+#: The largest RAW still read (a 150 MP medium-format back's), and its file size.
+MAX_RAW_PIXELS = 160_000_000
+MAX_RAW_BYTES = 512 * 1024 * 1024
+
+
 def read_raw(path: str | os.PathLike) -> Frame:
     """A RAW still (DNG, CR2, NEF, ...) through rawpy as linear camera RGB, white-balanced as shot.
 
@@ -136,14 +143,30 @@ def read_raw(path: str | os.PathLike) -> Frame:
     path = Path(path)
     if not path.exists():
         raise CameraError(f"{path}: no such RAW file")
+    if path.stat().st_size > MAX_RAW_BYTES:
+        raise CameraError(f"{path}: {path.stat().st_size / 1e6:.0f} MB is more than hairdigi reads for a RAW "
+                          f"still ({MAX_RAW_BYTES / 1e6:.0f} MB); is it a RAW still of the rig?")
     try:
         with rawpy.imread(str(path)) as raw:
+            width, height = int(raw.sizes.width), int(raw.sizes.height)
+            if width * height > MAX_RAW_PIXELS:
+                raise CameraError(f"{path}: {width}x{height} px is more than hairdigi reads for a RAW still "
+                                  f"({MAX_RAW_PIXELS / 1e6:.0f} MP); shoot at a smaller RAW size")
+            # above HALF_SIZE_ABOVE pixels, each 2x2 Bayer block is one pixel: a quarter of the memory
+            # and no demosaicing; the swatch and chart keep hundreds of pixels a side
+            half = width * height > HALF_SIZE_ABOVE
             rgb16 = raw.postprocess(gamma=(1, 1), no_auto_bright=True, output_bps=16, use_camera_wb=True,
-                                    output_color=rawpy.ColorSpace.raw, user_flip=0)
+                                    output_color=rawpy.ColorSpace.raw, user_flip=0, half_size=half)
             meta = {"camera": f"raw:{path.name}", "raw_pattern": raw.raw_pattern.tolist(),
                     "black_level": [int(v) for v in raw.black_level_per_channel],
-                    "white_level": int(raw.white_level)}
+                    "white_level": int(raw.white_level), "raw_size": [width, height], "half_size": half}
     except (rawpy.LibRawError, OSError) as exc:
         raise CameraError(f"{path}: rawpy cannot read this RAW file ({exc}); is it complete?") from None
-    linear = rgb16.astype(np.float32) / 65535.0
-    return Frame(linear_to_srgb8(linear), linear, meta)
+    linear = rgb16.astype(np.float32)
+    del rgb16
+    linear *= np.float32(1.0 / 65535.0)
+    srgb = np.empty(linear.shape, np.uint8)
+    rows = max(1, (1 << 20) // max(1, linear.shape[1]))   # encoded in bands: colour-science works in float64
+    for y in range(0, linear.shape[0], rows):
+        srgb[y:y + rows] = linear_to_srgb8(linear[y:y + rows])
+    return Frame(srgb, linear, meta)
