@@ -5,7 +5,8 @@ PY := $(VENV)/bin/python
 APT_PACKAGES := libllvm19 xvfb xauth libgl1 libegl1 libglx-mesa0 libgl1-mesa-dri libdbus-1-3 \
 	libfontconfig1 libxkbcommon-x11-0 libxcb-icccm4 libxcb-keysyms1 libxcb-cursor0 libxcb-image0 \
 	libxcb-render-util0 libxcb-xkb1 libxcb-randr0 libxcb-shape0 libxcb-xinerama0 \
-	gcc-avr avr-libc arduino-core-avr simavr libsimavr-dev libelf-dev gcc make pkg-config
+	gcc-avr avr-libc arduino-core-avr simavr libsimavr-dev libelf-dev gcc make pkg-config \
+	postgresql
 export OMP_WAIT_POLICY := PASSIVE
 
 .PHONY: setup system-deps demo app test bench clean

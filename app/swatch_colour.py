@@ -27,7 +27,7 @@ def studio_light_rgb() -> np.ndarray:
     """A 3200 K lamp in linear Rec.709, luminance 1."""
     import colour
 
-    xy = colour.temperature.CCT_to_xy_Planck(STUDIO_CCT)
+    xy = colour.CCT_to_xy(STUDIO_CCT, method="Kang 2002")   # the Planckian locus, 1667-25000 K
     xyz = colour.xy_to_XYZ(xy)
     rgb = colour.XYZ_to_RGB(xyz, colour.RGB_COLOURSPACES["sRGB"], apply_cctf_encoding=False)
     return rgb / (rgb @ np.array([0.2126, 0.7152, 0.0722]))

@@ -1,0 +1,302 @@
+"""The swatch library on real SQLite files (and a real PostgreSQL server where this machine can start one):
+migrations, import, find, tag, note, export, first run, a SIGKILL mid-import, and two writing processes."""
+import csv
+import glob
+import hashlib
+import os
+import shutil
+import signal
+import sqlite3
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hairdigi.app.cli import main
+from hairdigi.app.library import SCHEMA_VERSION, Library, LibraryError
+from hairdigi.app.swatch_colour import hex_lab, lab_hex, rendered_linear, swatch_labs
+from hairdigi.render.absorption import hair_sigma_a
+from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.records import CaptureRecord, EstimateRecord, RefinementRecord, write_record
+from hairdigi.render.metrics import delta_e2000
+
+
+def make_session(folder: Path, n: int, seed: int = 0, images: bool = True, blocked: int = 0) -> list[HairParams]:
+    """A session folder as the rig writes it: per capture an image, its capture record and its result record."""
+    rng = np.random.default_rng(seed)
+    captures = folder / "captures"
+    captures.mkdir(parents=True, exist_ok=True)
+    hairs = []
+    for i in range(n):
+        cid = f"2026{seed:04d}-{i:06d}"
+        data = rng.integers(0, 255, 48, dtype=np.uint8).tobytes() + f"{seed}-{i}".encode()
+        if images:
+            import cv2
+
+            cv2.imwrite(str(captures / f"{cid}.png"), np.frombuffer(data[:48], np.uint8).reshape(4, 4, 3))
+            data = (captures / f"{cid}.png").read_bytes()
+        write_record(captures / f"{cid}.json", CaptureRecord(id=cid, image=f"{cid}.png",
+                                                              image_sha256=hashlib.sha256(data).hexdigest(),
+                                                              captured=f"2026-03-{1 + i % 28:02d}T10:00:00+0000"))
+        if i < blocked:
+            write_record(captures / f"{cid}.result.json", EstimateRecord(hair=None, capture=f"{cid}.png",
+                                                                         blocked=("the swatch is clipped",)))
+            continue
+        hair = HairParams(tuple(float(v) for v in rng.uniform(0, 255, 3)), float(rng.uniform()),
+                          float(rng.uniform()), float(rng.uniform()))
+        hairs.append(hair)
+        write_record(captures / f"{cid}.result.json", EstimateRecord(hair=hair, capture=f"{cid}.png"))
+    return hairs
+
+
+@pytest.fixture
+def lib_env(tmp_path, monkeypatch):
+    """A fresh library file and no pre-library sessions, through the settings the CLI and app read."""
+    path = tmp_path / "data" / "library.sqlite"
+    monkeypatch.setenv("HAIRDIGI_LIBRARY", str(path))
+    monkeypatch.setenv("HAIRDIGI_SESSIONS", str(tmp_path / "no-sessions"))
+    return path
+
+
+def _cli(*args, env=None, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "hairdigi.app.cli", *args], capture_output=True, text=True,
+                          env={**os.environ, **(env or {})}, timeout=600, **kw)
+
+
+# --- colours -------------------------------------------------------------------------------------
+def test_colours_under_two_lights():
+    assert np.allclose(hex_lab("#ffffff"), [100, 0, 0], atol=0.01)
+    assert lab_hex(hex_lab("#8a4a30")) == "#8a4a30"
+    with pytest.raises(ValueError, match="#RRGGBB"):
+        hex_lab("#12345")
+    grey = np.array([[0.3, 0.3, 0.3], [3.0, 3.0, 3.0]])
+    labs = swatch_labs(grey)
+    assert labs["daylight"][0, 0] > labs["daylight"][1, 0]          # more absorption, darker
+    assert abs(labs["daylight"][0, 1]) < 1 and abs(labs["daylight"][0, 2]) < 1   # grey fibres stay grey
+    assert labs["studio"][0, 2] > labs["daylight"][0, 2] + 10        # tungsten: warmer on a daylight photo
+
+
+# --- migrations ----------------------------------------------------------------------------------
+def test_migrations_apply_once_in_order_and_keep_data(lib_env):
+    with Library(str(lib_env), migrate_to=1) as old:
+        assert old.version == 1
+        assert not old.db.has_table("tags")
+        old.db.execute("INSERT INTO swatches (id, kind, imported, record) VALUES ('x1', 'estimate', 'now', '{}')")
+    with Library(str(lib_env)) as lib:
+        assert lib.version == SCHEMA_VERSION == 2
+        assert lib.count() == 1 and lib.tag("x1", ["kept"]) == ("kept",)
+        assert lib.migrate() == []
+        rows = lib.db.query("SELECT version FROM schema_version ORDER BY version")
+        assert [r[0] for r in rows] == [1, 2]
+    conn = sqlite3.connect(lib_env)
+    assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
+    conn.execute("INSERT INTO schema_version VALUES (99, 'from the future', 'now')")
+    conn.commit()
+    conn.close()
+    with pytest.raises(LibraryError, match="newer than this hairdigi"):
+        Library(str(lib_env))
+
+
+def test_not_a_library_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys):
+    bad = tmp_path / "junk.sqlite"
+    bad.write_bytes(b"this is not a database" * 100)
+    monkeypatch.setenv("HAIRDIGI_LIBRARY", str(bad))
+    assert main(["library", "info"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "not a hairdigi library" in err
+
+
+# --- import, find, tag, note, export ---------------------------------------------------------------
+def test_import_find_tag_note_export(tmp_path, lib_env, capsys):
+    hairs = make_session(tmp_path / "march", 12, seed=1, blocked=2)
+    assert main(["library", "import", str(tmp_path / "march")]) == 0
+    assert "imported 12 swatches" in capsys.readouterr().out
+    with Library() as lib:
+        assert lib.count() == 12                      # every capture, blocked ones too
+        assert sum(bool(s.labs) for s in lib.all()) == 10
+    # a record of one of them finds it first, at ΔE 0; the rest in rising ΔE, checked independently
+    record = tmp_path / "march" / "captures" / "20260001-000005.result.json"
+    assert main(["library", "find", "--near", str(record), "--k", "4"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 4 and "20260001-000005" in lines[0] and "ΔE2000   0.00" in lines[0]
+    des = [float(line.split("ΔE2000")[1].split()[0]) for line in lines]
+    assert des == sorted(des)
+    target = rendered_linear(hair_sigma_a(hairs[3]))
+    expected = sorted(float(delta_e2000(rendered_linear(hair_sigma_a(h)), target)) for h in hairs)[:4]
+    assert np.allclose(des, expected, atol=0.006)
+    # by hex, under the studio light
+    assert main(["library", "find", "--near", "#8a4a30", "--under", "studio", "--k", "3"]) == 0
+    assert len(capsys.readouterr().out.strip().splitlines()) == 3
+    # tag and note by capture id; re-import keeps them and adds nothing
+    assert main(["library", "tag", "20260001-000005", "copper", "march"]) == 0
+    assert main(["library", "note", "20260001-000005", "the copper we measured in March"]) == 0
+    assert main(["library", "import", str(tmp_path / "march")]) == 0
+    capsys.readouterr()
+    with Library() as lib:
+        assert lib.count() == 12
+        swatch = lib.get("20260001-000005")
+        assert swatch.tags == ("copper", "march") and swatch.note == "the copper we measured in March"
+        assert [s.capture_id for s in lib.all("copper")] == ["20260001-000005"]
+        by_colour = [s.labs["daylight"][0] for s in lib.all(order="colour") if s.labs]
+        assert by_colour == sorted(by_colour, reverse=True)
+    assert main(["library", "tag", "20260001-000005", "march", "--remove"]) == 0
+    # export
+    out_csv, out_xlsx = tmp_path / "lib.csv", tmp_path / "lib.xlsx"
+    assert main(["library", "export", "--csv", str(out_csv), "--xlsx", str(out_xlsx)]) == 0
+    rows = list(csv.DictReader(out_csv.open()))
+    assert len(rows) == 12 and {r["tags"] for r in rows} >= {"copper"}
+    import openpyxl
+
+    sheet = openpyxl.load_workbook(out_xlsx).active
+    assert sheet.max_row == 13 and sheet.cell(1, 1).value == "id"
+    # expected failures: one line, exit 2
+    capsys.readouterr()
+    for argv in (["library", "find", "--near", "#zzzzzz"], ["library", "tag", "nosuch", "x"],
+                 ["library", "import", str(tmp_path / "nowhere")], ["library", "export"]):
+        assert main(argv) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and err.startswith("hairdigi library: error:"), err
+
+
+def test_first_run_imports_sessions_written_before_the_library(tmp_path, lib_env, monkeypatch, capsys):
+    make_session(tmp_path / "sessions" / "a", 3, seed=2)
+    make_session(tmp_path / "sessions" / "b", 2, seed=3)
+    monkeypatch.setenv("HAIRDIGI_SESSIONS", str(tmp_path / "sessions"))
+    assert main(["library", "info"]) == 0
+    assert "swatches: 5" in capsys.readouterr().out
+    make_session(tmp_path / "sessions" / "c", 4, seed=4)     # written after: imported by hand, not again
+    assert main(["library", "info"]) == 0
+    assert "swatches: 5" in capsys.readouterr().out
+
+
+# --- crashes and concurrency -------------------------------------------------------------------------
+def _session_counts(path: Path, session: Path) -> tuple[int, int, int, str]:
+    conn = sqlite3.connect(path)
+    try:
+        swatches = conn.execute("SELECT COUNT(*) FROM swatches WHERE session = ?", (str(session),)).fetchone()[0]
+        colours = conn.execute("SELECT COUNT(*) FROM colours").fetchone()[0]
+        marked = conn.execute("SELECT COUNT(*) FROM sessions WHERE path = ?", (str(session),)).fetchone()[0]
+        check = conn.execute("PRAGMA integrity_check").fetchone()[0]
+    finally:
+        conn.close()
+    return swatches, colours, marked, check
+
+
+@pytest.mark.slow
+def test_sigkill_mid_import_leaves_a_consistent_library(tmp_path, lib_env):
+    """A real process killed with SIGKILL while it writes a session: the session is all there or not at all."""
+    big = tmp_path / "big"
+    n = 3000
+    make_session(big, n, seed=5, images=False)
+    with Library() as lib:     # create it and its first-run mark first
+        lib.set_setting("first_run_import", "{}")
+    outcomes = []
+    for delay in (0.0, 0.0, 0.02, 0.05):
+        proc = subprocess.Popen([sys.executable, "-m", "hairdigi.app.cli", "library", "import", str(big)],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for line in proc.stdout:
+            if line.startswith("writing"):
+                break
+        time.sleep(delay)
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=60)
+        assert proc.returncode == -signal.SIGKILL
+        swatches, colours, marked, check = _session_counts(lib_env, big.resolve())
+        assert check == "ok"
+        assert (swatches, colours, marked) in ((0, 0, 0), (n, 2 * n, 1)), (delay, swatches, colours, marked)
+        outcomes.append(swatches)
+        if swatches:          # committed before the kill: start again from an empty library
+            with Library() as lib, lib.db.transaction():
+                lib.db.execute("DELETE FROM swatches")
+                lib.db.execute("DELETE FROM sessions")
+    assert 0 in outcomes, "no kill landed before the commit: the test did not test a kill mid-import"
+    done = _cli("library", "import", str(big))
+    assert done.returncode == 0, done.stderr
+    assert _session_counts(lib_env, big.resolve()) == (n, 2 * n, 1, "ok")
+
+
+@pytest.mark.slow
+def test_two_writers_do_not_corrupt_the_library(tmp_path, lib_env):
+    """Two processes import different sessions and tag at the same time: both finish, nothing is lost."""
+    sessions = {w: [tmp_path / f"{w}{i}" for i in range(3)] for w in ("a", "b")}
+    for w, folders in sessions.items():
+        for i, folder in enumerate(folders):
+            make_session(folder, 300, seed=10 * (w == "b") + i, images=False)
+    with Library() as lib:
+        lib.set_setting("first_run_import", "{}")
+    procs = [subprocess.Popen([sys.executable, "-m", "hairdigi.app.cli", "library", "import", *map(str, folders)],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for folders in sessions.values()]
+    with Library() as lib:      # a third writer tags while they import
+        for _ in range(20):
+            ids = [r[0] for r in lib.db.query("SELECT id FROM swatches LIMIT 5")]
+            for sid in ids:
+                lib.tag(sid, ["seen"])
+            time.sleep(0.05)
+    for proc in procs:
+        out, err = proc.communicate(timeout=600)
+        assert proc.returncode == 0, err
+    with Library() as lib:
+        assert lib.count() == 1800 and len(lib.sessions()) == 6 and lib.integrity() == []
+        assert int(lib.db.query("SELECT COUNT(*) FROM colours")[0][0]) == 3600
+
+
+# --- PostgreSQL ------------------------------------------------------------------------------------
+def _initdb() -> str | None:
+    found = sorted(glob.glob("/usr/lib/postgresql/*/bin/initdb")) or [shutil.which("initdb")]
+    return found[-1] if found and found[-1] else None
+
+
+@pytest.fixture(scope="module")
+def postgres_url(tmp_path_factory):
+    """A throw-away PostgreSQL server in a temporary folder (Debian's postgresql package), or a skip."""
+    pytest.importorskip("psycopg")
+    initdb = _initdb()
+    if initdb is None:
+        pytest.skip("no PostgreSQL server binaries (Debian: apt-get install postgresql)")
+    bindir = Path(initdb).parent
+    root = Path(tempfile.mkdtemp(prefix="hairdigi-pg-"))   # not under pytest's folder: the server's user must reach it
+    as_user = []
+    if os.geteuid() == 0:           # initdb refuses root: run the server as the postgres user
+        if shutil.which("runuser") is None:
+            pytest.skip("running as root without runuser: cannot start PostgreSQL as another user")
+        shutil.chown(root, "postgres")
+        as_user = ["runuser", "-u", "postgres", "--"]
+    data, port = root / "data", 54000 + os.getpid() % 1000
+    subprocess.run([*as_user, str(initdb), "-D", str(data), "-A", "trust", "-U", "postgres"], check=True,
+                   capture_output=True, timeout=120)
+    subprocess.run([*as_user, str(bindir / "pg_ctl"), "-D", str(data), "-l", str(root / "log"), "-w", "-o",
+                    f"-p {port} -k {root} -c listen_addresses=''", "start"], check=True, capture_output=True, timeout=120)
+    import psycopg
+
+    with psycopg.connect(f"postgresql://postgres@/postgres?host={root}&port={port}", autocommit=True) as conn:
+        conn.execute("CREATE DATABASE hairdigi_test")
+    yield f"postgresql://postgres@/hairdigi_test?host={root}&port={port}"
+    subprocess.run([*as_user, str(bindir / "pg_ctl"), "-D", str(data), "-m", "immediate", "stop"], capture_output=True)
+    shutil.rmtree(root, ignore_errors=True)
+
+
+def test_postgresql_same_schema_same_commands(tmp_path, postgres_url, monkeypatch, capsys):
+    monkeypatch.setenv("HAIRDIGI_LIBRARY", postgres_url)
+    monkeypatch.setenv("HAIRDIGI_SESSIONS", str(tmp_path / "none"))
+    make_session(tmp_path / "shared", 8, seed=7)
+    assert main(["library", "import", str(tmp_path / "shared")]) == 0
+    assert main(["library", "tag", "20260007-000002", "shared"]) == 0
+    assert main(["library", "find", "--near", str(tmp_path / "shared" / "captures" / "20260007-000002.result.json"),
+                 "--k", "3"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert "20260007-000002" in lines[-3] and "ΔE2000   0.00" in lines[-3] and "[shared]" in lines[-3]
+    with Library() as lib:
+        assert lib.db.postgres and lib.version == SCHEMA_VERSION and lib.count() == 8 and lib.integrity() == []
+        with pytest.raises(RuntimeError):    # a failed transaction leaves nothing behind
+            with lib.db.transaction():
+                lib.db.execute("UPDATE swatches SET note = 'half' WHERE capture_id = '20260007-000001'")
+                raise RuntimeError("killed")
+        assert lib.get("20260007-000001").note == ""
+    # a second process on the same server sees it all
+    proc = _cli("library", "info", env={"HAIRDIGI_LIBRARY": postgres_url})
+    assert proc.returncode == 0 and "swatches: 8" in proc.stdout
