@@ -139,16 +139,16 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_file
     from hairdigi.inference.preprocess import Roi
-    from hairdigi.render.base.files import write_json_atomic
-
+    from hairdigi.render.base.records import write_record
     from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE, CameraPose
 
     encoder = Encoder(args.model)
     roi = Roi.parse(args.roi) if args.roi else None
     camera = CameraPose.parse(args.camera, RIG_SWATCH_POSE.distance) if args.camera else RIG_SWATCH_POSE
+    # a pose given means an all-hair view from there; else a frame with the chart in view is the rig's
     estimate, record, _ = estimate_file(args.image, encoder, roi, args.calibration, camera,
-                                        refine_colour=not args.no_refine)
-    write_json_atomic(args.out, record)
+                                        refine_colour=not args.no_refine, rig_view=False if args.camera else None)
+    write_record(args.out, record)
     p = estimate.params
     refined = estimate.refinement
     how = (f"refined in {refined.seconds:.2f} s, residual ΔE2000 {refined.residual_de2000:.2f}" if refined
@@ -156,7 +156,7 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     print(f"dye rgb {tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
           f"{p.melanin_concentration:.2f} (ratio {p.melanin_ratio:.2f}); {how}; wrote {args.out}")
     for warning in estimate.warnings:
-        print(f"warning: {warning}", file=sys.stderr)
+        print(f"warning: {warning.message}", file=sys.stderr)
     if args.render:
         from hairdigi.render.io.images import save_png
         from hairdigi.render.renderer import SceneSpec, render
@@ -164,6 +164,36 @@ def cmd_estimate(args: argparse.Namespace) -> int:
         result = render(p, SceneSpec("swatch", framing="rig"), 256, 32, seed=0)
         save_png(args.render, result.srgb)
         print(f"wrote {args.render}")
+    return 0
+
+
+def evaluate_rig_command(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --rig``: the chain against the truth; prints the figures, writes table and plot."""
+    from hairdigi.inference.training.evaluate_rig import RigSet, evaluate_rig
+
+    s = evaluate_rig(args.out, RigSet(random=args.rig_random))
+    r, e = s["refined"], s["encoder_alone"]
+    print(f"{s['estimated']} of {s['captures']} captures estimated; against the hidden truth, mean-colour ΔE2000 "
+          f"median {r['median']:.2f}, p95 {r['p95']:.2f}, worst {r['worst']:.2f} (encoder alone {e['median']:.2f} / "
+          f"{e['p95']:.2f} / {e['worst']:.2f})")
+    for source, st in s["by_source"].items():
+        if st["n"]:
+            print(f"  {source}: median {st['median']:.2f}, p95 {st['p95']:.2f}, worst {st['worst']:.2f} ({st['n']})")
+    for case, st in s["by_case"].items():
+        if st["n"]:
+            print(f"  {case}: median {st['median']:.2f}, worst {st['worst']:.2f}")
+    c = s["coverage_held_out"]
+    print(f"colour interval fitted on half the hidden swatches holds on the other half: 68% -> {c['p68']:.0%}, "
+          f"95% -> {c['p95']:.0%}")
+    for line in s["blocked"]:
+        print(f"blocked: {line}")
+    if args.ship:
+        from hairdigi.inference.estimate import CHAIN_TABLE
+        from hairdigi.render.base.files import write_json_atomic
+
+        write_json_atomic(CHAIN_TABLE, s["table"])
+        print(f"shipped the chain's colour interval: {CHAIN_TABLE}")
+    print(f"rig_evaluation.csv, .json and .png in {args.out}")
     return 0
 
 
@@ -298,13 +328,6 @@ def cmd_bench(args: argparse.Namespace) -> int:
                   f"ΔE2000 median {r['mean_colour_de2000_median']:.2f}")
         print(f"wrote {out / 'encoder_bench.csv'} and {out / 'encoder_bench.png'}")
         return 0
-    if args.what == "rig" and args.estimate:
-        from hairdigi.app.rig_cli import estimate_sweep
-
-        summary = estimate_sweep(out)
-        print(summary["text"])
-        print(f"wrote {out / 'rig_estimates.csv'} and {out / 'rig_estimates.json'}")
-        return 0
     if args.what == "rig":
         from hairdigi.app.rig_cli import detection_sweep
 
@@ -349,11 +372,10 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     from hairdigi.app import validation as v
-    from hairdigi.render.renderer import (MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH, MIN_SIZE,
-                                 SCENE_NAMES)
-    from hairdigi.render.scenes import ENVIRONMENTS
-    from hairdigi.render.base.rig_geometry import LIGHT_POSITIONS
-    from hairdigi.render.variant import CHOICES as VARIANTS
+    from hairdigi.render.base.bounds import (ENVIRONMENTS, MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH,
+                                             MIN_SIZE, SCENE_NAMES)
+    from hairdigi.render.base.bounds import VARIANT_CHOICES as VARIANTS
+    from hairdigi.render.base.rig_geometry import N_LIGHTS
 
     size, spp = v.int_in(MIN_SIZE, MAX_SIZE), v.int_in(1, MAX_SPP)
     variant_help = "Mitsuba variant (auto: cuda_ad_rgb when Mitsuba finds a GPU, else llvm_ad_rgb, else scalar_rgb)"
@@ -481,7 +503,7 @@ def build_parser() -> argparse.ArgumentParser:
                    metavar=("R", "G", "B"), help="simulated white-balance error")
     p.add_argument("--exposure", type=v.float_in(-v.MAX_EXPOSURE_EV, v.MAX_EXPOSURE_EV), default=0.0,
                    help="simulated exposure error in EV")
-    p.add_argument("--dead", type=v.int_in(0, len(LIGHT_POSITIONS) - 1), nargs="*",
+    p.add_argument("--dead", type=v.int_in(0, N_LIGHTS - 1), nargs="*",
                    help="simulated dead light(s), numbered from 0")
     p.add_argument("--spp", type=spp, default=32, help="samples per pixel of the simulated rig's light renders")
     p.add_argument("--hidden", metavar="PARAMS.json",
@@ -508,12 +530,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--variants", help="encoder_bench.csv from hairdigi bench encoder")
     p.add_argument("--convergence", help="convergence.csv from hairdigi evaluate --convergence")
     p.add_argument("--refine-bench", help="refine_bench.csv from hairdigi bench refine")
-    p.add_argument("--rig", help="rig_estimates.json from hairdigi bench rig --estimate")
+    p.add_argument("--rig", help="rig_evaluation.json from hairdigi evaluate --rig (the chain against the truth)")
     p.add_argument("--out", default="resources/models/encoder.md")
     p.set_defaults(func=cmd_model_card)
 
     p = sub.add_parser("bench", help="speed against error tables and plots")
-    p.add_argument("what", choices=("render", "rig", "encoder", "refine", "dataset", "previews", "memory", "library"))
+    p.add_argument("what", choices=("render", "rig", "encoder", "refine", "dataset", "previews", "library", "memory"))
     p.add_argument("--models", nargs="*", help="encoder: the ONNX models to compare")
     p.add_argument("--n", type=v.int_in(1, v.MAX_DATASET_N), default=None, help="held-out swatches (encoder: 300, refine: 10); "
                    "dataset: swatches per case (16)")
@@ -521,8 +543,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", default=None, help="refine: the encoder giving the prior (default: shipped)")
     p.add_argument("--out", default=BENCH_OUT, help="results folder (previews: out/bench/previews)")
     p.add_argument("--quick", action="store_true", help="a tiny sweep, for tests")
-    p.add_argument("--estimate", action="store_true",
-                   help="rig: estimate simulated captures over poses, casts and exposures; real vs twin ΔE")
     p.set_defaults(func=cmd_bench)
 
     from hairdigi.app import export_cli, library_cli   # issue 20: export, library

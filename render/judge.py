@@ -16,8 +16,8 @@ from hairdigi.render.base.params import HairParams
 from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
 from hairdigi.render.metrics import delta_e2000
 
-#: Judge renders: 64² at 64 spp (the mean colour of the swatch's centre to about 0.1 ΔE).
-JUDGE_SIZE, JUDGE_SPP, JUDGE_SEED = 64, 64, 424_242
+#: Judge renders: 64² at 16 spp with a common seed (as ``hairdigi evaluate``'s judge), so most noise cancels.
+JUDGE_SIZE, JUDGE_SPP, JUDGE_SEED = 64, 16, 424_242
 
 
 @dataclass(frozen=True)
@@ -33,13 +33,28 @@ def judge(truth: HairParams | np.ndarray, estimate: HairParams | np.ndarray, sce
           size: int | tuple[int, int] = JUDGE_SIZE, spp: int = JUDGE_SPP, seed: int = JUDGE_SEED,
           renderer=None) -> Verdict:
     """Mean-colour ΔE2000 between ``truth`` and ``estimate`` (Table 1 parameters or ``sigma_a``)."""
+    ta, n_truth = judge_mean(truth, scene, size, spp, seed, renderer)
+    tb, n_est = judge_mean(estimate, scene, size, spp, seed, renderer)
+    return Verdict(float(delta_e2000(np.clip(tb, 1e-9, None), np.clip(ta, 1e-9, None))),
+                   tuple(float(v) for v in ta), tuple(float(v) for v in tb), spp, n_truth + n_est)
+
+
+_TRUTHS: dict = {}
+
+
+def judge_mean(hair: HairParams | np.ndarray, scene=None, size: int | tuple[int, int] = JUDGE_SIZE,
+               spp: int = JUDGE_SPP, seed: int = JUDGE_SEED, renderer=None) -> tuple[np.ndarray, int]:
+    """The judge render's mean linear colour of ``hair`` and its NaN/Inf count (the last 64 kept: a
+    truth is judged against many estimates)."""
     from hairdigi.render.renderer import SceneSpec, default_renderer
 
-    renderer = renderer or default_renderer()
     scene = scene or SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop")
-    a = renderer.render(truth if isinstance(truth, HairParams) else np.asarray(truth, float), scene, size, spp, seed)
-    b = renderer.render(estimate if isinstance(estimate, HairParams) else np.asarray(estimate, float), scene, size,
-                        spp, seed)
-    ta, tb = a.linear.reshape(-1, 3).mean(0), b.linear.reshape(-1, 3).mean(0)
-    return Verdict(float(delta_e2000(np.clip(tb, 1e-9, None), np.clip(ta, 1e-9, None))),
-                   tuple(float(v) for v in ta), tuple(float(v) for v in tb), spp, a.nonfinite + b.nonfinite)
+    value = hair if isinstance(hair, HairParams) else tuple(float(v) for v in np.asarray(hair, float))
+    key = (value, scene, size if isinstance(size, int) else tuple(size), spp, seed)
+    if key not in _TRUTHS:
+        renderer = renderer or default_renderer()
+        result = renderer.render(hair if isinstance(hair, HairParams) else np.asarray(value), scene, size, spp, seed)
+        if len(_TRUTHS) >= 64:
+            _TRUTHS.pop(next(iter(_TRUTHS)))
+        _TRUTHS[key] = (result.linear.reshape(-1, 3).mean(0), result.nonfinite)
+    return _TRUTHS[key]

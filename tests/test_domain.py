@@ -45,12 +45,16 @@ def test_clean_swatch_renders_are_not_flagged(hair, pose):
 def test_the_estimate_record_carries_the_warnings(tiny_model):
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_image, record
+    from hairdigi.render.base.records import EstimateRecord, WarningKind
 
     _, onnx_path, _ = tiny_model
     encoder = Encoder(onnx_path)
     result = estimate_image(GARBAGE["noise"], encoder, refine_colour=False)
     rec = record(result, encoder)
-    assert rec["warnings"] and rec["reliable"] is False
+    assert rec.warnings and rec.reliable is False
+    assert all(w.kind is WarningKind.OUT_OF_DOMAIN for w in rec.warnings)
+    data = rec.to_json()                      # the file says so too, and reads back the same
+    assert data["reliable"] is False and EstimateRecord.from_json(data).warnings == rec.warnings
     # a solid colour is refused as flat before any estimate (no confident answer, no zero uncertainty)
     from hairdigi.inference.preprocess import ImageError
     with pytest.raises(ImageError, match="flat"):

@@ -2,6 +2,7 @@
 import numpy as np
 import pytest
 
+from hairdigi.render.base.records import RefinementRecord
 from hairdigi.inference.refine import (RefineSettings, fibre_appearance, mean_linear, params_for_sigma, refine,
                               response_curve)
 from hairdigi.render.absorption import hair_sigma_a
@@ -68,4 +69,55 @@ def test_refinement_converges_to_the_noise_floor_from_a_poor_prior(truth, tmp_pa
     assert r.reachable and r.iterations >= 1 and len(r.history) == r.iterations
     assert after < 0.25 * before and after <= 2.0 * floor + 0.6, (before, after, floor, r.history)
     record = r.to_record()
-    assert record["ran"] and record["residual_de2000"] == pytest.approx(r.residual_de2000, abs=1e-4)
+    assert record.ran and record.residual_de2000 == pytest.approx(r.residual_de2000, abs=1e-4)
+    assert RefinementRecord.from_json(record.to_json()) == record
+
+
+def test_the_region_the_refinement_renders_is_the_region_it_fits():
+    """A rig view's swatch area: the render's crop, scaled back to the frame, is exactly the pixels
+    whose mean is fitted (geometry, no render), and it is the area the operator's ROI names to within
+    one render pixel."""
+    import numpy as np
+
+    from hairdigi.inference.refine import RefineSettings, fitted_pixels, scene_for
+    from hairdigi.render.base.rig_geometry import RigRegion
+
+    for frame, roi in (((400, 300), (30, 73, 130, 154)), ((800, 600), (61, 147, 259, 307)), ((400, 300), (0, 0, 400, 300))):
+        region = RigRegion(frame, roi)
+        film, crop, fitted = region.render_plan(48 * 48)
+        spec, size = scene_for(region, RefineSettings())
+        assert spec.crop == crop and size == film and spec.framing == "rig"
+        sx, sy = film[0] / frame[0], film[1] / frame[1]
+        # the crop, mapped back to frame pixels, is the fitted region
+        assert fitted == (round(crop[0] / sx), round(crop[1] / sy),
+                          round((crop[0] + crop[2]) / sx) - round(crop[0] / sx),
+                          round((crop[1] + crop[3]) / sy) - round(crop[1] / sy))
+        # and it covers the ROI, larger by less than one render pixel on each side
+        assert fitted[0] <= roi[0] < fitted[0] + 1 / sx + 1 and fitted[1] <= roi[1] < fitted[1] + 1 / sy + 1
+        assert 0 <= fitted[0] + fitted[2] - (roi[0] + roi[2]) < 1 / sx + 1
+        image = np.zeros((frame[1], frame[0], 3), np.float32)
+        x, y, w, h = fitted
+        image[y:y + h, x:x + w] = 1.0
+        assert fitted_pixels(image, region).min() == 1.0 and fitted_pixels(image, region).size == w * h * 3
+
+
+def test_a_cropped_render_is_that_window_of_the_whole_film(tmp_path):
+    """The film crop renders the same scene's window: its mean matches the same window of the full render."""
+    import numpy as np
+
+    from hairdigi.render.base.rig_geometry import RIG_HALF_WIDTH, RIG_TARGET
+    from hairdigi.render.metrics import delta_e2000
+
+    renderer = Renderer(max_cached=2)
+    full = SceneSpec("swatch", framing="rig", target=RIG_TARGET, half_width=RIG_HALF_WIDTH)
+    crop = (10, 20, 30, 36)
+    window = SceneSpec("swatch", framing="rig", target=RIG_TARGET, half_width=RIG_HALF_WIDTH, crop=crop)
+    sigma = np.array([0.3, 0.6, 1.2])
+    a = renderer.render(sigma, full, (100, 75), 64, seed=3).linear[20:56, 10:40]
+    b = renderer.render(sigma, window, (100, 75), 64, seed=4).linear
+    assert b.shape == (36, 30, 3)
+    assert float(delta_e2000(a.reshape(-1, 3).mean(0), b.reshape(-1, 3).mean(0))) < 0.8
+    # and a different window is a different colour (the holder shows there): the crop is not ignored
+    c = renderer.render(sigma, SceneSpec("swatch", framing="rig", target=RIG_TARGET, half_width=RIG_HALF_WIDTH,
+                                         crop=(70, 0, 30, 36)), (100, 75), 64, seed=4).linear
+    assert float(delta_e2000(c.reshape(-1, 3).mean(0), b.reshape(-1, 3).mean(0))) > 3.0

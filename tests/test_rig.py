@@ -3,6 +3,8 @@ import json
 import time
 
 import numpy as np
+
+from hairdigi.render.srgb import linear_to_srgb8
 import pytest
 
 from hairdigi.app.rig_session import RigSession
@@ -32,11 +34,12 @@ def test_ccm_removes_a_colour_cast():
     img = frame(CameraModel(cast=(1.3, 1.0, 0.7), exposure_ev=-0.4))
     for method in ("Cheung 2004", "Finlayson 2015", "Vandermonde"):
         p = calibrate(img, method)
-        assert p["delta_e2000"]["before"]["mean"] > 5
-        assert p["delta_e2000"]["after"]["mean"] <= 2.0, (method, p["delta_e2000"])
+        assert p.delta_e2000["before"]["mean"] > 5
+        assert p.delta_e2000["after"]["mean"] <= 2.0, (method, p.delta_e2000)
     corrected = apply_profile(img, p)
-    again = calibrate(corrected)   # the corrected frame already matches the targets
-    assert again["delta_e2000"]["before"]["mean"] < 2.5
+    assert corrected.dtype == np.float32           # linear and unquantised, all the way to the estimate
+    again = calibrate(linear_to_srgb8(corrected), linear=corrected)   # the corrected frame already matches the targets
+    assert again.delta_e2000["before"]["mean"] < 2.5
 
 
 def test_targets_are_the_rendered_chart():
@@ -107,7 +110,7 @@ def test_no_chart_in_view_blocks_and_explains(tmp_path):
 
 def test_profile_staleness_and_errors(tmp_path):
     p = calibrate(frame())
-    assert staleness(p, p["settings"]) == []
+    assert staleness(p, p.settings) == []
     assert "old" in staleness(p, now=time.time() + 9 * 3600)[0]
     assert "settings changed" in staleness(p, {"camera": "other"})[0]
     (tmp_path / "bad.json").write_text("{")
@@ -122,7 +125,7 @@ def test_session_replays_a_recorded_frame(tmp_path):
     cv2.imwrite(str(tmp_path / "f.png"), frame()[..., ::-1])
     session = RigSession(FileCamera(tmp_path / "f.png"), None, tmp_path / "s", swatch_roi(SIM_SIZE))
     profile = session.calibrate()
-    assert profile["delta_e2000"]["after"]["mean"] < 2
+    assert profile.delta_e2000["after"]["mean"] < 2
     result = session.capture(estimate=False)
     assert result.image_path.exists() and not result.blocked
 
@@ -145,7 +148,7 @@ def test_estimate_of_a_rig_capture_matches_the_rig_chain(tmp_path, tiny_model):
     assert main(["estimate", str(result.image_path), "--calibration", str(session.profile_path),
                  "--model", str(onnx_path), "--out", str(out)]) == 0
     cli = json.loads(out.read_text())
-    rig = result.record
+    rig = result.record.to_json()
     x, y, w, h = cli["provenance"]["roi"]
     tx, ty, tw, th = session.swatch_roi
     shared = max(0, min(x + w, tx + tw) - max(x, tx)) * max(0, min(y + h, ty + th) - max(y, ty))
@@ -198,14 +201,14 @@ def test_an_old_capture_is_reviewed_with_its_own_calibration(tmp_path):
         shot = session.capture(estimate=False)
         session.camera.camera.cast = (1.3, 1.0, 0.7)        # the light or white balance changes
         second = session.calibrate()
-        assert second["id"] != first["id"] and load_profile(session.profile_path)["id"] == second["id"]
+        assert second.id != first.id and load_profile(session.profile_path).id == second.id
         loaded = session.load_capture(shot.capture_id)
     finally:
         session.close()
-    assert loaded.profile["id"] == first["id"]
+    assert loaded.profile.id == first.id
     x, y, w, h = loaded.roi
     expected = apply_profile(loaded.frame[y:y + h, x:x + w].copy(), first)
-    assert np.array_equal(loaded.corrected_swatch(), expected)
+    assert np.array_equal(loaded.corrected_swatch_linear(), expected)
     assert not np.array_equal(expected, apply_profile(loaded.frame[y:y + h, x:x + w].copy(), second))
 
 
@@ -230,10 +233,10 @@ def test_a_raw_still_of_the_rig_is_a_capture_calibrated_on_its_own_chart(tmp_pat
         session.close()
     assert result.image_path.read_bytes() == still.read_bytes()          # kept as shot, before processing
     assert not result.blocked and result.params is not None
-    assert result.record["provenance"]["calibration"]["delta_e2000_after"]["mean"] < 1.5
+    assert result.record.provenance["calibration"]["delta_e2000_after"]["mean"] < 1.5
     # the same swatch as the live capture: the refined colours agree
-    assert float(delta_e2000(np.array(result.record["refinement"]["rendered_linear_rgb"]),
-                             np.array(live.record["refinement"]["rendered_linear_rgb"]))) < 1.0
+    assert float(delta_e2000(np.array(result.record.refinement.rendered_linear_rgb),
+                             np.array(live.record.refinement.rendered_linear_rgb))) < 1.0
     assert loaded.profile is not None and loaded.frame.shape == radiance.shape
 
 

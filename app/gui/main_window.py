@@ -98,6 +98,8 @@ class MainWindow(QMainWindow):
         outer.addWidget(splitter, 1)
         self.setCentralWidget(central)
         self.resize(1500, 860)
+        from hairdigi.app.gui.dye_panel import add_dye_dock   # issue 19: the Dye panel, a dock
+        self.dye_dock = add_dye_dock(self, self.session.folder)
 
     def _rig_panel(self) -> QWidget:
         box = QGroupBox("Rig")
