@@ -300,3 +300,46 @@ def test_postgresql_same_schema_same_commands(tmp_path, postgres_url, monkeypatc
     # a second process on the same server sees it all
     proc = _cli("library", "info", env={"HAIRDIGI_LIBRARY": postgres_url})
     assert proc.returncode == 0 and "swatches: 8" in proc.stdout
+
+
+# --- the Library panel -----------------------------------------------------------------------------
+def test_library_panel_search_sort_find_compare_review(tmp_path, lib_env, qtbot, test_output):
+    from hairdigi.app.gui.library_panel import LibraryPanel
+    from hairdigi.app.library_view import compare
+
+    make_session(tmp_path / "march", 6, seed=21)
+    make_session(tmp_path / "april", 4, seed=22)
+    with Library() as lib:
+        from hairdigi.app.library_import import import_paths
+
+        import_paths(lib, [tmp_path / "march", tmp_path / "april"], progress=lambda line: None)
+        lib.tag("20260021-000001", ["copper"])
+    library = Library()
+    panel = LibraryPanel(library)
+    qtbot.addWidget(panel)
+    panel.resize(900, 700)
+    panel.show()
+    assert panel.table.rowCount() == 10
+    panel.search.setText("copper")
+    assert panel.table.rowCount() == 1 and "copper" in panel.table.item(0, 4).text()
+    panel.search.setText("")
+    panel.sort.setCurrentIndex(1)           # by colour, light to dark
+    lightness = [s.labs["daylight"][0] for s in panel.swatches]
+    assert lightness == sorted(lightness, reverse=True)
+    panel.near.setText("#8a4a30")
+    panel.refresh()
+    des = [float(panel.table.item(r, 1).text()) for r in range(panel.table.rowCount())]
+    assert des == sorted(des) and len(des) == 10
+    panel.table.selectRow(0)
+    panel.table.setSelectionMode(panel.table.SelectionMode.MultiSelection)
+    panel.table.selectRow(3)
+    chosen = panel.selected()
+    assert len(chosen) == 2
+    expected = compare(*chosen).text()
+    assert panel.delta.text() == expected and "daylight: ΔE2000" in expected
+    assert panel.left.chip.text().startswith("#") and panel.right.caption.text().startswith("march") or \
+        panel.right.caption.text().startswith("april")
+    panel.open_review()                     # not the window's session: a dialog with the capture
+    assert panel.review_dialog.isVisible()
+    panel.grab().save(str(test_output / "library-panel.png"))
+    library.close()

@@ -100,6 +100,8 @@ class MainWindow(QMainWindow):
         self.resize(1500, 860)
         from hairdigi.app.gui.dye_panel import add_dye_dock   # issue 19: the Dye panel, a dock
         self.dye_dock = add_dye_dock(self, self.session.folder)
+        from hairdigi.app.gui.library_panel import add_library_dock   # issue 20: the Library panel, a dock
+        self.library_dock = add_library_dock(self)
 
     def _rig_panel(self) -> QWidget:
         box = QGroupBox("Rig")
