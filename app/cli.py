@@ -7,6 +7,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from hairdigi.render.base.threads import start_up
 from hairdigi.render.base.version import version
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # torch's OpenMP spinning starves a 2-core CPU
@@ -33,7 +34,9 @@ class CliError(Exception):
 
 
 def _cache_dir() -> Path:
-    return Path(os.environ.get("HAIRDIGI_CACHE", Path.home() / ".cache" / "hairdigi"))
+    from hairdigi.render.base.files import cache_dir
+
+    return cache_dir()
 
 
 def _use_variant(name: str | None) -> str:
@@ -262,10 +265,6 @@ def cmd_rig(args: argparse.Namespace) -> int:
 
 
 def cmd_app(args: argparse.Namespace) -> int:
-    # numpy's OpenBLAS threads spin after every call: the simulated feed's 20 calls a second kept one of
-    # two cores busy doing nothing (the idle window took 132% of a core, 37% with this); the window
-    # needs no threaded BLAS (Mitsuba and the denoiser have their own threads). Set before numpy loads.
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     from hairdigi.app.gui.main import run_app
 
     return run_app(sim=args.sim, session=args.session, tour=args.tour)
@@ -295,72 +294,10 @@ def cmd_model_card(args: argparse.Namespace) -> int:
     return 0
 
 
-BENCH_OUT = "out/bench"
-
-
 def cmd_bench(args: argparse.Namespace) -> int:
-    if args.what == "memory":   # issue 22: peak memory and time of the largest inputs hairdigi accepts
-        from hairdigi.app.bench_memory import bench_memory
-        return bench_memory(args)
-    if args.what == "library":   # issue 20: find in a library of --n swatches (default 10,000)
-        from hairdigi.app.library_cli import bench_library
-        return bench_library(args)
-    out = Path(args.out)
-    if args.what == "refine":
-        from hairdigi.inference.training.bench_refine import bench_refine
-        from hairdigi.inference.encoder import Encoder
+    from hairdigi.app.bench import BENCHES
 
-        data = Path(args.data) if args.data else _cache_dir() / "datasets" / "heldout-s1000003-64px-64spp-linear16"
-        rows = bench_refine(Encoder(args.model), data, out, count=args.n or 10)
-        for r in rows:
-            print(f"{r['size']:3d}² {r['spp']:3d} spp, {r['iterations']} iteration(s): ΔE2000 median "
-                  f"{r['de_median']:.2f} (p95 {r['de_p95']:.2f}); curve {r['curve_s']:.2f} s + {r['polish_s']:.2f} s")
-        print(f"wrote {out / 'refine_bench.csv'} and {out / 'refine_bench.png'}")
-        return 0
-    if args.what == "encoder":
-        from hairdigi.inference.training.report import bench_encoders
-
-        if not args.models:
-            raise CliError("bench encoder needs --models A.onnx B.onnx ...")
-        rows = bench_encoders(args.models, out, n=args.n or 300, data_root=args.data)
-        for r in rows:
-            print(f"{r['model']}: {r['latency_ms']:.3f} ms, L1 {r['l1']:.2f} (floor {r['l1_floor']:.2f}), "
-                  f"ΔE2000 median {r['mean_colour_de2000_median']:.2f}")
-        print(f"wrote {out / 'encoder_bench.csv'} and {out / 'encoder_bench.png'}")
-        return 0
-    if args.what == "rig":
-        from hairdigi.app.rig_cli import detection_sweep
-
-        rows = detection_sweep(out)
-        found = [r for r in rows if r["detected"]]
-        import numpy as np
-        print(f"chart detected in {len(found)}/{len(rows)} simulated frames; ΔE2000 mean before "
-              f"{np.mean([r['de_before'] for r in found]):.2f}, after {np.mean([r['de_after'] for r in found]):.2f}; "
-              f"wrote {out / 'rig_bench.csv'}")
-    if args.what == "dataset":
-        from hairdigi.inference.training.bench_dataset import run_dataset_bench
-
-        rows = run_dataset_bench(out, quick=args.quick, n=args.n)
-        for r in rows:
-            unit = "worker process(es)" if r["backend"] == "local" else "CPU(s) of a local Ray instance"
-            print(f"{r['backend']:5s} {r['workers']} {unit}: {r['swatches_per_s']:.2f} swatches/s "
-                  f"({r['n']} in {r['seconds']:.1f} s, {r['size']}² {r['spp']} spp, {r['variant']})")
-        print(f"wrote {out / 'dataset_bench.csv'} and {out / 'dataset_bench.png'}")
-        return 0
-    if args.what == "previews":
-        from hairdigi.app.previews import bench_previews
-
-        out = out / "previews" if args.out == BENCH_OUT else out
-        for line in bench_previews(out, quick=args.quick):
-            print(line)
-        print(f"wrote {out / 'previews_bench.csv'} and {out / 'previews_bench.png'}")
-        return 0
-    if args.what == "render":
-        from hairdigi.render.bench import run_render_bench
-
-        rows = run_render_bench(out, quick=args.quick)
-        print(f"wrote {out / 'render_bench.csv'} and {out / 'render_bench.png'} ({len(rows)} cases)")
-    return 0
+    return BENCHES[args.what](args)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -534,8 +471,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="resources/models/encoder.md")
     p.set_defaults(func=cmd_model_card)
 
+    from hairdigi.app.bench import BENCH_OUT, BENCHES
+
     p = sub.add_parser("bench", help="speed against error tables and plots")
-    p.add_argument("what", choices=("render", "rig", "encoder", "refine", "dataset", "previews", "library", "memory"))
+    p.add_argument("what", choices=tuple(BENCHES))
     p.add_argument("--models", nargs="*", help="encoder: the ONNX models to compare")
     p.add_argument("--n", type=v.int_in(1, v.MAX_DATASET_N), default=None, help="held-out swatches (encoder: 300, refine: 10); "
                    "dataset: swatches per case (16)")
@@ -606,6 +545,7 @@ def main(argv: list[str] | None = None) -> int:
     # Run as a program, Ctrl-C while starting (native libraries load) ends at once, with one line;
     # once the command runs it raises KeyboardInterrupt, so that files and devices are closed.
     program = signal.getsignal(signal.SIGINT) is _interrupted_at_start
+    start_up()   # the process's thread budget, before numpy's BLAS loads (render.base.threads)
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv == ["--version"]:   # answered before build_parser loads Mitsuba, so it is instant
         print(f"hairdigi {version()}")

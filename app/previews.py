@@ -215,39 +215,3 @@ def hairstyle_passes(renderer: Renderer, params: HairParams, spec: SceneSpec, la
                             denoised(result.linear, denoise_on, "fast" if i == 1 else "high"), result.spp, i,
                             len(schedule), result.spp >= settings.hairstyle_clean_spp, label, tag.stage,
                             result.seconds, tag.key, result.nonfinite)
-
-
-
-
-def bench_previews(out_dir: str | Path, quick: bool = False) -> list[str]:
-    """``hairdigi bench previews``: render/bench_previews.py on the simulated rig's twin view (at the
-    scales the app renders it) and the hairstyle; the summary lines say each default's measured error
-    and the cheapest clean setting."""
-    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SIM_SIZE
-    from hairdigi.render.base.rig_geometry import swatch_roi
-    from hairdigi.render.bench_previews import CLEAN_DE, cheapest_clean, run_previews_bench
-
-    s = PreviewSettings()
-    roi = swatch_roi(SIM_SIZE)
-    twins = {scale: twin_view(roi, SIM_SIZE, True, scale) for scale, _ in s.twin_passes}
-    rows = run_previews_bench(out_dir, list(twins.values()), DEFAULT_HIDDEN, quick)
-    mode = "oidn" if s.denoise and any(r["mode"] == "oidn" for r in rows) else "raw"
-    defaults = {("hairstyle", s.hairstyle_size): [("first pass", s.hairstyle_passes[0]),
-                                                  ("clean pass", s.hairstyle_clean_spp)]}
-    for scale, (_, size) in twins.items():
-        firsts = [n for sc, n in s.twin_passes if sc == scale]
-        defaults[("twin", size[0])] = [(f"first pass at {scale:g}x resolution", firsts[0]),
-                                       ("clean pass", dict(s.twin_clean_spp)[scale])]
-    lines = []
-    for view, width in sorted({(r["view"], r["width"]) for r in rows}):
-        best = cheapest_clean(rows, view, width)
-        lines.append(f"{view} {width}px: cheapest clean (per-pixel ΔE2000 <= {CLEAN_DE:g}): "
-                     + (f"{best['spp']} spp {best['mode']}, {best['total_s']:.2f} s, ΔE {best['pixel_de2000']:.2f}"
-                        if best else "none"))
-        for label, spp in defaults.get((view, width), []):
-            row = next((r for r in rows if (r["view"], r["width"], r["spp"], r["mode"]) == (view, width, spp, mode)),
-                       None)
-            if row is not None:
-                lines.append(f"  app default {label}: {spp} spp {mode}: per-pixel ΔE2000 {row['pixel_de2000']:.2f}, "
-                             f"mean colour {row['mean_colour_de2000']:.2f}, {row['total_s']:.2f} s")
-    return lines

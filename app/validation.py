@@ -20,7 +20,7 @@ import shutil
 from pathlib import Path
 from typing import Callable, Iterable
 
-#: Bounds of the numbers the commands take (render bounds live in ``render.renderer``).
+#: Bounds of the numbers the commands take (render bounds live in ``render.base.bounds``).
 MAX_SEED = 2 ** 32 - 1           # Mitsuba's and NumPy's seeds are unsigned 32-bit
 MAX_DATASET_N = 10_000_000
 MAX_SHARD_SIZE = 100_000
@@ -255,7 +255,7 @@ def scene_name(names) -> Callable[[str], str]:
 
 def check_render(args: argparse.Namespace) -> None:
     """``hairdigi render``: the parameter file, the outputs, and size x spp, depth and camera together."""
-    from hairdigi.render.renderer import check_camera, check_size_spp, defaults_for
+    from hairdigi.render.base.bounds import check_camera, check_size_spp, defaults_for
     from hairdigi.render.scenes import PORTRAIT_CAMERA
     from hairdigi.render.base.rig_geometry import CAMERA_DISTANCE, CameraPose
 

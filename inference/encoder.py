@@ -58,10 +58,15 @@ def _views(x: np.ndarray) -> np.ndarray:
 
 
 class Encoder:
-    """An onnxruntime session for the encoder; one CPU thread by default (latency is under a millisecond)."""
+    """An onnxruntime session for the encoder; its intra-op threads from the process's thread budget
+    (``render.base.threads``: one; latency is under a millisecond)."""
 
-    def __init__(self, path: str | os.PathLike = DEFAULT_MODEL, threads: int = 1) -> None:
+    def __init__(self, path: str | os.PathLike = DEFAULT_MODEL, threads: int | None = None) -> None:
         import onnxruntime as ort
+
+        from hairdigi.render.base.threads import plan
+
+        threads = plan()["onnxruntime"] if threads is None else threads
 
         self.path = Path(path)
         if not self.path.exists():

@@ -17,6 +17,11 @@ from typing import Callable, Iterator, Sequence
 import numpy as np
 
 from hairdigi.render.base import rig_geometry
+# Bounds, defaults and their checks: in render.base.bounds, so the command line reads them without Mitsuba.
+from hairdigi.render.base.bounds import (DEFAULTS, MAX_CAMERA_DISTANCE, MAX_DEPTH, MAX_SAMPLES,  # noqa: F401
+                                         MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_CAMERA_DISTANCE, MIN_DEPTH, MIN_SIZE,
+                                         SCENE_NAMES, SceneDefaults, check_camera, check_size_spp, defaults_for,
+                                         is_whole)
 from hairdigi.render import scenes
 from hairdigi.render.absorption import hair_bsdf, hair_sigma_a
 from hairdigi.render.hairfile import hair_model_strands
@@ -25,74 +30,8 @@ from hairdigi.render.srgb import linear_to_srgb8
 from hairdigi.render.strands import HAIRSTYLES, STYLES, Strands, hairstyle_strands, swatch_strands
 from hairdigi.render.variant import is_jit, load_scene, mi, select_variant
 
-SCENE_NAMES = ("swatch",) + HAIRSTYLES
 #: The scene of a ``.hair`` model (``SceneSpec.hair_file``).
 HAIR_FILE_SCENE = "hairfile"
-
-
-@dataclass(frozen=True)
-class SceneDefaults:
-    """Per-scene defaults, chosen from ``hairdigi bench render`` (see render/README.md)."""
-
-    strands: int
-    spp: int
-    max_depth: int
-    size: int
-
-
-#: Chosen from the benchmark in render/README.md: the cheapest setting whose error is under the
-#: noise that matters.
-DEFAULTS = {
-    "swatch": SceneDefaults(strands=2000, spp=16, max_depth=32, size=128),
-    "hairstyle": SceneDefaults(strands=6000, spp=16, max_depth=24, size=512),   # strands: render/README.md
-}
-
-
-def defaults_for(name: str) -> SceneDefaults:
-    return DEFAULTS["swatch" if name == "swatch" else "hairstyle"]
-
-
-# Bounds on what a render may ask for: outside them the image is black, or the job cannot finish.
-MIN_SIZE = 8                 #: pixels a side; smaller holds too few strands to see
-MAX_SIZE = 4096              #: pixels a side; 4096² linear RGB is already 200 MB, and the film more
-MAX_SPP = 65536              #: samples per pixel
-MAX_SAMPLES = 2 ** 31        #: pixels x spp in one render (Mitsuba's JIT variants stop at 2^32)
-MIN_DEPTH = 2                #: path depth; depth 1 shows only the lights themselves (black for the rig)
-MAX_DEPTH = 1024
-MAX_STRANDS = 200_000
-#: Camera distance from the target in scene units: nearer is inside or against the hair (the
-#: swatch's strands stand 0.04 above the holder; the head's radius is about 1), farther is a speck.
-MIN_CAMERA_DISTANCE = {"swatch": 0.5, "hairstyle": 2.5}
-MAX_CAMERA_DISTANCE = 100.0
-
-
-def _is_int(value: object) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
-
-
-def check_size_spp(size: int | tuple[int, int], spp: int) -> None:
-    """Raise ValueError naming ``size`` or ``spp`` when a render could not finish or show anything."""
-    sides = tuple(size) if isinstance(size, (tuple, list)) else (size,)
-    if not all(_is_int(s) for s in sides) or not MIN_SIZE <= min(sides) <= max(sides) <= MAX_SIZE:
-        raise ValueError(f"size must be whole pixels between {MIN_SIZE} and {MAX_SIZE}, got {size!r}")
-    if not _is_int(spp) or not 1 <= spp <= MAX_SPP:
-        raise ValueError(f"spp must be a whole number between 1 and {MAX_SPP}, got {spp!r}")
-    pixels = int(sides[0]) * int(sides[-1])
-    if pixels * int(spp) > MAX_SAMPLES:
-        raise ValueError(f"size {size} at {spp} spp is {pixels * int(spp):.3g} samples, over the limit of "
-                         f"{MAX_SAMPLES:.3g} for one render; lower the size or the spp")
-
-
-def check_camera(pose: rig_geometry.CameraPose, scene: str = "swatch") -> None:
-    """Raise ValueError naming the camera when its angles or distance are not finite, or its distance
-    puts it inside the geometry or absurdly far (both give a black image)."""
-    values = (pose.polar_deg, pose.azimuth_deg, pose.distance)
-    if not all(np.isfinite(float(v)) for v in values):
-        raise ValueError(f"camera {values} must be finite numbers (polar, azimuth, distance)")
-    low = MIN_CAMERA_DISTANCE["swatch" if scene == "swatch" else "hairstyle"]
-    if not low <= pose.distance <= MAX_CAMERA_DISTANCE:
-        raise ValueError(f"camera distance {pose.distance:g} must be between {low:g} (nearer is inside or "
-                         f"against the hair) and {MAX_CAMERA_DISTANCE:g} scene units")
 
 
 @dataclass(frozen=True)
@@ -144,11 +83,11 @@ class SceneSpec:
         if self.name == "swatch" and self.framing not in rig_geometry.FRAMING_HALF_WIDTH:
             raise ValueError(f"unknown framing {self.framing!r}; choose one of "
                              f"{', '.join(rig_geometry.FRAMING_HALF_WIDTH)}")
-        if self.max_depth is not None and (not _is_int(self.max_depth)
+        if self.max_depth is not None and (not is_whole(self.max_depth)
                                            or not MIN_DEPTH <= self.max_depth <= MAX_DEPTH):
             raise ValueError(f"max_depth must be a whole number between {MIN_DEPTH} and {MAX_DEPTH} (depth 1 "
                              f"shows only the lights, 0 nothing), got {self.max_depth!r}")
-        if self.strands is not None and (not _is_int(self.strands) or not 1 <= self.strands <= MAX_STRANDS):
+        if self.strands is not None and (not is_whole(self.strands) or not 1 <= self.strands <= MAX_STRANDS):
             raise ValueError(f"strands must be a whole number between 1 and {MAX_STRANDS}, got {self.strands!r}")
         if not all(np.isfinite(float(v)) and v >= 0 for v in self.lights):
             raise ValueError(f"lights {self.lights} must be finite scales >= 0")
@@ -308,7 +247,7 @@ class Renderer:
         with RENDER_LOCK:
             start, cpu = time.perf_counter(), time.process_time()
             scene = self._scene_for(spec, size, params)
-            linear, nonfinite = finite_image(mi.render(scene, spp=spp, seed=int(seed)))
+            linear, nonfinite = finite_image(render_in_passes(scene, size, spp, int(seed)))
             seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
         return RenderResult(linear, linear_to_srgb8(linear), seconds, spp, cpu, nonfinite)
 
@@ -358,6 +297,29 @@ class Renderer:
             spp, nonfinite, cpu = spp + n, nonfinite + result.nonfinite, cpu + result.cpu_seconds
             mean = (total / spp).astype(np.float32)
             yield RenderResult(mean, linear_to_srgb8(mean), time.perf_counter() - start, spp, cpu, nonfinite)
+
+
+#: Renders over this many samples (pixels x spp) run as passes of at most ``PASS_SAMPLES``: a JIT
+#: variant runs one ``mi.render`` as one native kernel that Ctrl-C cannot stop (the LLVM variant
+#: replaced scalar_rgb, whose block loop could), and Python raises KeyboardInterrupt between passes.
+SPLIT_ABOVE = 1 << 20
+PASS_SAMPLES = 1 << 19
+
+
+def render_in_passes(scene, size: int | tuple[int, int], spp: int, seed: int):
+    """``mi.render(scene, spp, seed)``; above ``SPLIT_ABOVE`` samples, passes with derived seeds, averaged
+    weighted by their spp (deterministic: the split depends on the size and spp alone)."""
+    width, height = (size, size) if isinstance(size, int) else size
+    if width * height * spp <= SPLIT_ABOVE:
+        return mi.render(scene, spp=spp, seed=seed)   # as before: one call
+    per_pass = max(1, PASS_SAMPLES // (width * height))
+    total, done, k = None, 0, 0
+    while done < spp:
+        n = min(per_pass, spp - done)
+        image = np.asarray(mi.render(scene, spp=n, seed=(seed * 1_000_003 + 7_919 * k) % (1 << 32)), np.float64)
+        total = image * n if total is None else total + image * n
+        done, k = done + n, k + 1
+    return (total / spp).astype(np.float32)
 
 
 def finite_image(image) -> tuple[np.ndarray, int]:

@@ -17,7 +17,7 @@ from hairdigi.render.variant import transform
 HOLDER_ALBEDO = 0.18          # mid grey, like a photographic grey card
 LIGHT_RADIANCE = 16.0
 
-ENVIRONMENTS = ("studio", "soft")
+from hairdigi.render.base.bounds import ENVIRONMENTS  # noqa: E402  (the names, for the command line without Mitsuba)
 SKIN_ALBEDO = (0.55, 0.38, 0.30)
 
 

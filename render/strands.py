@@ -148,7 +148,7 @@ def swatch_strands(n_strands: int = 2000, seed: int = 0, radius: float = 0.004,
 
 # --- hairstyles on the head -------------------------------------------------------------------
 
-HAIRSTYLES = ("straight", "wavy", "curly", "bob", "ponytail", "afro")
+from hairdigi.render.base.bounds import HAIRSTYLES  # noqa: E402  (the names, for the command line without Mitsuba)
 DOWN = np.array([0.0, -1.0, 0.0])
 MIN_GUIDES = 120
 #: Fibre radius of the hairstyles (0.6 mm: far thicker than hair, so that ~6000 strands cover a head;

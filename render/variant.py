@@ -18,11 +18,9 @@ import warnings
 
 import mitsuba as mi
 
-PREFERRED = ("llvm_ad_rgb", "scalar_rgb")
-#: What ``"auto"`` tries, in order: the GPU when Mitsuba finds one, then as ``PREFERRED``.
-AUTO = ("cuda_ad_rgb",) + PREFERRED
-#: The choices of the command line's ``--variant``.
-CHOICES = ("auto",) + AUTO
+from hairdigi.render.base.bounds import AUTO_VARIANTS as AUTO  # noqa: E402  (tried by "auto", in order)
+from hairdigi.render.base.bounds import PREFERRED_VARIANTS as PREFERRED  # noqa: E402
+from hairdigi.render.base.bounds import VARIANT_CHOICES as CHOICES  # noqa: E402  (the command line's --variant)
 
 
 class VariantError(RuntimeError):
@@ -55,6 +53,11 @@ def select_variant(preferred: str | None = None) -> str:
     else:
         raise VariantError("no Mitsuba variant works: " + "; ".join(errors)
                            + ("; use --variant auto" if preferred not in (None, "auto") else ""))
+    if mi.variant().startswith(("llvm", "cuda")):   # the path tracer's pool: the process's thread budget
+        import drjit as dr
+
+        from hairdigi.render.base.threads import plan
+        dr.set_thread_count(plan()["drjit"])
     if mi.variant() == "scalar_rgb" and not wanted:
         warnings.warn("llvm_ad_rgb is unavailable (install Debian's libllvm19); rendering with "
                       "scalar_rgb, about 2x slower. " + "; ".join(errors), RuntimeWarning, stacklevel=2)

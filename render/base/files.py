@@ -264,3 +264,8 @@ def protected_reason(path: str | os.PathLike, allow: tuple = ()) -> str | None:
     if kind:
         return f"is {kind}, which hairdigi reads back"
     return None
+
+
+def cache_dir() -> Path:
+    """Where hairdigi keeps what it can make again (datasets, response curves): ``HAIRDIGI_CACHE``."""
+    return Path(os.environ.get("HAIRDIGI_CACHE", Path.home() / ".cache" / "hairdigi"))

@@ -1,0 +1,155 @@
+"""``hairdigi bench NAME``: the benchmarks, one registry (``BENCHES``: name -> function(args) -> exit code).
+
+Each entry prints its summary and writes its table and plot; the work itself lives with what it
+measures (``render.bench``, ``render.bench_previews``, ``inference.training.bench_*``, ``app.rig_cli``,
+``app.library_cli``, ``app.bench_memory``), imported when the benchmark runs, so the command line's
+parser loads none of them.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+from pathlib import Path
+from typing import Callable
+
+Bench = Callable[[argparse.Namespace], int]
+
+#: Where results go by default (``--out``).
+BENCH_OUT = "out/bench"
+
+
+def _elsewhere(module: str, name: str) -> Bench:
+    """A benchmark whose command-line function lives in ``module`` (imported when it runs)."""
+    def run(args: argparse.Namespace) -> int:
+        return getattr(importlib.import_module(module), name)(args)
+    run.__doc__ = f"{module}.{name}"
+    return run
+
+
+def bench_render(args: argparse.Namespace) -> int:
+    """Renderer defaults: strands, spp and depth against error and time."""
+    from hairdigi.render.bench import run_render_bench
+
+    out = Path(args.out)
+    rows = run_render_bench(out, quick=args.quick)
+    print(f"wrote {out / 'render_bench.csv'} and {out / 'render_bench.png'} ({len(rows)} cases)")
+    return 0
+
+
+def bench_rig(args: argparse.Namespace) -> int:
+    """Chart detection and ΔE2000 over simulated poses, noise and casts."""
+    import numpy as np
+
+    from hairdigi.app.rig_cli import detection_sweep
+
+    out = Path(args.out)
+    rows = detection_sweep(out)
+    found = [r for r in rows if r["detected"]]
+    print(f"chart detected in {len(found)}/{len(rows)} simulated frames; ΔE2000 mean before "
+          f"{np.mean([r['de_before'] for r in found]):.2f}, after {np.mean([r['de_after'] for r in found]):.2f}; "
+          f"wrote {out / 'rig_bench.csv'}")
+    return 0
+
+
+def bench_encoder(args: argparse.Namespace) -> int:
+    """ONNX encoders side by side: latency and error on held-out swatches."""
+    from hairdigi.inference.training.report import bench_encoders
+
+    if not args.models:
+        raise ValueError("bench encoder needs --models A.onnx B.onnx ...")
+    out = Path(args.out)
+    rows = bench_encoders(args.models, out, n=args.n or 300, data_root=args.data)
+    for r in rows:
+        print(f"{r['model']}: {r['latency_ms']:.3f} ms, L1 {r['l1']:.2f} (floor {r['l1_floor']:.2f}), "
+              f"ΔE2000 median {r['mean_colour_de2000_median']:.2f}")
+    print(f"wrote {out / 'encoder_bench.csv'} and {out / 'encoder_bench.png'}")
+    return 0
+
+
+def bench_refine(args: argparse.Namespace) -> int:
+    """Refinement by synthesis: render size, spp and iterations against error and time."""
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.inference.training.bench_refine import bench_refine as run
+    from hairdigi.render.base.files import cache_dir
+
+    out = Path(args.out)
+    data = Path(args.data) if args.data else cache_dir() / "datasets" / "heldout-s1000003-64px-64spp-linear16"
+    rows = run(Encoder(args.model), data, out, count=args.n or 10)
+    for r in rows:
+        print(f"{r['size']:3d}² {r['spp']:3d} spp, {r['iterations']} iteration(s): ΔE2000 median "
+              f"{r['de_median']:.2f} (p95 {r['de_p95']:.2f}); curve {r['curve_s']:.2f} s + {r['polish_s']:.2f} s")
+    print(f"wrote {out / 'refine_bench.csv'} and {out / 'refine_bench.png'}")
+    return 0
+
+
+def bench_dataset(args: argparse.Namespace) -> int:
+    """Dataset rendering: the local pool and a local Ray instance, swatches per second."""
+    from hairdigi.inference.training.bench_dataset import run_dataset_bench
+
+    out = Path(args.out)
+    rows = run_dataset_bench(out, quick=args.quick, n=args.n)
+    for r in rows:
+        unit = "worker process(es)" if r["backend"] == "local" else "CPU(s) of a local Ray instance"
+        print(f"{r['backend']:5s} {r['workers']} {unit}: {r['swatches_per_s']:.2f} swatches/s "
+              f"({r['n']} in {r['seconds']:.1f} s, {r['size']}² {r['spp']} spp, {r['variant']})")
+    print(f"wrote {out / 'dataset_bench.csv'} and {out / 'dataset_bench.png'}")
+    return 0
+
+
+def bench_previews(args: argparse.Namespace) -> int:
+    """The app's previews: spp x denoiser x guides x size against error."""
+    out = Path(args.out)
+    out = out / "previews" if args.out == BENCH_OUT else out
+    for line in previews_lines(out, quick=args.quick):
+        print(line)
+    print(f"wrote {out / 'previews_bench.csv'} and {out / 'previews_bench.png'}")
+    return 0
+
+
+def previews_lines(out_dir: str | Path, quick: bool = False) -> list[str]:
+    """``hairdigi bench previews``: render/bench_previews.py on the simulated rig's twin view (at the
+    scales the app renders it) and the hairstyle; the summary lines say each default's measured error
+    and the cheapest clean setting."""
+    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SIM_SIZE
+    from hairdigi.render.base.rig_geometry import swatch_roi
+    from hairdigi.render.bench_previews import CLEAN_DE, cheapest_clean, run_previews_bench
+
+    from hairdigi.app.previews import PreviewSettings, twin_view
+
+    s = PreviewSettings()
+    roi = swatch_roi(SIM_SIZE)
+    twins = {scale: twin_view(roi, SIM_SIZE, True, scale) for scale, _ in s.twin_passes}
+    rows = run_previews_bench(out_dir, list(twins.values()), DEFAULT_HIDDEN, quick)
+    mode = "oidn" if s.denoise and any(r["mode"] == "oidn" for r in rows) else "raw"
+    defaults = {("hairstyle", s.hairstyle_size): [("first pass", s.hairstyle_passes[0]),
+                                                  ("clean pass", s.hairstyle_clean_spp)]}
+    for scale, (_, size) in twins.items():
+        firsts = [n for sc, n in s.twin_passes if sc == scale]
+        defaults[("twin", size[0])] = [(f"first pass at {scale:g}x resolution", firsts[0]),
+                                       ("clean pass", dict(s.twin_clean_spp)[scale])]
+    lines = []
+    for view, width in sorted({(r["view"], r["width"]) for r in rows}):
+        best = cheapest_clean(rows, view, width)
+        lines.append(f"{view} {width}px: cheapest clean (per-pixel ΔE2000 <= {CLEAN_DE:g}): "
+                     + (f"{best['spp']} spp {best['mode']}, {best['total_s']:.2f} s, ΔE {best['pixel_de2000']:.2f}"
+                        if best else "none"))
+        for label, spp in defaults.get((view, width), []):
+            row = next((r for r in rows if (r["view"], r["width"], r["spp"], r["mode"]) == (view, width, spp, mode)),
+                       None)
+            if row is not None:
+                lines.append(f"  app default {label}: {spp} spp {mode}: per-pixel ΔE2000 {row['pixel_de2000']:.2f}, "
+                             f"mean colour {row['mean_colour_de2000']:.2f}, {row['total_s']:.2f} s")
+    return lines
+
+
+#: Every benchmark of ``hairdigi bench``, by name.
+BENCHES: dict[str, Bench] = {
+    "render": bench_render,
+    "rig": bench_rig,
+    "encoder": bench_encoder,
+    "refine": bench_refine,
+    "dataset": bench_dataset,
+    "previews": bench_previews,
+    "library": _elsewhere("hairdigi.app.library_cli", "bench_library"),    # issue 20: find in a library of --n swatches
+    "memory": _elsewhere("hairdigi.app.bench_memory", "bench_memory"),     # issue 22: peak memory of the largest inputs
+}

@@ -1,0 +1,89 @@
+"""What the command line and the renderer accept, without Mitsuba: render bounds and defaults and their checks, scene and
+environment names, Mitsuba variant names. numpy and the standard library only, so that ``hairdigi --help`` and
+every usage error load neither Mitsuba nor colour-science (``render.renderer``, ``render.scenes``,
+``render.strands`` and ``render.variant`` take these from here)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from hairdigi.render.base import rig_geometry
+
+# Bounds on what a render may ask for: outside them the image is black, or the job cannot finish.
+MIN_SIZE = 8                 #: pixels a side; smaller holds too few strands to see
+MAX_SIZE = 4096              #: pixels a side; 4096² linear RGB is already 200 MB, and the film more
+MAX_SPP = 65536              #: samples per pixel
+MAX_SAMPLES = 2 ** 31        #: pixels x spp in one render (Mitsuba's JIT variants stop at 2^32)
+MIN_DEPTH = 2                #: path depth; depth 1 shows only the lights themselves (black for the rig)
+MAX_DEPTH = 1024
+MAX_STRANDS = 200_000
+#: Camera distance from the target in scene units: nearer is inside or against the hair (the
+#: swatch's strands stand 0.04 above the holder; the head's radius is about 1), farther is a speck.
+MIN_CAMERA_DISTANCE = {"swatch": 0.5, "hairstyle": 2.5}
+MAX_CAMERA_DISTANCE = 100.0
+
+#: The built-in hairstyles (``render.strands``) and the scenes: the swatch rig, then the hairstyles.
+HAIRSTYLES = ("straight", "wavy", "curly", "bob", "ponytail", "afro")
+SCENE_NAMES = ("swatch",) + HAIRSTYLES
+#: The hairstyles' lighting (``render.scenes``).
+ENVIRONMENTS = ("studio", "soft")
+
+#: Mitsuba variants (``render.variant``): the ones that work without a GPU, in order of preference;
+#: what ``"auto"`` tries (the GPU when Mitsuba finds one first); the choices of ``--variant``.
+PREFERRED_VARIANTS = ("llvm_ad_rgb", "scalar_rgb")
+AUTO_VARIANTS = ("cuda_ad_rgb",) + PREFERRED_VARIANTS
+VARIANT_CHOICES = ("auto",) + AUTO_VARIANTS
+
+
+@dataclass(frozen=True)
+class SceneDefaults:
+    """Per-scene defaults, chosen from ``hairdigi bench render`` (see render/README.md)."""
+
+    strands: int
+    spp: int
+    max_depth: int
+    size: int
+
+
+#: Chosen from the benchmark in render/README.md: the cheapest setting whose error is under the
+#: noise that matters.
+DEFAULTS = {
+    "swatch": SceneDefaults(strands=2000, spp=16, max_depth=32, size=128),
+    "hairstyle": SceneDefaults(strands=6000, spp=16, max_depth=24, size=512),   # strands: render/README.md
+}
+
+
+def defaults_for(name: str) -> SceneDefaults:
+    """The defaults of the swatch, or of every hairstyle and hair model."""
+    return DEFAULTS["swatch" if name == "swatch" else "hairstyle"]
+
+
+def is_whole(value: object) -> bool:
+    """A whole number (Python or numpy), not a bool."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+
+
+def check_size_spp(size: int | tuple[int, int], spp: int) -> None:
+    """Raise ValueError naming ``size`` or ``spp`` when a render could not finish or show anything."""
+    sides = tuple(size) if isinstance(size, (tuple, list)) else (size,)
+    if not all(is_whole(s) for s in sides) or not MIN_SIZE <= min(sides) <= max(sides) <= MAX_SIZE:
+        raise ValueError(f"size must be whole pixels between {MIN_SIZE} and {MAX_SIZE}, got {size!r}")
+    if not is_whole(spp) or not 1 <= spp <= MAX_SPP:
+        raise ValueError(f"spp must be a whole number between 1 and {MAX_SPP}, got {spp!r}")
+    pixels = int(sides[0]) * int(sides[-1])
+    if pixels * int(spp) > MAX_SAMPLES:
+        raise ValueError(f"size {size} at {spp} spp is {pixels * int(spp):.3g} samples, over the limit of "
+                         f"{MAX_SAMPLES:.3g} for one render; lower the size or the spp")
+
+
+def check_camera(pose: rig_geometry.CameraPose, scene: str = "swatch") -> None:
+    """Raise ValueError naming the camera when its angles or distance are not finite, or its distance
+    puts it inside the geometry or absurdly far (both give a black image)."""
+    values = (pose.polar_deg, pose.azimuth_deg, pose.distance)
+    if not all(np.isfinite(float(v)) for v in values):
+        raise ValueError(f"camera {values} must be finite numbers (polar, azimuth, distance)")
+    low = MIN_CAMERA_DISTANCE["swatch" if scene == "swatch" else "hairstyle"]
+    if not low <= pose.distance <= MAX_CAMERA_DISTANCE:
+        raise ValueError(f"camera distance {pose.distance:g} must be between {low:g} (nearer is inside or "
+                         f"against the hair) and {MAX_CAMERA_DISTANCE:g} scene units")
