@@ -303,7 +303,7 @@ class Renderer:
 #: variant runs one ``mi.render`` as one native kernel that Ctrl-C cannot stop (the LLVM variant
 #: replaced scalar_rgb, whose block loop could), and Python raises KeyboardInterrupt between passes.
 SPLIT_ABOVE = 1 << 20
-PASS_SAMPLES = 1 << 19
+PASS_SAMPLES = 1 << 16
 
 
 def render_in_passes(scene, size: int | tuple[int, int], spp: int, seed: int):
