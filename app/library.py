@@ -26,6 +26,9 @@ from hairdigi.app.swatch_colour import ILLUMINANTS, delta_e
 
 KINDS = ("capture", "estimate", "dye")   # dye: predictions of issue "Hair-dye development", same layout
 BUSY_TIMEOUT_S = 60.0
+#: CIEDE2000's lightness weight S_L = 1 + 0.015 (L - 50)^2 / sqrt(20 + (L - 50)^2) is at most this on 0-100.
+SL_MAX = 1.0 + 0.015 * 2500 / (20 + 2500) ** 0.5 + 1e-6
+FIRST_BAND = 4.0     # L* either side of the query read first
 
 
 class LibraryError(ValueError):
@@ -395,16 +398,29 @@ class Library:
         return sorted(swatches, key=lambda s: s.captured or s.imported, reverse=True)
 
     def find(self, lab: np.ndarray, under: str = "daylight", k: int = 10) -> list[tuple[Swatch, float]]:
-        """The ``k`` swatches nearest ``lab`` (CIELAB) under ``under``, by ΔE2000 of the mean colour."""
+        """The ``k`` swatches nearest ``lab`` (CIELAB) under ``under``, by ΔE2000 of the mean colour.
+
+        Exact, through the lightness index: CIEDE2000 is at least |ΔL*| / S_L and S_L <= SL_MAX, so a
+        swatch further than ``SL_MAX * d`` in L* cannot beat a distance ``d`` already found; the band
+        of L* read widens until the k-th distance fits in it.
+        """
         if under not in ILLUMINANTS:
             raise LibraryError(f"unknown light {under!r}; choose one of {', '.join(ILLUMINANTS)}")
-        rows = self.db.query("SELECT swatch_id, l, a, b FROM colours WHERE illuminant = ?", (under,))
+        lab = np.asarray(lab, float)
+        k = max(1, int(k))
+        band = FIRST_BAND
+        while True:
+            rows = self.db.query("SELECT swatch_id, l, a, b FROM colours WHERE illuminant = ? AND l BETWEEN ? AND ?",
+                                 (under, float(lab[0] - band), float(lab[0] + band)))
+            de = delta_e(np.array([r[1:] for r in rows], float), lab[None, :]) if rows else np.zeros(0)
+            enough = len(rows) >= k and np.partition(de, k - 1)[k - 1] * SL_MAX <= band
+            if enough or band >= 200.0:      # L* spans 0-100: a band of 200 holds every swatch
+                break
+            band = max(2 * band, float(np.partition(de, k - 1)[k - 1]) * SL_MAX if len(rows) >= k else 0.0)
         if not rows:
             return []
         ids = [r[0] for r in rows]
-        labs = np.array([r[1:] for r in rows], float)
-        de = delta_e(labs, np.asarray(lab, float)[None, :])
-        best = np.argsort(de, kind="stable")[:max(1, int(k))]
+        best = np.argsort(de, kind="stable")[:k]
         chosen = [ids[i] for i in best]
         marks = ", ".join("?" * len(chosen))
         by_id = {s.id: s for s in self._swatches(f"WHERE id IN ({marks})", tuple(chosen))}

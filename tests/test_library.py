@@ -162,6 +162,26 @@ def test_import_find_tag_note_export(tmp_path, lib_env, capsys):
         assert len(err.splitlines()) == 1 and err.startswith("hairdigi library: error:"), err
 
 
+def test_find_through_the_lightness_index_is_exact(lib_env):
+    """``find`` reads a band of L* only; it must rank exactly as a scan of every swatch does."""
+    from hairdigi.app.library_cli import synthetic_rows
+    from hairdigi.app.swatch_colour import delta_e
+
+    with Library() as lib:
+        lib.add(synthetic_rows(1500, seed=4))
+        rows = lib.db.query("SELECT swatch_id, l, a, b FROM colours WHERE illuminant = ?", ("studio",))
+        ids, labs = [r[0] for r in rows], np.array([r[1:] for r in rows])
+        rng = np.random.default_rng(5)
+        for _ in range(60):
+            q = np.array([rng.uniform(0, 100), rng.uniform(-70, 70), rng.uniform(-70, 70)])
+            k = int(rng.integers(1, 40))
+            de = delta_e(labs, q[None])
+            want = [ids[i] for i in np.argsort(de, kind="stable")[:k]]
+            got = lib.find(q, "studio", k)
+            assert [s.id for s, _ in got] == want
+            assert np.allclose([d for _, d in got], np.sort(de)[:k])
+
+
 def test_first_run_imports_sessions_written_before_the_library(tmp_path, lib_env, monkeypatch, capsys):
     make_session(tmp_path / "sessions" / "a", 3, seed=2)
     make_session(tmp_path / "sessions" / "b", 2, seed=3)
