@@ -361,5 +361,8 @@ def test_library_panel_search_sort_find_compare_review(tmp_path, lib_env, qtbot,
         panel.right.caption.text().startswith("april")
     panel.open_review()                     # not the window's session: a dialog with the capture
     assert panel.review_dialog.isVisible()
+    panel.export_to(chosen[0], str(tmp_path / "chosen.mtlx"), "materialx")    # Export → MaterialX
+    assert "chiang_hair_bsdf" in (tmp_path / "chosen.mtlx").read_text()
+    assert panel.status.text().startswith("wrote")
     panel.grab().save(str(test_output / "library-panel.png"))
     library.close()

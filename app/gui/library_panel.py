@@ -108,8 +108,8 @@ class LibraryPanel(QWidget):
         self.table.doubleClicked.connect(lambda _: self.open_review())
         v.addWidget(self.table, 1)
         row = QHBoxLayout()
-        for text, slot in (("Open review", self.open_review), ("Import session…", self.import_dialog),
-                           ("Refresh", self.refresh)):
+        for text, slot in (("Open review", self.open_review), ("Export…", self.export_dialog),
+                           ("Import session…", self.import_dialog), ("Refresh", self.refresh)):
             b = QPushButton(text)
             b.clicked.connect(slot)
             row.addWidget(b)
@@ -201,6 +201,29 @@ class LibraryPanel(QWidget):
         layout.addWidget(side)
         dialog.show()
         self.review_dialog = dialog
+
+    def export_dialog(self) -> None:
+        """Export → MaterialX (.mtlx) or Blender (.py) of the selected swatch's estimate."""
+        chosen = self.selected()
+        if not chosen or not chosen[0].record_path:
+            self.status.setText("select a swatch with an estimate to export")
+            return
+        s = chosen[0]
+        default = Path.home() / f"{s.capture_id or s.id}.mtlx"
+        path, kind = QFileDialog.getSaveFileName(self, "Export the hair colour", str(default),
+                                                 "MaterialX (*.mtlx);;Blender script (*.py)")
+        if path:
+            self.export_to(s, path, "blender" if path.endswith(".py") or "Blender" in kind else "materialx")
+
+    def export_to(self, swatch: Swatch, path: str, fmt: str) -> None:
+        from hairdigi.app.export_cli import export_record
+
+        try:
+            written = export_record(swatch.record_path, fmt, path, name=swatch.capture_id or swatch.id)
+        except (ValueError, OSError) as exc:
+            self.status.setText(f"export: {exc}")
+            return
+        self.status.setText(f"wrote {written[0]}")
 
     def import_dialog(self) -> None:
         folder = QFileDialog.getExistingDirectory(self, "Import a session folder into the library")
