@@ -30,6 +30,10 @@ from hairdigi.render.renderer import Renderer, SceneSpec
 SIM_SIZE = (400, 300)
 #: The hidden swatch of the demo: a copper-dyed light brown.
 DEFAULT_HIDDEN = HairParams((190, 80, 40), 0.5, 0.5, 0.6)
+#: The bench's exposure, set as an operator sets it: the chart's white patch half a stop under the level
+#: where its noise starts to clip (8-bit level about 180), so that ±0.5 EV of error neither clips the
+#: chart nor a platinum swatch's glints.
+NOMINAL_EXPOSURE = 2.0 ** -0.5
 CACHE_VERSION = 4  # bumped when the absorption mapping or the light images change (4: glints spread, not removed)
 
 
@@ -85,8 +89,9 @@ class SimRig:
         return levels
 
     def radiance(self) -> np.ndarray:
-        """Linear radiance reaching the lens for the current light state."""
-        return np.tensordot(self.levels(), self.light_images, axes=1)
+        """Linear radiance reaching the sensor for the current light state, at the bench's nominal
+        exposure (``NOMINAL_EXPOSURE``)."""
+        return np.tensordot(self.levels() * NOMINAL_EXPOSURE, self.light_images, axes=1)
 
     def read(self) -> Frame:
         linear = self.radiance()

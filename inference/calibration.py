@@ -71,19 +71,43 @@ class ChartDetection:
 
 
 def detect_chart(image_rgb8: np.ndarray) -> ChartDetection:
-    """Find a 24-patch ColorChecker with ``cv2.mcc``; raises ``CalibrationError`` when none is found."""
+    """Find a 24-patch ColorChecker with ``cv2.mcc``; raises ``CalibrationError`` when none is found.
+
+    ``cv2.mcc`` occasionally fails an internal assertion on a frame that holds a chart (about one
+    simulated frame in twenty, and RAW stills at twice the feed's size); the frame is then searched
+    again at half size, and the patches' corners scaled back.
+    """
+    for scale in (1, 2):
+        image = image_rgb8 if scale == 1 else cv2.resize(image_rgb8, None, fx=0.5, fy=0.5,
+                                                          interpolation=cv2.INTER_AREA)
+        try:
+            found = _detect(image)
+        except cv2.error:
+            found = None
+        if found is not None:
+            means, box, cost, quads = found
+            if scale != 1:   # the means are re-read at full size from the scaled patch corners
+                box, quads = box * scale, None if quads is None else quads * scale
+                detection = ChartDetection(means, box, cost, quads)
+                if quads is not None:
+                    from hairdigi.render.srgb import linear_to_srgb8
+
+                    means = linear_to_srgb8(detection.patch_linear(to_linear(image_rgb8))).astype(float)
+            return ChartDetection(means, box, cost, quads)
+    raise CalibrationError("no ColorChecker found: put the 24-patch chart flat in view, fully lit, "
+                           "without glare, and try again")
+
+
+def _detect(image_rgb8: np.ndarray):
     detector = cv2.mcc.CCheckerDetector.create()
     detector.setColorChartType(cv2.mcc.MCC24)
-    bgr = np.ascontiguousarray(image_rgb8[..., ::-1])
-    if not detector.process(bgr, 1):
-        raise CalibrationError("no ColorChecker found: put the 24-patch chart flat in view, fully lit, "
-                               "without glare, and try again")
+    if not detector.process(np.ascontiguousarray(image_rgb8[..., ::-1]), 1):
+        return None
     checker = detector.getBestColorChecker()
     stats = np.asarray(checker.getChartsRGB())          # (72, 5): per patch and channel: size, mean, sd, max, min
-    means = stats[:, 1].reshape(24, 3)
     quads = np.asarray(checker.getColorCharts(), float)
-    return ChartDetection(means, np.asarray(checker.getBox(), float), float(checker.getCost()),
-                          quads.reshape(24, 4, 2) if quads.size == 24 * 4 * 2 else None)
+    return (stats[:, 1].reshape(24, 3), np.asarray(checker.getBox(), float), float(checker.getCost()),
+            quads.reshape(24, 4, 2) if quads.size == 24 * 4 * 2 else None)
 
 
 def _perceptual_scale(targets: np.ndarray) -> float:

@@ -58,6 +58,17 @@ def _warn(kind: WarningKind, messages) -> list[EstimateWarning]:
     return [EstimateWarning(kind, m) for m in messages]
 
 
+def interval_warnings(residual_de2000: float, uncertainty: dict) -> list[EstimateWarning]:
+    """A warning when the twin misses the capture itself by more than the stated 68% colour interval:
+    the truth cannot be expected inside it then."""
+    stated = uncertainty.get("mean_colour_de2000_p68")
+    if stated is None or residual_de2000 <= stated:
+        return []
+    return _warn(WarningKind.INTERVAL, [
+        f"interval: the twin misses this capture by ΔE2000 {residual_de2000:.2f}, more than the stated 68% "
+        f"colour interval ({stated:.2f}); the stated intervals do not hold for it"])
+
+
 def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = None,
                    view: View = RIG_SWATCH_POSE, refine_colour: bool = True,
                    settings: RefineSettings = RefineSettings(), extra_warnings: list[EstimateWarning] = (),
@@ -102,12 +113,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     warnings += list(extra_warnings)
     chain = load_table(CHAIN_TABLE) if isinstance(view, RigRegion) else None
     uncertainty = intervals(params, load_table(UNCERTAINTY_TABLE), chain)
-    if refinement is not None and "mean_colour_de2000_p68" in uncertainty \
-            and refinement.residual_de2000 > uncertainty["mean_colour_de2000_p68"]:
-        warnings += _warn(WarningKind.INTERVAL, [
-            f"interval: the twin misses this capture by ΔE2000 {refinement.residual_de2000:.2f}, more than the "
-            f"stated 68% colour interval ({uncertainty['mean_colour_de2000_p68']:.2f}); the stated intervals "
-            f"do not hold for it"])
+    if refinement is not None:
+        warnings += interval_warnings(refinement.residual_de2000, uncertainty)
     return EstimateResult(params, est, refinement, warnings, stats.to_dict(), uncertainty,
                           time.perf_counter() - start)
 

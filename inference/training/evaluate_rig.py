@@ -52,6 +52,17 @@ def hidden_set(config: RigSet) -> list[tuple[str, HairParams]]:
     return list(HARD_CASES.items()) + [(f"random {i}", sample_params(rng)) for i in range(config.random)]
 
 
+def _capture(name: str, params: HairParams, source: str, cast, ev: float, take) -> dict:
+    """One capture's row; a capture that raises is recorded with its error (and the run goes on)."""
+    start = time.perf_counter()
+    try:
+        result = take()
+    except Exception as exc:   # noqa: BLE001 - a bug found by the evaluation is reported, not lost
+        return {"hidden": name, "source": source, "cast": "/".join(f"{c:g}" for c in cast), "exposure_ev": ev,
+                "error": f"{type(exc).__name__}: {exc}"}
+    return _row(name, params, source, cast, ev, result, time.perf_counter() - start)
+
+
 def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, seconds: float) -> dict:
     from hairdigi.render.judge import judge
 
@@ -94,10 +105,8 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
                                                    camera_model=CameraModel(exposure_ev=ev, cast=cast),
                                                    encoder=encoder)
                 try:
-                    start = time.perf_counter()
-                    session.calibrate()
-                    result = session.capture()
-                    rows.append(_row(name, params, "live", cast, ev, result, time.perf_counter() - start))
+                    rows.append(_capture(name, params, "live", cast, ev,
+                                         lambda: (session.calibrate(), session.capture())[1]))
                 finally:
                     session.close()
                 bar.update()
@@ -111,9 +120,7 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
                     radiance = session.camera.radiance().repeat(2, axis=0).repeat(2, axis=1)
                     still = write_raw_still(Path(tmp) / f"IMG_{k:04d}.dng",
                                             radiance * np.array(cast) * 2.0 ** ev * 0.8)
-                    start = time.perf_counter()
-                    result = session.import_still(still)
-                    rows.append(_row(name, params, "raw still", cast, ev, result, time.perf_counter() - start))
+                    rows.append(_capture(name, params, "raw still", cast, ev, lambda: session.import_still(still)))
                 finally:
                     session.close()
                 bar.update()
@@ -140,6 +147,7 @@ def summarise(rows: list[dict], hidden: list[tuple[str, HairParams]]) -> dict:
     and its held-out coverage."""
     done = [r for r in rows if "de2000" in r]
     summary = {"captures": len(rows), "estimated": len(done),
+               "errors": [f"{r['hidden']} {r['source']}: {r['error']}" for r in rows if r.get("error")],
                "blocked": [f"{r['hidden']} {r['source']} {r['cast']} {r['exposure_ev']}: {r['blocked']}"
                            for r in rows if r.get("blocked")],
                "refined": _stats(r["de2000"] for r in done),
