@@ -3,7 +3,7 @@
 A frame is ``radiance x 2**exposure_ev x gain x cast``, plus shot noise (variance proportional to
 the signal) and read noise, clipped and quantised by a 12-bit ADC, then sRGB-encoded to 8 bits.
 The simulated rig (``hardware.sim_rig``) shoots its frames through it; training
-(``inference.train``) passes every linear render through it with small random errors, so the
+(``inference.training.train``) passes every linear render through it with small random errors, so the
 encoder sees what ``estimate`` receives from a calibrated camera.
 """
 from __future__ import annotations

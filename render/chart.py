@@ -20,7 +20,6 @@ from hairdigi.render.base import rig_geometry
 
 CHART_NAME = "ColorChecker24 - After November 2014"
 TARGETS_FILE = CHARTS / "rig_chart_targets.json"
-PATCH_NAMES = tuple(colour.CCS_COLOURCHECKERS[CHART_NAME].data.keys())
 WHITE_PATCH = 18   # "white 9.5"
 
 

@@ -82,8 +82,10 @@ def xvfb():
     display = ":97"
     proc = subprocess.Popen([binary, display, "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    time.sleep(1.0)
-    assert proc.poll() is None, "Xvfb did not start"
+    socket, deadline = Path(f"/tmp/.X11-unix/X{display[1:]}"), time.monotonic() + 30
+    while not socket.exists() and proc.poll() is None and time.monotonic() < deadline:   # until it listens
+        time.sleep(0.02)
+    assert proc.poll() is None and socket.exists(), "Xvfb did not start"
     yield display
     proc.terminate()
     proc.wait(5)

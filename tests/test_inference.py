@@ -1,5 +1,6 @@
 """Dataset, training, ONNX export, estimate and evaluate, on a tiny dataset and a model trained here."""
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -279,6 +280,25 @@ def test_encoder_bench_and_model_card(tiny_model, tmp_path):
     assert out.exists() and (out.parent / "uncertainty.json").exists()
 
 
+def descendants(pid: int) -> set[int]:
+    """Every process below ``pid`` (Linux /proc)."""
+    found, todo = set(), [pid]
+    while todo:
+        for children in Path(f"/proc/{todo.pop()}/task").glob("*/children"):
+            kids = {int(c) for c in children.read_text().split()} - found
+            found |= kids
+            todo += kids
+    return found
+
+
+def alive(pid: int) -> bool:
+    """Running (not exited, not a zombie waiting to be reaped)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
 def test_killed_run_leaves_no_orphan_workers_and_resumes(tmp_path):
     import signal
     import subprocess
@@ -293,12 +313,15 @@ def test_killed_run_leaves_no_orphan_workers_and_resumes(tmp_path):
     deadline = time.monotonic() + 120
     while not list(root.glob("shard-*.npz")) and time.monotonic() < deadline:
         time.sleep(0.1)
+    workers = descendants(proc.pid)
+    assert workers, "the pool's workers were not found"
     proc.send_signal(signal.SIGTERM)
     proc.wait(30)
-    time.sleep(1.0)
+    deadline = time.monotonic() + 30
+    while any(map(alive, workers)) and time.monotonic() < deadline:   # until every worker has exited
+        time.sleep(0.05)
+    assert not any(map(alive, workers)), "a worker renders on after its run was stopped"
     written = sorted(p.name for p in root.glob("shard-*.npz"))
-    time.sleep(3.0)
-    assert sorted(p.name for p in root.glob("shard-*.npz")) == written   # nobody renders on
     assert 0 < len(written) < 20
     generate(DatasetConfig(**cfg), root, workers=1, progress=False)
     images, params, _, _ = load(root)

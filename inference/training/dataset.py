@@ -4,7 +4,7 @@ Sample ``i`` of a dataset with seed ``s`` is drawn from ``np.random.default_rng(
 sample is the same whatever the worker count, the shard size, or how often the run was resumed.
 Each shard is one ``.npz`` (images, normalised parameters, cameras, seeds) written atomically when
 complete; a restarted run renders only the shards that are missing. Shards are rendered by local
-worker processes or by Ray tasks on a cluster (``inference.cluster``), through one function,
+worker processes or by Ray tasks on a cluster (``inference.training.cluster``), through one function,
 ``render_shard``, so a dataset is bitwise the same on either backend.
 
 Images are stored as ``linear16``: linear HDR radiance in float16, as the renderer computes it, so
@@ -132,7 +132,7 @@ def _die_with_parent() -> None:
 #: The arrays of a shard file, in the order they are written.
 #: ``nonfinite``: per sample, the NaN or Inf values the path tracer returned (replaced by 0 in ``images``).
 SHARD_FIELDS = ("images", "params", "cameras", "seeds", "indices", "nonfinite")
-#: Where shards are rendered: ``local`` processes, or ``ray`` tasks (``inference.cluster``).
+#: Where shards are rendered: ``local`` processes, or ``ray`` tasks (``inference.training.cluster``).
 BACKENDS = ("local", "ray")
 
 
@@ -309,7 +309,7 @@ def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, p
     """Render every missing shard of the dataset into ``root``; resumable and deterministic.
 
     ``backend="local"``: ``workers`` processes on this machine, each writing the shards it renders.
-    ``backend="ray"``: one Ray task per shard (``inference.cluster``) on the cluster at ``address``,
+    ``backend="ray"``: one Ray task per shard (``inference.training.cluster``) on the cluster at ``address``,
     or on a local Ray instance with ``workers`` CPUs started for the run; each task returns its
     shard's arrays and this process writes them, so only this machine needs the dataset folder.
     Either way a sample is the same (bitwise), as the shards share one core, ``render_shard``.

@@ -169,7 +169,7 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
         f"Encoder latency: {evaluation['latency_ms_median_1_thread']:.3f} ms median (ONNX, 1 thread, one view). "
         + (f"Refinement: {a['refine_s']['median']:.2f} s median once the pose's response curve is cached; "
            f"the curve itself {a['curve_s']['median']:.2f} s median, once per pose (the rig pays it once). "
-           "Both measured while other jobs shared the 2 cores; idle figures are in the notes."
+           "Both measured while other jobs shared the 2 cores; idle figures are in README.md's table."
            if "refine_s" in a else ""), "",
         "Hard cases, mean-colour ΔE2000 median / p95 / worst (encoder; refined):", "",
     ]

@@ -1,8 +1,9 @@
 """The rig's geometry, numpy only: the holder, the three lights, the bench camera, the chart's layout,
 camera poses, and the mapping between rig-view pixels and the holder plane, both ways.
 
-Everything that places a thing on the rig reads it here: the scene builders (``render.scenes``), the
-simulated rig, the chart finder, the swatch finder and the twin. Importing it loads no Mitsuba.
+What places a thing on the rig reads it here: the scene builders (``render.scenes``), the simulated
+rig, the chart targets' patch boxes (``render.chart``) and the twin's view (``app.rig_session``). The
+chart and swatch finders work from the image alone. Importing it loads no Mitsuba.
 
 Coordinates: the holder is the z = 0 plane, its normal +z, strands along y; scene units are
 arbitrary (the swatch is 1 x 1.4). Camera frames follow Mitsuba's ``look_at``: camera +x is the
