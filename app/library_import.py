@@ -80,7 +80,7 @@ def record_row(path: str | Path) -> SwatchRow:
         record = EstimateRecord.from_json(data)
     except RecordError as exc:
         raise LibraryError(f"{path}: {exc}") from None
-    kind = "dye" if isinstance(data, dict) and str(data.get("kind", "")).startswith("dye") else "estimate"
+    kind = "dye" if (record.provenance or {}).get("prediction") else "estimate"   # hairdigi dye apply --out
     sha = record_sha256(path)
     when = (record.provenance or {}).get("time")
     row = SwatchRow(id=("d" if kind == "dye" else "e") + sha[:15], kind=kind, captured=str(when) if when else None,

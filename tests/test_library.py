@@ -162,6 +162,22 @@ def test_import_find_tag_note_export(tmp_path, lib_env, capsys):
         assert len(err.splitlines()) == 1 and err.startswith("hairdigi library: error:"), err
 
 
+def test_lone_estimates_and_dye_predictions_are_swatches_too(tmp_path, lib_env):
+    from hairdigi.app.library_import import import_paths
+
+    hair = HairParams((120.0, 60.0, 160.0), 0.7, 0.3, 0.5)
+    estimate = write_record(tmp_path / "violet.json", EstimateRecord(hair=hair))
+    prediction = write_record(tmp_path / "violet-on-blonde.json", EstimateRecord(
+        hair=hair, refinement=RefinementRecord(ran=True, sigma_a=(0.2, 0.5, 0.1)),
+        provenance={"prediction": {"dye": "violet", "dose": 1.0}}))
+    with Library() as lib:
+        assert import_paths(lib, [estimate, prediction], progress=lambda line: None) == 2
+        kinds = {s.record_path: s.kind for s in lib.all()}
+        assert kinds == {str(estimate.resolve()): "estimate", str(prediction.resolve()): "dye"}
+        dye = next(s for s in lib.all() if s.kind == "dye")
+        assert dye.sigma_a == (0.2, 0.5, 0.1)          # the prediction's sigma_a, not Table 1's mapping
+
+
 def test_find_through_the_lightness_index_is_exact(lib_env):
     """``find`` reads a band of L* only; it must rank exactly as a scan of every swatch does."""
     from hairdigi.app.library_cli import synthetic_rows
