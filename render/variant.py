@@ -27,6 +27,15 @@ class VariantError(RuntimeError):
     """No asked-for Mitsuba variant works on this machine (a one-line message saying why)."""
 
 
+def _why_not(name: str, exc: Exception) -> str:
+    """Why a variant cannot run, in words (Dr.Jit's own messages name its internals: ``jit_init(...)``)."""
+    if name.startswith("cuda"):
+        return "no usable NVIDIA GPU here (no CUDA device or driver)"
+    text = " ".join(str(exc).split())
+    plain = [s for s in text.split(". ") if "jit_" not in s and "JitBackend" not in s]
+    return ". ".join(plain) or "its backend does not start (for llvm variants: install Debian's libllvm19)"
+
+
 def select_variant(preferred: str | None = None) -> str:
     """Set and return the first variant that works, warning when it falls back to ``scalar_rgb``.
 
@@ -48,8 +57,7 @@ def select_variant(preferred: str | None = None) -> str:
                 dr.zeros((dr.cuda if name.startswith("cuda") else dr.llvm).Float, 1)
             break
         except Exception as exc:  # ImportError, or "LLVM backend is inactive"
-            found = "Mitsuba finds no usable GPU; " if name.startswith("cuda") else ""
-            errors.append(f"{name}: {found}{' '.join(str(exc).split())}")
+            errors.append(f"{name}: {_why_not(name, exc)}")
     else:
         raise VariantError("no Mitsuba variant works: " + "; ".join(errors)
                            + ("; use --variant auto" if preferred not in (None, "auto") else ""))
