@@ -242,6 +242,11 @@ class Library:
     def migrate(self, to: int = SCHEMA_VERSION) -> list[int]:
         """Apply the migrations this library lacks, each in its own transaction; the versions applied."""
         applied = []
+        if self.db.has_table("schema_version") and self.version >= min(to, SCHEMA_VERSION):
+            if self.version > SCHEMA_VERSION:
+                raise LibraryError(f"the library at {_redact(self.where)} has schema version {self.version}, newer "
+                                   f"than this hairdigi knows ({SCHEMA_VERSION}); update hairdigi")
+            return applied   # up to date: no write lock taken, so opening never waits for another writer
         with self.db.transaction():
             if self.db.postgres:
                 self.db.execute("SELECT pg_advisory_xact_lock(20020)")   # one migrator at a time
