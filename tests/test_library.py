@@ -267,11 +267,15 @@ def test_two_writers_do_not_corrupt_the_library(tmp_path, lib_env):
     procs = [subprocess.Popen([sys.executable, "-m", "hairdigi.app.cli", "library", "import", *map(str, folders)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
              for folders in sessions.values()]
-    with Library() as lib:      # a third writer tags while they import
+    with Library() as lib:      # a third writer tags, and reads, while they import
         for _ in range(20):
             ids = [r[0] for r in lib.db.query("SELECT id FROM swatches LIMIT 5")]
             for sid in ids:
                 lib.tag(sid, ["seen"])
+            with Library() as reader:     # opening and finding never wait for the importers' write lock
+                start = time.perf_counter()
+                reader.find(hex_lab("#8a4a30"), "daylight", 3)
+                assert time.perf_counter() - start < 5.0
             time.sleep(0.05)
     for proc in procs:
         out, err = proc.communicate(timeout=600)
