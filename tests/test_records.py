@@ -1,0 +1,125 @@
+"""Typed records (issue 21): every record round-trips through its JSON, and the files today's main
+(hairdigi 0.1.0, before these types) wrote are read and upgraded: ``tests/data/legacy-session`` is a
+simulated-rig session written by commit cb75f99 (a live capture and a RAW still's records)."""
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.records import (SCHEMA_VERSION, CalibrationProfile, CaptureRecord, EstimateRecord,
+                                          EstimateWarning, RecordError, RefinementRecord, WarningKind,
+                                          capture_profile, read_record, write_record)
+
+LEGACY = Path(__file__).parent / "data" / "legacy-session"
+LIVE, STILL = "20261124-035325-574", "20261124-035444-053"
+
+
+def _legacy(name: str) -> dict:
+    return json.loads((LEGACY / "captures" / name).read_text())
+
+
+def test_every_record_round_trips_through_its_json():
+    profile = CalibrationProfile(id="abc", method="Finlayson 2015", matrix=((1.0, 0.1, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 0.9)),
+                                 time=1.7e9, delta_e2000={"before": {"mean": 5.0}, "after": {"mean": 0.4}},
+                                 settings={"camera": "sim-rig", "lights": [[1, 255], [1, 255], [1, 255]]},
+                                 chart_box=((1.0, 2.0), (3.0, 2.0), (3.0, 4.0), (1.0, 4.0)), detection_cost=0.5)
+    capture = CaptureRecord(id="c1", image="c1.png", image_sha256="00", captured="2026-11-24T03:00:00+0000",
+                            lights=[[1, 255], [0, 0], [1, 128]], frame_meta={"camera": "sim-rig"}, calibration=profile,
+                            swatch_roi=(1, 2, 30, 40), light_images=("c1-l0.png",))
+    estimate = EstimateRecord(
+        hair=HairParams((190.0, 80.0, 40.0), 0.5, 0.5, 0.6),
+        warnings=(EstimateWarning(WarningKind.CALIBRATION, "calibration: stale"),
+                  EstimateWarning(WarningKind.OUT_OF_DOMAIN, "out of domain: noise")),
+        refinement=RefinementRecord(ran=True, sigma_a=(0.3, 0.6, 1.2), residual_de2000=0.1, iterations=2,
+                                    residual_history=(0.3, 0.1), nonfinite=0, region={"roi": [1, 2, 30, 40]}),
+        provenance={"model": {"sha256": "x"}}, capture="c1.png", blocked=(), swatch_roi=(1, 2, 30, 40))
+    for record in (profile, capture, estimate, RefinementRecord(), EstimateRecord(hair=None, capture="c.png",
+                                                                                   blocked=("no chart",))):
+        data = json.loads(json.dumps(record.to_json()))
+        assert type(record).from_json(data) == record
+        if hasattr(record, "schema_version"):
+            assert data["schema_version"] == SCHEMA_VERSION
+    assert not estimate.reliable and EstimateRecord(hair=HairParams()).reliable
+
+
+def test_files_of_the_previous_layout_are_read_and_upgraded(tmp_path):
+    profile = read_record(LEGACY / "calibration.json", CalibrationProfile)
+    assert profile.method and len(profile.matrix) == 3 and profile.after_mean < 2.0
+    live = read_record(LEGACY / "captures" / f"{LIVE}.json", CaptureRecord)
+    assert live.image == f"{LIVE}.png" and live.calibration == profile and live.swatch_roi
+    result = read_record(LEGACY / "captures" / f"{LIVE}.result.json", EstimateRecord)
+    assert result.hair is not None and result.refinement.ran and len(result.refinement.sigma_a) == 3
+    assert result.capture == f"{LIVE}.png" and result.blocked == ()
+    # a still kept its profile in its result record; the capture record now holds it
+    still_result = _legacy(f"{STILL}.result.json")
+    legacy_profile = capture_profile(_legacy(f"{STILL}.json"), still_result)
+    still = read_record(LEGACY / "captures" / f"{STILL}.json", CaptureRecord, legacy_profile=legacy_profile)
+    assert still.calibration is not None and still.calibration.id == still_result["calibration_profile"]["id"]
+    # upgraded on write: today's layout, read back the same
+    for record, cls in ((profile, CalibrationProfile), (still, CaptureRecord), (result, EstimateRecord)):
+        path = write_record(tmp_path / f"{cls.KIND}.json", record)
+        assert json.loads(path.read_text())["schema_version"] == SCHEMA_VERSION
+        assert read_record(path, cls) == record
+
+
+def test_a_legacy_session_opens_and_reviews_with_its_own_calibration(tmp_path):
+    """A session folder written by the previous layout opens, lists its captures, and loads the live
+    capture with the profile it was taken with."""
+    from hairdigi.app.rig_session import RigSession, load_results
+    from hairdigi.hardware.cameras import FileCamera
+
+    folder = tmp_path / "s"
+    shutil.copytree(LEGACY, folder)
+    (folder / "captures" / f"{STILL}.json").unlink()    # the still's DNG is not kept in the repository
+    session = RigSession(FileCamera(folder / "captures" / f"{LIVE}.png"), None, folder)
+    try:
+        assert session.profile is not None and session.notices == []
+        entries = dict(load_results(folder))
+        assert isinstance(entries[LIVE], EstimateRecord)
+        loaded = session.load_capture(LIVE)
+        assert loaded.profile.id == session.profile.id and loaded.record.hair == entries[LIVE].hair
+        assert loaded.problems == []
+    finally:
+        session.close()
+
+
+@pytest.mark.parametrize("text, field", [
+    ("[1, 2]", "JSON object"),
+    ('{"hair": {"dye_rgb": [1, 2]}}', "hair"),
+    ('{"hair": null, "refinement": {"ran": true, "sigma_a": [1, "x", 3]}}', "sigma_a"),
+    ('{"hair": null, "warnings": [{"kind": "nonsense", "message": "m"}]}', "kind"),
+    ('{"schema_version": 99}', "newer"),
+])
+def test_a_bad_record_names_its_problem(tmp_path, text, field):
+    path = tmp_path / "r.json"
+    path.write_text(text)
+    with pytest.raises(RecordError, match=field) as exc:
+        read_record(path, EstimateRecord)
+    assert str(path) in str(exc.value)
+
+
+def test_one_bad_file_in_a_session_hides_nothing_else(tmp_path):
+    """A result holding ``[1,2]``, a non-UTF-8 one, and a corrupt calibration: the session opens (the
+    calibration set aside and said so), the good capture lists, the bad ones are named."""
+    from hairdigi.app.rig_session import RigSession, load_results
+    from hairdigi.hardware.cameras import FileCamera
+
+    folder = tmp_path / "s"
+    shutil.copytree(LEGACY, folder)
+    (folder / "captures" / f"{STILL}.json").unlink()
+    (folder / "captures" / f"{STILL}.result.json").write_text("[1,2]")
+    (folder / "captures" / "20261124-000000-000.result.json").write_bytes(b"\xff\xfe{")
+    (folder / "calibration.json").write_text('{"method": "Finlayson 2015", "matrix": "no"}')
+    before = {p.name: p.read_bytes() for p in (folder / "captures").iterdir()}
+    session = RigSession(FileCamera(folder / "captures" / f"{LIVE}.png"), None, folder)
+    try:
+        assert session.profile is None and "set aside" in session.notices[0]
+        assert len(list(folder.glob("calibration.unreadable-*.json"))) == 1
+        entries = dict(load_results(folder))
+        assert isinstance(entries[LIVE], EstimateRecord)
+        assert "JSON object" in entries[STILL] and "UTF-8" in entries["20261124-000000-000"]
+    finally:
+        session.close()
+    assert {p.name: p.read_bytes() for p in (folder / "captures").iterdir()} == before   # nothing changed
