@@ -240,22 +240,21 @@ def params_for_sigma(sigma: np.ndarray, prior: HairParams, weight: float = 300.0
     return params, bool(mismatch < 2e-3)
 
 
-def mean_linear(image: np.ndarray, band_pixels: int = 1 << 20) -> np.ndarray:
+def mean_linear(image: np.ndarray, band_pixels: int = 1 << 18) -> np.ndarray:
     """Mean linear RGB of an image, 8-bit sRGB or linear float (what the swatch's colour is judged by),
-    summed in bands of rows so that at most ``band_pixels`` pixels are converted to float at once."""
+    summed in bands of rows: at most ``band_pixels`` pixels are converted to float at once."""
     from hairdigi.render.srgb import srgb8_to_linear
 
     image = np.asarray(image)
-    pixels = image.reshape(-1, 3) if image.ndim != 3 else None
-    if pixels is not None:   # already a list of pixels
-        image = pixels[:, None, :]
+    if image.ndim != 3:   # a list of pixels
+        image = image.reshape(-1, 1, 3)
+    lut = srgb8_to_linear(np.arange(256)) if image.dtype == np.uint8 else None
     h, w = image.shape[:2]
     rows = max(1, band_pixels // max(1, w))
     total = np.zeros(3)
     for y in range(0, h, rows):
         band = image[y:y + rows].reshape(-1, 3)
-        linear = srgb8_to_linear(band) if image.dtype == np.uint8 else band
-        total += np.sum(linear, axis=0, dtype=np.float64)
+        total += np.sum(lut[band] if lut is not None else band, axis=0, dtype=np.float64)
     return total / max(1, h * w)
 
 
