@@ -27,7 +27,7 @@ from hairdigi.render.absorption import hair_bsdf, hair_sigma_a
 from hairdigi.render.hairfile import hair_model_strands
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.srgb import linear_to_srgb8
-from hairdigi.render.strands import HAIRSTYLES, STYLES, Strands, hairstyle_strands, swatch_strands
+from hairdigi.render.strands import STYLES, Strands, hairstyle_strands, swatch_strands
 from hairdigi.render.variant import is_jit, load_scene, mi, select_variant
 
 #: The scene of a ``.hair`` model (``SceneSpec.hair_file``).

@@ -123,6 +123,9 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output):
     win2, session2 = open_window(qtbot, folder, onnx_path)
     assert win2.session_list.count() == 1 and session2.profile.id == cal.args[0].id
     assert "blocked" not in win2.session_list.item(0).text()
+    # its thumbnail comes from a worker, not from a disk read on the UI thread
+    qtbot.waitUntil(lambda: not win2.session_list.item(0).icon().isNull(), timeout=20000)
+    assert win2.model.thumbnails[win2.model.records[0].id].shape == (48, 64, 3)
     win2.close()
     session2.close()
 
