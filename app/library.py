@@ -353,11 +353,11 @@ class Library:
     def tags_of(self, swatch_id: str) -> tuple[str, ...]:
         return tuple(r[0] for r in self.db.query("SELECT tag FROM tags WHERE swatch_id = ? ORDER BY tag", (swatch_id,)))
 
-    _COLUMNS = ("id, kind, session, capture_id, captured, imported, image_path, record_path, reliable, hair, "
-                "sigma_r, sigma_g, sigma_b, note")
+    _COLUMNS = ("swatches.id, kind, session, capture_id, captured, imported, image_path, record_path, reliable, "
+                "hair, sigma_r, sigma_g, sigma_b, note")
 
     def _swatches(self, where: str = "", params: tuple = ()) -> list[Swatch]:
-        rows = self.db.query(f"SELECT {self._COLUMNS} FROM swatches {where}", params)
+        rows = self.db.query(f"SELECT {self._COLUMNS} FROM swatches {where}", params)   # in the order asked
         if not rows:
             return []
         ids = [r[0] for r in rows]
@@ -385,22 +385,23 @@ class Library:
         """The record as imported."""
         return json.loads(self.db.query("SELECT record FROM swatches WHERE id = ?", (self.resolve(key),))[0][0])
 
-    def all(self, text: str = "", order: str = "captured") -> list[Swatch]:
-        """Swatches whose id, capture, session, note or a tag contains ``text``; by capture time or colour
-        (lightness under daylight, darkest last)."""
+    def all(self, text: str = "", order: str = "captured", limit: int | None = None) -> list[Swatch]:
+        """Swatches whose id, capture, session, note or a tag contains ``text``, newest first or by colour
+        (lightness under daylight, light to dark, swatches without a colour last); at most ``limit``."""
         where, params = "", ()
         if text:
             like = f"%{text}%"
             where = ("WHERE id LIKE ? OR capture_id LIKE ? OR session LIKE ? OR note LIKE ? "
                      "OR id IN (SELECT swatch_id FROM tags WHERE tag LIKE ?)")
             params = (like,) * 5
-        swatches = self._swatches(where, params)
         if order == "colour":
-            def key(s: Swatch):
-                lab = s.labs.get("daylight")
-                return (lab is None, -(lab[0] if lab else 0), np.arctan2(lab[2], lab[1]) if lab else 0)
-            return sorted(swatches, key=key)
-        return sorted(swatches, key=lambda s: s.captured or s.imported, reverse=True)
+            where = ("LEFT JOIN colours ON colours.swatch_id = swatches.id AND colours.illuminant = 'daylight' "
+                     f"{where} ORDER BY CASE WHEN colours.l IS NULL THEN 1 ELSE 0 END, colours.l DESC, id")
+        else:
+            where += " ORDER BY COALESCE(captured, imported) DESC, id"
+        if limit is not None:
+            where += f" LIMIT {max(0, int(limit))}"
+        return self._swatches(where, params)
 
     def find(self, lab: np.ndarray, under: str = "daylight", k: int = 10) -> list[tuple[Swatch, float]]:
         """The ``k`` swatches nearest ``lab`` (CIELAB) under ``under``, by ΔE2000 of the mean colour.

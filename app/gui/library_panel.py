@@ -19,6 +19,7 @@ from hairdigi.app.swatch_colour import ILLUMINANTS, hex_lab
 
 COLUMNS = ("colour", "ΔE2000", "captured", "where", "tags", "note", "id")
 SORTS = {"newest first": "captured", "by colour (light to dark)": "colour"}
+MAX_ROWS = 500    # rows the table shows; search or find near a colour to reach the rest
 
 
 def _chip(label: QLabel, hex_colour: str | None, text: str = "") -> None:
@@ -146,7 +147,8 @@ class LibraryPanel(QWidget):
                 self.swatches = [s for s, _ in matches]
                 self.distances = {s.id: d for s, d in matches}
             else:
-                self.swatches = self.library.all(self.search.text().strip(), SORTS[self.sort.currentText()])
+                self.swatches = self.library.all(self.search.text().strip(), SORTS[self.sort.currentText()],
+                                                 limit=MAX_ROWS)
         except ValueError as exc:
             self.status.setText(str(exc))
             return
@@ -167,7 +169,8 @@ class LibraryPanel(QWidget):
                 self.table.setItem(r, c, item)
         self.table.resizeColumnsToContents()
         self.status.setText(f"library {self.library.where}: {self.library.count()} swatches; "
-                            f"{len(self.swatches)} shown")
+                            f"{len(self.swatches)} shown" + (" (the first ones: search to narrow)" if len(self.swatches) >= MAX_ROWS
+                                                               else ""))
         self.show_comparison()
 
     def selected(self) -> list[Swatch]:
