@@ -172,3 +172,15 @@ def test_cycles_renders_the_export_like_the_twin(tmp_path, test_output):
     (test_output / "cycles_check.json").write_text(json.dumps(rows, indent=2))
     worst = max(r["delta_e2000"] for r in rows)
     assert worst <= 1.0, rows
+
+
+def test_blend_without_blender_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("HAIRDIGI_BLENDER", str(tmp_path / "no-such-blender"))
+    assert main(["export", str(_record(tmp_path)), "--format", "blender", "--out", str(tmp_path / "a.py"),
+                 "--blend", str(tmp_path / "a.blend")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "HAIRDIGI_BLENDER" in err
+    assert not (tmp_path / "a.blend").exists()
+    assert main(["export", str(_record(tmp_path)), "--format", "materialx", "--out", str(tmp_path / "a.mtlx"),
+                 "--blend", str(tmp_path / "a.blend")]) == 2
+    assert "--blend goes with --format blender" in capsys.readouterr().err
