@@ -465,7 +465,7 @@ _HEX = re.compile(r"^#?([0-9a-fA-F]{6})$")
 
 
 def target_colour(text: str, curve: ResponseCurve | None = None) -> tuple[np.ndarray, str]:
-    """A target's mean linear RGB: ``#RRGGBB`` (sRGB) or a record file (its capture's colour); and a label."""
+    """A target's mean linear RGB: ``#RRGGBB`` (sRGB) or a record file (the swatch its sigma_a renders); and a label."""
     match = _HEX.match(text.strip())
     if match:
         from hairdigi.render.srgb import srgb8_to_linear
@@ -475,11 +475,9 @@ def target_colour(text: str, curve: ResponseCurve | None = None) -> tuple[np.nda
         return srgb8_to_linear(rgb), f"#{value.upper()}"
     if not Path(text).exists():
         raise DyeError(f"--target {text}: neither a #RRGGBB colour nor an existing record file")
-    sample = load_sample(text)
-    measured = sample.record.refinement.target_linear_rgb
-    if measured is not None:
-        return np.asarray(measured, float), text
-    return colour_of(sample.sigma_a, curve or rig_curve()), text
+    # the record's sigma_a through the same curve as the predictions (a capture's own measured mean is
+    # of its rig-view region, another framing than the curve's all-hair crop)
+    return colour_of(load_sample(text).sigma_a, curve or rig_curve()), text
 
 
 def describe_colour(linear_rgb: np.ndarray) -> dict:

@@ -15,6 +15,8 @@ The held-out protocol of issue 19, through the whole estimate chain:
    ``apply`` to the held-out base's *estimated* record.
 4. **The judge.** The prediction's ``sigma_a`` and the truth's are rendered with one strand layout and
    one common sampler seed; the mean-colour ΔE2000 of the two renders is the error.
+   The floor: the held-out dyed swatch's own estimate, judged the same way (what the estimator
+   alone misses; a prediction cannot be expected to do better).
 5. **One-pair fits** (lift assumed): the fitted lift against the true one, and the one-pair
    prediction on each other base, judged the same way.
 
@@ -156,12 +158,14 @@ def evaluate_dye(encoder, out_dir: str | os.PathLike, config: DyeEvalConfig = Dy
             times["apply_s"].append(t2 - t1)
             times["dose_s"].append(t3 - t2)
             de = float(delta_e2000(_judge(pred.sigma_a, config), judge_truth[(k, held)]))
+            # what the estimator alone misses on the same swatch: the held-out dyed capture's own estimate
+            floor = float(delta_e2000(_judge(sample[f"dye{k:02d}-{held}"].sigma_a, config), judge_truth[(k, held)]))
             rows.append({"dye": k, "held_out": held, "fitted_on": "+".join(train), "true_lift": d["lift"],
                          "lift": round(dye.lift, 4), "lift_low": round(dye.lift_low, 4), "lift_high": round(dye.lift_high, 4),
                          "true_deposit": [round(float(v), 5) for v in d["deposit"]],
                          "deposit": [round(float(v), 5) for v in dye.deposit_sigma_a],
                          "fit_residual_de2000": round(dye.residual_de2000_max, 3),
-                         "prediction_de2000": round(de, 3),
+                         "prediction_de2000": round(de, 3), "estimate_floor_de2000": round(floor, 3),
                          "prediction_de2000_curve": round(float(delta_e2000(
                              colour_of(pred.sigma_a, curve), colour_of(truth[(k, held)], curve))), 3),
                          "predicted_interval_de2000_p68": pred.record.uncertainty.get("mean_colour_de2000_p68")})
@@ -195,6 +199,7 @@ def evaluate_dye(encoder, out_dir: str | os.PathLike, config: DyeEvalConfig = Dy
                                           for b in bases},
         "goal": {"median": GOAL_MEDIAN, "p95": GOAL_P95,
                  "met": bool(np.median(de) <= GOAL_MEDIAN and np.quantile(de, 0.95) <= GOAL_P95)},
+        "estimate_floor_de2000": _stats([r["estimate_floor_de2000"] for r in rows]),
         "two_pair_lift_abs_error": _stats(two_lift_err),
         "one_pair_lift_abs_error": _stats(lift_err),
         "one_pair_prediction_de2000": _stats(one_de),
@@ -220,6 +225,8 @@ def _text(s: dict) -> list[str]:
              f"{'met' if s['goal']['met'] else 'NOT met'})"]
     lines += [f"  held out {b}: median {v['median']:.2f}, p95 {v['p95']:.2f}"
               for b, v in s["prediction_de2000_by_held_out"].items()]
+    f = s["estimate_floor_de2000"]
+    lines.append(f"  the estimator alone on the same dyed swatches (the floor): median {f['median']:.2f}, p95 {f['p95']:.2f}")
     lines.append(f"lift |error|: two bases median {s['two_pair_lift_abs_error']['median']:.3f} (worst "
                  f"{s['two_pair_lift_abs_error']['max']:.3f}); one base (lift assumed) median "
                  f"{s['one_pair_lift_abs_error']['median']:.3f} (worst {s['one_pair_lift_abs_error']['max']:.3f}); "
