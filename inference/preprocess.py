@@ -86,6 +86,27 @@ def image_size(data: bytes) -> tuple[int, int] | None:
         return None
 
 
+#: Images over this many pixels (a 6000x4000 frame is 24 MP) are decoded reduced, by 2, 4 or 8 a side
+#: (``cv2.IMREAD_REDUCED_COLOR_*``; a JPEG is scaled while it is decoded): every later step, the
+#: chart search included, then works on at most this many pixels, whatever the file holds. The
+#: estimate's ROI and record are in the decoded image's pixels.
+MAX_FULL_PIXELS = 24_000_000
+_REDUCED = {2: cv2.IMREAD_REDUCED_COLOR_2, 4: cv2.IMREAD_REDUCED_COLOR_4, 8: cv2.IMREAD_REDUCED_COLOR_8}
+
+
+def _decode_flags(data: bytes, size: tuple[int, int] | None) -> int:
+    """``cv2.imdecode``'s flags: unchanged, or reduced for an 8-bit colour image over ``MAX_FULL_PIXELS``
+    (other kinds are decoded as they are, so that their own checks name them)."""
+    if size is None or size[0] * size[1] <= MAX_FULL_PIXELS:
+        return cv2.IMREAD_UNCHANGED
+    eight_bit_colour = (data[:2] == b"\xff\xd8" or (data[:8] == b"\x89PNG\r\n\x1a\n" and data[24] == 8
+                                                    and data[25] in (2, 6)))
+    if not eight_bit_colour:
+        return cv2.IMREAD_UNCHANGED
+    factor = next((f for f in (2, 4, 8) if size[0] * size[1] / (f * f) <= MAX_FULL_PIXELS), 8)
+    return _REDUCED[factor]
+
+
 def _read_bytes(path: Path) -> bytes:
     """The file's bytes, with an ImageError naming the path and the fix for every way reading fails."""
     return read_bytes(path, ImageError, "a swatch image", MAX_IMAGE_BYTES, "export a smaller JPEG or PNG")
@@ -107,7 +128,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         raise ImageError(f"{path}: {size[0]}x{size[1]} px is more than hairdigi decodes "
                          f"({MAX_IMAGE_PIXELS / 1e6:.0f} MP); scale it down or crop it around the swatch "
                          f"and chart, e.g. to 6000x4000")
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), _decode_flags(data, size))
     if img is not None and img.shape[0] * img.shape[1] > MAX_IMAGE_PIXELS:
         raise ImageError(f"{path}: {img.shape[1]}x{img.shape[0]} px is more than hairdigi takes "
                          f"({MAX_IMAGE_PIXELS / 1e6:.0f} MP); scale it down or crop it around the swatch")
