@@ -172,7 +172,7 @@ def cmd_estimate(args: argparse.Namespace) -> int:
 
 def evaluate_rig_command(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --rig``: the chain against the truth; prints the figures, writes table and plot."""
-    from hairdigi.inference.training.evaluate_rig import RigSet, evaluate_rig
+    from hairdigi.app.evaluate_rig import RigSet, evaluate_rig
 
     s = evaluate_rig(args.out, RigSet(random=args.rig_random))
     r, e = s["refined"], s["encoder_alone"]
