@@ -272,7 +272,7 @@ class RigSession:
                 capture = read_record(meta_path, CaptureRecord, legacy_profile=legacy)
             except RecordError as exc:
                 problems.append(str(exc))
-        image = folder / (capture.image if capture else f"{capture_id}.png")
+        image = folder / ((capture.image if capture else "") or f"{capture_id}.png")
         linear = None
         if image.suffix.lower() in RAW_EXTENSIONS:
             still = read_raw(image)

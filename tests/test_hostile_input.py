@@ -7,6 +7,7 @@ left). Renders are tiny; most cases stop in the argument checks, before anything
 """
 import hashlib
 import json
+import re
 import os
 import shutil
 import signal
@@ -291,7 +292,7 @@ def test_a_stale_or_mismatched_calibration_is_flagged(ws, expect):
     expect |= {"old.json", "cap.png", "cap.json", "e.json", "f.json"}
     run = hairdigi("estimate", "photo.png", "--calibration", "old.json", "--out", "e.json", *no_refine(), cwd=ws)
     assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr[-2000:]
-    assert "warning: calibration: the calibration is 72.0 h old (limit 8 h)" in run.stderr
+    assert re.search(r"warning: calibration: the calibration is 72\.\d h old \(limit 8 h\)", run.stderr)
     run = hairdigi("estimate", "cap.png", "--calibration", "cal.json", "--out", "f.json", *no_refine(), cwd=ws)
     assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr[-2000:]
     assert "warning: calibration: settings changed since calibration: exposure_ev" in run.stderr
@@ -347,11 +348,13 @@ def test_profile_warnings_follow_the_one_staleness_rule(materials):
     """In process: the rule behind the warnings above (``calibration.staleness``), and its edges."""
     from hairdigi.inference.calibration import STALE_AFTER_S, profile_warnings
 
-    profile = json.loads((materials / "cal.json").read_text())
-    now = profile["time"]
-    assert profile_warnings(profile, profile["settings"], now + STALE_AFTER_S - 60) == []
+    from hairdigi.render.base.records import CalibrationProfile
+
+    profile = CalibrationProfile.from_json(json.loads((materials / "cal.json").read_text()))
+    now = profile.time
+    assert profile_warnings(profile, profile.settings, now + STALE_AFTER_S - 60) == []
     late = profile_warnings(profile, None, now + STALE_AFTER_S + 3600)
     assert len(late) == 1 and "h old (limit 8 h)" in late[0] and "calibrate again" in late[0]
-    other = profile_warnings(profile, {**profile["settings"], "gain": 2.0}, now)
+    other = profile_warnings(profile, {**profile.settings, "gain": 2.0}, now)
     assert len(other) == 1 and "settings changed since calibration: gain" in other[0]
     assert "check the computer's clock" in profile_warnings(profile, None, now - 3600)[0]

@@ -55,7 +55,8 @@ def _need(data: dict, key: str, kind, what: str, default=None, required: bool = 
         return value
     if not isinstance(value, kind):
         names = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
-        raise RecordError(f"the {what}'s {key!r} is {type(value).__name__}, not {names}")
+        shown = repr(value) if len(repr(value)) <= 40 else f"a {type(value).__name__}"
+        raise RecordError(f"the {what}'s {key!r} is {shown}, not {names}")
     return value
 
 
@@ -238,7 +239,8 @@ class CaptureRecord:
         profile = data.get("calibration") or legacy_profile
         roi = data.get("swatch_roi")
         lights = data.get("lights")
-        return cls(id=_need(data, "id", str, what), image=_need(data, "image", str, what),
+        return cls(id=_need(data, "id", str, what, "", required=False),
+                   image=_need(data, "image", str, what, "", required=False),
                    image_sha256=_need(data, "image_sha256", str, what, "", required=False),
                    captured=_need(data, "captured", str, what, "", required=False),
                    lights=lights if lights is None or isinstance(lights, list) else _bad(what, "lights", lights),
