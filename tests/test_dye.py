@@ -190,3 +190,34 @@ def test_shade_card_renders_ten_levels(curve, tmp_path):
     # a deposit shows less on black hair than on blonde
     assert rows[0]["de2000"] < rows[8]["de2000"]
     assert all(r["result"]["srgb"].startswith("#") and len(r["result"]["lab"]) == 3 for r in rows)
+
+
+def test_dye_panel_characterises_session_captures(curve, tmp_path):
+    """The app's Dye panel: captures of the session listed, two pairs characterised and saved."""
+    from dataclasses import replace
+
+    from PySide6.QtWidgets import QApplication
+
+    from hairdigi.app.gui.dye_panel import DyePanel, select_path
+
+    app = QApplication.instance() or QApplication([])
+    captures = tmp_path / "captures"
+    paths = {}
+    for level in (8, 5):
+        m = hair_sigma_a(natural_base(level))
+        for kind, sigma in (("base", m), ("dyed", (1 - LIFT) * m + DEPOSIT)):
+            name = f"{kind}{level}"
+            paths[name] = captures / f"{name}.result.json"
+            write_record(paths[name], replace(_record(sigma, level), capture=f"{name}.png"))
+    (captures / "blocked.result.json").write_text(json.dumps({"capture": "b.png", "blocked": ["no chart"]}))
+    panel = DyePanel(tmp_path)
+    assert panel.base_combo.count() == 4          # the blocked capture is not offered
+    for level in (8, 5):
+        assert select_path(panel.base_combo, paths[f"base{level}"]) and select_path(panel.dyed_combo, paths[f"dyed{level}"])
+        panel.add_pair()
+    panel.name_edit.setText("Copper 7/4")
+    panel.characterise()
+    saved = read_record(tmp_path / "dyes" / "Copper-7-4.json", DyeRecord)
+    assert saved.lift == pytest.approx(LIFT, abs=1e-4) and saved.lift_measured
+    assert "lift 0.35" in panel.dye_info.text() and panel.dye_combo.currentText() == "Copper-7-4"
+    app.processEvents()
