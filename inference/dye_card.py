@@ -49,20 +49,32 @@ def card_rows(dye: DyeRecord, size: int = CARD_SIZE, spp: int = CARD_SPP, seed: 
     return rows
 
 
+def _chips(base_hex: str, result_hex: str):
+    """A flat chip of two colours side by side (base | result), as an 8-bit image."""
+    import numpy as np
+
+    rgb = [[int(h[i:i + 2], 16) for i in (1, 3, 5)] for h in (base_hex, result_hex)]
+    chip = np.zeros((20, 40, 3), np.uint8)
+    chip[:, :20], chip[:, 20:] = rgb
+    return chip
+
+
 def draw_card(dye: DyeRecord, rows: list[dict], dose: float = 1.0):
     """The card as a matplotlib figure: the natural levels above, the dye's result below, labelled."""
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(2, len(rows), figsize=(1.25 * len(rows) + 0.6, 4.6))
+    # 11 x 4.8 in: the PDF prints on A4 or Letter, landscape, without scaling
+    fig, axes = plt.subplots(3, len(rows), figsize=(11.0, 5.6), gridspec_kw={"height_ratios": [1, 1, 0.45]})
     lift = (f"lift {dye.lift:.2f}" + ("" if dye.lift_measured else " (assumed: one base)"))
     dep = ", ".join(f"{v:.3f}" for v in dye.deposit_sigma_a)
     fig.suptitle(f"{dye.name}{'' if dose == 1 else f' at dose {dose:g}'}: deposit sigma_a ({dep}), {lift}",
                  fontsize=10)
     for col, row in enumerate(rows):
-        top, bottom = axes[0, col], axes[1, col]
+        top, bottom, chips = axes[0, col], axes[1, col], axes[2, col]
         top.imshow(row["_images"][0], interpolation="nearest")
         bottom.imshow(row["_images"][1], interpolation="nearest")
-        for ax in (top, bottom):
+        chips.imshow(_chips(row["base"]["srgb"], row["result"]["srgb"]), interpolation="nearest")
+        for ax in (top, bottom, chips):
             ax.set_xticks([])
             ax.set_yticks([])
         top.set_title(f"level {row['level']}\n{row['base']['srgb']}", fontsize=7)
@@ -71,6 +83,7 @@ def draw_card(dye: DyeRecord, rows: list[dict], dose: float = 1.0):
                           f"ΔE00 {row['de2000']:.1f}", fontsize=7)
     axes[0, 0].set_ylabel("natural", fontsize=8)
     axes[1, 0].set_ylabel("dyed", fontsize=8)
+    axes[2, 0].set_ylabel("mean:\nbase | dyed", fontsize=7)
     fig.text(0.01, 0.01, "predicted by hairdigi (Kips et al. 2022 Table 1 absorption; deposit + lift); "
                          "colours are the rendered swatches' means, sRGB D65", fontsize=6)
     fig.tight_layout(rect=(0, 0.03, 1, 0.95))
