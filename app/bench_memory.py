@@ -4,7 +4,8 @@ Three cases, each one ``hairdigi`` command in a process of its own, whose peak r
 read from ``getrusage(RUSAGE_CHILDREN)`` in a small parent that runs nothing else:
 
 - ``image``: ``estimate`` of an 8000x8000 PNG, at the pixel cap (``preprocess.MAX_IMAGE_PIXELS``);
-- ``raw``: ``rig --still`` of a 48 MP DNG (8000x6000 RGGB, 12-bit);
+- ``raw``: ``rig --still`` of a 48 MP DNG (8000x6000 RGGB, 12-bit) of the simulated rig, chart in view
+  (imported, calibrated on its chart, estimated);
 - ``hair``: ``render --scene`` of a ``.hair`` model at the point bound (``hairfile.MAX_FILE_POINTS``).
 
 Targets: each at most 2.5 GB and a minute. Writes ``memory_bench.csv``, ``.json`` and ``.png``.
@@ -61,12 +62,27 @@ def write_large_png(path: Path, width: int = 8000, height: int = 8000) -> Path:
 WHITE = 4095
 
 
-def write_large_dng(path: Path, width: int = 8000, height: int = 6000) -> Path:
-    """A 12-bit RGGB DNG of ``width`` x ``height`` showing the hair texture (written band by band in memory)."""
+def rig_still_linear(size: tuple[int, int] = (400, 300)) -> np.ndarray:
+    """The simulated rig's view (swatch and ColorChecker on the holder), linear RGB scaled to the sensor."""
+    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
+    from hairdigi.render.base import rig_geometry
+    from hairdigi.render.chart import colorchecker_reflectances
+    from hairdigi.render.renderer import Renderer, SceneSpec
+
+    spec = SceneSpec("swatch", framing="rig", chart=tuple(map(tuple, colorchecker_reflectances())),
+                     target=rig_geometry.RIG_TARGET, half_width=rig_geometry.RIG_HALF_WIDTH, strands=1000)
+    linear = Renderer(max_cached=1).render(DEFAULT_HIDDEN, spec, size, 8, seed=1).linear
+    return np.clip(linear * (0.55 / max(float(np.percentile(linear, 99)), 1e-6)), 0.0, 1.0).astype(np.float32)
+
+
+def write_large_dng(path: Path, width: int = 8000, height: int = 6000, small: np.ndarray | None = None) -> Path:
+    """A 12-bit RGGB DNG of ``width`` x ``height`` showing ``small`` (linear RGB in [0, 1]; default: the hair
+    texture) scaled up."""
     import cv2
     import tifffile
 
-    small = _texture(height // 16, width // 16).astype(np.float32) / 255.0
+    if small is None:
+        small = _texture(height // 16, width // 16).astype(np.float32) / 255.0
     counts = cv2.resize((small * WHITE).astype(np.uint16), (width, height), interpolation=cv2.INTER_NEAREST)
     cfa = np.empty((height, width), np.uint16)
     cfa[0::2, 0::2] = counts[0::2, 0::2, 0]
@@ -110,14 +126,14 @@ def run_cases(out_dir: Path, quick: bool = False) -> list[dict]:
         work = Path(scratch)
         scale = 4 if quick else 1
         image = write_large_png(work / "large.png", 8000 // scale, 8000 // scale)
-        still = write_large_dng(work / "large.dng", 8000 // scale, 6000 // scale)
+        still = write_large_dng(work / "large.dng", 8000 // scale, 6000 // scale, rig_still_linear())
         from hairdigi.render.hairfile import MAX_FILE_POINTS
 
         hair = write_large_hair(work / "large.hair", MAX_FILE_POINTS // scale ** 2)
         cases = [
             ("image", f"estimate of a {8000 // scale}x{8000 // scale} PNG",
              ["estimate", str(image), "--out", str(work / "e.json")]),
-            ("raw", f"rig --still of a {8000 // scale}x{6000 // scale} DNG",
+            ("raw", f"rig --still of a {8000 // scale}x{6000 // scale} DNG of the rig (chart in view)",
              ["rig", "--still", str(still), "--session", str(work / "session")]),
             ("hair", f"render of a .hair model with {MAX_FILE_POINTS // scale ** 2} points",
              ["render", "--params", str(_sample_params()), "--scene", str(hair), "--size", "64", "--spp", "1",
