@@ -290,7 +290,8 @@ def parameter_view(shown: Shown, extra: tuple[EstimateWarning, ...] = ()) -> Par
                     f"{rec.refinement.residual_de2000:.2f}")
     colour = rec.uncertainty.get("mean_colour_de2000_p68")
     if colour is not None:
-        info.append(f"colour within ΔE2000 {colour:.2f} of the truth in 68% of held-out swatches")
+        info.append(f"colour within ΔE2000 {colour:.2f} of the truth in 68% of held-out captures "
+                    f"({rec.uncertainty.get('mean_colour_source', 'held-out clean crop renders')})")
     info += [f"⚠ {w.message}" for w in (*rec.warnings, *extra)]
     return ParameterView(lines, tuple(int(v) for v in p.dye_rgb), tooltip, "\n".join(info))
 
