@@ -4,7 +4,8 @@ Each held-out hidden swatch (black, platinum, saturated dyes, the demo's copper,
 draws) is put under the simulated rig and captured the way an operator does: a rig session with the
 sensor's own white-balance cast and exposure error calibrates on the ColorChecker and captures a live
 frame (``RigSession.calibrate``, ``RigSession.capture``: the code ``hairdigi rig`` and the app run),
-and a still camera's RAW still of the same bench is imported (``RigSession.import_still``). Every
+every other one also from a tilted camera, and a still camera's RAW still of the same bench is
+imported (``RigSession.import_still``). Every
 estimate is then judged against the truth: both rendered at the rig's swatch pose with one sampler
 seed (``render.judge``), the mean colours compared with CIEDE2000.
 
@@ -37,6 +38,10 @@ HARD_CASES = {
 #: ±10% per channel (red against blue) by ±0.5 EV.
 CONDITIONS = (((1.0, 1.0, 1.0), 0.0), ((1.1, 1.0, 0.9), -0.5), ((0.9, 1.0, 1.1), 0.5),
               ((1.1, 1.0, 0.9), 0.5), ((0.9, 1.0, 1.1), -0.5))
+#: Tilted rig cameras (polar°, azimuth° around the rig's target, clear of the lights), each seen by
+#: one live capture of every other hidden swatch: a bench whose camera is not straight above.
+POSES = ((15.0, 60.0), (30.0, 150.0))
+POSE_HALF_WIDTH = 1.1 * 1.375      # a little wider than the bench camera's view, so the chart stays in
 SEED = 2_026_117
 
 
@@ -95,7 +100,7 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
     rng = np.random.default_rng(SEED + 1)
     rows: list[dict] = []
     hidden = hidden_set(config)
-    jobs = [(n, h, c, e) for n, h in hidden for c, e in CONDITIONS]
+    jobs = [(n, h, c, e) for n, h in hidden for c, e in CONDITIONS] + hidden[::2]   # + the tilted cameras
     bar = tqdm(total=len(jobs) + (len(hidden) if config.stills else 0), desc="rig captures", unit="capture",
                disable=not progress)
     with tempfile.TemporaryDirectory(prefix="hairdigi-eval-rig-") as tmp:
@@ -107,6 +112,18 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
                 try:
                     rows.append(_capture(name, params, "live", cast, ev,
                                          lambda: (session.calibrate(), session.capture())[1]))
+                finally:
+                    session.close()
+                bar.update()
+            if k % 2 == 0:        # a tilted camera
+                from hairdigi.render.base.rig_geometry import CameraPose
+
+                pose = CameraPose(*POSES[(k // 2) % len(POSES)])
+                session = RigSession.simulated_rig(Path(tmp) / f"s{k}", hidden=params, spp=config.spp,
+                                                   encoder=encoder, pose=pose, half_width=POSE_HALF_WIDTH)
+                try:
+                    rows.append(_capture(name, params, f"live, camera {pose.polar_deg:g}°/{pose.azimuth_deg:g}°",
+                                         (1.0, 1.0, 1.0), 0.0, lambda: (session.calibrate(), session.capture())[1]))
                 finally:
                     session.close()
                 bar.update()
@@ -154,7 +171,8 @@ def summarise(rows: list[dict], hidden: list[tuple[str, HairParams]]) -> dict:
                "encoder_alone": _stats(r["encoder_de2000"] for r in done),
                "residual": _stats(r["residual_de2000"] for r in done),
                "seconds": _stats(r["seconds"] for r in done)}
-    summary["by_source"] = {s: _stats(r["de2000"] for r in done if r["source"] == s) for s in ("live", "raw still")}
+    sources = sorted({r["source"] for r in done}, key=lambda s: (s != "live", s))
+    summary["by_source"] = {s: _stats(r["de2000"] for r in done if r["source"] == s) for s in sources}
     summary["by_case"] = {n: _stats(r["de2000"] for r in done if r["hidden"] == n) for n, _ in hidden}
     names = [n for n, _ in hidden]
     halves = [set(names[0::2]), set(names[1::2])]
@@ -190,10 +208,11 @@ def _plot(rows: list[dict], path: Path) -> None:
     cases = sorted({r["hidden"] for r in done})
     fig, ax = plt.subplots(figsize=(8, 4))
     for i, case in enumerate(cases):
-        for source, marker in (("live", "o"), ("raw still", "s")):
-            v = [r["de2000"] for r in done if r["hidden"] == case and r["source"] == source]
-            ax.scatter([i] * len(v), v, marker=marker, s=18, alpha=0.7, color="C0" if source == "live" else "C3",
-                       label=source if i == 0 else None)
+        for label, marker, colour, match in (("live", "o", "C0", lambda src: src == "live"),
+                                             ("raw still", "s", "C3", lambda src: src == "raw still"),
+                                             ("live, tilted camera", "^", "C2", lambda src: src.startswith("live, "))):
+            v = [r["de2000"] for r in done if r["hidden"] == case and match(r["source"])]
+            ax.scatter([i] * len(v), v, marker=marker, s=18, alpha=0.7, color=colour, label=label if i == 0 else None)
     ax.axhline(1.0, ls="--", color="grey", lw=0.8)
     ax.set_xticks(range(len(cases)), cases, rotation=30, ha="right", fontsize=8)
     ax.set_ylabel("mean-colour ΔE2000 vs truth")

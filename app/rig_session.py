@@ -24,7 +24,7 @@ from hairdigi.render.base.files import write_json_atomic
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.base.records import (CalibrationProfile, CaptureRecord, EstimateRecord, EstimateWarning,
                                           RecordError, WarningKind, capture_profile, read_record, write_record)
-from hairdigi.render.base.rig_geometry import RigRegion
+from hairdigi.render.base.rig_geometry import RIG_HALF_WIDTH, CameraPose, RigRegion
 
 
 @dataclass
@@ -68,9 +68,12 @@ class LoadedCapture:
         return linear_to_srgb8(self.corrected_swatch_linear())
 
 
-def rig_region(frame_size: tuple[int, int], roi) -> RigRegion:
-    """The swatch area ``roi`` of a frame of the bench camera: what the refinement fits and renders."""
-    return RigRegion((int(frame_size[0]), int(frame_size[1])), tuple(int(v) for v in roi))
+def rig_region(frame_size: tuple[int, int], roi, pose: CameraPose = CameraPose(),
+               half_width: float = RIG_HALF_WIDTH) -> RigRegion:
+    """The swatch area ``roi`` of a frame of the rig camera (the bench camera unless ``pose`` and
+    ``half_width`` say otherwise): what the refinement fits and renders."""
+    return RigRegion((int(frame_size[0]), int(frame_size[1])), tuple(int(v) for v in roi), pose,
+                     half_width=half_width)
 
 
 class RigSession:
@@ -87,6 +90,8 @@ class RigSession:
         self.swatch_roi = swatch_roi
         self._encoder = encoder
         self.simulated = simulated
+        #: where the camera stands around the rig's target, and what its view shows there
+        self.pose, self.half_width = getattr(camera, "pose", CameraPose()), getattr(camera, "half_width", RIG_HALF_WIDTH)
         self.profile_path = self.folder / "calibration.json"
         self.notices: list[str] = []     # what the session set aside on opening, for the operator
         self.profile = self._load_profile()
@@ -96,7 +101,8 @@ class RigSession:
     # -- construction ------------------------------------------------------------------------
     @classmethod
     def simulated_rig(cls, folder: str | Path, hidden: HairParams | None = None, camera_model=None,
-                      dead: set[int] | None = None, spp: int = 32, encoder=None) -> "RigSession":
+                      dead: set[int] | None = None, spp: int = 32, encoder=None,
+                      pose: CameraPose = CameraPose(), half_width: float = RIG_HALF_WIDTH) -> "RigSession":
         """The bench in software: a pty light board, the rendered rig, and a camera model."""
         from hairdigi.hardware.sim_lights import SimulatedLightBoard
         from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SimRig
@@ -105,7 +111,7 @@ class RigSession:
         board = SimulatedLightBoard()
         lights = LightController(board.port)
         rig = SimRig(hidden or DEFAULT_HIDDEN, camera_model or CameraModel(), spp=spp,
-                     dead_lights=set(dead or ()), board=board)
+                     dead_lights=set(dead or ()), board=board, pose=pose, half_width=half_width)
         session = cls(rig, lights, folder, rig.roi, encoder, simulated=True)
         session._board = board
         for i in range(N_LIGHTS):
@@ -172,7 +178,11 @@ class RigSession:
         from hairdigi.inference.refine import RefineSettings, response_curve
 
         srgb = self.frame().srgb
-        return response_curve(rig_region((srgb.shape[1], srgb.shape[0]), self._roi(srgb)), RefineSettings()).seconds
+        return response_curve(self.region(srgb), RefineSettings()).seconds
+
+    def region(self, image: np.ndarray) -> RigRegion:
+        """The swatch area of a frame of this rig's camera, as the refinement fits and renders it."""
+        return rig_region((image.shape[1], image.shape[0]), self._roi(image), self.pose, self.half_width)
 
     # -- checks ------------------------------------------------------------------------------
     def exposure(self, image: np.ndarray | None = None) -> list[ExposureReport]:
@@ -239,7 +249,7 @@ class RigSession:
         result = CaptureResult(capture.id, image_path, meta_path)
         result.blocked = self.blockers(frame.srgb)
         if estimate and not result.blocked:
-            _estimate(result, frame.srgb, None, self.encoder_or_reason, self.profile, roi,
+            _estimate(result, frame.srgb, None, self.encoder_or_reason, self.profile, self.region(frame.srgb),
                       profile_warnings(self.profile, self.settings()), on_encoder_estimate)
         result.seconds = time.perf_counter() - start
         _write_result(self.folder, result, roi)
@@ -323,10 +333,10 @@ class RigSession:
 
 
 def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | None, encoder_or_reason,
-              profile: CalibrationProfile, roi: tuple[int, int, int, int], stale: list[str],
+              profile: CalibrationProfile, view: RigRegion, stale: list[str],
               on_encoder_estimate: Callable[[HairParams], None] | None = None) -> None:
     """Colour-correct the frame (``linear`` where the source has it, else the 8-bit ``image``) with
-    ``profile``, keep it linear, estimate the swatch area ``roi`` as the rig sees it, and fill ``result``."""
+    ``profile``, keep it linear, estimate the swatch area ``view`` as the rig sees it, and fill ``result``."""
     from hairdigi.inference.estimate import calibration_summary, estimate_image, record
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.inference.refine import fitted_pixels, mean_linear
@@ -337,7 +347,6 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
         return
     source = image if linear is None else linear
     corrected = apply_profile(source, profile)
-    view = rig_region((image.shape[1], image.shape[0]), roi)
     warnings = [EstimateWarning(WarningKind.CALIBRATION, w) for w in stale + correction_warnings(
         profile, mean_linear(fitted_pixels(to_linear(source), view)), mean_linear(fitted_pixels(corrected, view)))]
     estimate = estimate_image(corrected, encoder, view=view, extra_warnings=warnings,
@@ -395,7 +404,8 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason) -> Cap
         capture = replace(capture, calibration=profile, swatch_roi=roi)
         write_record(meta_path, capture)
     if not result.blocked:
-        _estimate(result, still.srgb, still.linear, encoder_or_reason, profile, roi, profile_warnings(profile, None))
+        _estimate(result, still.srgb, still.linear, encoder_or_reason, profile,
+                  rig_region((still.srgb.shape[1], still.srgb.shape[0]), roi), profile_warnings(profile, None))
     result.seconds = time.perf_counter() - start
     _write_result(Path(folder), result, roi)
     return result

@@ -42,9 +42,13 @@ def _cache_root() -> Path:
 
 
 def render_light_images(hidden: HairParams, size=SIM_SIZE, spp: int = 32, strand_seed: int = 0,
-                        cache: bool = True) -> np.ndarray:
-    """(3, H, W, 3) linear images of the rig lit by each light alone, cached by their settings."""
-    key = hashlib.sha256(json.dumps([CACHE_VERSION, hidden.to_dict(), list(size), spp, strand_seed],
+                        cache: bool = True, pose: rig_geometry.CameraPose = rig_geometry.CameraPose(),
+                        half_width: float = rig_geometry.RIG_HALF_WIDTH) -> np.ndarray:
+    """(3, H, W, 3) linear images of the rig lit by each light alone, seen by a camera at ``pose``
+    around the rig's target (default: the bench camera), cached by their settings."""
+    view = [] if pose == rig_geometry.CameraPose() and half_width == rig_geometry.RIG_HALF_WIDTH else \
+        [pose.polar_deg, pose.azimuth_deg, pose.distance, half_width]
+    key = hashlib.sha256(json.dumps([CACHE_VERSION, hidden.to_dict(), list(size), spp, strand_seed, *view],
                                     sort_keys=True).encode()).hexdigest()[:16]
     path = _cache_root() / f"lights-{key}.npy"
     if cache and path.exists():
@@ -54,8 +58,8 @@ def render_light_images(hidden: HairParams, size=SIM_SIZE, spp: int = 32, strand
     images = []
     for i in range(rig_geometry.N_LIGHTS):
         lights = tuple(1.0 if j == i else 0.0 for j in range(rig_geometry.N_LIGHTS))
-        spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET,
-                         half_width=rig_geometry.RIG_HALF_WIDTH, lights=lights, strand_seed=strand_seed)
+        spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET, camera=pose,
+                         half_width=half_width, lights=lights, strand_seed=strand_seed)
         images.append(renderer.render(hidden, spec, size, spp, seed=17 + i).linear)
     stack = np.stack([spread_glints(im) for im in images]).astype(np.float32)
     if cache:
@@ -75,9 +79,12 @@ class SimRig:
     dead_lights: set[int] = field(default_factory=set)
     seed: int = 0
     board: object | None = None   # a SimulatedLightBoard; None means all lights on at full power
+    pose: rig_geometry.CameraPose = rig_geometry.CameraPose()     # the camera around the rig's target
+    half_width: float = rig_geometry.RIG_HALF_WIDTH                # what its view shows at the target
 
     def __post_init__(self) -> None:
-        self.light_images = render_light_images(self.hidden, self.size, self.spp)
+        self.light_images = render_light_images(self.hidden, self.size, self.spp, pose=self.pose,
+                                                half_width=self.half_width)
         self._rng = np.random.default_rng(self.seed)
         self.name = "sim-rig"
         self.frames_served = 0
@@ -112,4 +119,4 @@ class SimRig:
 
     @property
     def roi(self) -> tuple[int, int, int, int]:
-        return rig_geometry.swatch_roi(self.size)
+        return rig_geometry.swatch_roi(self.size, pose=self.pose, half_width=self.half_width)

@@ -82,3 +82,22 @@ def test_a_calibration_that_does_not_fit_the_hair_is_said_so():
     poor = CalibrationProfile(id="y", method="Finlayson 2015", matrix=((1, 0, 0), (0, 1, 0), (0, 0, 1)),
                               time=1.7e9, delta_e2000={"after": {"mean": 2.5}, "patch_shift_max": 3.0})
     assert "residual after correction" in correction_warnings(poor, hair, hair)[0]
+
+
+@pytest.mark.parametrize("pose", [(0.0, 0.0), (15.0, 60.0), (30.0, 150.0)])
+def test_the_swatch_area_of_a_tilted_camera_lies_on_the_swatch(pose):
+    """The swatch area a rig camera at ``pose`` sees is a box inside the projected swatch (so the
+    region fitted and rendered holds hair, not holder), and covers most of it."""
+    import cv2
+
+    from hairdigi.render.base.rig_geometry import (RIG_HALF_WIDTH, RIG_TARGET, SWATCH_HALF, CameraPose, project,
+                                                   swatch_roi)
+
+    pose, size, half_width = CameraPose(*pose), (400, 300), RIG_HALF_WIDTH * 1.1
+    x, y, w, h = swatch_roi(size, pose=pose, half_width=half_width)
+    hw, hl = SWATCH_HALF[0] - 0.05, 0.58 - 0.05
+    quad = project(np.array([(-hw, hl, 0), (hw, hl, 0), (hw, -hl, 0), (-hw, -hl, 0)]), pose, RIG_TARGET, half_width,
+                   size).astype(np.float32)
+    for corner in ((x, y), (x + w, y), (x, y + h), (x + w, y + h)):
+        assert cv2.pointPolygonTest(quad, (float(corner[0]), float(corner[1])), True) >= -1.0, (corner, quad)
+    assert w * h >= 0.75 * cv2.contourArea(quad)

@@ -257,12 +257,23 @@ class RigRegion:
 SWATCH_HALF = (0.5, 0.7)
 
 
-def swatch_roi(size: tuple[int, int], margin: float = 0.05, visible_half_length: float = 0.58
-               ) -> tuple[int, int, int, int]:
-    """The swatch's visible area in the bench camera's rig view, as x, y, w, h pixels, inset by
+def swatch_roi(size: tuple[int, int], margin: float = 0.05, visible_half_length: float = 0.58,
+               pose: CameraPose = CameraPose(), half_width: float = RIG_HALF_WIDTH) -> tuple[int, int, int, int]:
+    """The swatch's visible area in a rig-view frame of ``size``, as x, y, w, h pixels, inset by
     ``margin`` units (Mitsuba's B-spline stops short of its end points: the swatch shows about
-    ``visible_half_length`` of its 0.7 half-length)."""
+    ``visible_half_length`` of its 0.7 half-length). ``pose`` (around ``RIG_TARGET``) and
+    ``half_width`` are the camera's; the default is the bench camera. A tilted camera sees the swatch
+    as a quadrilateral: the box is the largest one inside it."""
     half_w, half_l = SWATCH_HALF[0] - margin, visible_half_length - margin
-    (x0, x1), (y0, y1) = rig_pixel(np.array([-half_w, half_w]), np.array([half_l, -half_l]), size)
-    return int(np.ceil(x0)), int(np.ceil(y0)), int(x1 - x0), int(y1 - y0)
+    if pose == CameraPose() and half_width == RIG_HALF_WIDTH:
+        (x0, x1), (y0, y1) = rig_pixel(np.array([-half_w, half_w]), np.array([half_l, -half_l]), size)
+        return int(np.ceil(x0)), int(np.ceil(y0)), int(x1 - x0), int(y1 - y0)
+    corners = np.array([(x, y, 0.0) for x in (-half_w, half_w) for y in (half_l, -half_l)])
+    uv = project(corners, pose, RIG_TARGET, half_width, size)   # (-,+) (-,-) (+,+) (+,-)
+    xs_a, xs_b = uv[[0, 1], 0], uv[[2, 3], 0]          # the two long edges (x = -half_w and x = +half_w)
+    ys_a, ys_b = uv[[0, 2], 1], uv[[1, 3], 1]          # the two ends (y = +half_l and y = -half_l)
+    lo_x, hi_x = (xs_a.max(), xs_b.min()) if xs_a.mean() < xs_b.mean() else (xs_b.max(), xs_a.min())
+    lo_y, hi_y = (ys_a.max(), ys_b.min()) if ys_a.mean() < ys_b.mean() else (ys_b.max(), ys_a.min())
+    x0, y0 = int(np.ceil(lo_x)), int(np.ceil(lo_y))
+    return x0, y0, int(np.floor(hi_x)) - x0, int(np.floor(hi_y)) - y0
 
