@@ -284,11 +284,13 @@ class RigSession:
                 problems.append(str(exc))
         image = folder / ((capture.image if capture else "") or f"{capture_id}.png")
         linear = None
+        if not image.is_file():      # missing, or a FIFO or device that would hang the reader
+            raise FileNotFoundError(f"{image}: the capture's image is missing or not a regular file")
         if image.suffix.lower() in RAW_EXTENSIONS:
             still = read_raw(image)
             rgb, linear = still.srgb, still.linear
         else:
-            bgr = cv2.imread(str(image)) if image.is_file() else None
+            bgr = cv2.imread(str(image))
             if bgr is None:
                 raise FileNotFoundError(f"{image}: the capture's image is missing or not one OpenCV reads")
             rgb = bgr[..., ::-1].copy()

@@ -123,3 +123,37 @@ def test_one_bad_file_in_a_session_hides_nothing_else(tmp_path):
     finally:
         session.close()
     assert {p.name: p.read_bytes() for p in (folder / "captures").iterdir()} == before   # nothing changed
+
+
+def test_a_capture_image_that_is_a_fifo_is_refused_not_waited_on(tmp_path):
+    """An image path that names a FIFO (or a device) gives one clear error at once."""
+    import os
+    import threading
+
+    from hairdigi.app.rig_session import RigSession
+    from hairdigi.hardware.cameras import FileCamera
+
+    folder = tmp_path / "s"
+    shutil.copytree(LEGACY, folder)
+    (folder / "captures" / f"{STILL}.json").unlink()
+    frame = folder / "frame.png"
+    shutil.copy(folder / "captures" / f"{LIVE}.png", frame)
+    (folder / "captures" / f"{LIVE}.png").unlink()
+    os.mkfifo(folder / "captures" / f"{LIVE}.png")
+    session = RigSession(FileCamera(frame), None, folder)
+    outcome = []
+    try:
+        worker = threading.Thread(target=lambda: outcome.append(_raises(session.load_capture, LIVE)), daemon=True)
+        worker.start()
+        worker.join(10)
+        assert outcome and "not a regular file" in outcome[0], outcome
+    finally:
+        session.close()
+
+
+def _raises(call, *args) -> str:
+    try:
+        call(*args)
+    except FileNotFoundError as exc:
+        return str(exc)
+    return "returned"
