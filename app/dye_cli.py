@@ -181,12 +181,18 @@ def _card(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate_dye(args: argparse.Namespace) -> int:
-    """``hairdigi evaluate --dye``: the dye held-out protocol (``inference/training/evaluate_dye.py``)."""
+    """``hairdigi evaluate --dye [--rig]``: the dye held-out protocol (``inference/training/evaluate_dye.py``),
+    on clean renders or (``--rig``) on simulated-rig captures (``app/dye_eval_rig.py``)."""
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.training.evaluate_dye import DyeEvalConfig, evaluate_dye
 
     config = DyeEvalConfig(dyes=args.n if args.n != 300 else DyeEvalConfig.dyes)
-    summary = evaluate_dye(Encoder(args.model), args.out, config)
+    if getattr(args, "rig", False):        # --dye --rig: the captures are the simulated rig's
+        from hairdigi.app.dye_eval_rig import evaluate_dye_rig
+
+        summary = evaluate_dye_rig(Encoder(args.model), args.out, config)
+    else:
+        summary = evaluate_dye(Encoder(args.model), args.out, config)
     for line in summary["text"]:
         print(line)
     return 0

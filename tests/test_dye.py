@@ -221,3 +221,19 @@ def test_dye_panel_characterises_session_captures(curve, tmp_path):
     assert saved.lift == pytest.approx(LIFT, abs=1e-4) and saved.lift_measured
     assert "lift 0.35" in panel.dye_info.text() and panel.dye_combo.currentText() == "Copper-7-4"
     app.processEvents()
+
+
+def test_evaluation_dyes_are_table1_hair_with_the_model_sigma():
+    """The held-out dyed swatches (hidden Table 1 hair, as the simulated rig needs) have exactly the
+    model's sigma_a: melanin lifted through the remap, the dye's deposit added."""
+    from hairdigi.inference.training.evaluate_dye import DyeEvalConfig, draw_dyes, dyed_hair
+
+    config = DyeEvalConfig()
+    dyes = draw_dyes(config)
+    assert len(dyes) == 12 and all(0 <= d["lift"] <= config.lift_max for d in dyes)
+    assert draw_dyes(config)[3]["deposit"].tolist() == dyes[3]["deposit"].tolist()     # fixed seed
+    for d in dyes:
+        for level in EVALUATION_LEVELS.values():
+            base = natural_base(level)
+            expected = (1 - d["lift"]) * hair_sigma_a(base) + d["deposit"]
+            assert np.allclose(hair_sigma_a(dyed_hair(base, d)), expected, rtol=0, atol=1e-9)

@@ -28,12 +28,14 @@ import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
-from hairdigi.inference.dye import apply, characterise, colour_of, dose, load_sample, rig_curve
+from hairdigi.inference.dye import apply, characterise, colour_of, dose, lifted_melanin, load_sample, rig_curve
 from hairdigi.inference.levels import EVALUATION_LEVELS, natural_base
 from hairdigi.render.absorption import dye_sigma_a, hair_sigma_a
+from hairdigi.render.base.params import HairParams
 from hairdigi.render.base.files import write_json_atomic
 from hairdigi.render.base.records import EstimateRecord, write_record
 from hairdigi.render.metrics import delta_e2000
@@ -64,7 +66,7 @@ def draw_dyes(config: DyeEvalConfig) -> list[dict]:
         rgb = rng.uniform(0.0, 255.0, 3)
         conc = float(rng.uniform(0.0, 1.0))
         lift = float(rng.uniform(0.0, config.lift_max))
-        dyes.append({"dye": k, "dye_rgb": [round(float(v), 2) for v in rgb], "dye_concentration": round(conc, 4),
+        dyes.append({"dye": k, "dye_rgb": [float(v) for v in rgb], "dye_concentration": conc,
                      "lift": round(lift, 4), "deposit": dye_sigma_a(tuple(rgb), conc)})
     return dyes
 
@@ -73,6 +75,24 @@ def _capture(linear: np.ndarray, key: list[int]) -> np.ndarray:
     from hairdigi.render.camera_model import CameraModel, sensor_response
 
     return sensor_response(np.asarray(linear, np.float32), CameraModel(), np.random.default_rng(key))
+
+
+#: ``capture(hidden, index, path) -> seconds``: capture the hidden Table 1 hair, estimate it, write its record.
+Capture = Callable[[HairParams, int, Path], float]
+
+
+def clean_capture(encoder, config: DyeEvalConfig) -> Capture:
+    """Captures as clean renders through the camera model (the default inputs)."""
+    return lambda hidden, index, path: _estimate_record(hair_sigma_a(hidden), index, encoder, config, path)[1]
+
+
+def dyed_hair(base: HairParams, dye: dict) -> HairParams:
+    """The natural base with the dye: its melanin lifted, the dye's Table 1 colour and concentration added.
+
+    Its ``sigma_a`` is exactly ``(1 - lift) * sigma_melanin(base) + deposit`` (the melanin remap is
+    piecewise linear, and so is its inverse)."""
+    return HairParams(tuple(dye["dye_rgb"]), dye["dye_concentration"], lifted_melanin(base, dye["lift"]),
+                      base.melanin_ratio)
 
 
 def _estimate_record(sigma: np.ndarray, index: int, encoder, config: DyeEvalConfig, path: Path) -> tuple[Path, float]:
@@ -113,8 +133,10 @@ def _stats(values) -> dict:
 
 
 def evaluate_dye(encoder, out_dir: str | os.PathLike, config: DyeEvalConfig = DyeEvalConfig(),
-                 progress: bool = True) -> dict:
-    """Run the protocol; write ``dye_eval.json``, ``dye_eval.csv``, ``dye_eval.png``; return the summary."""
+                 progress: bool = True, capture: Capture | None = None, inputs: str = "clean renders") -> dict:
+    """Run the protocol; write ``dye_eval.json``, ``dye_eval.csv``, ``dye_eval.png``; return the summary.
+
+    ``capture`` makes each record (default: :func:`clean_capture`); ``inputs`` says what it is."""
     from tqdm import tqdm
 
     from hairdigi.render.base.files import write_csv_atomic
@@ -124,19 +146,21 @@ def evaluate_dye(encoder, out_dir: str | os.PathLike, config: DyeEvalConfig = Dy
     records = out / "records"
     records.mkdir(parents=True, exist_ok=True)
     curve = rig_curve()
+    capture = capture or clean_capture(encoder, config)
     bases = {name: hair_sigma_a(natural_base(level)) for name, level in EVALUATION_LEVELS.items()}
     dyes = draw_dyes(config)
     # --- captures, estimated -------------------------------------------------------------------
-    jobs = [(f"base-{b}", bases[b]) for b in bases]
+    jobs = [(f"base-{b}", natural_base(level)) for b, level in EVALUATION_LEVELS.items()]
     truth = {}
     for d in dyes:
-        for b, m in bases.items():
-            truth[(d["dye"], b)] = (1.0 - d["lift"]) * m + d["deposit"]
-            jobs.append((f"dye{d['dye']:02d}-{b}", truth[(d["dye"], b)]))
+        for b, level in EVALUATION_LEVELS.items():
+            hidden = dyed_hair(natural_base(level), d)
+            truth[(d["dye"], b)] = (1.0 - d["lift"]) * bases[b] + d["deposit"]
+            assert np.allclose(hair_sigma_a(hidden), truth[(d["dye"], b)], atol=1e-9)
+            jobs.append((f"dye{d['dye']:02d}-{b}", hidden))
     estimate_s = []
-    for index, (name, sigma) in enumerate(tqdm(jobs, desc="capture + estimate", unit="swatch", disable=not progress)):
-        _, s = _estimate_record(sigma, index, encoder, config, records / f"{name}.json")
-        estimate_s.append(s)
+    for index, (name, hidden) in enumerate(tqdm(jobs, desc="capture + estimate", unit="swatch", disable=not progress)):
+        estimate_s.append(capture(hidden, index, records / f"{name}.json"))
     sample = {name: load_sample(records / f"{name}.json") for name, _ in jobs}
     judge_truth = {key: _judge(sigma, config) for key, sigma in
                    tqdm(truth.items(), desc="judge renders of the truth", disable=not progress)}
@@ -206,7 +230,7 @@ def evaluate_dye(encoder, out_dir: str | os.PathLike, config: DyeEvalConfig = Dy
         "estimate_s": _stats(estimate_s),
         "seconds": {k: _stats(v) for k, v in times.items()} | {"card_s": card_s},
         "total_s": time.perf_counter() - t_all,
-        "clean_renders_only": "simulated-rig captures through the CCM are not part of this run",
+        "inputs": inputs,
     }
     summary["text"] = _text(summary)
     write_json_atomic(out / "dye_eval.json", {**summary, "rows": rows, "one_pair_rows": one_rows})
