@@ -30,10 +30,10 @@ from hairdigi.render.renderer import Renderer, SceneSpec
 SIM_SIZE = (400, 300)
 #: The hidden swatch of the demo: a copper-dyed light brown.
 DEFAULT_HIDDEN = HairParams((190, 80, 40), 0.5, 0.5, 0.6)
-#: The bench's exposure, set as an operator sets it: the chart's white patch half a stop under the level
-#: where its noise starts to clip (8-bit level about 180), so that ±0.5 EV of error neither clips the
-#: chart nor a platinum swatch's glints.
-NOMINAL_EXPOSURE = 2.0 ** -0.5
+#: The bench's exposure, set as an operator sets it with the exposure check: the chart's white patch
+#: in its band (8-bit level about 195, ``hardware.exposure.WHITE_BAND``), with room for +0.5 EV of
+#: error before the chart clips (a platinum swatch's glints may: that capture is then refused).
+NOMINAL_EXPOSURE = 2.0 ** -0.25
 CACHE_VERSION = 4  # bumped when the absorption mapping or the light images change (4: glints spread, not removed)
 
 
