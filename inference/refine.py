@@ -5,9 +5,13 @@ The fact this rests on (measured, ``shared/reference/inverse-notes.md``): in RGB
 channel's expected swatch radiance depends on that channel's ``sigma_a`` alone, through one monotone
 curve ``F(sigma; camera pose)`` shared by the three channels (the rig lights are white). So:
 
-1. **Response curve.** Render a ladder of ``sigma`` levels at the capture's pose, three levels per
-   render (one per channel), with one sampler seed (common random numbers). 12 levels cost 4 small
-   renders; the curve is cached on disk per pose and settings, so the rig's fixed camera pays once.
+1. **Response curve.** Render a ladder of ``sigma`` levels as the capture saw the swatch, three
+   levels per render (one per channel), with one sampler seed (common random numbers). 12 levels
+   cost 4 small renders; the curve is cached on disk per view and settings, so the rig's fixed
+   camera pays once. The view is the capture's own: for a rig frame, exactly the swatch area whose
+   mean is fitted (``RigRegion``: the bench camera, its film cropped to that area, so the lights'
+   fall-off across the swatch is in the render too); for an all-hair crop, a camera pose over the
+   crop framing's centre.
 2. **Invert** the curve per channel (monotone PCHIP in log space) at the capture's mean linear colour.
 3. **Check and polish** (``iterations`` renders): render the swatch with the found ``sigma_a`` (same
    seed) and measure the residual; while it is above tolerance, shift each channel's goal by the
