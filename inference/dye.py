@@ -27,6 +27,7 @@ RGB off the same response curve; the shade card and the evaluation render.
 """
 from __future__ import annotations
 
+import json
 import re
 import time
 from dataclasses import dataclass, field
@@ -154,8 +155,6 @@ def load_sample(path: str | Path) -> HairSample:
         meta = path.with_name(path.name[: -len(".result.json")] + ".json")
         if meta.exists():
             try:
-                import json
-
                 calibration = json.loads(meta.read_text()).get("calibration_id")
             except (OSError, ValueError, AttributeError):
                 calibration = None
