@@ -223,4 +223,7 @@ def chain_section(summary: dict) -> list[str]:
             lines.append(f"| {name} | {st['median']:.2f} | {st['p95']:.2f} | {st['worst']:.2f} | {st['n']} |")
     lines += ["", f"A record's colour interval is this table's 68% / 95% quantiles; fitted on half the hidden "
                   f"swatches it held for {c['p68']:.0%} / {c['p95']:.0%} of the other half's captures."]
+    if summary.get("blocked"):
+        lines += ["", "Refused, with the reason the operator is given (no estimate is made from them):", ""]
+        lines += [f"- {b}" for b in summary["blocked"]]
     return lines
