@@ -38,7 +38,7 @@ def test_one_version_string(tmp_path):
     est = Estimate(HairParams(), np.zeros(6), [])
     encoder = SimpleNamespace(path=Path("encoder.onnx"), sha256="0" * 64, input_size=48)
     rec = record(EstimateResult(HairParams(), est, None), encoder)
-    assert json.loads(json.dumps(rec))["provenance"]["hairdigi_version"] == expected
+    assert json.loads(json.dumps(rec.to_json()))["provenance"]["hairdigi_version"] == expected
 
 
 def test_version_in_parser_help_and_without_metadata(tmp_path, capsys):
