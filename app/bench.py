@@ -142,6 +142,24 @@ def previews_lines(out_dir: str | Path, quick: bool = False) -> list[str]:
     return lines
 
 
+def bench_shine(args: argparse.Namespace) -> int:
+    """Shine (longitudinal roughness) read from the rig's lights one at a time, and what it buys elsewhere."""
+    import numpy as np
+
+    from hairdigi.inference.training.bench_shine import run_shine_bench
+
+    out = Path(args.out)
+    rows = run_shine_bench(out, quick=args.quick)
+    err = np.array([r["beta_error"] for r in rows])
+    read = np.array([r["transfer_de2000"] for r in rows])
+    held = np.array([r["transfer_de2000_fixed_shine"] for r in rows])
+    print(f"shine read from the three lights: |error| median {np.median(err):.3f}, worst {err.max():.3f}; another "
+          f"camera: ΔE2000 median {np.median(read):.2f} (worst {read.max():.2f}) against {np.median(held):.2f} "
+          f"(worst {held.max():.2f}) with the shine held at 0.3; tables {rows[0]['tables_s']:.0f} s once per view")
+    print(f"wrote {out / 'shine_bench.csv'} and {out / 'shine_bench.png'}")
+    return 0
+
+
 #: Every benchmark of ``hairdigi bench``, by name.
 BENCHES: dict[str, Bench] = {
     "render": bench_render,
@@ -152,4 +170,5 @@ BENCHES: dict[str, Bench] = {
     "previews": bench_previews,
     "library": _elsewhere("hairdigi.app.library_cli", "bench_library"),    # issue 20: find in a library of --n swatches
     "memory": _elsewhere("hairdigi.app.bench_memory", "bench_memory"),     # issue 22: peak memory of the largest inputs
+    "shine": bench_shine,                                                   # issue 18: shine from the three lights
 }

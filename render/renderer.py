@@ -23,7 +23,7 @@ from hairdigi.render.base.bounds import (DEFAULTS, MAX_CAMERA_DISTANCE, MAX_DEPT
                                          SCENE_NAMES, SceneDefaults, check_camera, check_size_spp, defaults_for,
                                          is_whole)
 from hairdigi.render import scenes
-from hairdigi.render.absorption import hair_bsdf, hair_sigma_a
+from hairdigi.render.absorption import LONGITUDINAL_ROUGHNESS, ROUGHNESS_RANGE, hair_bsdf, hair_sigma_a
 from hairdigi.render.hairfile import hair_model_strands
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.srgb import linear_to_srgb8
@@ -63,6 +63,7 @@ class SceneSpec:
     chart_center: tuple[float, float] | None = None
     hair_file: str | None = None
     crop: tuple[int, int, int, int] | None = None   # swatch: render only this x, y, w, h of the film
+    longitudinal_roughness: float | None = None      # the hair's shine (Mitsuba's beta_m); None: the default
 
     def __post_init__(self) -> None:
         if isinstance(self.name, str) and self.name.lower().endswith(".hair") and self.hair_file is None:
@@ -89,6 +90,10 @@ class SceneSpec:
                              f"shows only the lights, 0 nothing), got {self.max_depth!r}")
         if self.strands is not None and (not is_whole(self.strands) or not 1 <= self.strands <= MAX_STRANDS):
             raise ValueError(f"strands must be a whole number between 1 and {MAX_STRANDS}, got {self.strands!r}")
+        if self.longitudinal_roughness is not None and not (
+                ROUGHNESS_RANGE[0] <= float(self.longitudinal_roughness) <= ROUGHNESS_RANGE[1]):
+            raise ValueError(f"longitudinal_roughness must be between {ROUGHNESS_RANGE[0]} and {ROUGHNESS_RANGE[1]} "
+                             f"(0 renders black, below 0.05 fireflies), got {self.longitudinal_roughness!r}")
         if not all(np.isfinite(float(v)) and v >= 0 for v in self.lights):
             raise ValueError(f"lights {self.lights} must be finite scales >= 0")
         if self.camera is not None:
@@ -212,6 +217,8 @@ class Renderer:
     def _update(self, loaded: _Loaded, spec: SceneSpec, params: HairParams) -> None:
         p = loaded.params
         p["hair.bsdf.sigma_a.value"] = mi.Color3f(*absorption_of(params).tolist())
+        p["hair.bsdf.longitudinal_roughness"] = float(LONGITUDINAL_ROUGHNESS if spec.longitudinal_roughness is None
+                                                      else spec.longitudinal_roughness)
         if "scalp.bsdf.reflectance.value" in p:   # portraits: the scalp under the hair takes its colour
             p["scalp.bsdf.reflectance.value"] = mi.Color3f(*scenes.scalp_albedo(absorption_of(params)))
         if spec.name == "swatch":

@@ -1,0 +1,112 @@
+"""Shine from the rig's three lights, one at a time (issue 18, first part: the measurement).
+
+The bench camera looks almost perpendicular to the fibres. Light 0 lies along them and reaches the
+camera only through the tail of the longitudinal lobe, so its share of the swatch's light measures
+the shine (Mitsuba's longitudinal roughness beta_m); lights 1 and 2, across the fibres, change
+little (``shared/reference/inverse-notes.md``: at equal absorption, light 0's share goes 0.7% ->
+38% from beta_m 0.15 to 0.5, and the all-lights colour moves by up to 8.4 ΔE2000).
+
+So, per light and per beta_m on a grid, the swatch area's mean colour is a monotone curve of each
+channel's sigma_a, as for the refinement (``inference.refine``): ``ShineTables`` renders them (the
+sigma ladder, 4 renders per light and beta_m, cached on disk per view). ``estimate_shine`` reads
+beta_m and sigma_a from the three single-light means: for each beta_m, the all-lights sum fixes
+sigma_a per channel; the beta_m whose single-light predictions fit the frames best (least squares in
+log) is the shine.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from hairdigi.inference.refine import ResponseCurve, RefineSettings, View, _cache_root, _view_key, scene_for
+from hairdigi.render.base.rig_geometry import N_LIGHTS
+
+#: The beta_m grid of the tables: glossy virgin hair to rough, bleached hair (issue 18's 0.1-0.6).
+BETA_GRID = (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6)
+
+
+@dataclass
+class ShineTables:
+    """Mean linear colour of the swatch area per light, beta_m and sigma level (one channel each)."""
+
+    betas: np.ndarray           # (B,)
+    sigma: np.ndarray           # (K,)
+    means: np.ndarray           # (L, B, K)
+    seconds: float = 0.0
+
+    def curve(self, light: int, b: int) -> ResponseCurve:
+        return ResponseCurve(self.sigma, self.means[light, b])
+
+    def predict(self, sigma: np.ndarray, beta: float) -> np.ndarray:
+        """(L, 3) single-light means of ``sigma`` (3,) at ``beta`` (linear in beta between grid points)."""
+        j = int(np.clip(np.searchsorted(self.betas, beta) - 1, 0, len(self.betas) - 2))
+        t = float(np.clip((beta - self.betas[j]) / (self.betas[j + 1] - self.betas[j]), 0.0, 1.0))
+        out = np.empty((self.means.shape[0], 3))
+        for light in range(self.means.shape[0]):
+            a, b = self.curve(light, j)(sigma), self.curve(light, j + 1)(sigma)
+            out[light] = np.exp((1 - t) * np.log(a) + t * np.log(b))
+        return out
+
+
+def shine_tables(view: View, settings: RefineSettings = RefineSettings(), betas=BETA_GRID, renderer=None,
+                 cache: bool = True) -> ShineTables:
+    """Render (or load) the per-light tables at ``view``: ``len(betas) x N_LIGHTS x 4`` small renders."""
+    from hairdigi.render.renderer import default_renderer
+
+    renderer = renderer or default_renderer()
+    spec, size = scene_for(view, settings)
+    key = hashlib.sha256(json.dumps([1, asdict(settings), _view_key(view), list(betas), spec.n_strands, spec.depth,
+                                     renderer.variant], sort_keys=True).encode()).hexdigest()[:16]
+    path = _cache_root() / f"shine-{key}.npz"
+    if cache and path.exists():
+        data = np.load(path)
+        return ShineTables(data["betas"], data["sigma"], data["means"], float(data["seconds"]))
+    start = time.perf_counter()
+    levels = np.asarray(settings.levels, float)
+    order = levels.reshape(3, -1).T          # three levels per render, one per channel (as refine does)
+    means = np.empty((N_LIGHTS, len(betas), len(levels)))
+    for light in range(N_LIGHTS):
+        lights = tuple(1.0 if i == light else 0.0 for i in range(N_LIGHTS))
+        for b, beta in enumerate(betas):
+            one = replace(spec, lights=lights, longitudinal_roughness=float(beta))
+            for t, triple in enumerate(order):
+                mean = renderer.render(triple, one, size, settings.spp, settings.seed).linear.reshape(-1, 3).mean(0)
+                means[light, b, [t, t + len(order), t + 2 * len(order)]] = mean
+    tables = ShineTables(np.asarray(betas, float), levels, means, time.perf_counter() - start)
+    if cache:
+        from hairdigi.render.base.files import atomic_path
+
+        with atomic_path(path, ".npz") as tmp:
+            np.savez(tmp, betas=tables.betas, sigma=tables.sigma, means=tables.means, seconds=tables.seconds)
+    return tables
+
+
+@dataclass(frozen=True)
+class ShineEstimate:
+    longitudinal_roughness: float
+    sigma_a: tuple[float, float, float]
+    residual: float                        # RMS of the log single-light misfit at the answer
+    profile: tuple[tuple[float, float], ...]   # (beta, misfit) along the search, to judge its sharpness
+
+
+def estimate_shine(single: np.ndarray, tables: ShineTables, steps: int = 51) -> ShineEstimate:
+    """beta_m and sigma_a from the (L, 3) mean linear colours of the swatch area, one light at a time."""
+    single = np.clip(np.asarray(single, float), 1e-9, None)
+    total = single.sum(0)
+    best = None
+    profile = []
+    for beta in np.linspace(tables.betas[0], tables.betas[-1], steps):
+        j = int(np.clip(np.searchsorted(tables.betas, beta) - 1, 0, len(tables.betas) - 2))
+        t = float(np.clip((beta - tables.betas[j]) / (tables.betas[j + 1] - tables.betas[j]), 0.0, 1.0))
+        summed = np.exp((1 - t) * np.log(tables.means[:, j].sum(0)) + t * np.log(tables.means[:, j + 1].sum(0)))
+        sigma, _ = ResponseCurve(tables.sigma, summed).inverse(total)
+        misfit = float(np.sqrt(np.mean((np.log(tables.predict(sigma, beta)) - np.log(single)) ** 2)))
+        profile.append((round(float(beta), 4), round(misfit, 5)))
+        if best is None or misfit < best[0]:
+            best = (misfit, float(beta), sigma)
+    misfit, beta, sigma = best
+    return ShineEstimate(beta, tuple(float(v) for v in sigma), misfit, tuple(profile))
