@@ -565,7 +565,7 @@ class ReviewModel:
                 dn.denoise(np.full((16, 16, 3), 0.1, np.float32))
                 seconds["denoiser"] = time.perf_counter() - start
             start = time.perf_counter()
-            _warm_refinement()
+            _warm_refinement(session)
             seconds["refinement"] = time.perf_counter() - start
             return Warmed(seconds)
         return Work("warm-up", run)
@@ -891,9 +891,10 @@ def _first_look(session: rs.RigSession, params: HairParams, key: int) -> FirstLo
     return FirstLook(params, real, (x, y, w, h), (image.shape[1], image.shape[0]), key)
 
 
-def _warm_refinement() -> None:
-    """Build refinement's swatch scene once (its response curve may come from the disk cache)."""
+def _warm_refinement(session: rs.RigSession) -> None:
+    """Build the scene refinement renders for this rig's swatch area once, and compile its kernels
+    (its response curve is prepared first, or read from the disk cache)."""
     from hairdigi.inference.refine import refine
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
 
-    refine(HairParams(), np.array([0.08, 0.05, 0.03]), RIG_SWATCH_POSE)
+    frame = session.frames.latest() or session.frame()
+    refine(HairParams(), np.array([0.08, 0.05, 0.03]), session.region(frame.srgb))
