@@ -89,3 +89,16 @@ def xvfb():
     yield display
     proc.terminate()
     proc.wait(5)
+
+
+@pytest.fixture(params=["python-sim", "avr-firmware"])
+def board(request):
+    """A light board behind a pty: the Python simulator, or the real firmware in simavr."""
+    from hairdigi.hardware.sim_lights import EmulatedFirmwareBoard, SimulatedLightBoard
+
+    if request.param == "python-sim":
+        with SimulatedLightBoard() as b:
+            yield b
+    else:
+        with EmulatedFirmwareBoard(request.getfixturevalue("avr_build")) as b:
+            yield b

@@ -14,21 +14,6 @@ from hairdigi.hardware.lights import (LightArgumentError, LightCommandError, Lig
                              LightProtocolError, LightState, LightTimeout, N_LIGHTS, parse_status)
 from hairdigi.hardware.sim_lights import BoardState, EmulatedFirmwareBoard, SimulatedLightBoard, handle
 
-BACKENDS = ["python-sim", "avr-firmware"]
-
-
-
-
-@pytest.fixture(params=BACKENDS)
-def board(request):
-    """A light board behind a pty: the Python simulator, or the real firmware in simavr."""
-    if request.param == "python-sim":
-        with SimulatedLightBoard() as b:
-            yield b
-    else:
-        with EmulatedFirmwareBoard(request.getfixturevalue("avr_build")) as b:
-            yield b
-
 
 @pytest.fixture
 def lights(board):
