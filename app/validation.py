@@ -20,6 +20,8 @@ import shutil
 from pathlib import Path
 from typing import Callable, Iterable
 
+from hairdigi.render.base.files import cache_dir
+
 #: Bounds of the numbers the commands take (render bounds live in ``render.base.bounds``).
 MAX_SEED = 2 ** 32 - 1           # Mitsuba's and NumPy's seeds are unsigned 32-bit
 MAX_DATASET_N = 10_000_000
@@ -357,7 +359,7 @@ def check_session_folder(path: str | os.PathLike, flag: str) -> Path:
 
 def check_cache_writable() -> None:
     """The cache folder (``HAIRDIGI_CACHE``) must be writable before work that stores results there."""
-    cache = Path(os.environ.get("HAIRDIGI_CACHE", Path.home() / ".cache" / "hairdigi"))
+    cache = cache_dir()
     try:
         _writable_folder(cache, "HAIRDIGI_CACHE", cache)
     except ArgumentError as exc:

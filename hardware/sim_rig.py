@@ -12,17 +12,15 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from hairdigi.hardware.cameras import Frame
 from hairdigi.render.base import rig_geometry
 from hairdigi.render.camera_model import CameraModel, sensor_response, spread_glints
-from hairdigi.render.base.files import atomic_path
+from hairdigi.render.base.files import atomic_path, cache_dir
 from hairdigi.render.chart import colorchecker_reflectances
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec
@@ -37,10 +35,6 @@ NOMINAL_EXPOSURE = 2.0 ** -0.25
 CACHE_VERSION = 4  # bumped when the absorption mapping or the light images change (4: glints spread, not removed)
 
 
-def _cache_root() -> Path:
-    return Path(os.environ.get("HAIRDIGI_CACHE", Path.home() / ".cache" / "hairdigi")) / "sim-rig"
-
-
 def render_light_images(hidden: HairParams, size=SIM_SIZE, spp: int = 32, strand_seed: int = 0,
                         cache: bool = True, pose: rig_geometry.CameraPose = rig_geometry.CameraPose(),
                         half_width: float = rig_geometry.RIG_HALF_WIDTH) -> np.ndarray:
@@ -50,7 +44,7 @@ def render_light_images(hidden: HairParams, size=SIM_SIZE, spp: int = 32, strand
         [pose.polar_deg, pose.azimuth_deg, pose.distance, half_width]
     key = hashlib.sha256(json.dumps([CACHE_VERSION, hidden.to_dict(), list(size), spp, strand_seed, *view],
                                     sort_keys=True).encode()).hexdigest()[:16]
-    path = _cache_root() / f"lights-{key}.npy"
+    path = cache_dir() / "sim-rig" / f"lights-{key}.npy"
     if cache and path.exists():
         return np.load(path)
     renderer = Renderer(max_cached=1)

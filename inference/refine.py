@@ -28,16 +28,15 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import threading
 import time
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from hairdigi.render.absorption import albedo_from_sigma_a, hair_sigma_a
 from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.base.files import cache_dir
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.base.records import RefinementRecord
 from hairdigi.render.base.rig_geometry import CameraPose, RigRegion
@@ -112,10 +111,6 @@ class ResponseCurve:
         return {"sigma": self.sigma.tolist(), "mean": self.mean.tolist(), "seconds": self.seconds}
 
 
-def _cache_root() -> Path:
-    return Path(os.environ.get("HAIRDIGI_CACHE", Path.home() / ".cache" / "hairdigi")) / "response"
-
-
 def scene_for(view: View, settings: RefineSettings):
     """The scene and render size that show what the capture's fitted pixels show."""
     from hairdigi.render.renderer import SceneSpec
@@ -146,7 +141,8 @@ def response_curve(view: View, settings: RefineSettings = RefineSettings(), rend
         return _response_curve(view, settings, renderer, cache)
 
 
-def _view_key(view: View) -> dict:
+def view_key(view: View) -> dict:
+    """What identifies a view in a cache key."""
     return view.to_dict() if isinstance(view, RigRegion) else asdict(view)
 
 
@@ -155,9 +151,9 @@ def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool)
 
     renderer = renderer or default_renderer()
     spec, size = scene_for(view, settings)
-    key_data = [2, asdict(settings), _view_key(view), spec.n_strands, spec.depth, renderer.variant]
+    key_data = [2, asdict(settings), view_key(view), spec.n_strands, spec.depth, renderer.variant]
     key = hashlib.sha256(json.dumps(key_data, sort_keys=True).encode()).hexdigest()[:16]
-    path = _cache_root() / f"curve-{key}.json"
+    path = cache_dir() / "response" / f"curve-{key}.json"
     if cache and path.exists():
         try:
             data = json.loads(path.read_text())
@@ -179,7 +175,7 @@ def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool)
     if cache:
         from hairdigi.render.base.files import write_json_atomic
 
-        write_json_atomic(path, {"view": _view_key(view), "settings": asdict(settings), **curve.to_dict()})
+        write_json_atomic(path, {"view": view_key(view), "settings": asdict(settings), **curve.to_dict()})
     return curve
 
 

@@ -22,7 +22,8 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from hairdigi.inference.refine import ResponseCurve, RefineSettings, View, _cache_root, _view_key, scene_for
+from hairdigi.inference.refine import ResponseCurve, RefineSettings, View, scene_for, view_key
+from hairdigi.render.base.files import cache_dir
 from hairdigi.render.base.rig_geometry import N_LIGHTS
 
 #: The beta_m grid of the tables: glossy virgin hair to rough, bleached hair (issue 18's 0.1-0.6).
@@ -59,9 +60,9 @@ def shine_tables(view: View, settings: RefineSettings = RefineSettings(), betas=
 
     renderer = renderer or default_renderer()
     spec, size = scene_for(view, settings)
-    key = hashlib.sha256(json.dumps([1, asdict(settings), _view_key(view), list(betas), spec.n_strands, spec.depth,
+    key = hashlib.sha256(json.dumps([1, asdict(settings), view_key(view), list(betas), spec.n_strands, spec.depth,
                                      renderer.variant], sort_keys=True).encode()).hexdigest()[:16]
-    path = _cache_root() / f"shine-{key}.npz"
+    path = cache_dir() / "response" / f"shine-{key}.npz"
     if cache and path.exists():
         data = np.load(path)
         return ShineTables(data["betas"], data["sigma"], data["means"], float(data["seconds"]))

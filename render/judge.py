@@ -39,7 +39,7 @@ def judge(truth: HairParams | np.ndarray, estimate: HairParams | np.ndarray, sce
                    tuple(float(v) for v in ta), tuple(float(v) for v in tb), spp, n_truth + n_est)
 
 
-_TRUTHS: dict = {}
+_MEANS: dict = {}
 
 
 def judge_mean(hair: HairParams | np.ndarray, scene=None, size: int | tuple[int, int] = JUDGE_SIZE,
@@ -51,10 +51,10 @@ def judge_mean(hair: HairParams | np.ndarray, scene=None, size: int | tuple[int,
     scene = scene or SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop")
     value = hair if isinstance(hair, HairParams) else tuple(float(v) for v in np.asarray(hair, float))
     key = (value, scene, size if isinstance(size, int) else tuple(size), spp, seed)
-    if key not in _TRUTHS:
+    if key not in _MEANS:
         renderer = renderer or default_renderer()
         result = renderer.render(hair if isinstance(hair, HairParams) else np.asarray(value), scene, size, spp, seed)
-        if len(_TRUTHS) >= 64:
-            _TRUTHS.pop(next(iter(_TRUTHS)))
-        _TRUTHS[key] = (result.linear.reshape(-1, 3).mean(0), result.nonfinite)
-    return _TRUTHS[key]
+        if len(_MEANS) >= 64:
+            _MEANS.pop(next(iter(_MEANS)))
+        _MEANS[key] = (result.linear.reshape(-1, 3).mean(0), result.nonfinite)
+    return _MEANS[key]
