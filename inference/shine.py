@@ -22,6 +22,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from hairdigi.render.base.appearance import Appearance
 from hairdigi.inference.refine import ResponseCurve, RefineSettings, View, scene_for, view_key
 from hairdigi.render.base.files import cache_dir
 from hairdigi.render.base.rig_geometry import N_LIGHTS
@@ -73,7 +74,7 @@ def shine_tables(view: View, settings: RefineSettings = RefineSettings(), betas=
     for light in range(N_LIGHTS):
         lights = tuple(1.0 if i == light else 0.0 for i in range(N_LIGHTS))
         for b, beta in enumerate(betas):
-            one = replace(spec, lights=lights, longitudinal_roughness=float(beta))
+            one = replace(spec, lights=lights, appearance=Appearance(float(beta)))
             for t, triple in enumerate(order):
                 mean = renderer.render(triple, one, size, settings.spp, settings.seed).linear.reshape(-1, 3).mean(0)
                 means[light, b, [t, t + len(order), t + 2 * len(order)]] = mean

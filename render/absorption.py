@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hairdigi.render.base.appearance import DEFAULT_SHINE
 from hairdigi.render.base.params import HairParams
 
 EUMELANIN_SIGMA_A = np.array([0.419, 0.697, 1.37])
@@ -37,7 +38,7 @@ PHEOMELANIN_SIGMA_A = np.array([0.187, 0.4, 1.05])
 
 #: Roughness of the fibres; Table 1 holds colour only, so the roughness is fixed. Roughness 0
 #: renders black and 0.01 gives fireflies in Mitsuba 3.9, so values are clamped to this range.
-LONGITUDINAL_ROUGHNESS = 0.3
+LONGITUDINAL_ROUGHNESS = DEFAULT_SHINE   # the default shine (render.base.appearance)
 AZIMUTHAL_ROUGHNESS = 0.3
 ROUGHNESS_RANGE = (0.05, 1.0)
 

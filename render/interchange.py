@@ -27,7 +27,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from hairdigi.render.absorption import (AZIMUTHAL_ROUGHNESS, LONGITUDINAL_ROUGHNESS, ROUGHNESS_RANGE,
+from hairdigi.render.absorption import (AZIMUTHAL_ROUGHNESS, LONGITUDINAL_ROUGHNESS,
                                         hair_sigma_a)
 from hairdigi.render.base.files import write_text_atomic
 from hairdigi.render.base.records import EstimateRecord, RecordError
@@ -64,26 +64,18 @@ class HairLook:
         return CYCLES_OFFSET_SIGN * self.tilt_deg
 
 
-def _roughness(value, what: str) -> float:
-    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
-        raise RecordError(f"the record's appearance {what!r} is {value!r}, not a finite number")
-    return float(np.clip(value, *ROUGHNESS_RANGE))
-
-
 def look_from_record(record: EstimateRecord, name: str = "hairdigi_hair", source: str = "") -> HairLook:
     """The look of an estimate (or dye prediction): refinement's ``sigma_a``, else Table 1's mapping."""
     if record.hair is None and record.sigma_a is None:
         why = "; ".join(record.blocked) or "it holds no hair parameters"
         raise RecordError(f"the record has no estimate to export ({why})")
     sigma = np.asarray(record.sigma_a if record.sigma_a is not None else hair_sigma_a(record.hair), float)
-    appearance = record.appearance or {}
-    longitudinal = appearance.get("longitudinal_roughness")
+    appearance = record.appearance
+    measured = appearance is not None and appearance.shine_measured
     return HairLook(name=safe_name(name), sigma_a=tuple(float(s) for s in sigma),
-                    longitudinal_roughness=(LONGITUDINAL_ROUGHNESS if longitudinal is None
-                                            else _roughness(longitudinal, "longitudinal_roughness")),
-                    azimuthal_roughness=_roughness(appearance.get("azimuthal_roughness", AZIMUTHAL_ROUGHNESS),
-                                                   "azimuthal_roughness"),
-                    shine_measured=longitudinal is not None, source=source)
+                    longitudinal_roughness=(appearance.value.longitudinal_roughness if measured
+                                            else LONGITUDINAL_ROUGHNESS),
+                    shine_measured=measured, source=source)
 
 
 def safe_name(text: str) -> str:

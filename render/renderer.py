@@ -23,9 +23,11 @@ from hairdigi.render.base.bounds import (DEFAULTS, MAX_CAMERA_DISTANCE, MAX_DEPT
                                          SCENE_NAMES, SceneDefaults, check_camera, check_size_spp, defaults_for,
                                          is_whole)
 from hairdigi.render import scenes
-from hairdigi.render.absorption import LONGITUDINAL_ROUGHNESS, ROUGHNESS_RANGE, hair_bsdf, hair_sigma_a
+from hairdigi.render.absorption import hair_bsdf, hair_sigma_a
 from hairdigi.render.hairfile import hair_model_strands
+from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
 from hairdigi.render.base.params import HairParams
+from hairdigi.render.fibres import FIBRE_GROUPS, GREY_KEY, group_keys, group_sigma_a, split_strands
 from hairdigi.render.srgb import linear_to_srgb8
 from hairdigi.render.strands import STYLES, Strands, hairstyle_strands, swatch_strands
 from hairdigi.render.variant import is_jit, load_scene, mi, select_variant
@@ -63,7 +65,8 @@ class SceneSpec:
     chart_center: tuple[float, float] | None = None
     hair_file: str | None = None
     crop: tuple[int, int, int, int] | None = None   # swatch: render only this x, y, w, h of the film
-    longitudinal_roughness: float | None = None      # the hair's shine (Mitsuba's beta_m); None: the default
+    appearance: Appearance | None = None            # shine, fibre spread, greys; None: the default (uniform)
+    fibre_groups: int | None = None                  # pigment groups of a varied appearance; None: FIBRE_GROUPS
 
     def __post_init__(self) -> None:
         if isinstance(self.name, str) and self.name.lower().endswith(".hair") and self.hair_file is None:
@@ -90,10 +93,10 @@ class SceneSpec:
                              f"shows only the lights, 0 nothing), got {self.max_depth!r}")
         if self.strands is not None and (not is_whole(self.strands) or not 1 <= self.strands <= MAX_STRANDS):
             raise ValueError(f"strands must be a whole number between 1 and {MAX_STRANDS}, got {self.strands!r}")
-        if self.longitudinal_roughness is not None and not (
-                ROUGHNESS_RANGE[0] <= float(self.longitudinal_roughness) <= ROUGHNESS_RANGE[1]):
-            raise ValueError(f"longitudinal_roughness must be between {ROUGHNESS_RANGE[0]} and {ROUGHNESS_RANGE[1]} "
-                             f"(0 renders black, below 0.05 fireflies), got {self.longitudinal_roughness!r}")
+        if self.appearance is not None and not isinstance(self.appearance, Appearance):
+            raise ValueError(f"appearance must be an Appearance (render.base.appearance), got {self.appearance!r}")
+        if self.fibre_groups is not None and (not is_whole(self.fibre_groups) or not 1 <= self.fibre_groups <= 64):
+            raise ValueError(f"fibre_groups must be a whole number between 1 and 64, got {self.fibre_groups!r}")
         if not all(np.isfinite(float(v)) and v >= 0 for v in self.lights):
             raise ValueError(f"lights {self.lights} must be finite scales >= 0")
         if self.camera is not None:
@@ -106,6 +109,17 @@ class SceneSpec:
     @property
     def depth(self) -> int:
         return self.max_depth if self.max_depth is not None else defaults_for(self.name).max_depth
+
+    @property
+    def look(self) -> Appearance:
+        return self.appearance if self.appearance is not None else DEFAULT_APPEARANCE
+
+    @property
+    def groups(self) -> int:
+        """Pigment groups drawn: 0 for uniform hair (one shape), else ``fibre_groups`` or ``FIBRE_GROUPS``."""
+        if self.fibre_groups is not None:
+            return int(self.fibre_groups)
+        return FIBRE_GROUPS if self.look.varied else 0
 
     @property
     def pose(self) -> rig_geometry.CameraPose:
@@ -176,7 +190,9 @@ class Renderer:
     # -- scene cache -------------------------------------------------------------------------
     def _structure_key(self, spec: SceneSpec, size: int) -> tuple:
         key = (spec.name, spec.env, spec.framing, spec.n_strands, spec.depth, size, spec.chart,
-               spec.target, spec.half_width, spec.chart_center, spec.crop)
+               spec.target, spec.half_width, spec.chart_center, spec.crop, spec.groups)
+        if spec.groups:   # which strands are grey or in which group is structure: a new share is a new scene
+            key += (round(spec.look.grey_fraction, 4), spec.strand_seed)
         if spec.hair_file is not None:   # a model saved again is loaded again
             stat = os.stat(spec.hair_file)
             key += (spec.hair_file, stat.st_mtime_ns, stat.st_size)
@@ -200,8 +216,18 @@ class Renderer:
         else:
             scene_dict = scenes.portrait_scene(str(curve_file), bsdf, size, spec.env, spec.pose, spec.depth,
                                                part_x=STYLES[spec.name].part_x if spec.name in STYLES else None)
+        files = [curve_file]
+        if spec.groups:   # fibre groups: one curve shape and BSDF each, keyed by render.fibres.group_keys
+            del scene_dict["hair"]
+            parts = split_strands(strands_for(spec), spec.groups, spec.look.grey_fraction, spec.strand_seed)
+            for key, part in zip(group_keys(spec.groups), parts):
+                path = curve_file.with_name(f"{curve_file.stem}-{key}.txt")
+                path.write_text(part.with_dummy().to_curve_text())
+                scene_dict[key] = scenes.hair_shape(str(path), dict(bsdf))
+                files.append(path)
         scene = load_scene(scene_dict)
-        curve_file.unlink(missing_ok=True)
+        for path in files:
+            path.unlink(missing_ok=True)
         return _Loaded(scene, mi.traverse(scene), spec.strand_seed, spec.pose)
 
     def _scene_for(self, spec: SceneSpec, size: int, params: HairParams):
@@ -216,9 +242,12 @@ class Renderer:
 
     def _update(self, loaded: _Loaded, spec: SceneSpec, params: HairParams) -> None:
         p = loaded.params
-        p["hair.bsdf.sigma_a.value"] = mi.Color3f(*absorption_of(params).tolist())
-        p["hair.bsdf.longitudinal_roughness"] = float(LONGITUDINAL_ROUGHNESS if spec.longitudinal_roughness is None
-                                                      else spec.longitudinal_roughness)
+        look = spec.look
+        sigma = absorption_of(params)
+        keys = group_keys(spec.groups) if spec.groups else ("hair",)
+        for key, value in zip(keys, group_sigma_a(sigma, spec.groups, look.fibre_spread) if spec.groups else [sigma]):
+            p[f"{key}.bsdf.sigma_a.value"] = mi.Color3f(*np.asarray(value, float).tolist())
+            p[f"{key}.bsdf.longitudinal_roughness"] = float(look.longitudinal_roughness)
         if "scalp.bsdf.reflectance.value" in p:   # portraits: the scalp under the hair takes its colour
             p["scalp.bsdf.reflectance.value"] = mi.Color3f(*scenes.scalp_albedo(absorption_of(params)))
         if spec.name == "swatch":
@@ -233,7 +262,7 @@ class Renderer:
             p["sensor.x_fov"] = (rig_geometry.framing_fov(spec.framing, spec.pose.distance, spec.half_width)
                                  if spec.name == "swatch" else scenes.PORTRAIT_FOV)
             loaded.camera = spec.pose
-        if spec.strand_seed != loaded.strand_seed:
+        if spec.strand_seed != loaded.strand_seed and not spec.groups:   # groups: a new layout is a new scene
             strands = strands_for(spec).with_dummy()
             p["hair.control_point_count"] = int(len(strands.points))
             p["hair.control_points"] = mi.Float(strands.control_points())

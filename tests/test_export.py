@@ -12,6 +12,7 @@ import pytest
 from hairdigi.app.cli import main
 from hairdigi.render.absorption import hair_sigma_a
 from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.appearance import AppearanceEstimate
 from hairdigi.render.base.records import EstimateRecord, RefinementRecord, write_record
 
 mx = pytest.importorskip("MaterialX")
@@ -77,7 +78,7 @@ def test_materialx_validation_can_fail(tmp_path):
 
 def test_unrefined_record_uses_table1_and_shine_is_exported(tmp_path):
     out = tmp_path / "plain.mtlx"
-    main(["export", str(_record(tmp_path, refined=False, appearance={"longitudinal_roughness": 0.42})),
+    main(["export", str(_record(tmp_path, refined=False, appearance=AppearanceEstimate.from_json({"longitudinal_roughness": 0.42}))),
           "--format", "materialx", "--out", str(out)])
     doc = _document(out)
     assert doc.validate()[0]

@@ -5,6 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from hairdigi.render.base.appearance import Appearance
 from hairdigi.inference.refine import RefineSettings, scene_for
 from hairdigi.inference.shine import estimate_shine, shine_tables
 from hairdigi.render.base.rig_geometry import N_LIGHTS, RigRegion, swatch_roi
@@ -17,7 +18,7 @@ def test_a_shine_set_on_a_loaded_scene_renders_as_a_scene_built_with_it():
     """``longitudinal_roughness`` reaches the hair BSDF through ``mi.traverse``: a scene loaded at the
     default shine and updated renders as one loaded at that shine; and shine changes the colour."""
     sigma = np.array([0.35, 0.6, 1.2])
-    glossy = SceneSpec("swatch", longitudinal_roughness=0.15)
+    glossy = SceneSpec("swatch", appearance=Appearance(0.15))
     warm = Renderer(max_cached=1)
     warm.render(sigma, SceneSpec("swatch"), 24, 4, seed=0)           # built at 0.3
     updated = warm.render(sigma, glossy, 24, 16, seed=5).linear
@@ -26,7 +27,7 @@ def test_a_shine_set_on_a_loaded_scene_renders_as_a_scene_built_with_it():
     default = warm.render(sigma, SceneSpec("swatch"), 24, 16, seed=5).linear
     assert abs(default.mean() - fresh.mean()) > 0.2 * default.mean()
     with pytest.raises(ValueError, match="longitudinal_roughness"):
-        SceneSpec("swatch", longitudinal_roughness=0.0)
+        SceneSpec("swatch", appearance=Appearance(0.0))
 
 
 @pytest.mark.slow
@@ -41,7 +42,7 @@ def test_shine_is_read_from_the_three_lights(tmp_path, monkeypatch):
     spec, film = scene_for(view, SMALL)
     sigma = np.array([0.3, 0.7, 1.6])
     for beta in (0.15, 0.5):
-        single = np.array([renderer.render(sigma, replace(spec, strand_seed=5, longitudinal_roughness=beta,
+        single = np.array([renderer.render(sigma, replace(spec, strand_seed=5, appearance=Appearance(beta),
                                                           lights=tuple(float(i == light) for i in range(N_LIGHTS))),
                                            film, 32, 123).linear.reshape(-1, 3).mean(0) for light in range(N_LIGHTS)])
         est = estimate_shine(single, tables)

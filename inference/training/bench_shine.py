@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.render.base.appearance import Appearance
 from hairdigi.render.base.files import write_csv_atomic
 from hairdigi.render.base.params import HairParams
 
@@ -52,7 +53,7 @@ def run_shine_bench(out_dir: str | os.PathLike, quick: bool = False) -> list[dic
         for beta in betas:
             single = np.array([renderer.render(sigma, replace(capture, lights=tuple(float(i == light) for i in
                                                                                      range(N_LIGHTS)),
-                                                              longitudinal_roughness=beta), film, CAPTURE_SPP,
+                                                              appearance=Appearance(beta)), film, CAPTURE_SPP,
                                                CAPTURE_SEED).linear.reshape(-1, 3).mean(0)
                                for light in range(N_LIGHTS)])
             t0 = time.perf_counter()
@@ -61,8 +62,8 @@ def run_shine_bench(out_dir: str | os.PathLike, quick: bool = False) -> list[dic
             fixed_sigma, _ = today.inverse(single.sum(0))
 
             def de(scene, s, b):
-                truth, _ = judge_mean(sigma, replace(scene, longitudinal_roughness=beta))
-                mine, _ = judge_mean(np.asarray(s), replace(scene, longitudinal_roughness=b))
+                truth, _ = judge_mean(sigma, replace(scene, appearance=Appearance(beta)))
+                mine, _ = judge_mean(np.asarray(s), replace(scene, appearance=Appearance(b)))
                 return float(delta_e2000(np.clip(mine, 1e-9, None), np.clip(truth, 1e-9, None)))
 
             row = {"hair": name, "beta": beta, "beta_estimate": round(est.longitudinal_roughness, 4),

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
+from hairdigi.render.base.appearance import AppearanceError, AppearanceEstimate
 from hairdigi.render.base.files import read_json, write_json_atomic
 from hairdigi.render.base.params import HairParams, HairParamsError
 
@@ -89,6 +90,7 @@ class WarningKind(str, enum.Enum):
     CALIBRATION = "calibration"              # stale, mismatched or ill-fitting calibration
     NONFINITE = "nonfinite"                  # the path tracer returned NaN or Inf samples
     INTERVAL = "interval"                    # the colour is outside what the record's interval promises
+    APPEARANCE = "appearance"                # shine or fibre variation not measured, or measured poorly
     OTHER = "other"
 
 
@@ -214,6 +216,7 @@ class CaptureRecord:
     source: str = "live"                        # "live" or "raw still"
     original: str | None = None                 # a still's original file name
     light_images: tuple[str, ...] = ()          # one frame per light alone, when the capture took them
+    light_exposures: tuple[float, ...] = ()     # each light frame's exposure over the all-lights frame's
     schema_version: int = SCHEMA_VERSION
 
     KIND = "capture"
@@ -229,7 +232,8 @@ class CaptureRecord:
                 "frame_meta": self.frame_meta, "calibration_id": self.calibration_id,
                 "calibration": None if self.calibration is None else self.calibration.to_json(),
                 "simulated": self.simulated, "swatch_roi": None if self.swatch_roi is None else list(self.swatch_roi),
-                "source": self.source, "original": self.original, "light_images": list(self.light_images)}
+                "source": self.source, "original": self.original, "light_images": list(self.light_images),
+                "light_exposures": list(self.light_exposures)}
 
     @classmethod
     def from_json(cls, data, legacy_profile: dict | None = None) -> "CaptureRecord":
@@ -250,7 +254,8 @@ class CaptureRecord:
                    swatch_roi=None if roi is None else _roi(roi, what),
                    source=_need(data, "source", str, what, "live", required=False),
                    original=_need(data, "original", str, what, None, required=False),
-                   light_images=tuple(_need(data, "light_images", list, what, [], required=False)))
+                   light_images=tuple(str(n) for n in _need(data, "light_images", list, what, [], required=False)),
+                   light_exposures=_floats(data.get("light_exposures") or [], None, "light_exposures", what))
 
 
 def _bad(what: str, key: str, value):
@@ -330,7 +335,7 @@ class EstimateRecord:
     capture: str | None = None
     blocked: tuple[str, ...] = ()
     swatch_roi: tuple[int, int, int, int] | None = None
-    appearance: dict | None = None
+    appearance: AppearanceEstimate | None = None   # shine and fibre variation (issue 18); None: not read
     schema_version: int = SCHEMA_VERSION
 
     KIND = "estimate"
@@ -364,7 +369,7 @@ class EstimateRecord:
                         "encoder": self.encoder, "refinement": self.refinement.to_json(),
                         "provenance": self.provenance})
             if self.appearance is not None:
-                out["appearance"] = self.appearance
+                out["appearance"] = self.appearance.to_json()
         return out
 
     @classmethod
@@ -387,7 +392,16 @@ class EstimateRecord:
                    capture=_need(data, "capture", str, what, None, required=False),
                    blocked=tuple(str(b) for b in blocked),
                    swatch_roi=None if roi is None else _roi(roi, what),
-                   appearance=_need(data, "appearance", dict, what, None, required=False))
+                   appearance=_appearance(data.get("appearance"), what))
+
+
+def _appearance(data, what: str) -> AppearanceEstimate | None:
+    if data is None:
+        return None
+    try:
+        return AppearanceEstimate.from_json(data)
+    except AppearanceError as exc:
+        raise RecordError(f"the {what}'s 'appearance': {exc}") from None
 
 
 # --- files ---------------------------------------------------------------------------------------
