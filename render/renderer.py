@@ -29,11 +29,15 @@ from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.fibres import FIBRE_GROUPS, GREY_KEY, group_keys, group_sigma_a, split_strands
 from hairdigi.render.srgb import linear_to_srgb8
-from hairdigi.render.strands import STYLES, Strands, hairstyle_strands, swatch_strands
+from hairdigi.render.strands import STYLES, Strands, hairstyle_strands, layered_swatch_strands, swatch_strands
 from hairdigi.render.variant import is_jit, load_scene, mi, select_variant
 
 #: The scene of a ``.hair`` model (``SceneSpec.hair_file``).
 HAIR_FILE_SCENE = "hairfile"
+#: The swatch's strand models (``SceneSpec.swatch_model``): "today", ``swatch_strands`` (a few layers,
+#: fibres pass through one another); "layered", ``layered_swatch_strands`` (no fibre meets another,
+#: optically thick; resources/models/swatch-structure.md).
+SWATCH_MODELS = ("today", "layered")
 
 
 @dataclass(frozen=True)
@@ -49,6 +53,7 @@ class SceneSpec:
     ``chart`` adds a colour chart of (24, 3) linear reflectances beside the swatch (swatch only), at
     ``chart_center`` on the holder (x, y; default ``rig_geometry.CHART_CENTER``). ``crop`` (swatch
     only) renders just that x, y, w, h window of the film (``rig_geometry.RigRegion.render_plan``).
+    ``swatch_model`` (swatch only) picks its strands from ``SWATCH_MODELS``.
     """
 
     name: str = "swatch"
@@ -67,6 +72,7 @@ class SceneSpec:
     crop: tuple[int, int, int, int] | None = None   # swatch: render only this x, y, w, h of the film
     appearance: Appearance | None = None            # shine, fibre spread, greys; None: the default (uniform)
     fibre_groups: int | None = None                  # pigment groups of a varied appearance; None: FIBRE_GROUPS
+    swatch_model: str = "today"                      # swatch strands: one of SWATCH_MODELS (strands_for)
 
     def __post_init__(self) -> None:
         if isinstance(self.name, str) and self.name.lower().endswith(".hair") and self.hair_file is None:
@@ -99,6 +105,9 @@ class SceneSpec:
             raise ValueError(f"fibre_groups must be a whole number between 1 and 64, got {self.fibre_groups!r}")
         if not all(np.isfinite(float(v)) and v >= 0 for v in self.lights):
             raise ValueError(f"lights {self.lights} must be finite scales >= 0")
+        if self.swatch_model not in SWATCH_MODELS or (self.swatch_model != "today" and self.name != "swatch"):
+            raise ValueError(f"swatch_model {self.swatch_model!r}: choose one of {', '.join(SWATCH_MODELS)} "
+                             f"(a model other than 'today' applies to the swatch only)")
         if self.camera is not None:
             check_camera(self.camera, self.name)
 
@@ -150,6 +159,8 @@ def absorption_of(hair: HairParams | np.ndarray) -> np.ndarray:
 
 def strands_for(spec: SceneSpec) -> Strands:
     if spec.name == "swatch":
+        if spec.swatch_model == "layered":
+            return layered_swatch_strands(spec.n_strands, seed=spec.strand_seed)
         return swatch_strands(spec.n_strands, seed=spec.strand_seed)
     if spec.name == HAIR_FILE_SCENE:
         return hair_model_strands(spec.hair_file, spec.n_strands, seed=spec.strand_seed)
@@ -190,7 +201,7 @@ class Renderer:
     # -- scene cache -------------------------------------------------------------------------
     def _structure_key(self, spec: SceneSpec, size: int) -> tuple:
         key = (spec.name, spec.env, spec.framing, spec.n_strands, spec.depth, size, spec.chart,
-               spec.target, spec.half_width, spec.chart_center, spec.crop, spec.groups)
+               spec.target, spec.half_width, spec.chart_center, spec.crop, spec.groups, spec.swatch_model)
         if spec.groups:   # which strands are grey or in which group is structure: a new share is a new scene
             key += (round(spec.look.grey_fraction, 4), spec.strand_seed)
         if spec.hair_file is not None:   # a model saved again is loaded again

@@ -146,6 +146,68 @@ def swatch_strands(n_strands: int = 2000, seed: int = 0, radius: float = 0.004,
     return Strands.from_grid(pts, radius)
 
 
+#: Clearance between neighbouring fibre surfaces in ``layered_swatch_strands``, in radii.
+LAYER_CLEARANCE = 0.02
+
+
+def layered_swatch_strands(n_strands: int = 2000, seed: int = 0, radius: float = 0.004,
+                           layers: int | None = None, points_per_strand: int = 12, fill: float = 0.8,
+                           wobble: float = 0.1) -> Strands:
+    """A physical swatch: fibres side by side in irregular layers stacked in z, none intersecting.
+
+    Each layer holds about ``fill * SWATCH_WIDTH / (2 radius)`` fibres (or ``n_strands / layers``
+    when ``layers`` is given) across the holder's width, with random gaps of at least 2 radii
+    between neighbouring centres (the slack is spread at random: irregular holes that the layers
+    above cover). A layer drifts as a whole in x (waves like ``swatch_strands``'s) and in z (by
+    ``wobble`` radii); each fibre wavers by up to ``wobble`` radii inside its slot. Layers are
+    stacked with at least 2 radii plus their wobble between centres, so no two fibres meet: every
+    fibre's control points keep their clearance from its neighbours' at the same y, and a B-spline
+    point is a positive blend of them (``through_ends`` included), so the curves keep it too.
+    The fibres run the full ``SWATCH_LENGTH``, their ends honoured through ``Strands.through_ends``.
+    """
+    if n_strands < 1:
+        raise ValueError(f"a swatch needs at least 1 strand, got {n_strands}")
+    if not 0 < fill <= 1 or not 0 <= wobble <= 0.5 or radius <= 0 or points_per_strand < 2:
+        raise ValueError(f"fill in (0, 1], wobble in [0, 0.5], radius > 0 and 2+ points, got "
+                         f"{fill}, {wobble}, {radius}, {points_per_strand}")
+    rng = np.random.default_rng(seed)
+    gap = radius * (2.0 + LAYER_CLEARANCE + 2 * wobble)          # least centre distance in a layer
+    most = int(np.floor(SWATCH_WIDTH / gap)) + 1                 # fibres a layer can hold at that gap
+    if layers is None:
+        per = int(np.clip(round(fill * SWATCH_WIDTH / (2 * radius)), 1, most))
+        layers = int(np.ceil(n_strands / per))
+    if layers < 1 or int(np.ceil(n_strands / layers)) > most:
+        raise ValueError(f"{n_strands} strands of radius {radius} need at least "
+                         f"{int(np.ceil(n_strands / most))} layers, got {layers}")
+    counts = np.full(layers, n_strands // layers) + (np.arange(layers) < n_strands % layers)
+    counts = counts[counts > 0]
+    layers = len(counts)
+    layer = np.repeat(np.arange(layers), counts)                 # (n,) each fibre's layer
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    slot = np.arange(n_strands) - first[layer]                   # index within its layer
+    # the slack of each layer (its width less the least gaps), split at random before each fibre and after the last
+    slack = SWATCH_WIDTH - (counts - 1) * gap
+    share = rng.exponential(1.0, n_strands + layers)
+    owner = np.concatenate([layer, np.arange(layers)])
+    share /= np.bincount(owner, weights=share, minlength=layers)[owner]
+    before = share[:n_strands] * slack[layer] + gap * (slot > 0)
+    run = np.cumsum(before)
+    x0 = -SWATCH_WIDTH / 2 + run - (run - before)[first][layer]   # cumulative sum within each layer
+    y = np.linspace(-SWATCH_LENGTH / 2, SWATCH_LENGTH / 2, points_per_strand)
+    # whole layers drift: x waves as today's swatch, small z waves; each fibre wavers inside its slot
+    phase = rng.uniform(0, 2 * np.pi, (layers, 1))
+    x_wave = rng.uniform(0.002, 0.008, (layers, 1)) * np.sin(2 * np.pi * y / rng.uniform(0.3, 0.7, (layers, 1)) + phase)
+    z_wave = wobble * radius * np.sin(2 * np.pi * y / rng.uniform(0.5, 1.5, (layers, 1)) + phase[::-1])
+    own = (wobble * radius * rng.uniform(0, 1, (n_strands, 1))
+           * np.sin(2 * np.pi * y / rng.uniform(0.2, 0.6, (n_strands, 1)) + rng.uniform(0, 2 * np.pi, (n_strands, 1))))
+    spacing = radius * (2.0 + LAYER_CLEARANCE + 2 * wobble + rng.uniform(0, 0.3, layers))
+    z0 = radius * (1.0 + LAYER_CLEARANCE / 2 + wobble) + np.concatenate([[0.0], np.cumsum(spacing[:-1])])
+    x = x0[:, None] + x_wave[layer] + own
+    z = np.broadcast_to(z0[layer, None] + z_wave[layer], x.shape)
+    pts = np.stack([x, np.broadcast_to(y, x.shape), z], axis=-1)
+    return Strands.from_grid(pts, radius).through_ends()
+
+
 # --- hairstyles on the head -------------------------------------------------------------------
 
 from hairdigi.render.base.bounds import HAIRSTYLES  # noqa: E402  (the names, for the command line without Mitsuba)
