@@ -160,6 +160,19 @@ def bench_shine(args: argparse.Namespace) -> int:
     return 0
 
 
+def bench_structure(args: argparse.Namespace) -> int:
+    """The swatch's fibre structure: today's interpenetrating swatch against a layered one, fibre counts, lights."""
+    from hairdigi.render.bench_structure import run
+
+    out = Path("packaging/bench/structure") if args.out == BENCH_OUT else Path(args.out)
+    rows = run(out, quick=args.quick)
+    layered = [r for r in rows if r["model"] == "layered" and r["strands"] == 2000 and r["lights"] == "all"]
+    print("layered 2000 against today's swatch at equal sigma_a (all lights): "
+          + ", ".join(f"{r['hair']} ΔE2000 {r['de2000_vs_today']:.2f} (ΔL* {r['dL_vs_today']:+.2f})" for r in layered))
+    print(f"wrote {out / 'structure.csv'}, {out / 'structure.json'} and {out / 'structure.png'}")
+    return 0
+
+
 #: Every benchmark of ``hairdigi bench``, by name.
 BENCHES: dict[str, Bench] = {
     "render": bench_render,
@@ -171,4 +184,5 @@ BENCHES: dict[str, Bench] = {
     "library": _elsewhere("hairdigi.app.library_cli", "bench_library"),    # issue 20: find in a library of --n swatches
     "memory": _elsewhere("hairdigi.app.bench_memory", "bench_memory"),     # issue 22: peak memory of the largest inputs
     "shine": bench_shine,                                                   # issue 18: shine from the three lights
+    "structure": bench_structure,                                           # issue 18: the swatch's fibre structure
 }
