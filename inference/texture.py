@@ -1,0 +1,284 @@
+"""The fibre spread and the grey share, read from the swatch's texture at the fibre scale (issue 18).
+
+At the bench camera a fibre is about one pixel wide, so fibres that differ in pigment make the
+swatch area's pixels differ from their neighbours: a spread of ln sigma_a makes neighbouring fibres
+lighter and darker, and more and less saturated, about the median; grey fibres add a one-sided
+population of light, neutral pixels. The mean colour (what the refinement fits) and the lighting's
+slow fall-off across the swatch carry none of it, so ``texture_features`` works on what is left once
+a blurred copy is taken away, in logarithms (a global gain or a colour cast is an offset there, and
+the offset is removed with the blur):
+
+- ``log_luminance``: ln of the luminance, high-passed (a Gaussian of ``HIGHPASS_SIGMA_PX`` taken away);
+- ``chroma``: ln(R/G) and ln(B/G), high-passed the same way; its magnitude, and its component towards
+  neutral (against the area's mean chroma: how much "greyer" than its surroundings a pixel is);
+- both also after a short blur along the fibres (``ALONG_FIBRE_PX``), which keeps what differs from
+  fibre to fibre and averages away the sensor's noise and the glints, which do not follow a fibre.
+
+From these, robust spreads (quantile differences), tails (the share of pixels far lighter or greyer
+than their surroundings) and correlations (lighter pixels are greyer where greys are present).
+
+``read_variation`` feeds them, with ln sigma_a and the shine, to a ridge regression fitted by
+``inference.training.fit_texture`` and stored in ``resources/models/texture_model.json``; its
+intervals are residual quantiles on held-out renders, scaled by how light the hair is (greys among
+platinum hair are nearly invisible: the interval there is wide).
+"""
+from __future__ import annotations
+
+import functools
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+#: The Gaussian (pixels) whose blur is taken away: far wider than a fibre, far narrower than the
+#: lights' fall-off across the swatch.
+HIGHPASS_SIGMA_PX = 4.0
+#: The Gaussian (pixels) of the blur along the fibres (about a fibre's visible straight run).
+ALONG_FIBRE_PX = 3.0
+#: A pixel counts "far lighter" / "far greyer" beyond these high-passed values (ln units).
+LIGHTER_THRESHOLDS = (0.4, 0.8)
+GREYER_THRESHOLDS = (0.1, 0.25)
+_EPS = 1e-4
+#: Mean chroma (ln R/G, ln B/G magnitude) from which "towards grey" has its full length.
+CHROMA_FULL = 0.15
+#: Rec. 709 luminance weights.
+_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+MODEL_FILE = "texture_model.json"
+TARGETS = ("fibre_spread", "grey_fraction")
+LEVELS = ("p68", "p95")
+#: Where the targets are clipped: the ranges the model was fitted on, to the appearance's limits.
+TARGET_LIMITS = {"fibre_spread": (0.0, 1.0), "grey_fraction": (0.0, 1.0)}
+
+
+def _highpass(channel: np.ndarray, sigma: float = HIGHPASS_SIGMA_PX) -> np.ndarray:
+    return channel - cv2.GaussianBlur(channel, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+
+
+def fibre_axis(log_luminance: np.ndarray) -> int:
+    """The image axis the fibres run along (0: vertical, 1: horizontal), from the gradient energy:
+    across the fibres the image changes from pixel to pixel, along them it hardly does."""
+    gy = np.diff(log_luminance, axis=0)
+    gx = np.diff(log_luminance, axis=1)
+    return 0 if float(np.mean(gx ** 2)) >= float(np.mean(gy ** 2)) else 1
+
+
+def _along(channel: np.ndarray, axis: int, sigma: float = ALONG_FIBRE_PX) -> np.ndarray:
+    """A 1-D Gaussian blur along ``axis`` (0: down the columns)."""
+    size = int(2 * round(3 * sigma) + 1)
+    kernel = cv2.getGaussianKernel(size, sigma).astype(np.float32)
+    kx, ky = (np.ones((1, 1), np.float32), kernel) if axis == 0 else (kernel, np.ones((1, 1), np.float32))
+    return cv2.sepFilter2D(channel, -1, kx, ky, borderType=cv2.BORDER_REFLECT)
+
+
+def _robust_sd(values: np.ndarray) -> float:
+    q = np.quantile(values, (0.1587, 0.8413))
+    return float(q[1] - q[0]) / 2.0
+
+
+def _corr(a: np.ndarray, b: np.ndarray) -> float:
+    a, b = a - a.mean(), b - b.mean()
+    den = float(np.sqrt(np.sum(a * a) * np.sum(b * b)))
+    return float(np.sum(a * b) / den) if den > 0 else 0.0
+
+
+def _channels(pixels_linear: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """ln luminance, ln R/G, ln B/G, and the unit chroma direction pointing from the area's mean
+    chroma towards neutral grey."""
+    img = np.asarray(pixels_linear, np.float32)
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"pixels must be (H, W, 3) linear RGB, got shape {img.shape}")
+    if min(img.shape[:2]) < 16:
+        raise ValueError(f"the swatch area {img.shape[1]}x{img.shape[0]} px is too small to read its texture "
+                         "(at least 16x16)")
+    level = float(np.median(img.reshape(-1, 3), axis=0).mean())
+    floor = max(level * 0.02, _EPS)          # a floor under dark pixels, proportional to the area's level
+    rgb = np.maximum(img, 0.0) + floor
+    log_rgb = np.log(rgb)
+    lum = np.log(rgb @ _LUMA)
+    c1 = log_rgb[..., 0] - log_rgb[..., 1]
+    c2 = log_rgb[..., 2] - log_rgb[..., 1]
+    mean = np.array([np.median(c1), np.median(c2)])
+    # the unit direction to neutral, shortened for nearly neutral hair (continuously: a small cast
+    # must not flip the feature between two definitions)
+    towards_grey = -mean / max(float(np.hypot(*mean)), CHROMA_FULL)
+    return lum, c1, c2, towards_grey
+
+
+FEATURE_NAMES: tuple[str, ...] = ()   # filled below from a probe call
+
+
+def _features(pixels_linear: np.ndarray) -> dict[str, float]:
+    lum, c1, c2, towards_grey = _channels(pixels_linear)
+    axis = fibre_axis(lum)
+    feats: dict[str, float] = {}
+    for tag, smooth in (("px", False), ("fb", True)):
+        planes = [(_along(p, axis) if smooth else p) for p in (lum, c1, c2)]
+        hl, h1, h2 = (_highpass(p) for p in planes)
+        grey = h1 * towards_grey[0] + h2 * towards_grey[1]        # towards neutral (0 for neutral hair)
+        # the edges hold the reflected border's artefacts: leave out the blur's width
+        m = int(np.ceil(2 * HIGHPASS_SIGMA_PX))
+        hl, grey, chroma = (a[m:-m, m:-m].ravel() for a in (hl, grey, np.hypot(h1, h2)))
+        q = np.quantile(hl, (0.02, 0.1, 0.25, 0.5, 0.75, 0.9, 0.98))
+        feats[f"{tag}_lum_sd"] = _robust_sd(hl)
+        feats[f"{tag}_lum_iqr"] = float(q[4] - q[2])
+        feats[f"{tag}_lum_upper"] = float(q[6] - q[3])
+        feats[f"{tag}_lum_lower"] = float(q[3] - q[0])
+        feats[f"{tag}_lum_skew"] = float((q[5] - q[3]) - (q[3] - q[1])) / max(float(q[5] - q[1]), 1e-6)
+        for t in LIGHTER_THRESHOLDS:
+            feats[f"{tag}_lighter_{t}"] = float(np.mean(hl > t))
+        g = np.quantile(grey, (0.1, 0.5, 0.9, 0.98))
+        feats[f"{tag}_grey_sd"] = _robust_sd(grey)
+        feats[f"{tag}_grey_upper"] = float(g[3] - g[1])
+        feats[f"{tag}_grey_skew"] = float((g[2] - g[1]) - (g[1] - g[0])) / max(float(g[2] - g[0]), 1e-6)
+        for t in GREYER_THRESHOLDS:
+            feats[f"{tag}_greyer_{t}"] = float(np.mean(grey > t))
+        feats[f"{tag}_chroma_p50"] = float(np.quantile(chroma, 0.5))
+        feats[f"{tag}_chroma_p95"] = float(np.quantile(chroma, 0.95))
+        feats[f"{tag}_corr_lum_grey"] = _corr(hl, grey)
+        feats[f"{tag}_lighter_and_greyer"] = float(np.mean((hl > LIGHTER_THRESHOLDS[0]) & (grey > GREYER_THRESHOLDS[0])))
+    feats["fb_over_px_lum"] = feats["fb_lum_sd"] / max(feats["px_lum_sd"], 1e-6)
+    feats["fb_over_px_grey"] = feats["fb_grey_sd"] / max(feats["px_grey_sd"], 1e-6)
+    feats["saturation"] = float(np.hypot(np.median(c1), np.median(c2)))
+    return feats
+
+
+def texture_features(pixels_linear: np.ndarray) -> np.ndarray:
+    """Statistics of the swatch area's texture at the fibre scale, ``FEATURE_NAMES`` order.
+
+    ``pixels_linear`` is the colour-corrected linear float (H, W, 3) swatch area of the all-lights
+    frame, at the capture's full resolution (a fibre about a pixel wide). The statistics respond to
+    the fibres' spread and grey share and hardly to a global gain or a colour cast (they are taken
+    on logarithms after the local mean is taken away; only ``saturation``, the area's mean chroma,
+    follows a cast)."""
+    return np.array(list(_features(pixels_linear).values()), float)
+
+
+FEATURE_NAMES = tuple(_features(np.random.default_rng(0).uniform(0.1, 1.0, (32, 32, 3)).astype(np.float32)))
+
+
+# --- the model ---------------------------------------------------------------------------------
+def covariates(sigma_a, shine: float) -> np.ndarray:
+    """What conditions the reading besides the texture: mean ln sigma_a (how dark), the red-blue
+    contrast of ln sigma_a (how coloured) and the shine."""
+    log_sigma = np.log(np.maximum(np.asarray(sigma_a, float).ravel(), 0.0) + 0.01)
+    if log_sigma.shape != (3,):
+        raise ValueError(f"sigma_a must hold 3 values, got {sigma_a!r}")
+    return np.array([log_sigma.mean(), log_sigma[2] - log_sigma[0], float(shine)])
+
+
+def lightness(sigma_a) -> float:
+    """How light the hair is, for the intervals: -mean ln(sigma_a + 0.01) (platinum about 4.3,
+    mid brown about 1, black about -1)."""
+    return float(-covariates(sigma_a, 0.3)[0])
+
+
+#: Lightness bins the evidence reports (edges in ``lightness``): dark, medium, light.
+LIGHTNESS_BINS = {"dark": (-np.inf, 0.0), "medium": (0.0, 2.0), "light": (2.0, np.inf)}
+
+
+def design(features: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """The regression's inputs: the features, the covariates, and each feature times each covariate
+    (the texture a given spread makes depends on how dark and how glossy the hair is)."""
+    features = np.atleast_2d(features)
+    cov = np.atleast_2d(cov)
+    products = (features[:, :, None] * cov[:, None, :]).reshape(len(features), -1)
+    return np.hstack([features, cov, products])
+
+
+@dataclass(frozen=True)
+class TextureModel:
+    """A ridge regression per target on standardised ``design`` inputs, with interval scales."""
+
+    mean: np.ndarray
+    scale: np.ndarray
+    coef: dict[str, np.ndarray]
+    intercept: dict[str, float]
+    #: per target: the residual scale's ``a + b * light`` (``light`` = lightness clipped to
+    #: ``light_clip``) and, per level, the quantile of |residual| / scale on held-out renders.
+    interval: dict[str, dict]
+    feature_names: tuple[str, ...] = FEATURE_NAMES
+    meta: dict = field(default_factory=dict)
+
+    def predict(self, features: np.ndarray, cov: np.ndarray) -> dict[str, np.ndarray]:
+        x = (design(features, cov) - self.mean) / self.scale
+        return {t: x @ self.coef[t] + self.intercept[t] for t in TARGETS}
+
+    def residual_scale(self, target: str, light: np.ndarray | float) -> np.ndarray:
+        spec = self.interval[target]
+        lo, hi = spec["light_clip"]
+        return np.maximum(spec["a"] + spec["b"] * np.clip(light, lo, hi), spec["floor"])
+
+    def to_dict(self) -> dict:
+        return {"kind": "ridge", "feature_names": list(self.feature_names), "mean": self.mean.tolist(),
+                "scale": self.scale.tolist(), "coef": {t: v.tolist() for t, v in self.coef.items()},
+                "intercept": self.intercept, "interval": self.interval, "meta": self.meta}
+
+    @classmethod
+    def from_dict(cls, data: dict) -> "TextureModel":
+        names = tuple(data["feature_names"])
+        if names != FEATURE_NAMES:
+            raise ValueError("texture_model.json was fitted on other features than inference.texture computes; "
+                             "fit it again (python -m hairdigi.inference.training.fit_texture fit)")
+        return cls(np.array(data["mean"]), np.array(data["scale"]), {t: np.array(v) for t, v in data["coef"].items()},
+                   {t: float(v) for t, v in data["intercept"].items()}, data["interval"], names, data.get("meta", {}))
+
+
+def model_path() -> Path:
+    from hairdigi.resources import MODELS
+
+    return MODELS / MODEL_FILE
+
+
+@functools.lru_cache(maxsize=4)
+def _load(path: str, mtime_ns: int) -> TextureModel:
+    return TextureModel.from_dict(json.loads(Path(path).read_text()))
+
+
+def load_model(path: str | Path | None = None) -> TextureModel:
+    """The fitted model (default: the packaged ``texture_model.json``), cached while the file is unchanged."""
+    path = Path(path) if path is not None else model_path()
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no texture model; fit one with python -m hairdigi.inference.training.fit_texture")
+    return _load(str(path), path.stat().st_mtime_ns)
+
+
+@dataclass(frozen=True)
+class VariationReading:
+    """The fibre spread and grey share read from a swatch area, each with its 68% and 95% intervals
+    (``{"fibre_spread": {"p68": [lo, hi], "p95": [lo, hi]}, "grey_fraction": {...}}``)."""
+
+    fibre_spread: float
+    grey_fraction: float
+    intervals: dict[str, dict[str, list[float]]]
+
+    def to_dict(self) -> dict:
+        return {"fibre_spread": self.fibre_spread, "grey_fraction": self.grey_fraction, "intervals": self.intervals}
+
+
+def reading_from(model: TextureModel, features: np.ndarray, sigma_a, shine: float) -> VariationReading:
+    """The reading for features already computed (``texture_features``)."""
+    pred = model.predict(features, covariates(sigma_a, shine))
+    light = lightness(sigma_a)
+    values, intervals = {}, {}
+    for target in TARGETS:
+        lo_lim, hi_lim = TARGET_LIMITS[target]
+        value = float(np.clip(pred[target][0], lo_lim, hi_lim))
+        s = float(model.residual_scale(target, light))
+        intervals[target] = {level: [float(np.clip(value - k * s, lo_lim, hi_lim)), float(np.clip(value + k * s, lo_lim, hi_lim))]
+                             for level, k in model.interval[target]["k"].items()}
+        values[target] = value
+    return VariationReading(values["fibre_spread"], values["grey_fraction"], intervals)
+
+
+def read_variation(pixels_linear: np.ndarray, sigma_a, shine: float, model: TextureModel | None = None) -> VariationReading:
+    """The fibre spread (std of ln sigma_a across pigmented fibres) and the grey share of a swatch.
+
+    ``pixels_linear``: the colour-corrected linear (H, W, 3) swatch area of the all-lights frame at the
+    capture's resolution; ``sigma_a``: the median fibre's refined RGB sigma_a; ``shine``: the
+    longitudinal roughness read from the three lights. The intervals are calibrated on held-out renders
+    (wider for light hair, where greys hardly show)."""
+    model = model or load_model()
+    return reading_from(model, texture_features(pixels_linear), sigma_a, shine)
