@@ -219,6 +219,31 @@ def swatch_score(img: np.ndarray) -> np.ndarray:
     return np.maximum(colour_distance / 12.0, energy / (1.8 * background_energy + 1.5))
 
 
+#: Strand coherence (0 to 1) above which the frame's border counts as hair: the border of an all-hair
+#: image (uniform, dyed or with grey fibres) reads 0.45–0.8, a holder 0.1–0.2 and the simulated
+#: rig's holder 0.12–0.18 (issue 18: grey fibres in an all-hair crop were taken for a swatch on a
+#: holder, and the "swatch" was a streak of greys).
+HAIR_BORDER_COHERENCE = 0.35
+
+
+def strand_coherence(img: np.ndarray) -> np.ndarray:
+    """Each pixel's strand coherence: how much its neighbourhood's gradients share one direction
+    (the structure tensor's coherence, 0 for none to 1 for parallel strands), at the finder's scale
+    and at least 3 px so that noise reads low (a window of a few hundred pixels)."""
+    sigma = max(3.0, min(img.shape[:2]) / 50.0)
+    gray = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0)
+    gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1)
+    jxx, jyy, jxy = (cv2.GaussianBlur(a, (0, 0), sigma) for a in (gx * gx, gy * gy, gx * gy))
+    return np.sqrt((jxx - jyy) ** 2 + 4 * jxy * jxy) / (jxx + jyy + 1e-3)
+
+
+def border_is_hair(img: np.ndarray) -> bool:
+    """True when the frame's border shows strands (median coherence over ``HAIR_BORDER_COHERENCE``):
+    the image is all hair, not a swatch on a holder, so no part of it is to be found."""
+    return float(np.median(_border(strand_coherence(img)))) > HAIR_BORDER_COHERENCE
+
+
 def chart_mask(img: np.ndarray, margin: float) -> np.ndarray | None:
     """A mask (uint8, 1 inside) over the ColorChecker in view, grown by ``margin`` pixels and by a
     tenth of its size to take in its board; None when no chart is found (detection as in calibration)."""
@@ -250,13 +275,16 @@ def _search_image(img: np.ndarray) -> tuple[np.ndarray, float]:
 
 def find_swatch_roi(img: np.ndarray) -> Roi:
     """The bounding box of the largest filled region unlike the frame's border, the colour chart
-    masked out; the whole image when no such region stands out (an image that is all hair).
+    masked out; the whole image when no such region stands out, or when the border itself is hair
+    (an image that is all hair: its grey fibres or lighter streaks are not a swatch on a holder).
 
     Large frames are searched scaled down to ``SEARCH_SIDE``; the ROI is in the frame's pixels.
     """
     h, w = img.shape[:2]
     small, scale = _search_image(img)
     sh, sw = small.shape[:2]
+    if border_is_hair(small):
+        return Roi(0, 0, w, h)
     mask = (swatch_score(small) > 1.0).astype(np.uint8)
     kernel = np.ones((max(3, min(sh, sw) // 40) | 1,) * 2, np.uint8)
     n, _, stats, _ = cv2.connectedComponentsWithStats(cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel))
