@@ -109,6 +109,8 @@ def run(out_dir: str | os.PathLike, quick: bool = False) -> list[dict]:
                     if hair == "black":
                         black.append(float(_lab(renders[(model, n, hair, light, seed)])[0]))
         geometry["black_L"] = float(np.mean(black))
+        for hair in ("platinum", "brown"):
+            geometry[f"holder_dL_{hair}"] = holder_lightness(renderer, spec0, film, HAIRS[hair])
         geometry.update(_timing(renderer, model, n))
         extra["configs"][f"{model}-{n}"] = geometry
     # the noise floor: one layout, two render seeds
@@ -143,6 +145,7 @@ def run(out_dir: str | os.PathLike, quick: bool = False) -> list[dict]:
                              f"de2000_vs_layered_{thickest}": round(float(delta_e2000(mean, thick)), 3),
                              "de2000_seeds": round(float(delta_e2000(*per_seed)), 3),
                              "uncovered": round(g["uncovered"], 6), "black_L": round(g["black_L"], 3),
+                             "holder_dL": round(g.get(f"holder_dL_{hair}", float("nan")), 3),
                              "render_s_64": round(g["render_s"], 3), "build_s": round(g["build_s"], 3)})
     write_csv_atomic(out / "structure.csv", rows)
     (out / "structure.json").write_text(json.dumps({"settings": {"frame": FRAME, "size": SIZE, "spp": SPP,
@@ -150,6 +153,26 @@ def run(out_dir: str | os.PathLike, quick: bool = False) -> list[dict]:
                                                     **extra, "rows": rows}, indent=1))
     plot_structure(rows, out / "structure.png")
     return rows
+
+
+def holder_lightness(renderer: Renderer, spec: SceneSpec, film, sigma_a) -> float:
+    """L* the holder adds to the region's mean: rendered with its albedo (0.18) less rendered black.
+
+    The holder is not a scene parameter of ``Renderer``; this reaches into the renderer's loaded
+    scene for it (a measurement only) and puts the albedo back."""
+    sigma = np.asarray(sigma_a, float)
+    with_holder = renderer.render(sigma, spec, film, SPP, seed=RENDER_SEED).linear.reshape(-1, 3).mean(0)
+    params = renderer._cache[renderer._structure_key(spec, film)].params
+    key = "holder.bsdf.reflectance.value"
+    albedo = params[key]
+    params[key] = type(albedo)(0.0, 0.0, 0.0)
+    params.update()
+    try:
+        without = renderer.render(sigma, spec, film, SPP, seed=RENDER_SEED).linear.reshape(-1, 3).mean(0)
+    finally:
+        params[key] = albedo
+        params.update()
+    return float(_lab(with_holder)[0] - _lab(without)[0])
 
 
 def _layer_count(strands: Strands) -> int:
@@ -198,6 +221,10 @@ def plot_structure(rows: list[dict], path: Path) -> Path:
             axes[2].plot(*zip(*pts), marker, ls="-", label=model)
     axes[2].set(xscale="log", xlabel="strands", ylabel="s per render (64², 64 spp, warm)")
     axes[2].legend()
+    counts = sorted({r["strands"] for r in rows})
+    for ax in axes:
+        ax.set_xticks(counts, [str(n) for n in counts], fontsize=7)
+        ax.minorticks_off()
     fig.suptitle("Swatch structure: rig colour of the layered (non-intersecting) swatch against today's")
     fig.tight_layout()
     return save_figure(fig, path)
