@@ -14,11 +14,12 @@ from hairdigi.render.strands import SWATCH_LENGTH, SWATCH_WIDTH, Strands, layere
 
 def closest_fibres(strands: Strands, per_segment: int = 16) -> float:
     """Least distance between points of two different fibres' centre lines, the curves sampled as
-    Mitsuba draws them (16 samples a segment: closer than a fibre's diameter along y)."""
+    Mitsuba draws them (16 samples a segment: closer than a fibre's diameter along y); a diameter
+    (2 radii) when no two are closer than that."""
     curves = strands.curves(per_segment)
     owner = np.repeat(np.arange(curves.n_strands), curves.counts)
     tree = cKDTree(curves.points.astype(float))
-    reach = 4 * float(strands.radii.max())
+    reach = 2 * float(strands.radii.max())   # pairs closer than a diameter: none means the fibres never meet
     pairs = tree.query_pairs(reach, output_type="ndarray")
     pairs = pairs[owner[pairs[:, 0]] != owner[pairs[:, 1]]]
     if len(pairs) == 0:
