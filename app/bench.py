@@ -173,6 +173,19 @@ def bench_structure(args: argparse.Namespace) -> int:
     return 0
 
 
+def bench_fibres(args: argparse.Namespace) -> int:
+    """Fibre groups of a varied swatch: render time and colour against the finest split."""
+    from hairdigi.render.bench_fibres import run
+
+    out = Path("packaging/bench/fibres") if args.out == BENCH_OUT else Path(args.out)
+    rows = run(out, quick=args.quick)
+    for r in rows:
+        print(f"{r['hair']:9s} {r['groups']:2d} groups: {r['seconds']:.2f} s, ΔE2000 {r['de2000_vs_finest']:.2f} "
+              f"against the finest")
+    print(f"wrote {out / 'fibres_bench.csv'} and {out / 'fibres_bench.png'}")
+    return 0
+
+
 #: Every benchmark of ``hairdigi bench``, by name.
 BENCHES: dict[str, Bench] = {
     "render": bench_render,
@@ -184,5 +197,6 @@ BENCHES: dict[str, Bench] = {
     "library": _elsewhere("hairdigi.app.library_cli", "bench_library"),    # issue 20: find in a library of --n swatches
     "memory": _elsewhere("hairdigi.app.bench_memory", "bench_memory"),     # issue 22: peak memory of the largest inputs
     "shine": bench_shine,                                                   # issue 18: shine from the three lights
+    "fibres": bench_fibres,                                                 # issue 18: how many fibre groups
     "structure": bench_structure,                                           # issue 18: the swatch's fibre structure
 }

@@ -149,8 +149,11 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     roi = Roi.parse(args.roi) if args.roi else None
     camera = CameraPose.parse(args.camera, RIG_SWATCH_POSE.distance) if args.camera else RIG_SWATCH_POSE
     # a pose given means an all-hair view from there; else a frame with the chart in view is the rig's
+    lights = args.lights.split(",") if args.lights else None
+    exposures = [2.0 ** args.lights_ev] * len(lights) if lights and args.lights_ev is not None else None
     estimate, record, _ = estimate_file(args.image, encoder, roi, args.calibration, camera,
-                                        refine_colour=not args.no_refine, rig_view=False if args.camera else None)
+                                        refine_colour=not args.no_refine, rig_view=False if args.camera else None,
+                                        light_paths=lights, light_exposures=exposures)
     write_record(args.out, record)
     p = estimate.params
     refined = estimate.refinement
@@ -158,6 +161,12 @@ def cmd_estimate(args: argparse.Namespace) -> int:
            else "encoder alone")
     print(f"dye rgb {tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
           f"{p.melanin_concentration:.2f} (ratio {p.melanin_ratio:.2f}); {how}; wrote {args.out}")
+    if record.appearance is not None and record.appearance.measured:
+        look, iv = record.appearance.value, record.appearance.intervals
+        parts = [f"{name.replace('_', ' ')} {getattr(look, name):.3f}"
+                 + (f" (68%: {iv[name]['p68'][0]:.3f}-{iv[name]['p68'][1]:.3f})" if "p68" in iv.get(name, {}) else "")
+                 for name in record.appearance.measured]
+        print("appearance: " + ", ".join(parts))
     for warning in estimate.warnings:
         print(f"warning: {warning.message}", file=sys.stderr)
     if args.render:
@@ -200,6 +209,39 @@ def evaluate_rig_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def evaluate_appearance_command(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --appearance``: shine and fibre variation judged away from the rig."""
+    from hairdigi.app.evaluate_appearance import AppearanceSet, evaluate_appearance
+
+    s = evaluate_appearance(args.out, AppearanceSet(random=args.rig_random))
+    for mode in ("read", "no light frames"):
+        m = s[mode]
+        print(f"{mode} ({m['swatches']} swatches), mean-colour ΔE2000 against the truth, median / p95 / worst:")
+        for key, label in (("fit", "fit, rig view"), ("each_light", "each light alone"),
+                           ("transfer", "transfer: another camera, key light, grey sky"),
+                           ("today_fit", "today's world, fit"), ("today_transfer", "today's world, transfer")):
+            st = m[key]
+            if st["n"]:
+                print(f"  {label}: {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}")
+        for key, label in (("shine_abs_error", "shine"), ("spread_abs_error", "fibre spread"),
+                           ("grey_abs_error", "grey share")):
+            st = m[key]
+            if st["n"]:
+                print(f"  {label} absolute error: {st['median']:.3f} / {st['p95']:.3f} / {st['worst']:.3f}")
+        print(f"  capture (4 frames) {m['capture_frames_s']['median']:.2f} s; capture and estimate "
+              f"{m['capture_s']['median']:.2f} s (medians)")
+    for line in s["errors"] + s["blocked"]:
+        print(f"not estimated: {line}")
+    if args.ship:
+        from hairdigi.inference.appearance import UNCERTAINTY
+        from hairdigi.render.base.files import write_json_atomic
+
+        write_json_atomic(UNCERTAINTY, s["table"])
+        print(f"shipped the appearance's intervals: {UNCERTAINTY}")
+    print(f"appearance_evaluation.csv, .json and .png in {args.out}")
+    return 0
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.training.evaluate import evaluate, prepare_heldout
@@ -210,6 +252,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         return cmd_evaluate_dye(args)
     if args.rig:
         return evaluate_rig_command(args)
+    if args.appearance:
+        return evaluate_appearance_command(args)
     data = Path(args.data) if args.data else _cache_dir() / "datasets" / (
         f"heldout-s1000003-{args.size}px-{args.spp}spp-linear16")
     if args.prepare_only:
@@ -402,6 +446,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--camera", help="POLAR,AZIMUTH[,DIST]: the camera as the swatch's centre sees it "
                    "(default: the rig's, 10.3,0)")
     p.add_argument("--no-refine", action="store_true", help="the encoder alone, without refinement by synthesis")
+    p.add_argument("--lights", metavar="L0,L1,L2", help="the same view lit by each rig light alone, in light order "
+                   "(8/16-bit sRGB PNG or linear EXR): the shine is read from them")
+    p.add_argument("--lights-ev", type=v.float_in(-10.0, 10.0), default=None, metavar="EV",
+                   help="the --lights frames' exposure over IMAGE's, in stops (default: the rig's capture record "
+                   "beside IMAGE, else the same exposure)")
     p.set_defaults(func=cmd_estimate)
 
     p = sub.add_parser("evaluate", help="the estimate on clean held-out swatches, judged against the truth")
@@ -418,8 +467,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "capture live and RAW, estimate) against the hidden truth; --rig-random N random hidden swatches "
                    "beside the hard cases; --ship writes the chain's colour interval into the model")
     p.add_argument("--rig-random", type=v.int_in(0, 200), default=5)
+    p.add_argument("--appearance", action="store_true", help="instead: hidden swatches with random shine, fibre "
+                   "spread and greys through the simulated rig, judged in the rig view, each light alone and a "
+                   "scene the estimate never saw (--rig-random N random swatches beside the named cases; --ship "
+                   "writes the appearance's intervals)")
     p.add_argument("--ship", action="store_true", help="with --rig: ship the measured colour interval "
-                   "(resources/models/chain_uncertainty.json)")
+                   "(resources/models/chain_uncertainty.json); with --appearance, the appearance's intervals")
     p.add_argument("--dye", action="store_true", help="instead: dyes characterised on two natural bases, predicted "
                    "on the third (--n: dyes, default 12)")
     p.add_argument("--workers", type=workers, default=2)

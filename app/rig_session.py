@@ -26,6 +26,9 @@ from hairdigi.render.base.records import (CalibrationProfile, CaptureRecord, Est
                                           RecordError, WarningKind, capture_profile, read_record, write_record)
 from hairdigi.render.base.rig_geometry import RIG_HALF_WIDTH, CameraPose, RigRegion
 
+#: How much longer a single-light frame is exposed, where the camera can (``RigSession.light_frames``).
+LIGHT_FRAME_EV = 1.5
+
 
 @dataclass
 class CaptureResult:
@@ -51,6 +54,8 @@ class LoadedCapture:
     capture: CaptureRecord | None = None
     linear: np.ndarray | None = None   # linear RGB where the source has it (a RAW still)
     problems: list[str] = field(default_factory=list)   # files of this capture that could not be read
+    light_frames: list = field(default_factory=list)     # each light's own frame (RGB), None where unreadable
+    light_exposures: tuple[float, ...] = ()              # each one's exposure over the frame's
 
     def corrected_swatch_linear(self) -> np.ndarray:
         """The swatch area, colour-corrected with the capture's own profile, in linear light."""
@@ -102,8 +107,11 @@ class RigSession:
     @classmethod
     def simulated_rig(cls, folder: str | Path, hidden: HairParams | None = None, camera_model=None,
                       dead: set[int] | None = None, spp: int = 32, encoder=None,
-                      pose: CameraPose = CameraPose(), half_width: float = RIG_HALF_WIDTH) -> "RigSession":
-        """The bench in software: a pty light board, the rendered rig, and a camera model."""
+                      pose: CameraPose = CameraPose(), half_width: float = RIG_HALF_WIDTH,
+                      appearance=None, strand_seed: int = 0) -> "RigSession":
+        """The bench in software: a pty light board, the rendered rig, and a camera model; the hidden
+        swatch is ``hidden`` with ``appearance`` (shine and fibre variation; default uniform)."""
+        from hairdigi.render.base.appearance import DEFAULT_APPEARANCE
         from hairdigi.hardware.sim_lights import SimulatedLightBoard
         from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SimRig
         from hairdigi.render.camera_model import CameraModel
@@ -111,7 +119,8 @@ class RigSession:
         board = SimulatedLightBoard()
         lights = LightController(board.port)
         rig = SimRig(hidden or DEFAULT_HIDDEN, camera_model or CameraModel(), spp=spp,
-                     dead_lights=set(dead or ()), board=board, pose=pose, half_width=half_width)
+                     dead_lights=set(dead or ()), board=board, pose=pose, half_width=half_width,
+                     appearance=appearance or DEFAULT_APPEARANCE, strand_seed=strand_seed)
         session = cls(rig, lights, folder, rig.roi, encoder, simulated=True)
         session._board = board
         for i in range(N_LIGHTS):
@@ -174,11 +183,16 @@ class RigSession:
         return s
 
     def prepare_refinement(self) -> float:
-        """Render (or load) the refinement's response curve for the rig's swatch area; returns its seconds."""
+        """Render (or load) the refinement's response curve and the shine's per-light tables for the
+        rig's swatch area; returns their seconds (0 when cached)."""
         from hairdigi.inference.refine import RefineSettings, response_curve
+        from hairdigi.inference.shine import shine_tables
 
-        srgb = self.frame().srgb
-        return response_curve(self.region(srgb), RefineSettings()).seconds
+        region = self.region(self.frame().srgb)
+        curve = response_curve(region, RefineSettings())
+        start = time.perf_counter()
+        shine_tables(region, RefineSettings())
+        return (0.0 if curve.cached else curve.seconds) + time.perf_counter() - start
 
     def region(self, image: np.ndarray) -> RigRegion:
         """The swatch area of a frame of this rig's camera, as the refinement fits and renders it."""
@@ -235,22 +249,58 @@ class RigSession:
         return ("stale" if reasons else "ok"), reasons
 
     # -- capture -----------------------------------------------------------------------------
-    def capture(self, estimate: bool = True,
-                on_encoder_estimate: Callable[[HairParams], None] | None = None) -> CaptureResult:
-        """Save the frame and its capture record first; then check, correct and estimate, or say why not.
+    def light_frames(self) -> tuple[list, list[float]]:
+        """One frame per light alone, at full power, in light order, and each one's exposure over the
+        bench's; the board's state is restored after. Where the camera can (``set_exposure_offset``),
+        a light's frame is exposed ``LIGHT_FRAME_EV`` longer, since one light gives about a third of
+        the light (the light along the fibres far less on glossy hair); a frame whose swatch clips
+        is taken again at the bench's exposure."""
+        before = self.lights.status()
+        adjustable = callable(getattr(self.camera, "set_exposure_offset", None))
+        frames, factors = [], []
+        try:
+            for i in range(N_LIGHTS):
+                self.lights.all_off()
+                self.lights.set_light(i, True, 255)
+                ev = LIGHT_FRAME_EV if adjustable and self.camera.set_exposure_offset(LIGHT_FRAME_EV) else 0.0
+                frame = self.frame()
+                if ev and check_exposure(frame.srgb, self._roi(frame.srgb))[0].status == "over":
+                    self.camera.set_exposure_offset(0.0)
+                    ev, frame = 0.0, self.frame()
+                frames.append(frame)
+                factors.append(2.0 ** ev)
+        finally:
+            if adjustable:
+                self.camera.set_exposure_offset(0.0)
+            self.lights.all_off()
+            for i, st in enumerate(before):
+                self.lights.set_light(i, st.on, st.intensity)
+        return frames, factors
 
-        ``on_encoder_estimate`` is told the encoder's parameters before refinement starts."""
+    def capture(self, estimate: bool = True,
+                on_encoder_estimate: Callable[[HairParams], None] | None = None,
+                per_light: bool | None = None) -> CaptureResult:
+        """Take one frame per light alone, then the frame with the lights as set; save them and the
+        capture record first; then check, correct and estimate, or say why not.
+
+        ``per_light`` (default: when the rig has a light board) takes the single-light frames, from
+        which the estimate reads the shine. ``on_encoder_estimate`` is told the encoder's parameters
+        before refinement starts."""
         start = time.perf_counter()
+        singles, factors = self.light_frames() if (self.lights is not None if per_light is None else per_light) \
+            else ([], [])
         frame = self.frame()
         roi = self._roi(frame.srgb)
         image_path, meta_path, capture = save_capture(
             self.folder / "captures", frame.srgb, lights=self.settings().get("lights"), frame_meta=frame.meta,
-            calibration=self.profile, simulated=self.simulated, swatch_roi=roi)
+            calibration=self.profile, simulated=self.simulated, swatch_roi=roi,
+            light_frames=[f.srgb for f in singles], light_exposures=tuple(factors))
         result = CaptureResult(capture.id, image_path, meta_path)
         result.blocked = self.blockers(frame.srgb)
         if estimate and not result.blocked:
             _estimate(result, frame.srgb, None, self.encoder_or_reason, self.profile, self.region(frame.srgb),
-                      profile_warnings(self.profile, self.settings()), on_encoder_estimate)
+                      profile_warnings(self.profile, self.settings()), on_encoder_estimate,
+                      [(f.srgb, k) for f, k in zip(singles, factors)])
         result.seconds = time.perf_counter() - start
         _write_result(self.folder, result, roi)
         return result
@@ -303,7 +353,15 @@ class RigSession:
                 problems.append(f"{result_path.name}: {exc}")
         roi = ((record.swatch_roi if record else None) or (capture.swatch_roi if capture else None)
                or self.swatch_roi or (0, 0, rgb.shape[1], rgb.shape[0]))
-        return LoadedCapture(capture_id, rgb, tuple(roi), record, profile, capture, linear, problems)
+        lights = []
+        for i, name in enumerate(capture.light_images if capture else ()):
+            bgr = cv2.imread(str(folder / name)) if (folder / name).is_file() else None
+            if bgr is None:
+                problems.append(f"{name}: light {i}'s own frame is missing or unreadable; the capture's shine "
+                                f"cannot be re-read (its all-lights frame and result are intact)")
+            lights.append(None if bgr is None else bgr[..., ::-1].copy())
+        return LoadedCapture(capture_id, rgb, tuple(roi), record, profile, capture, linear, problems, lights,
+                             capture.light_exposures if capture else ())
 
     def import_still(self, path: str | Path) -> CaptureResult:
         """A RAW still of the rig as a capture, in this session (see :func:`import_still`)."""
@@ -336,9 +394,14 @@ class RigSession:
 
 def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | None, encoder_or_reason,
               profile: CalibrationProfile, view: RigRegion, stale: list[str],
-              on_encoder_estimate: Callable[[HairParams], None] | None = None) -> None:
+              on_encoder_estimate: Callable[[HairParams], None] | None = None,
+              singles: list[tuple[np.ndarray, float]] = ()) -> None:
     """Colour-correct the frame (``linear`` where the source has it, else the 8-bit ``image``) with
-    ``profile``, keep it linear, estimate the swatch area ``view`` as the rig sees it, and fill ``result``."""
+    ``profile``, keep it linear, estimate the swatch area ``view`` as the rig sees it, and fill ``result``.
+
+    ``singles``: each light's own frame and its exposure over the frame's, corrected with the same
+    profile (the rig's LEDs are one make; a profile fitted on a chart lit from one side would fold
+    that light's geometry into the colour) and scaled back to the frame's exposure."""
     from hairdigi.inference.estimate import calibration_summary, estimate_image, record
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.inference.refine import fitted_pixels, mean_linear
@@ -351,8 +414,9 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
     corrected = apply_profile(source, profile)
     warnings = [EstimateWarning(WarningKind.CALIBRATION, w) for w in stale + correction_warnings(
         profile, mean_linear(fitted_pixels(to_linear(source), view)), mean_linear(fitted_pixels(corrected, view)))]
+    lights = [apply_profile(frame, profile) / np.float32(factor) for frame, factor in singles] or None
     estimate = estimate_image(corrected, encoder, view=view, extra_warnings=warnings,
-                              on_encoder_estimate=on_encoder_estimate)
+                              on_encoder_estimate=on_encoder_estimate, light_images=lights)
     result.params = estimate.params
     result.corrected = corrected
     result.record = record(estimate, encoder, result.image_path.read_bytes(), result.image_path,

@@ -36,27 +36,38 @@ def new_capture_id(now: float | None = None) -> str:
     return time.strftime("%Y%m%d-%H%M%S", time.localtime(seconds)) + f"-{milli:03d}"
 
 
+def _write_png(path: Path, srgb: np.ndarray) -> None:
+    ok, png = cv2.imencode(".png", cv2.cvtColor(srgb, cv2.COLOR_RGB2BGR))
+    if not ok:
+        raise OSError(f"could not encode {path.name} as PNG")
+    _atomic_bytes(path, png.tobytes())
+
+
 def save_capture(folder: str | os.PathLike, srgb: np.ndarray | None = None, raw_path: str | os.PathLike | None = None,
-                 capture_id: str | None = None, **fields) -> tuple[Path, Path, CaptureRecord]:
-    """Write ``<id>.png`` (lossless, as captured) or a copy of the RAW file, then its capture record
-    ``<id>.json`` (``fields`` are ``CaptureRecord``'s). Nothing is processed before both are on disk.
+                 capture_id: str | None = None, light_frames: tuple | list = (), **fields) -> tuple[Path, Path, CaptureRecord]:
+    """Write ``<id>.png`` (lossless, as captured) or a copy of the RAW file, each light's own frame
+    ``<id>-light<i>.png`` (``light_frames``, light order), then the capture record ``<id>.json``
+    (``fields`` are ``CaptureRecord``'s). Nothing is processed before all are on disk.
 
     Returns (image path, record path, record).
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     capture_id = capture_id or new_capture_id()
+    names = []
+    for i, frame in enumerate(light_frames):
+        names.append(f"{capture_id}-light{i}.png")
+        _write_png(folder / names[-1], frame)
+    if names:
+        fields["light_images"] = tuple(names)
     if raw_path is not None:
         raw_path = Path(raw_path)
         image_path = folder / f"{capture_id}{raw_path.suffix.lower()}"
         with atomic_path(image_path) as tmp:
             shutil.copyfile(raw_path, tmp)
     elif srgb is not None:
-        ok, png = cv2.imencode(".png", cv2.cvtColor(srgb, cv2.COLOR_RGB2BGR))
-        if not ok:
-            raise OSError("could not encode the frame as PNG")
         image_path = folder / f"{capture_id}.png"
-        _atomic_bytes(image_path, png.tobytes())
+        _write_png(image_path, srgb)
     else:
         raise ValueError("a capture needs a frame or a RAW file")
     digest = hashlib.sha256(image_path.read_bytes()).hexdigest()

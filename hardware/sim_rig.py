@@ -22,6 +22,7 @@ from hairdigi.render.base import rig_geometry
 from hairdigi.render.camera_model import CameraModel, sensor_response, spread_glints
 from hairdigi.render.base.files import atomic_path, cache_dir
 from hairdigi.render.chart import colorchecker_reflectances
+from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec
 
@@ -35,14 +36,18 @@ NOMINAL_EXPOSURE = 2.0 ** -0.25
 CACHE_VERSION = 4  # bumped when the absorption mapping or the light images change (4: glints spread, not removed)
 
 
-def render_light_images(hidden: HairParams, size=SIM_SIZE, spp: int = 32, strand_seed: int = 0,
+def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int = 32, strand_seed: int = 0,
                         cache: bool = True, pose: rig_geometry.CameraPose = rig_geometry.CameraPose(),
-                        half_width: float = rig_geometry.RIG_HALF_WIDTH) -> np.ndarray:
+                        half_width: float = rig_geometry.RIG_HALF_WIDTH,
+                        appearance: Appearance = DEFAULT_APPEARANCE) -> np.ndarray:
     """(3, H, W, 3) linear images of the rig lit by each light alone, seen by a camera at ``pose``
-    around the rig's target (default: the bench camera), cached by their settings."""
+    around the rig's target (default: the bench camera), cached by their settings. ``hidden`` is
+    Table 1 parameters or a median fibre's sigma_a; ``appearance`` its shine and fibre variation."""
     view = [] if pose == rig_geometry.CameraPose() and half_width == rig_geometry.RIG_HALF_WIDTH else \
         [pose.polar_deg, pose.azimuth_deg, pose.distance, half_width]
-    key = hashlib.sha256(json.dumps([CACHE_VERSION, hidden.to_dict(), list(size), spp, strand_seed, *view],
+    look = [] if appearance == DEFAULT_APPEARANCE else [appearance.to_dict()]
+    hair = hidden.to_dict() if isinstance(hidden, HairParams) else [round(float(v), 6) for v in np.ravel(hidden)]
+    key = hashlib.sha256(json.dumps([CACHE_VERSION, hair, list(size), spp, strand_seed, *view, *look],
                                     sort_keys=True).encode()).hexdigest()[:16]
     path = cache_dir() / "sim-rig" / f"lights-{key}.npy"
     if cache and path.exists():
@@ -53,7 +58,8 @@ def render_light_images(hidden: HairParams, size=SIM_SIZE, spp: int = 32, strand
     for i in range(rig_geometry.N_LIGHTS):
         lights = tuple(1.0 if j == i else 0.0 for j in range(rig_geometry.N_LIGHTS))
         spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET, camera=pose,
-                         half_width=half_width, lights=lights, strand_seed=strand_seed)
+                         half_width=half_width, lights=lights, strand_seed=strand_seed,
+                         appearance=None if appearance == DEFAULT_APPEARANCE else appearance)
         images.append(renderer.render(hidden, spec, size, spp, seed=17 + i).linear)
     stack = np.stack([spread_glints(im) for im in images]).astype(np.float32)
     if cache:
@@ -75,10 +81,13 @@ class SimRig:
     board: object | None = None   # a SimulatedLightBoard; None means all lights on at full power
     pose: rig_geometry.CameraPose = rig_geometry.CameraPose()     # the camera around the rig's target
     half_width: float = rig_geometry.RIG_HALF_WIDTH                # what its view shows at the target
+    appearance: Appearance = DEFAULT_APPEARANCE                    # the hidden swatch's shine and fibres
+    strand_seed: int = 0                                           # its strand layout
 
     def __post_init__(self) -> None:
-        self.light_images = render_light_images(self.hidden, self.size, self.spp, pose=self.pose,
-                                                half_width=self.half_width)
+        self.light_images = render_light_images(self.hidden, self.size, self.spp, self.strand_seed, pose=self.pose,
+                                                half_width=self.half_width, appearance=self.appearance)
+        self.exposure_offset_ev = 0.0
         self._rng = np.random.default_rng(self.seed)
         self.name = "sim-rig"
         self.frames_served = 0
@@ -92,7 +101,13 @@ class SimRig:
     def radiance(self) -> np.ndarray:
         """Linear radiance reaching the sensor for the current light state, at the bench's nominal
         exposure (``NOMINAL_EXPOSURE``)."""
-        return np.tensordot(self.levels() * NOMINAL_EXPOSURE, self.light_images, axes=1)
+        scale = NOMINAL_EXPOSURE * 2.0 ** self.exposure_offset_ev
+        return np.tensordot(self.levels() * scale, self.light_images, axes=1)
+
+    def set_exposure_offset(self, ev: float) -> bool:
+        """Expose the next frames ``ev`` stops longer than the bench's setting (single-light frames)."""
+        self.exposure_offset_ev = float(ev)
+        return True
 
     def read(self) -> Frame:
         linear = self.radiance()
@@ -100,6 +115,7 @@ class SimRig:
         self.frames_served += 1
         return Frame(srgb, None, {"camera": self.name, "frame": self.frames_served,
                                   "lights": self.levels().tolist(), "camera_model": self.camera.settings(),
+                                  "exposure_offset_ev": self.exposure_offset_ev,
                                   "camera_settings": self.settings()},
                      time.time())
 

@@ -17,12 +17,14 @@ from typing import Callable
 
 import numpy as np
 
+from hairdigi.inference.appearance import check_light_frames, read_appearance
 from hairdigi.inference.domain import domain_stats, domain_warnings
 from hairdigi.inference.encoder import Encoder, Estimate
-from hairdigi.inference.preprocess import Roi, read_image, swatch_crop
+from hairdigi.inference.preprocess import Roi, read_image, swatch_crop, to_linear
 from hairdigi.inference.refine import Refinement, RefineSettings, View, fitted_pixels, mean_linear, refine
 from hairdigi.inference.uncertainty import intervals, load_table
 from hairdigi.render.base.version import version
+from hairdigi.render.base.appearance import AppearanceEstimate
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.base.records import (CalibrationProfile, EstimateRecord, EstimateWarning, RefinementRecord,
                                           UNRELIABLE, WarningKind)
@@ -47,6 +49,7 @@ class EstimateResult:
     domain: dict = field(default_factory=dict)
     uncertainty: dict = field(default_factory=dict)
     seconds: float = 0.0
+    appearance: AppearanceEstimate | None = None   # shine and fibre variation (None: refinement did not run)
 
     @property
     def reliable(self) -> bool:
@@ -73,14 +76,16 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
                    view: View = RIG_SWATCH_POSE, refine_colour: bool = True,
                    settings: RefineSettings = RefineSettings(), extra_warnings: list[EstimateWarning] = (),
                    on_encoder_estimate: Callable[[HairParams], None] | None = None,
-                   renderer=None) -> EstimateResult:
+                   renderer=None, light_images: list[np.ndarray] | None = None) -> EstimateResult:
     """Estimate a colour-corrected image: linear float RGB (a corrected capture) or 8-bit sRGB; a rig
     frame or a crop that is all hair.
 
     ``view`` says what the fitted pixels show: a ``RigRegion`` of a rig-view frame (the capture's
     swatch area, which the refinement fits and renders exactly), or the camera pose of an all-hair
     crop (the rig's swatch pose by default). ``on_encoder_estimate`` is told the encoder's parameters
-    before refinement starts (the app shows them at once).
+    before refinement starts (the app shows them at once). ``light_images``: the same view lit by
+    each light alone (light order), corrected as ``image`` and at its exposure: the shine is read
+    from them; without them the record says "shine not measured".
     """
     start = time.perf_counter()
     if isinstance(view, RigRegion):
@@ -92,11 +97,20 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     stats = domain_stats(crop)
     spread = max(est.view_spread.values()) if est.view_spread else None
     warnings = _warn(WarningKind.OUT_OF_DOMAIN, domain_warnings(stats, spread))
-    refinement = None
+    refinement, appearance = None, None
     params = est.params
+    if light_images is not None:
+        check_light_frames(light_images, image)
     if refine_colour:
         fitted = fitted_pixels(image, view) if isinstance(view, RigRegion) else crop
-        refinement = refine(est.params, mean_linear(fitted), view, settings, renderer)
+        singles = None if light_images is None else np.array(
+            [mean_linear(fitted_pixels(im, view) if isinstance(view, RigRegion) else swatch_crop(im, roi)[0])
+             for im in light_images])
+        reading = read_appearance(singles, view, settings, renderer,
+                                  texture_pixels=to_linear(fitted) if isinstance(view, RigRegion) else None)
+        warnings += reading.warnings
+        appearance = reading.estimate
+        refinement = refine(est.params, mean_linear(fitted), view, settings, renderer, reading.value, reading.curve)
         params = refinement.params
         if not refinement.reachable:
             warnings += _warn(WarningKind.UNREACHABLE, [
@@ -116,7 +130,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     if refinement is not None:
         warnings += interval_warnings(refinement.residual_de2000, uncertainty)
     return EstimateResult(params, est, refinement, warnings, stats.to_dict(), uncertainty,
-                          time.perf_counter() - start)
+                          time.perf_counter() - start, appearance)
 
 
 def record(result: EstimateResult, encoder: Encoder, image_bytes: bytes | None = None,
@@ -146,7 +160,7 @@ def record(result: EstimateResult, encoder: Encoder, image_bytes: bytes | None =
         hair=result.params, warnings=tuple(result.warnings), uncertainty=result.uncertainty,
         encoder={"hair": est.params.to_dict(), "at_range_edge": est.at_range_edge, "view_spread": est.view_spread},
         refinement=result.refinement.to_record() if result.refinement else RefinementRecord(),
-        provenance=provenance)
+        provenance=provenance, appearance=result.appearance)
 
 
 def calibration_summary(profile: CalibrationProfile, path: str | os.PathLike | None = None) -> dict:
@@ -160,17 +174,27 @@ def calibration_summary(profile: CalibrationProfile, path: str | os.PathLike | N
 def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | None = None,
                   calibration_path: str | os.PathLike | None = None, camera: CameraPose = RIG_SWATCH_POSE,
                   refine_colour: bool = True, settings: RefineSettings = RefineSettings(),
-                  rig_view: bool | None = None) -> tuple[EstimateResult, EstimateRecord, np.ndarray]:
+                  rig_view: bool | None = None, light_paths: list | None = None,
+                  light_exposures: list[float] | None = None) -> tuple[EstimateResult, EstimateRecord, np.ndarray]:
     """Read, colour-correct (when a calibration profile is given) and estimate; returns the result,
     its record and the corrected image (linear float when corrected, else as read).
 
     ``rig_view``: the image is a whole frame of the bench camera (the swatch's region is then fitted
     and rendered as the rig sees it); None decides by whether a ColorChecker is in view.
+    ``light_paths``: the same view lit by each light alone (light order), 8/16-bit sRGB or linear
+    EXR, corrected as the image; ``light_exposures`` each one's exposure over the image's (default:
+    the rig's capture record beside the image, if it names these frames, else 1).
     """
     from hairdigi.inference.preprocess import find_swatch_roi
 
     image_path = Path(image_path)
     image = read_image(image_path)
+    lights = None
+    if light_paths is not None:
+        lights = [read_image(path) for path in light_paths]
+        check_light_frames(lights, image)
+        factors = light_exposures or _recorded_exposures(image_path, light_paths) or [1.0] * len(lights)
+        lights = [to_linear(im) / np.float32(k) for im, k in zip(lights, factors)]
     if rig_view is None:
         from hairdigi.inference.calibration import CalibrationError, detect_chart
 
@@ -192,6 +216,7 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
         profile = load_profile(calibration_path)
         raw = image
         image = apply_profile(image, profile)
+        lights = None if lights is None else [apply_profile(im, profile) for im in lights]
         calibration = calibration_summary(profile, calibration_path)
         # against the capture's own settings and time when the rig's record sits beside the image
         extra = _warn(WarningKind.CALIBRATION, calibration_warnings(calibration_path, image_path))
@@ -199,5 +224,20 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
             extra += _warn(WarningKind.CALIBRATION, correction_warnings(
                 profile, mean_linear(fitted_pixels(to_linear(raw), view)), mean_linear(fitted_pixels(image, view))))
     result = estimate_image(image, encoder, roi=roi, view=view, refine_colour=refine_colour, settings=settings,
-                            extra_warnings=extra)
+                            extra_warnings=extra, light_images=lights)
     return result, record(result, encoder, image_path.read_bytes(), image_path, calibration, view), image
+
+
+def _recorded_exposures(image_path: Path, light_paths: list) -> list[float] | None:
+    """The single-light frames' exposures from the rig's capture record beside the image, when it
+    names exactly these frames (a capture re-estimated from its folder)."""
+    from hairdigi.render.base.records import CaptureRecord, RecordError, read_record
+
+    meta = image_path.with_suffix(".json")
+    try:
+        capture = read_record(meta, CaptureRecord) if meta.is_file() else None
+    except RecordError:
+        return None
+    if capture is None or [Path(p).name for p in light_paths] != list(capture.light_images):
+        return None
+    return list(capture.light_exposures) or None

@@ -36,6 +36,7 @@ import numpy as np
 
 from hairdigi.render.absorption import albedo_from_sigma_a, hair_sigma_a
 from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, GREY_SIGMA_A, Appearance
 from hairdigi.render.base.files import cache_dir
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.base.records import RefinementRecord
@@ -111,15 +112,34 @@ class ResponseCurve:
         return {"sigma": self.sigma.tolist(), "mean": self.mean.tolist(), "seconds": self.seconds}
 
 
-def scene_for(view: View, settings: RefineSettings):
-    """The scene and render size that show what the capture's fitted pixels show."""
+def scene_for(view: View, settings: RefineSettings, appearance: Appearance | None = None):
+    """The scene and render size that show what the capture's fitted pixels show (with the hair's
+    ``appearance``; None: the default uniform hair)."""
     from hairdigi.render.renderer import SceneSpec
 
+    look = None if appearance is None or appearance == DEFAULT_APPEARANCE else appearance
     if isinstance(view, RigRegion):
         film, crop, _ = view.render_plan(settings.size * settings.size)
         return SceneSpec("swatch", camera=view.pose, framing="rig", target=view.target,
-                         half_width=view.half_width, crop=crop, strand_seed=settings.strand_seed), film
-    return SceneSpec("swatch", camera=view, framing=settings.framing, strand_seed=settings.strand_seed), settings.size
+                         half_width=view.half_width, crop=crop, strand_seed=settings.strand_seed,
+                         appearance=look), film
+    return SceneSpec("swatch", camera=view, framing=settings.framing, strand_seed=settings.strand_seed,
+                     appearance=look), settings.size
+
+
+def varied_curve(curve: ResponseCurve, appearance: Appearance) -> ResponseCurve:
+    """A uniform swatch's response curve turned into a varied one's, as the fibres' mixture: each
+    pigment group at sigma * exp(spread * z_k) and the greys at their own sigma, weighted by their
+    shares. Light passing between unlike fibres makes the truth differ a little; the refinement's
+    check renders (of the real varied swatch) correct that, with this curve's slope."""
+    from hairdigi.render.fibres import FIBRE_GROUPS, group_z
+
+    if not appearance.varied:
+        return curve
+    g = appearance.grey_fraction
+    pigmented = np.mean([curve(curve.sigma * np.exp(appearance.fibre_spread * z)) for z in group_z(FIBRE_GROUPS)], 0)
+    mean = (1 - g) * pigmented + g * curve(np.array([GREY_SIGMA_A]))[0]
+    return ResponseCurve(curve.sigma.copy(), mean, curve.seconds, curve.cached)
 
 
 def fitted_pixels(image: np.ndarray, view: View) -> np.ndarray:
@@ -259,20 +279,27 @@ def mean_linear(image: np.ndarray, band_pixels: int = 1 << 18) -> np.ndarray:
 
 
 def refine(prior: HairParams, target: np.ndarray, view: View = CameraPose(),
-           settings: RefineSettings = RefineSettings(), renderer=None) -> Refinement:
+           settings: RefineSettings = RefineSettings(), renderer=None,
+           appearance: Appearance = DEFAULT_APPEARANCE, curve: ResponseCurve | None = None) -> Refinement:
     """Refine ``prior`` so that the swatch seen from ``view`` renders with mean linear colour ``target``
-    (the mean of ``fitted_pixels``)."""
+    (the mean of ``fitted_pixels``). The swatch has ``appearance``; ``curve`` is the uniform swatch's
+    response at its shine (from the shine tables), else the default shine's is rendered or loaded.
+    The result's ``sigma_a`` is the median pigmented fibre's."""
     from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()
     start = time.perf_counter()
     target = np.asarray(target, float)
-    curve = response_curve(view, settings, renderer)
+    if curve is None:
+        if appearance.longitudinal_roughness != DEFAULT_APPEARANCE.longitudinal_roughness:
+            raise ValueError("refining at another shine needs that shine's curve (inference.shine's tables)")
+        curve = response_curve(view, settings, renderer)
+    curve = varied_curve(curve, appearance)
     goal = target.copy()
     sigma, _ = curve.inverse(goal)
     rendered = curve(sigma)          # with no iterations, the curve's own prediction
     history: list[float] = []
-    spec, size = scene_for(view, settings)
+    spec, size = scene_for(view, settings, appearance)
     nonfinite = 0
     for k in range(settings.iterations):
         result = renderer.render(sigma, spec, size, settings.spp, settings.seed)

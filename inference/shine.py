@@ -43,10 +43,20 @@ class ShineTables:
     def curve(self, light: int, b: int) -> ResponseCurve:
         return ResponseCurve(self.sigma, self.means[light, b])
 
-    def predict(self, sigma: np.ndarray, beta: float) -> np.ndarray:
-        """(L, 3) single-light means of ``sigma`` (3,) at ``beta`` (linear in beta between grid points)."""
+    def _weights(self, beta: float) -> tuple[int, float]:
         j = int(np.clip(np.searchsorted(self.betas, beta) - 1, 0, len(self.betas) - 2))
         t = float(np.clip((beta - self.betas[j]) / (self.betas[j + 1] - self.betas[j]), 0.0, 1.0))
+        return j, t
+
+    def all_lights_curve(self, beta: float) -> ResponseCurve:
+        """The all-lights response curve at ``beta``: the lights' tables summed (log-linear in beta)."""
+        j, t = self._weights(beta)
+        total = np.exp((1 - t) * np.log(self.means[:, j].sum(0)) + t * np.log(self.means[:, j + 1].sum(0)))
+        return ResponseCurve(self.sigma.copy(), total, self.seconds, True)
+
+    def predict(self, sigma: np.ndarray, beta: float) -> np.ndarray:
+        """(L, 3) single-light means of ``sigma`` (3,) at ``beta`` (linear in beta between grid points)."""
+        j, t = self._weights(beta)
         out = np.empty((self.means.shape[0], 3))
         for light in range(self.means.shape[0]):
             a, b = self.curve(light, j)(sigma), self.curve(light, j + 1)(sigma)
@@ -95,18 +105,22 @@ class ShineEstimate:
     profile: tuple[tuple[float, float], ...]   # (beta, misfit) along the search, to judge its sharpness
 
 
-def estimate_shine(single: np.ndarray, tables: ShineTables, steps: int = 51) -> ShineEstimate:
+#: Below this mean linear value (the renders' units) a single-light frame is at the camera's noise
+#: floor: read noise clipped at black lifts a near-black mean by about this much, so misfits compare
+#: log(value + floor). Light 0 on glossy hair (0.7% of the light at beta 0.15) sits there.
+SHINE_FLOOR = 1e-3
+
+
+def estimate_shine(single: np.ndarray, tables: ShineTables, steps: int = 51,
+                   floor: float = SHINE_FLOOR) -> ShineEstimate:
     """beta_m and sigma_a from the (L, 3) mean linear colours of the swatch area, one light at a time."""
     single = np.clip(np.asarray(single, float), 1e-9, None)
     total = single.sum(0)
     best = None
     profile = []
     for beta in np.linspace(tables.betas[0], tables.betas[-1], steps):
-        j = int(np.clip(np.searchsorted(tables.betas, beta) - 1, 0, len(tables.betas) - 2))
-        t = float(np.clip((beta - tables.betas[j]) / (tables.betas[j + 1] - tables.betas[j]), 0.0, 1.0))
-        summed = np.exp((1 - t) * np.log(tables.means[:, j].sum(0)) + t * np.log(tables.means[:, j + 1].sum(0)))
-        sigma, _ = ResponseCurve(tables.sigma, summed).inverse(total)
-        misfit = float(np.sqrt(np.mean((np.log(tables.predict(sigma, beta)) - np.log(single)) ** 2)))
+        sigma, _ = tables.all_lights_curve(beta).inverse(total)
+        misfit = float(np.sqrt(np.mean((np.log(tables.predict(sigma, beta) + floor) - np.log(single + floor)) ** 2)))
         profile.append((round(float(beta), 4), round(misfit, 5)))
         if best is None or misfit < best[0]:
             best = (misfit, float(beta), sigma)

@@ -90,6 +90,9 @@ class SceneSpec:
                              f"or the path of a .hair file")
         if self.name != "swatch" and self.env not in scenes.ENVIRONMENTS:
             raise ValueError(f"unknown environment {self.env!r}; choose one of {', '.join(scenes.ENVIRONMENTS)}")
+        if self.name == "swatch" and self.env not in ("studio", scenes.KEY_SKY):
+            raise ValueError(f"unknown swatch environment {self.env!r}; choose 'studio' (the rig) or "
+                             f"{scenes.KEY_SKY!r} (a key light and a grey sky)")
         if self.name == "swatch" and self.framing not in rig_geometry.FRAMING_HALF_WIDTH:
             raise ValueError(f"unknown framing {self.framing!r}; choose one of "
                              f"{', '.join(rig_geometry.FRAMING_HALF_WIDTH)}")
@@ -221,7 +224,7 @@ class Renderer:
             moved = chart is not None and spec.chart_center is not None
             scene_dict = scenes.swatch_scene(str(curve_file), bsdf, spec.pose, size, spec.framing, spec.depth,
                                              spec.lights, None if moved else chart, spec.target, spec.half_width,
-                                             spec.crop)
+                                             spec.crop, spec.env)
             if moved:
                 scene_dict.update(scenes.chart_patches(chart, center=tuple(spec.chart_center)))
         else:

@@ -100,8 +100,9 @@ PORTRAIT_FOV = 36.0
 def swatch_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: int, framing: str = "crop",
                  max_depth: int = 16, lights=(1.0,) * N_LIGHTS, chart: np.ndarray | None = None,
                  target=(0.0, 0.0, 0.0), half_width: float | None = None,
-                 crop: tuple[int, int, int, int] | None = None) -> dict:
-    """The bench: holder, swatch, its lights and a camera on a sphere around the holder's normal."""
+                 crop: tuple[int, int, int, int] | None = None, env: str = "studio") -> dict:
+    """The bench: holder, swatch, its lights and a camera on a sphere around the holder's normal;
+    ``env`` ``KEY_SKY`` adds a key light and a grey sky (set the rig's lights to 0 to see it alone)."""
     fov = framing_fov(framing, camera_pose.distance, half_width)
     scene = {
         "type": "scene",
@@ -117,7 +118,22 @@ def swatch_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: int
     }
     if chart is not None:
         scene.update(chart_patches(chart))
+    if env == KEY_SKY:
+        scene.update(key_and_sky())
     return scene
+
+
+#: The swatch away from the rig (issue 18's transfer): one key light and a grey sky; the rig's lights
+#: are set to 0 by the scene spec.
+KEY_SKY = "key-sky"
+KEY_POSITION = (-1.6, -2.2, 2.6)      # low on the root side, across the fibres: unlike any rig light
+KEY_RADIANCE = 24.0
+SKY_RADIANCE = 0.25
+
+
+def key_and_sky() -> dict:
+    return {"key": area_light(np.array(KEY_POSITION), (0, 0, 0), 0.6, KEY_RADIANCE),
+            "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [SKY_RADIANCE] * 3}}}
 
 
 def furnace_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: int, max_depth: int = 256) -> dict:

@@ -1,0 +1,145 @@
+"""Reading a swatch's appearance at estimate time (issue 18): its shine from the single-light frames,
+its fibre spread and grey share from the texture, and their intervals.
+
+- **Shine.** The three single-light frames' swatch-area means (3 lights x 3 channels) against the
+  per-light tables of the view (``inference.shine``): the shine, and the uniform swatch's response
+  curve at that shine, which the refinement then inverts.
+- **Spread and greys.** The all-lights frame's texture at the fibre scale, through the fitted model of
+  ``inference.texture`` when it is installed (``resources/models/texture_model.json``).
+- **Intervals** come from ``resources/models/appearance_uncertainty.json`` (measured by ``hairdigi
+  evaluate --appearance``); before it exists, the shine bench's figures.
+
+A capture without single-light frames (an old session, a RAW still, an image on the command line
+without ``--lights``) keeps the default shine, and its record says "shine not measured".
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hairdigi.render.base.appearance import (DEFAULT_APPEARANCE, SHINE_RANGE, SPREAD_RANGE, GREY_RANGE, Appearance,
+                                             AppearanceEstimate)
+from hairdigi.inference.shine import SHINE_FLOOR
+from hairdigi.render.base.files import read_json
+from hairdigi.render.base.records import EstimateWarning, WarningKind
+from hairdigi.render.base.rig_geometry import N_LIGHTS
+from hairdigi.resources import MODELS
+
+UNCERTAINTY = MODELS / "appearance_uncertainty.json"
+#: Half-widths used until ``hairdigi evaluate --appearance`` has measured them (``hairdigi bench shine``:
+#: the shine was read within 0.010 median, 0.020 worst, on 12 held-out clean swatches).
+FALLBACK = {"longitudinal_roughness": {"p68": 0.02, "p95": 0.05}}
+_RANGES = {"longitudinal_roughness": SHINE_RANGE, "fibre_spread": SPREAD_RANGE, "grey_fraction": GREY_RANGE}
+
+
+class LightFramesError(ValueError):
+    """The single-light frames do not fit the capture (count, size); the message says how to fix it."""
+
+
+@dataclass
+class AppearanceReading:
+    """What was read: the estimate for the record, the curve to refine with, and warnings."""
+
+    estimate: AppearanceEstimate
+    curve: object | None = None                   # ResponseCurve at the read shine (None: the default's)
+    warnings: list[EstimateWarning] = field(default_factory=list)
+    seconds: float = 0.0
+
+    @property
+    def value(self) -> Appearance:
+        return self.estimate.value
+
+
+def half_widths() -> dict:
+    """The measured interval half-widths per field, or the fallback before they were measured."""
+    try:
+        return read_json(UNCERTAINTY, ValueError, "missing", "unreadable ({exc})").get("half_widths", FALLBACK)
+    except ValueError:
+        return FALLBACK
+
+
+def intervals_for(value: Appearance, fields: tuple[str, ...], widths: dict | None = None) -> dict:
+    """``{field: {"p68": [lo, hi], "p95": [lo, hi]}}`` for the measured ``fields``, clipped to their ranges."""
+    widths = half_widths() if widths is None else widths
+    out = {}
+    for name in fields:
+        if name not in widths:
+            continue
+        v, (lo, hi) = getattr(value, name), _RANGES[name]
+        out[name] = {p: [round(max(lo, v - w), 4), round(min(hi, v + w), 4)] for p, w in widths[name].items()}
+    return out
+
+
+def check_light_frames(frames: list[np.ndarray], image: np.ndarray) -> None:
+    """One frame per light, each the size of the all-lights image; else one line naming the fix."""
+    if len(frames) != N_LIGHTS:
+        raise LightFramesError(f"the capture has {len(frames)} single-light frame(s), not {N_LIGHTS}: give one "
+                               f"frame per light, in light order (light 0, 1, 2)")
+    for i, frame in enumerate(frames):
+        if frame.shape[:2] != image.shape[:2]:
+            raise LightFramesError(f"light {i}'s frame is {frame.shape[1]}x{frame.shape[0]} but the image is "
+                                   f"{image.shape[1]}x{image.shape[0]}: the frames must be of one view")
+
+
+def read_appearance(light_means: np.ndarray | None, view, settings, renderer=None,
+                    texture_pixels: np.ndarray | None = None, sigma_guess: np.ndarray | None = None
+                    ) -> AppearanceReading:
+    """The appearance from the single-light means ``light_means`` (L, 3) at ``view`` (None: not
+    captured) and the all-lights swatch area ``texture_pixels`` (linear) for spread and greys."""
+    import time
+
+    start = time.perf_counter()
+    value, measured, method, warnings, curve = DEFAULT_APPEARANCE, [], {}, [], None
+    if light_means is None:
+        warnings.append(EstimateWarning(WarningKind.APPEARANCE, (
+            "shine not measured: this capture has no single-light frames (an earlier session, a RAW still, or an "
+            "image without --lights), so the default shine 0.3 was assumed; capture again on the rig, or pass "
+            "--lights, to measure it")))
+    elif np.any(np.asarray(light_means, float).sum(1) < 3 * SHINE_FLOOR):
+        dark = [i for i, m in enumerate(np.asarray(light_means, float)) if m.sum() < 3 * SHINE_FLOOR]
+        warnings.append(EstimateWarning(WarningKind.APPEARANCE, (
+            f"shine not measured: light {', '.join(map(str, dark))} gave the swatch no light in its own frame; "
+            f"check that every light works (Lights > Check), then capture again. The default shine 0.3 was assumed")))
+    else:
+        from hairdigi.inference.shine import estimate_shine, shine_tables  # noqa: E402 (renders on first use)
+
+        tables = shine_tables(view, settings, renderer=renderer)
+        shine = estimate_shine(np.asarray(light_means, float), tables)
+        value = Appearance(longitudinal_roughness=round(shine.longitudinal_roughness, 4))
+        curve = tables.all_lights_curve(shine.longitudinal_roughness)
+        measured.append("longitudinal_roughness")
+        method["longitudinal_roughness"] = (f"read from the {N_LIGHTS} single-light frames against the view's "
+                                            f"per-light tables (misfit {shine.residual:.3f} rms log)")
+        if shine.longitudinal_roughness in (float(tables.betas[0]), float(tables.betas[-1])):
+            warnings.append(EstimateWarning(WarningKind.APPEARANCE, (
+                f"appearance: the shine read is at the edge of what the tables hold ({tables.betas[0]:g}-"
+                f"{tables.betas[-1]:g}); the hair may be glossier or rougher than that")))
+    intervals = intervals_for(value, tuple(measured))
+    if texture_pixels is not None:
+        if sigma_guess is None:   # the uniform swatch's sigma_a of this colour: what the texture is read against
+            from hairdigi.inference.refine import mean_linear, response_curve
+
+            uniform = curve if curve is not None else response_curve(view, settings, renderer)
+            sigma_guess = uniform.inverse(mean_linear(texture_pixels))[0]
+        variation = _read_variation(texture_pixels, sigma_guess, value.longitudinal_roughness)
+        if variation is not None:
+            value = Appearance(value.longitudinal_roughness, variation.fibre_spread, variation.grey_fraction)
+            measured += ["fibre_spread", "grey_fraction"]
+            method["fibre_spread"] = method["grey_fraction"] = "read from the texture (inference.texture's model)"
+            intervals.update({k: v for k, v in variation.intervals.items() if k in ("fibre_spread", "grey_fraction")})
+    estimate = AppearanceEstimate(value, intervals, tuple(measured), method)
+    return AppearanceReading(estimate, curve, warnings, time.perf_counter() - start)
+
+
+def _read_variation(pixels: np.ndarray, sigma: np.ndarray | None, shine: float):
+    """The texture model's reading, or None when the model is not installed."""
+    try:
+        from hairdigi.inference import texture
+    except ImportError:
+        return None
+    try:
+        reading = texture.read_variation(pixels, sigma, shine)
+    except FileNotFoundError:
+        return None
+    return reading

@@ -1,0 +1,126 @@
+"""Issue 18: the appearance record, fibre groups, one frame per light, the shine in the estimate, and
+``estimate --lights``."""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from hairdigi.render.base.appearance import Appearance, AppearanceError, AppearanceEstimate
+from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.records import EstimateRecord, RecordError, WarningKind
+from hairdigi.render.fibres import FIBRE_GROUPS, group_sigma_a, group_z, split_strands
+from hairdigi.render.renderer import Renderer, SceneSpec
+from hairdigi.render.strands import swatch_strands
+
+SIGMA = np.array([0.35, 0.6, 1.2])
+
+
+# --- the record -------------------------------------------------------------------------------
+def test_appearance_values_are_checked_and_named():
+    with pytest.raises(AppearanceError, match="fibre_spread"):
+        Appearance(fibre_spread=-0.1)
+    with pytest.raises(AppearanceError, match="grey_fraction"):
+        Appearance(grey_fraction=float("nan"))
+    assert not Appearance().varied and Appearance(grey_fraction=0.1).varied
+
+
+def test_an_estimate_record_keeps_its_appearance_and_one_without_still_loads():
+    est = AppearanceEstimate(Appearance(0.21, 0.3, 0.1), {"longitudinal_roughness": {"p68": [0.19, 0.23]}},
+                             ("longitudinal_roughness", "fibre_spread", "grey_fraction"))
+    record = EstimateRecord(hair=HairParams(), appearance=est)
+    back = EstimateRecord.from_json(record.to_json())
+    assert back.appearance == est and back.appearance.shine_measured
+    plain = record.to_json()
+    del plain["appearance"]
+    assert EstimateRecord.from_json(plain).appearance is None
+    plain["appearance"] = {"longitudinal_roughness": 7.0}
+    with pytest.raises(RecordError, match="appearance.*longitudinal_roughness"):
+        EstimateRecord.from_json(plain)
+
+
+# --- fibre groups -------------------------------------------------------------------------------
+def test_strands_split_into_equal_groups_and_the_stated_grey_share():
+    strands = swatch_strands(400, seed=1)
+    parts = split_strands(strands, 6, 0.25, seed=3)
+    sizes = [p.n_strands for p in parts]
+    assert sum(sizes) == 400 and sizes[-1] == 100 and max(sizes[:-1]) - min(sizes[:-1]) <= 1
+    z = group_z(FIBRE_GROUPS)
+    assert abs(z.mean()) < 1e-9 and abs(np.sqrt(np.mean(z ** 2)) - 1) < 1e-9
+    sig = group_sigma_a(SIGMA, FIBRE_GROUPS, 0.4)
+    assert np.allclose(np.exp(np.std(np.log([s[0] for s in sig[:-1]]))), np.exp(0.4))
+
+
+def test_a_grouped_render_matches_a_single_group_of_equal_sigma():
+    """Fibre groups of one sigma_a render as one shape does (the split costs no colour), while a
+    spread or grey fibres change it."""
+    renderer = Renderer(max_cached=2)
+    one = renderer.render(SIGMA, SceneSpec("swatch"), 32, 16, seed=5).linear.reshape(-1, 3).mean(0)
+    grouped = renderer.render(SIGMA, SceneSpec("swatch", fibre_groups=FIBRE_GROUPS), 32, 16,
+                              seed=5).linear.reshape(-1, 3).mean(0)
+    assert np.allclose(one, grouped, rtol=0.02), (one, grouped)
+    greys = renderer.render(SIGMA, SceneSpec("swatch", appearance=Appearance(grey_fraction=0.3)), 32, 16,
+                            seed=5).linear.reshape(-1, 3).mean(0)
+    assert np.all(greys > 1.2 * one)
+
+
+# --- capture and estimate on the simulated rig ---------------------------------------------------
+@pytest.fixture(scope="module")
+def glossy_rig(tmp_path_factory):
+    """The simulated rig with a glossy hidden swatch (shine 0.18), calibrated."""
+    from hairdigi.app.rig_session import RigSession
+
+    session = RigSession.simulated_rig(tmp_path_factory.mktemp("glossy"), HairParams((190, 80, 40), 0.5, 0.5, 0.6),
+                                       spp=16, appearance=Appearance(0.18))
+    session.calibrate()
+    yield session
+    session.close()
+
+
+@pytest.mark.slow
+def test_a_capture_takes_one_frame_per_light_and_reads_the_shine(glossy_rig):
+    from hairdigi.render.base.records import CaptureRecord, read_record
+
+    result = glossy_rig.capture()
+    capture = read_record(result.meta_path, CaptureRecord)
+    assert len(capture.light_images) == 3 and len(capture.light_exposures) == 3
+    assert all((result.meta_path.parent / name).is_file() for name in capture.light_images)
+    assert [st.on for st in glossy_rig.light_states()] == [True] * 3          # the board is restored
+    look = result.record.appearance
+    assert look.shine_measured and abs(look.value.longitudinal_roughness - 0.18) <= 0.05, look
+    lo, hi = look.intervals["longitudinal_roughness"]["p95"]
+    assert lo <= look.value.longitudinal_roughness <= hi
+    assert not any("shine not measured" in w.message for w in result.record.warnings)
+
+
+@pytest.mark.slow
+def test_a_capture_without_light_frames_says_the_shine_was_not_measured(glossy_rig):
+    result = glossy_rig.capture(per_light=False)
+    assert result.record.appearance is not None and not result.record.appearance.shine_measured
+    notes = [w for w in result.record.warnings if w.kind is WarningKind.APPEARANCE]
+    assert notes and "shine not measured" in notes[0].message
+
+
+@pytest.mark.slow
+def test_a_capture_missing_a_light_frame_fails_with_one_line(glossy_rig, tmp_path):
+    import subprocess
+    import sys
+
+    result = glossy_rig.capture(estimate=False)
+    folder = result.meta_path.parent
+    from hairdigi.render.base.records import CaptureRecord, read_record
+
+    names = read_record(result.meta_path, CaptureRecord).light_images
+    (folder / names[1]).unlink()
+    loaded = glossy_rig.load_capture(result.capture_id)
+    assert len([p for p in loaded.problems if names[1] in p]) == 1
+    assert loaded.light_frames[1] is None and loaded.light_frames[0] is not None
+    out = subprocess.run([sys.executable, "-m", "hairdigi.app.cli", "estimate", str(result.image_path),
+                          "--lights", ",".join(str(folder / n) for n in names), "--out", str(tmp_path / "e.json")],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2
+    lines = [line for line in out.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and names[1] in lines[0], out.stderr
+    out = subprocess.run([sys.executable, "-m", "hairdigi.app.cli", "estimate", str(result.image_path),
+                          "--lights", ",".join(str(folder / n) for n in (names[0], names[2])),
+                          "--out", str(tmp_path / "e.json")], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and "not 3" in out.stderr and len(out.stderr.strip().splitlines()) == 1
