@@ -8,6 +8,7 @@ path-traced image, and ``nonfinite`` counts the NaN or Inf values the path trace
 """
 from __future__ import annotations
 
+import dataclasses
 import enum
 import itertools
 from dataclasses import dataclass
@@ -16,7 +17,9 @@ from typing import Callable, Iterator
 import numpy as np
 
 from hairdigi.render import denoise as dn
+from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
 from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.rig_geometry import N_LIGHTS
 from hairdigi.render.base.rig_geometry import CameraPose
 from hairdigi.render.metrics import delta_e_map, mean_colour_delta_e
 from hairdigi.render.renderer import Renderer, SceneSpec
@@ -78,6 +81,7 @@ class PassTag:
     generation: int
     key: int
     stage: Stage
+    light: int | None = None        # the twin: the light it is lit by alone (None: all lights)
 
 
 @dataclass
@@ -98,6 +102,7 @@ class TwinPreview:
     key: int = 0                    # the Shown.key it previews
     scale: float = 1.0              # of the capture's resolution
     nonfinite: int = 0              # NaN or Inf values in ``raw`` (so in the map and the chip), replaced by 0
+    light: int | None = None        # lit by this light alone, beside that light's captured frame (None: all)
 
 
 @dataclass
@@ -122,15 +127,34 @@ class HairstylePass:
         return self.index == self.passes
 
 
+def scene_appearance(appearance: Appearance | None) -> Appearance | None:
+    """What a scene takes for ``appearance``: None for the default (uniform) hair, so that a capture
+    whose appearance is the default renders in the same (warm) scenes as before issue 18."""
+    return None if appearance is None or appearance == DEFAULT_APPEARANCE else appearance
+
+
+def lights_alone(light: int | None) -> tuple[float, ...]:
+    """The rig lights' scales: all on (``light`` None), or light ``light`` alone at full power."""
+    if light is None:
+        return (1.0,) * N_LIGHTS
+    if not 0 <= int(light) < N_LIGHTS:
+        raise ValueError(f"light {light}: the rig has lights 0 to {N_LIGHTS - 1} (or None for all)")
+    return tuple(1.0 if i == int(light) else 0.0 for i in range(N_LIGHTS))
+
+
 def twin_view(roi: tuple[int, int, int, int], frame_size: tuple[int, int], simulated: bool,
-              scale: float = 1.0) -> tuple[SceneSpec, tuple[int, int]]:
+              scale: float = 1.0, appearance: Appearance | None = None,
+              light: int | None = None) -> tuple[SceneSpec, tuple[int, int]]:
     """The twin's scene and size: the rig camera over exactly the ROI (simulated geometry), or a crop;
-    ``scale`` < 1 renders the same view with fewer pixels."""
+    ``scale`` < 1 renders the same view with fewer pixels. The hair has the estimate's ``appearance``
+    (shine, fibre spread, greys; None: the default), lit by ``light`` alone (None: all lights)."""
     from hairdigi.app import rig_session as rs
 
     if simulated:
-        return rs.twin_spec(roi, frame_size, scale)
-    return SceneSpec("swatch", framing="crop"), (max(8, round(roi[2] * scale)), max(8, round(roi[3] * scale)))
+        spec, size = rs.twin_spec(roi, frame_size, scale)
+    else:
+        spec, size = SceneSpec("swatch", framing="crop"), (max(8, round(roi[2] * scale)), max(8, round(roi[3] * scale)))
+    return dataclasses.replace(spec, appearance=scene_appearance(appearance), lights=lights_alone(light)), size
 
 
 def orbit_pose(azimuth_deg: float, elevation_deg: float, distance: float | None = None) -> CameraPose:
@@ -198,7 +222,7 @@ def twin_passes(renderer: Renderer, params: HairParams, real_srgb8: np.ndarray,
             yield TwinPreview(tag.generation, raw, denoised(raw, denoise_on), result.spp, i == len(schedule),
                               result.spp >= clean_at.get(scale, result.spp + 1), mean_colour_delta_e(real, raw),
                               delta_e_map(real, raw, settings.fibre_px * scale), raw.reshape(-1, 3).mean(0),
-                              tag.stage, result.seconds, tag.key, scale, result.nonfinite)
+                              tag.stage, result.seconds, tag.key, scale, result.nonfinite, tag.light)
         done += len(spps)
 
 

@@ -3,7 +3,8 @@
 napari-style. :class:`ReviewModel` holds the review state: the session's records, the shown capture
 (with its own calibration profile), its parameters, the twin preview (real, synthetic raw and
 denoised, the ΔE2000 map, the mean-colour ΔE2000), the hairstyle choice, camera orbit and passes, the
-strand preview, the lights and the feed rate. Widgets subscribe to its events
+strand preview, the lights and the feed rate, and the light the capture and its twin are compared
+under (all lights, or one alone: :meth:`ReviewModel.set_light_view`). Widgets subscribe to its events
 (``model.events.twin.connect(callback)``) and read its views (:meth:`ReviewModel.parameter_view`).
 
 Long work is a :class:`Work`: a generator function whose yields are progress and whose return is the
@@ -23,6 +24,7 @@ capture only updates parameters. Every render in the process takes one lock
 """
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import queue
 import threading
@@ -36,8 +38,10 @@ import numpy as np
 from hairdigi.app import rig_session as rs
 from hairdigi.app.events import EventGroup
 from hairdigi.app.previews import (HairstylePass, PassTag, PreviewSettings, Stage, TwinPreview, hair_colour_rgb8,
-                                   hairstyle_passes, orbit_pose, scalp_linear, strand_colour, twin_passes, twin_view)
+                                   hairstyle_passes, orbit_pose, scalp_linear, scene_appearance, strand_colour,
+                                   twin_passes, twin_view)
 from hairdigi.render import denoise as dn
+from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance, AppearanceEstimate
 from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
 from hairdigi.render.base.records import CalibrationProfile, EstimateRecord, EstimateWarning, WarningKind
 from hairdigi.render.base.rig_geometry import N_LIGHTS
@@ -45,7 +49,7 @@ from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.srgb import linear_to_srgb8
 
 __all__ = ["Events", "ReviewModel", "Work", "run_now", "Shown", "Stage", "PreviewSettings", "TwinPreview",
-           "HairstylePass", "ParameterView", "Entry", "hair_colour_rgb8"]
+           "HairstylePass", "ParameterView", "Entry", "hair_colour_rgb8", "appearance_lines", "light_name"]
 
 Cancelled = Callable[[], bool]
 
@@ -116,6 +120,7 @@ class Events(EventGroup):
              "warmed",       # Warmed: the preview scenes are built (captures now only update parameters)
              "frame_check",  # FrameCheck: the chart outline and exposure of a recent frame
              "display",      # bool: denoised (True) or raw passes shown
+             "light_view",   # int | None: the light the capture and its twin are compared under (None: all)
              "status",       # str: one line for the status bar
              "error")        # str: one line naming the problem and the fix
 
@@ -149,6 +154,14 @@ class Shown:
     record: EstimateRecord | None = None   # None for the first look
     simulated: bool = True
     key: int = 0                    # one per capture under review: its first look and refined estimate share it
+    #: each light's own frame of the swatch area, corrected with the capture's profile and put on the
+    #: all-lights frame's exposure (8-bit sRGB; None where unreadable); empty: the capture has none
+    light_frames: tuple = ()
+
+    @property
+    def appearance(self) -> Appearance:
+        """The estimate's shine, fibre spread and grey share (the defaults where there is none)."""
+        return record_appearance(self.record)
 
 
 @dataclass(frozen=True)
@@ -160,6 +173,7 @@ class ParameterView:
     dye_rgb8: tuple[int, int, int] | None
     dye_tooltip: str
     info: str
+    appearance: tuple[tuple[str, str], ...] = ()   # (field, "shine β_m: 0.27 (68%: 0.25–0.29)") or "not measured"
 
 
 @dataclass
@@ -270,6 +284,38 @@ def parameter_lines(params: HairParams, uncertainty: dict) -> tuple[tuple[str, s
     return tuple(lines)
 
 
+#: The appearance fields as the window names them, and how each value is written.
+APPEARANCE_LABELS = {"longitudinal_roughness": ("shine β_m", "{:.2f}"), "fibre_spread": ("fibre spread", "{:.2f}"),
+                     "grey_fraction": ("grey share", "{:.0%}")}
+
+
+def record_appearance(record: EstimateRecord | None) -> Appearance:
+    """The appearance a record's previews render with: its estimate's, or the default (uniform hair)."""
+    if record is None or record.appearance is None:
+        return DEFAULT_APPEARANCE
+    return record.appearance.value
+
+
+def appearance_lines(estimate: AppearanceEstimate | None, pending: bool = False) -> tuple[tuple[str, str], ...]:
+    """Shine, fibre spread and grey share, each with its 68% interval when measured, or "not measured"
+    (the default the previews render with); ``pending``: the encoder's first look, read at refinement."""
+    value = estimate.value if estimate is not None else DEFAULT_APPEARANCE
+    measured = estimate.measured if estimate is not None else ()
+    intervals = estimate.intervals if estimate is not None else {}
+    lines = []
+    for name, (label, fmt) in APPEARANCE_LABELS.items():
+        v = fmt.format(getattr(value, name))
+        if pending:
+            text = f"{label}: – (read by refinement)"
+        elif name not in measured:
+            text = f"{label}: {v} — not measured (default)"
+        else:
+            p68 = (intervals.get(name) or {}).get("p68")
+            text = f"{label}: {v}" + (f" (68%: {fmt.format(p68[0])}–{fmt.format(p68[1])})" if p68 else "")
+        lines.append((name, text))
+    return tuple(lines)
+
+
 def parameter_view(shown: Shown, extra: tuple[EstimateWarning, ...] = ()) -> ParameterView:
     """What the window writes for ``shown``: parameters, the dye chip and the lines under them."""
     rec = shown.record
@@ -281,7 +327,7 @@ def parameter_view(shown: Shown, extra: tuple[EstimateWarning, ...] = ()) -> Par
     tooltip = f"dye colour alone, at concentration {p.dye_concentration:.2f}"
     if shown.stage == Stage.ENCODER or rec is None:
         return ParameterView(lines, tuple(int(v) for v in p.dye_rgb), tooltip,
-                             "encoder's estimate; refining by synthesis…")
+                             "encoder's estimate; refining by synthesis…", appearance_lines(None, pending=True))
     prov = rec.provenance
     info = [f"model {(prov.get('model') or {}).get('sha256', '')[:12]}, calibration "
             f"{(prov.get('calibration') or {}).get('id')}"]
@@ -293,7 +339,34 @@ def parameter_view(shown: Shown, extra: tuple[EstimateWarning, ...] = ()) -> Par
         info.append(f"colour within ΔE2000 {colour:.2f} of the truth in 68% of held-out captures "
                     f"({rec.uncertainty.get('mean_colour_source', 'held-out clean crop renders')})")
     info += [f"⚠ {w.message}" for w in (*rec.warnings, *extra)]
-    return ParameterView(lines, tuple(int(v) for v in p.dye_rgb), tooltip, "\n".join(info))
+    return ParameterView(lines, tuple(int(v) for v in p.dye_rgb), tooltip, "\n".join(info),
+                         appearance_lines(rec.appearance))
+
+
+def light_name(light: int | None) -> str:
+    """"all lights" or "light i alone"."""
+    return "all lights" if light is None else f"light {light} alone"
+
+
+def light_swatches(loaded: rs.LoadedCapture) -> tuple[np.ndarray | None, ...]:
+    """Each light's own frame of the capture's swatch area, corrected with the capture's profile and
+    divided by its exposure factor (on the all-lights frame's scale, as the twin lit by that light
+    alone renders it), as 8-bit sRGB; None where a frame is unreadable; empty for older captures."""
+    from hairdigi.inference.calibration import apply_profile
+    from hairdigi.inference.preprocess import to_linear
+
+    x, y, w, h = loaded.roi
+    exposures = tuple(loaded.light_exposures)
+    out = []
+    for i, frame in enumerate(loaded.light_frames):
+        if frame is None:
+            out.append(None)
+            continue
+        crop = frame[y:y + h, x:x + w]
+        linear = to_linear(crop) if loaded.profile is None else apply_profile(crop, loaded.profile)
+        factor = float(exposures[i]) if i < len(exposures) and exposures[i] else 1.0
+        out.append(linear_to_srgb8(np.asarray(linear, np.float32) / np.float32(factor)))
+    return tuple(out)
 
 
 def nonfinite_warning(what: str, count: int) -> EstimateWarning:
@@ -332,6 +405,7 @@ class ReviewModel:
         self.style, self.env = HAIRSTYLES[0], ENVIRONMENTS[0]
         self.hair_file: Path | None = None           # a .hair model shown instead of the built-in style
         self.orbit = (0.0, 0.0)                      # azimuth, elevation (degrees)
+        self.light: int | None = None                # the capture and twin are compared under this light alone (None: all)
         self.show_denoised = self.settings.denoise and dn.available()
         self.twin_renderer = Renderer(max_cached=4)      # the twin at each scale
         self.style_renderer = Renderer(max_cached=4)
@@ -460,7 +534,7 @@ class ReviewModel:
         same = self.shown is not None and (same_capture or self.shown.capture_id == capture_id)
         shown = Shown(capture_id, real, tuple(loaded.roi), frame_size, rec.hair,
                       Stage.BLOCKED if blocked else Stage.REFINED, rec, self.session.simulated,
-                      self.shown.key if same else next(_KEYS))
+                      self.shown.key if same else next(_KEYS), light_swatches(loaded))
         if self.shown is not None and self.shown.capture_id == capture_id and self.shown.params == rec.hair:
             self.shown = shown          # the same estimate again (a reload): keep the previews running
             return shown
@@ -476,7 +550,7 @@ class ReviewModel:
         self.shown = shown
         self.preview_warnings = ()
         previews = shown.params is not None and shown.stage == Stage.REFINED   # the capture renders the first look
-        if not previews:
+        if not previews or self.captured_image() is None:   # no frame under the chosen light: no twin either
             self._twin_is_ready(self._generation["twin"])    # no twin work comes for this: nothing to wait for
         self._update_feed()
         self.events.shown.emit(shown)
@@ -493,6 +567,27 @@ class ReviewModel:
     def parameter_view(self) -> ParameterView | None:
         """The shown parameters, intervals, chip and lines, as the window writes them."""
         return None if self.shown is None else parameter_view(self.shown, self.preview_warnings)
+
+    def captured_image(self) -> np.ndarray | None:
+        """The captured side of the comparison under the chosen light: the corrected swatch (all
+        lights), or that light's own frame; None when the capture has no frame for it."""
+        shown = self.shown
+        if shown is None:
+            return None
+        if self.light is None:
+            return shown.real
+        frames = shown.light_frames
+        return frames[self.light] if self.light < len(frames) else None
+
+    def captured_text(self) -> str:
+        """What the captured side says when it has no image under the chosen light."""
+        if self.shown is None:
+            return "capture"
+        if self.captured_image() is None and self.light is not None:
+            if self.light < len(self.shown.light_frames):
+                return f"light {self.light}'s frame of this capture is unreadable"
+            return f"no frame for light {self.light} in this capture"
+        return f"captured, {light_name(self.light)}"
 
     # -- state set by the window ---------------------------------------------------------------
     def set_view(self, style: str | None = None, env: str | None = None, orbit: tuple[float, float] | None = None,
@@ -511,6 +606,28 @@ class ReviewModel:
         self._bump("hairstyle")
         self.events.view.emit(self.view_label())
 
+    def set_light_view(self, light: int | None) -> None:
+        """Compare the capture and its twin under ``light`` alone (0 to N_LIGHTS - 1), or all lights
+        (None): the twin re-renders lit so, beside that light's captured frame; emits ``light_view``."""
+        self._owner()
+        if light is not None and not 0 <= int(light) < N_LIGHTS:
+            raise ValueError(f"light {light}: the rig has lights 0 to {N_LIGHTS - 1} (or None for all)")
+        light = None if light is None else int(light)
+        if light == self.light:
+            return
+        self.light = light
+        self._bump("twin")
+        if self.twin_work() is None:           # nothing to render under this light: nothing to wait for
+            self._twin_is_ready(self._generation["twin"])
+        self.events.light_view.emit(light)
+
+    def twin_scene(self, scale: float = 1.0) -> tuple[SceneSpec, tuple[int, int]] | None:
+        """The shown capture's twin at ``scale``: its appearance, lit by the chosen light; None with no capture."""
+        shown = self.shown
+        if shown is None:
+            return None
+        return twin_view(shown.roi, shown.frame_size, shown.simulated, scale, shown.appearance, self.light)
+
     def view_label(self) -> str:
         return f"{self.hair_file.name if self.hair_file else self.style}, {self.env}"
 
@@ -525,13 +642,16 @@ class ReviewModel:
             self.events.hairstyle.emit(self.hairstyle)
 
     def hairstyle_spec(self) -> SceneSpec:
+        """The chosen hairstyle (or hair file), environment and orbit, with the shown estimate's
+        appearance (shine, fibre spread, greys; the default before a record has one)."""
         pose, strands = orbit_pose(*self.orbit), self.settings.hairstyle_strands
+        look = scene_appearance(self.shown.appearance if self.shown is not None else None)
         if self.hair_file is not None:
             from hairdigi.render.renderer import HAIR_FILE_SCENE
 
             return SceneSpec(HAIR_FILE_SCENE, hair_file=str(self.hair_file), env=self.env, strands=strands,
-                             camera=pose)
-        return SceneSpec(self.style, env=self.env, strands=strands, camera=pose)
+                             camera=pose, appearance=look)
+        return SceneSpec(self.style, env=self.env, strands=strands, camera=pose, appearance=look)
 
     # -- work: made here, run by a worker ------------------------------------------------------
     def warm_work(self) -> Work:
@@ -577,8 +697,12 @@ class ReviewModel:
         the renderer. The capture itself runs to its end even when the work is cancelled."""
         self._owner()
         session, settings = self.session, self.settings
-        spec, label = self.hairstyle_spec(), self.view_label()
+        # the first look has no appearance yet: the default (the warm scene), not the previous capture's
+        spec, label = dataclasses.replace(self.hairstyle_spec(), appearance=None), self.view_label()
         on = self.show_denoised or settings.denoise
+        if self.light is not None:            # the first look is of the all-lights frame
+            self.light = None
+            self.events.light_view.emit(None)
         self._bump("twin", "hairstyle")       # stale previews stop now and leave the cores to the capture
         self._twin_is_ready(self._generation["twin"])
         self._capturing = True
@@ -639,16 +763,19 @@ class ReviewModel:
 
     def twin_work(self) -> Work | None:
         """The twin's passes for the shown (refined) parameters; None when there is nothing to preview."""
-        shown = self.shown
-        if shown is None or shown.params is None:
+        shown, light = self.shown, self.light
+        real = self.captured_image()
+        if shown is None or shown.params is None or real is None:   # no frame of this capture under this light
             return None
         generation = self._generation["twin"]
-        tag = PassTag(generation, shown.key, shown.stage)
+        tag = PassTag(generation, shown.key, shown.stage, light)
         renderer, settings, on = self.twin_renderer, self.settings, self.show_denoised or self.settings.denoise
+        appearance = shown.appearance
 
         def run():
-            view = lambda scale: twin_view(shown.roi, shown.frame_size, shown.simulated, scale)  # noqa: E731
-            yield from twin_passes(renderer, shown.params, shown.real, view, settings.twin_passes, settings, on, tag,
+            view = lambda scale: twin_view(shown.roi, shown.frame_size, shown.simulated, scale,  # noqa: E731
+                                           appearance, light)
+            yield from twin_passes(renderer, shown.params, real, view, settings.twin_passes, settings, on, tag,
                                    self._stale("twin", generation))
         return Work("twin", run, ended=lambda: self._twin_done(generation))
 

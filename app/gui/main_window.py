@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 from PySide6.QtCore import QSettings, Qt, QThreadPool, QTimer, Signal
-from PySide6.QtWidgets import (QCheckBox, QComboBox, QFileDialog, QGridLayout, QGroupBox, QHBoxLayout, QLabel,
+from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QFileDialog, QGridLayout, QGroupBox, QHBoxLayout, QLabel,
                                QListWidget, QListWidgetItem, QMainWindow, QProgressBar, QPushButton, QSlider,
                                QSplitter, QVBoxLayout, QWidget)
 
@@ -154,6 +154,7 @@ class MainWindow(QMainWindow):
     def _result_panel(self) -> QWidget:
         box = QGroupBox("Result: captured swatch | synthetic twin | ΔE2000 map")
         v = QVBoxLayout(box)
+        v.addLayout(self._light_selector())
         row = QHBoxLayout()
         self.real_label = image_label("capture")
         self.synth_label = image_label("synthetic")
@@ -207,6 +208,19 @@ class MainWindow(QMainWindow):
             self.param_labels[name] = label
             grid.addWidget(label, i % 3, 2 + i // 3)
         v.addLayout(grid)
+        appearance = QGridLayout()           # issue 18: shine, fibre spread, grey share, with their intervals
+        title = QLabel("Appearance")
+        title.setStyleSheet("font-weight:bold")
+        title.setToolTip("shine (Mitsuba's β_m, lower is glossier), the spread of ln σa across fibres, and the "
+                         "share of grey fibres, each with its 68% interval; the twin and hairstyles render them")
+        appearance.addWidget(title, 0, 0)
+        self.appearance_labels = {}
+        for i, name in enumerate(review.APPEARANCE_LABELS):
+            label = QLabel(f"{review.APPEARANCE_LABELS[name][0]}: –")
+            self.appearance_labels[name] = label
+            appearance.addWidget(label, i, 1)
+        appearance.setColumnStretch(1, 1)
+        v.addLayout(appearance)
         self.match_label = QLabel("real vs synthetic: –")
         self.match_label.setStyleSheet("font-weight:bold")
         self.result_info = QLabel("")
@@ -215,6 +229,26 @@ class MainWindow(QMainWindow):
         v.addWidget(self.result_info)
         v.addStretch(1)
         return box
+
+    def _light_selector(self) -> QHBoxLayout:
+        """All lights, or one light alone: the captured frame beside its twin lit the same way."""
+        row = QHBoxLayout()
+        row.addWidget(QLabel("Compare under:"))
+        self.light_view_group = QButtonGroup(self)
+        self.light_view_group.setExclusive(True)
+        self.light_view_buttons: dict[int | None, QPushButton] = {}
+        for light in (None, *range(self.model.light_count())):
+            b = QPushButton("All lights" if light is None else f"Light {light} alone")
+            b.setCheckable(True)
+            b.setChecked(light is None)
+            b.setToolTip("the capture's frame with every light on, beside its twin" if light is None else
+                         f"the frame the capture took with light {light} alone, beside the twin lit by it alone")
+            b.clicked.connect(lambda _=False, light=light: self.model.set_light_view(light))
+            self.light_view_group.addButton(b)
+            self.light_view_buttons[light] = b
+            row.addWidget(b)
+        row.addStretch(1)
+        return row
 
     def _hairstyle_panel(self, with_strand_view: bool) -> QWidget:
         box = QGroupBox("Hairstyles")
@@ -289,7 +323,7 @@ class MainWindow(QMainWindow):
             (ev.warnings, lambda _: self._show_parameters()),
             (ev.feed_fps, lambda fps: setattr(self.session.frames, "period", 1.0 / fps)),
             (ev.status, lambda text: self.statusBar().showMessage(text)), (ev.error, self.show_banner),
-            (ev.hair_model, self._on_hair_model)]
+            (ev.hair_model, self._on_hair_model), (ev.light_view, self._show_light_view)]
         for event, callback in self._subscriptions:
             event.connect(callback)
 
@@ -325,12 +359,39 @@ class MainWindow(QMainWindow):
         if 0 <= row < len(self.model.records):
             self.model.select(self.model.records[row].id)
 
+    def _show_captured_side(self) -> bool:
+        """The captured swatch under the chosen light, or why there is none; True when there is one."""
+        image = self.model.captured_image()
+        if image is None:
+            self.real_label.clear()
+            self.real_label.setText(self.model.captured_text())
+            return False
+        self._set_image(self.real_label, image)
+        self.real_label.setToolTip(self.model.captured_text())
+        return True
+
+    def _show_light_view(self, light: int | None) -> None:
+        """The capture and its twin under ``light`` alone (None: all lights)."""
+        button = self.light_view_buttons.get(light)
+        if button is not None and not button.isChecked():
+            button.setChecked(True)
+        if not self._show_captured_side():
+            self.run_job("twin", None)
+            for label in (self.synth_label, self.diff_label):
+                label.clear()
+                label.setText("–")
+            self.twin_info.setText(f"twin: {self.model.captured_text()} (choose All lights)")
+            return
+        if self.model.shown is not None and self.model.shown.params is not None:
+            self.synth_label.setText("rendering…")
+            self.run_job("twin", self.model.twin_work())
+
     def _show_capture(self, shown: review.Shown) -> None:
-        self._set_image(self.real_label, shown.real)
-        if self.model.twin is None:          # the first look's twin stays up until the refined one comes
+        has_image = self._show_captured_side()     # False: no frame of this capture under the chosen light
+        if self.model.twin is None or not has_image:   # the first look's twin stays up until the refined one comes
             for label, text in ((self.synth_label, "rendering…"), (self.diff_label, "ΔE2000")):
                 label.clear()
-                label.setText(text if shown.params is not None else "–")
+                label.setText(text if shown.params is not None and has_image else "–")
             self.chip.setText("hair\n…")
             self.chip.setStyleSheet("background:#1e1e22; color:#aaa; border:1px solid #888; font-size:10px")
         self._show_parameters()
@@ -343,6 +404,9 @@ class MainWindow(QMainWindow):
         texts = dict(view.lines)
         for name, label in self.param_labels.items():
             label.setText(texts.get(name, f"{name}: –"))
+        texts = dict(view.appearance)
+        for name, label in self.appearance_labels.items():
+            label.setText(texts.get(name, f"{review.APPEARANCE_LABELS[name][0]}: –"))
         if view.dye_rgb8 is not None:
             self.dye_chip.setText("dye")
             self.dye_chip.setStyleSheet(chip_style(view.dye_rgb8))
@@ -354,7 +418,8 @@ class MainWindow(QMainWindow):
         self._set_image(self.diff_label, delta_e_colours(t.delta_e_map))
         shown = "denoised" if self.model.show_denoised and t.clean is not None else "raw"
         scale = "" if t.scale == 1 else " at ½ resolution" if t.scale == 0.5 else f" at {t.scale:g}x"
-        self.twin_info.setText(f"twin: {t.spp} spp{scale}, {shown}; map mean ΔE {float(t.delta_e_map.mean()):.2f}")
+        self.twin_info.setText(f"twin, {review.light_name(t.light)}: {t.spp} spp{scale}, {shown}; "
+                               f"map mean ΔE {float(t.delta_e_map.mean()):.2f}")
         stage = "encoder's estimate" if t.stage == Stage.ENCODER else "refined estimate"
         self.match_label.setText(f"real vs synthetic: mean-colour ΔE2000 {t.delta_e:.2f} ({stage})")
         self.chip.setText("hair")

@@ -1,0 +1,153 @@
+"""The app's part of issue 18: the light selector (each captured frame beside its twin lit the same
+way), the appearance (shine, fibre spread, grey share) with its intervals in the parameters panel,
+and the twin and hairstyles rendered with the estimated appearance.
+
+One simulated session serves the module: an older capture without single-light frames (the "shine
+not measured" kind), then a capture with them (the first renders the view's per-light tables once).
+"""
+import dataclasses
+
+import numpy as np
+import pytest
+
+from hairdigi.app import review
+from hairdigi.app.rig_session import RigSession
+from hairdigi.inference.calibration import apply_profile
+from hairdigi.inference.encoder import Encoder
+from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance, AppearanceEstimate
+from hairdigi.render.base.records import WarningKind
+from hairdigi.render.metrics import mean_colour_delta_e
+from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
+
+SMALL = review.PreviewSettings(twin_passes=((1.0, 2),), twin_clean_spp=((1.0, 1),), hairstyle_size=48,
+                               hairstyle_strands=200, hairstyle_passes=(1,), hairstyle_clean_spp=1, view_strands=100,
+                               warm=False, denoise=False)
+
+
+@pytest.fixture(scope="module")
+def captured(tmp_path_factory, tiny_model):
+    """(session, old capture id, new capture id): calibrated, one capture without and one with light frames."""
+    session = RigSession.simulated_rig(tmp_path_factory.mktemp("appearance") / "s", spp=8,
+                                       encoder=Encoder(tiny_model[1]))
+    session.calibrate()
+    old = session.capture(per_light=False)
+    new = session.capture()
+    assert not old.blocked and not new.blocked
+    yield session, old.capture_id, new.capture_id
+    session.close()
+
+
+def model_on(session, capture_id):
+    model = review.ReviewModel(session, SMALL)
+    model.reload()
+    model.select(capture_id)
+    return model
+
+
+def test_light_1_shows_its_frame_beside_the_twin_lit_by_light_1_alone(captured):
+    session, _, new = captured
+    model = model_on(session, new)
+    loaded = session.load_capture(new)
+    assert len(loaded.light_frames) == 3 and all(f is not None for f in loaded.light_frames)
+    seen = []
+    model.events.light_view.connect(seen.append)
+
+    model.set_light_view(1)
+    assert seen == [1] and model.light == 1
+    spec, _ = model.twin_scene(1.0)
+    assert spec.lights == (0.0, 1.0, 0.0)
+    # the captured side is light 1's own frame, corrected with the capture's profile, on the all-lights scale
+    x, y, w, h = loaded.roi
+    expected = linear_to_srgb8(apply_profile(loaded.light_frames[1][y:y + h, x:x + w], loaded.profile)
+                               / np.float32(loaded.light_exposures[1]))
+    np.testing.assert_array_equal(model.captured_image(), expected)
+    assert not np.array_equal(model.captured_image(), model.shown.real)
+    assert not np.array_equal(model.captured_image(), model.shown.light_frames[0])
+
+    review.run_now(model.twin_work(), model.apply)
+    lit_1 = model.twin
+    assert lit_1.light == 1 and lit_1.final
+    # the twin lit by light 1 alone matches light 1's frame (not the all-lights one) in colour
+    de_own = mean_colour_delta_e(srgb8_to_linear(expected), lit_1.raw)
+    de_all = mean_colour_delta_e(srgb8_to_linear(model.shown.real), lit_1.raw)
+    assert de_own < de_all and de_own < 8, (de_own, de_all)
+
+    model.set_light_view(None)
+    assert model.twin_scene(1.0)[0].lights == (1.0, 1.0, 1.0)
+    np.testing.assert_array_equal(model.captured_image(), model.shown.real)
+    review.run_now(model.twin_work(), model.apply)
+    assert model.twin.light is None
+    assert model.twin.raw.mean() > 1.5 * lit_1.raw.mean()      # one light of three: about a third
+    with pytest.raises(ValueError, match="lights 0 to 2"):
+        model.set_light_view(3)
+
+
+def test_an_old_capture_says_it_has_no_frame_for_the_light(captured):
+    session, old, _ = captured
+    model = model_on(session, old)
+    assert model.shown.light_frames == ()
+    model.set_light_view(2)
+    assert model.captured_image() is None
+    assert model.captured_text() == "no frame for light 2 in this capture"
+    assert model.twin_work() is None and not model.busy()     # nothing renders, nothing waits for it
+    # its shine is the default, said so, with the record's warning
+    view = model.parameter_view()
+    lines = dict(view.appearance)
+    assert lines["longitudinal_roughness"] == "shine β_m: 0.30 — not measured (default)"
+    assert any(w.kind == WarningKind.APPEARANCE for w in model.shown.record.warnings)
+    assert "shine not measured" in view.info
+
+
+def test_the_twin_and_hairstyles_render_the_records_appearance(captured):
+    session, _, new = captured
+    model = model_on(session, new)
+    record = model.shown.record
+    assert record.appearance is not None and record.appearance.shine_measured
+    assert model.hairstyle_spec().look == record.appearance.value
+    assert model.twin_scene(1.0)[0].look == record.appearance.value
+
+    varied = Appearance(0.2, 0.3, 0.1)
+    estimate = AppearanceEstimate(varied, {"longitudinal_roughness": {"p68": [0.18, 0.22], "p95": [0.15, 0.25]}},
+                                  ("longitudinal_roughness", "fibre_spread", "grey_fraction"))
+    model.shown = dataclasses.replace(model.shown, record=dataclasses.replace(record, appearance=estimate))
+    assert model.hairstyle_spec().appearance == varied and model.hairstyle_spec().groups > 0
+    model.set_view(style="bob")
+    assert model.hairstyle_spec().appearance == varied
+    assert model.twin_scene(0.5)[0].appearance == varied
+    lines = dict(model.parameter_view().appearance)
+    assert lines == {"longitudinal_roughness": "shine β_m: 0.20 (68%: 0.18–0.22)", "fibre_spread": "fibre spread: 0.30",
+                     "grey_fraction": "grey share: 10%"}
+    # a record without an appearance renders the default (uniform) hair
+    model.shown = dataclasses.replace(model.shown, record=dataclasses.replace(record, appearance=None))
+    assert model.hairstyle_spec().appearance is None and model.hairstyle_spec().look == DEFAULT_APPEARANCE
+
+
+def test_the_window_shows_the_shine_with_its_interval_and_the_light_selector(qtbot, captured):
+    from hairdigi.app.gui.main_window import MainWindow
+
+    session, old, new = captured
+    win = MainWindow(session, {**dataclasses.asdict(SMALL), "feed_fps": 5}, strand_view=False)
+    qtbot.addWidget(win)
+    win.show()
+    qtbot.waitUntil(lambda: win.model.shown is not None and win.model.shown.capture_id == new, timeout=20000)
+    appearance = win.model.shown.record.appearance
+    lo, hi = appearance.intervals["longitudinal_roughness"]["p68"]
+    text = win.appearance_labels["longitudinal_roughness"].text()
+    assert text == f"shine β_m: {appearance.value.longitudinal_roughness:.2f} (68%: {lo:.2f}–{hi:.2f})"
+    assert "not measured" in win.appearance_labels["fibre_spread"].text() or "68%" in \
+        win.appearance_labels["fibre_spread"].text()
+
+    win.light_view_buttons[1].click()
+    assert win.model.light == 1 and win.light_view_buttons[1].isChecked()
+    assert win.real_label.pixmap() is not None and not win.real_label.pixmap().isNull()
+    qtbot.waitUntil(lambda: win.model.twin is not None and win.model.twin.light == 1, timeout=120000)
+    qtbot.waitUntil(lambda: "light 1 alone" in win.twin_info.text(), timeout=20000)
+
+    ids = [e.id for e in win.model.records]
+    win.session_list.setCurrentRow(ids.index(old))             # an old capture, light 1 still chosen
+    assert win.real_label.text() == "no frame for light 1 in this capture"
+    assert "not measured" in win.appearance_labels["longitudinal_roughness"].text()
+    assert "shine not measured" in win.result_info.text()
+    win.light_view_buttons[None].click()
+    assert win.model.light is None and win.real_label.pixmap() is not None
+    win.close()
