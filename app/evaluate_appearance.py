@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.app.evaluate_rig import error_stats
 from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
 from hairdigi.render.base.files import write_csv_atomic, write_json_atomic
 from hairdigi.render.base.params import HairParams, sample_params
@@ -171,14 +172,6 @@ def evaluate_appearance(out_dir: str | os.PathLike, config: AppearanceSet = Appe
     return summary
 
 
-def _stats(values) -> dict:
-    v = np.asarray([x for x in values if x is not None], float)
-    if not len(v):
-        return {"n": 0}
-    return {"n": int(len(v)), "median": round(float(np.median(v)), 3), "p95": round(float(np.quantile(v, 0.95)), 3),
-            "worst": round(float(v.max()), 3)}
-
-
 def summarise(rows: list[dict]) -> dict:
     """Median / p95 / worst of each judge and appearance error, by mode and for today's world."""
     summary: dict = {"errors": [f"{r['hidden']}: {r['error']}" for r in rows if r.get("error")],
@@ -189,16 +182,16 @@ def summarise(rows: list[dict]) -> dict:
         today = [r for r in done if "today's world" in r["hidden"]]
         summary[mode] = {
             "swatches": len(done),
-            "fit": _stats(r["fit"] for r in varied),
-            "each_light": _stats(r[f"light{i}"] for r in varied for i in range(N_LIGHTS)),
-            "transfer": _stats(r["transfer"] for r in varied),
-            "shine_abs_error": _stats(r["err_longitudinal_roughness"] for r in varied),
-            "spread_abs_error": _stats(r["err_fibre_spread"] for r in varied),
-            "grey_abs_error": _stats(r["err_grey_fraction"] for r in varied),
-            "today_fit": _stats(r["fit"] for r in today),
-            "today_transfer": _stats(r["transfer"] for r in today),
-            "capture_frames_s": _stats(r["capture_frames_s"] for r in done),
-            "capture_s": _stats(r["capture_s"] for r in done),
+            "fit": error_stats(r["fit"] for r in varied),
+            "each_light": error_stats(r[f"light{i}"] for r in varied for i in range(N_LIGHTS)),
+            "transfer": error_stats(r["transfer"] for r in varied),
+            "shine_abs_error": error_stats(r["err_longitudinal_roughness"] for r in varied),
+            "spread_abs_error": error_stats(r["err_fibre_spread"] for r in varied),
+            "grey_abs_error": error_stats(r["err_grey_fraction"] for r in varied),
+            "today_fit": error_stats(r["fit"] for r in today),
+            "today_transfer": error_stats(r["transfer"] for r in today),
+            "capture_frames_s": error_stats(r["capture_frames_s"] for r in done),
+            "capture_s": error_stats(r["capture_s"] for r in done),
         }
     read = [r for r in rows if r.get("mode") == "read" and "fit" in r]
     widths = {}

@@ -151,7 +151,8 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
     return summary
 
 
-def _stats(values) -> dict:
+def error_stats(values) -> dict:
+    """n, median, p95 and worst of the values that are not None (rounded for the tables)."""
     v = np.asarray([x for x in values if x is not None], float)
     if not len(v):
         return {"n": 0}
@@ -167,13 +168,13 @@ def summarise(rows: list[dict], hidden: list[tuple[str, HairParams]]) -> dict:
                "errors": [f"{r['hidden']} {r['source']}: {r['error']}" for r in rows if r.get("error")],
                "blocked": [f"{r['hidden']} {r['source']} {r['cast']} {r['exposure_ev']}: {r['blocked']}"
                            for r in rows if r.get("blocked")],
-               "refined": _stats(r["de2000"] for r in done),
-               "encoder_alone": _stats(r["encoder_de2000"] for r in done),
-               "residual": _stats(r["residual_de2000"] for r in done),
-               "seconds": _stats(r["seconds"] for r in done)}
+               "refined": error_stats(r["de2000"] for r in done),
+               "encoder_alone": error_stats(r["encoder_de2000"] for r in done),
+               "residual": error_stats(r["residual_de2000"] for r in done),
+               "seconds": error_stats(r["seconds"] for r in done)}
     sources = sorted({r["source"] for r in done}, key=lambda s: (s != "live", s))
-    summary["by_source"] = {s: _stats(r["de2000"] for r in done if r["source"] == s) for s in sources}
-    summary["by_case"] = {n: _stats(r["de2000"] for r in done if r["hidden"] == n) for n, _ in hidden}
+    summary["by_source"] = {s: error_stats(r["de2000"] for r in done if r["source"] == s) for s in sources}
+    summary["by_case"] = {n: error_stats(r["de2000"] for r in done if r["hidden"] == n) for n, _ in hidden}
     names = [n for n, _ in hidden]
     halves = [set(names[0::2]), set(names[1::2])]
     inside68, inside95 = [], []
