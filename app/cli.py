@@ -213,7 +213,7 @@ def evaluate_appearance_command(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --appearance``: shine and fibre variation judged away from the rig."""
     from hairdigi.app.evaluate_appearance import AppearanceSet, evaluate_appearance
 
-    s = evaluate_appearance(args.out, AppearanceSet(random=args.rig_random))
+    s = evaluate_appearance(args.out, AppearanceSet(random=args.rig_random, variation=not args.no_variation))
     for mode in ("read", "no light frames"):
         m = s[mode]
         print(f"{mode} ({m['swatches']} swatches), mean-colour ΔE2000 against the truth, median / p95 / worst:")
@@ -473,6 +473,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "writes the appearance's intervals)")
     p.add_argument("--ship", action="store_true", help="with --rig: ship the measured colour interval "
                    "(resources/models/chain_uncertainty.json); with --appearance, the appearance's intervals")
+    p.add_argument("--no-variation", action="store_true", help="with --appearance: read the shine only, not the "
+                   "fibre spread and greys (what the texture reading adds)")
     p.add_argument("--dye", action="store_true", help="instead: dyes characterised on two natural bases, predicted "
                    "on the third (--n: dyes, default 12)")
     p.add_argument("--workers", type=workers, default=2)

@@ -53,6 +53,7 @@ CASES = {
 class AppearanceSet:
     random: int = 8          # random swatches beside the named cases
     spp: int = 32            # the simulated rig's light renders
+    variation: bool = True   # read fibre spread and greys from the texture (False: the shine alone)
 
 
 def hidden_set(config: AppearanceSet) -> list[tuple[str, HairParams, Appearance, int]]:
@@ -148,6 +149,9 @@ def evaluate_appearance(out_dir: str | os.PathLike, config: AppearanceSet = Appe
 
     from hairdigi.inference.encoder import Encoder
 
+    from hairdigi.inference import appearance
+
+    appearance.READ_VARIATION = config.variation
     out = Path(out_dir)
     (out / "rows").mkdir(parents=True, exist_ok=True)
     encoder = Encoder()

@@ -19,7 +19,8 @@ from hairdigi.hardware.exposure import ExposureReport, check_exposure, dead_ligh
 from hairdigi.hardware.frame_source import FrameSource
 from hairdigi.hardware.lights import N_LIGHTS, LightController, LightError
 from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, correction_warnings,
-                                            detect_chart, load_profile, profile_warnings, save_profile, staleness)
+                                            detect_chart, light_colour_warnings, load_profile, profile_warnings,
+                                            save_profile, staleness)
 from hairdigi.render.base.files import write_json_atomic
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.base.records import (CalibrationProfile, CaptureRecord, EstimateRecord, EstimateWarning,
@@ -415,6 +416,12 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
     warnings = [EstimateWarning(WarningKind.CALIBRATION, w) for w in stale + correction_warnings(
         profile, mean_linear(fitted_pixels(to_linear(source), view)), mean_linear(fitted_pixels(corrected, view)))]
     lights = [apply_profile(frame, profile) / np.float32(factor) for frame, factor in singles] or None
+    if lights:
+        try:
+            warnings += [EstimateWarning(WarningKind.CALIBRATION, w)
+                         for w in light_colour_warnings(detect_chart(image), lights)]
+        except CalibrationError:
+            pass   # a frame without a chart was blocked before this
     estimate = estimate_image(corrected, encoder, view=view, extra_warnings=warnings,
                               on_encoder_estimate=on_encoder_estimate, light_images=lights)
     result.params = estimate.params

@@ -14,7 +14,7 @@ without ``--lights``) keeps the default shine, and its record says "shine not me
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -132,8 +132,15 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
     return AppearanceReading(estimate, curve, warnings, time.perf_counter() - start)
 
 
+#: Whether estimates read fibre spread and greys from the texture (``hairdigi evaluate --appearance
+#: --no-variation`` turns it off for the whole process, to measure what the reading adds).
+READ_VARIATION = True
+
+
 def _read_variation(pixels: np.ndarray, sigma: np.ndarray | None, shine: float):
-    """The texture model's reading, or None when the model is not installed."""
+    """The texture model's reading, or None when the model is not installed (or reading is off)."""
+    if not READ_VARIATION:
+        return None
     try:
         from hairdigi.inference import texture
     except ImportError:
@@ -143,3 +150,12 @@ def _read_variation(pixels: np.ndarray, sigma: np.ndarray | None, shine: float):
     except FileNotFoundError:
         return None
     return reading
+
+
+def unmeasured_variation(estimate: AppearanceEstimate) -> AppearanceEstimate:
+    """``estimate`` with its fibre spread and grey share back at uniform fibres and not measured."""
+    names = ("fibre_spread", "grey_fraction")
+    return AppearanceEstimate(replace(estimate.value, fibre_spread=0.0, grey_fraction=0.0),
+                              {k: v for k, v in estimate.intervals.items() if k not in names},
+                              tuple(m for m in estimate.measured if m not in names),
+                              {k: v for k, v in estimate.method.items() if k not in names})

@@ -307,3 +307,27 @@ def calibration_warnings(profile_path: str | os.PathLike, image_path: str | os.P
     the capture's own settings and time when a rig record sits beside the image, else against now."""
     settings, taken = capture_settings(image_path)
     return profile_warnings(load_profile(profile_path), settings, taken)
+
+
+#: The chart's mid greys (neutral 6.5 to 3.5, ColorChecker Classic order): lit well by any one light.
+MID_GREYS = (19, 20, 21, 22)
+
+
+def light_colour_warnings(chart: ChartDetection, corrected_singles: list[np.ndarray], tolerance_de: float = 2.0
+                          ) -> list[str]:
+    """Warnings for a light whose own frame, corrected with the all-lights profile, turns the chart's
+    mid greys coloured: that LED differs from the others, and one profile for all does not hold for it.
+
+    One profile serves every light (the rig's LEDs are one make, and a profile fitted on the chart lit
+    from one side folds that light's geometry into the colour); this checks that it holds, per light.
+    """
+    warnings = []
+    for i, frame in enumerate(corrected_singles):
+        greys = chart.patch_linear(frame)[list(MID_GREYS)]
+        neutral = np.repeat(greys.mean(1, keepdims=True), 3, axis=1)
+        off = float(np.median(delta_e2000(np.clip(greys, 1e-6, None), np.clip(neutral, 1e-6, None))))
+        if off > tolerance_de:
+            warnings.append(f"calibration: light {i} tints the chart's greys by ΔE2000 {off:.1f} once corrected: its "
+                            f"LED differs from the others, so the shine read from it is uncertain; replace it or "
+                            f"match its colour, and calibrate again")
+    return warnings

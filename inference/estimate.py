@@ -11,13 +11,13 @@ from __future__ import annotations
 import hashlib
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from hairdigi.inference.appearance import check_light_frames, read_appearance
+from hairdigi.inference.appearance import check_light_frames, read_appearance, unmeasured_variation
 from hairdigi.inference.domain import domain_stats, domain_warnings
 from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, read_image, swatch_crop, to_linear
@@ -111,6 +111,17 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
         warnings += reading.warnings
         appearance = reading.estimate
         refinement = refine(est.params, mean_linear(fitted), view, settings, renderer, reading.value, reading.curve)
+        if not refinement.reachable and reading.value.varied:
+            # the colour checks the texture's reading: if no hair of the read variation renders it but
+            # uniform fibres do, the reading is wrong for this swatch, and is not reported as measured
+            uniform = refine(est.params, mean_linear(fitted), view, settings, renderer,
+                             replace(reading.value, fibre_spread=0.0, grey_fraction=0.0), reading.curve)
+            if uniform.reachable:
+                refinement, appearance = uniform, unmeasured_variation(reading.estimate)
+                warnings += _warn(WarningKind.APPEARANCE, [
+                    f"appearance: the fibre spread {reading.value.fibre_spread:.2f} and grey share "
+                    f"{reading.value.grey_fraction:.2f} read from the texture do not fit this swatch's colour "
+                    f"(no such hair renders it, uniform fibres do); they are not reported as measured"])
         params = refinement.params
         if not refinement.reachable:
             warnings += _warn(WarningKind.UNREACHABLE, [

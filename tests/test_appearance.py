@@ -124,3 +124,20 @@ def test_a_capture_missing_a_light_frame_fails_with_one_line(glossy_rig, tmp_pat
                           "--lights", ",".join(str(folder / n) for n in (names[0], names[2])),
                           "--out", str(tmp_path / "e.json")], capture_output=True, text=True, timeout=120)
     assert out.returncode == 2 and "not 3" in out.stderr and len(out.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.slow
+def test_a_light_of_another_colour_is_warned_about(glossy_rig):
+    """One profile corrects every light's frame; a light whose LED is another colour tints the chart's
+    greys in its own frame, and the estimate says so."""
+    images = glossy_rig.camera.light_images
+    original = images[1].copy()
+    try:
+        images[1] *= np.array([1.25, 1.0, 0.75], np.float32)
+        glossy_rig.calibrate()
+        tinted = glossy_rig.capture()
+    finally:
+        images[1] = original
+        glossy_rig.calibrate()
+    assert any("light 1 tints" in w.message for w in tinted.record.warnings), tinted.record.warning_messages()
+    assert not any("tints" in w.message for w in glossy_rig.capture().record.warnings)
