@@ -127,10 +127,20 @@ class HairstylePass:
         return self.index == self.passes
 
 
+#: The grey share previews render, in steps of this: which strands are grey is the scene's structure
+#: (a new share builds a new scene, seconds for a 512² hairstyle), and the estimate's 68% interval on
+#: the share is about ±0.1 wide, so captures of like hair share a cached scene within their uncertainty.
+PREVIEW_GREY_STEP = 0.05
+
+
 def scene_appearance(appearance: Appearance | None) -> Appearance | None:
-    """What a scene takes for ``appearance``: None for the default (uniform) hair, so that a capture
-    whose appearance is the default renders in the same (warm) scenes as before issue 18."""
-    return None if appearance is None or appearance == DEFAULT_APPEARANCE else appearance
+    """What a preview scene takes for ``appearance``: its shine and spread, its grey share in steps of
+    ``PREVIEW_GREY_STEP``; None for the default (uniform) hair, which renders in the warm scenes."""
+    if appearance is None:
+        return None
+    grey = round(appearance.grey_fraction / PREVIEW_GREY_STEP) * PREVIEW_GREY_STEP
+    look = dataclasses.replace(appearance, grey_fraction=round(min(max(grey, 0.0), 1.0), 4))
+    return None if look == DEFAULT_APPEARANCE else look
 
 
 def lights_alone(light: int | None) -> tuple[float, ...]:

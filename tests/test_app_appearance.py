@@ -103,10 +103,12 @@ def test_the_twin_and_hairstyles_render_the_records_appearance(captured):
     model = model_on(session, new)
     record = model.shown.record
     assert record.appearance is not None and record.appearance.shine_measured
-    assert model.hairstyle_spec().look == record.appearance.value
-    assert model.twin_scene(1.0)[0].look == record.appearance.value
+    value = record.appearance.value        # previews render its shine and spread, its grey share to 0.05
+    look = dataclasses.replace(value, grey_fraction=round(round(value.grey_fraction / 0.05) * 0.05, 4))
+    assert model.hairstyle_spec().look == look and model.twin_scene(1.0)[0].look == look
+    assert abs(model.hairstyle_spec().look.grey_fraction - value.grey_fraction) <= 0.025
 
-    varied = Appearance(0.2, 0.3, 0.1)
+    varied = Appearance(0.2, 0.3, 0.1)                  # a grey share on the previews' 0.05 steps
     estimate = AppearanceEstimate(varied, {"longitudinal_roughness": {"p68": [0.18, 0.22], "p95": [0.15, 0.25]}},
                                   ("longitudinal_roughness", "fibre_spread", "grey_fraction"))
     model.shown = dataclasses.replace(model.shown, record=dataclasses.replace(record, appearance=estimate))
