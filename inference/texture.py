@@ -35,8 +35,11 @@ import numpy as np
 #: The Gaussian (pixels) whose blur is taken away: far wider than a fibre, far narrower than the
 #: lights' fall-off across the swatch.
 HIGHPASS_SIGMA_PX = 4.0
-#: The Gaussian (pixels) of the blur along the fibres (about a fibre's visible straight run).
-ALONG_FIBRE_PX = 3.0
+#: The Gaussians (pixels) of the blurs along the fibres: a fibre keeps its colour along its length,
+#: the path tracer's and the sensor's noise and the glints do not.
+ALONG_FIBRE_PX = (3.0, 10.0)
+#: Lags (pixels, along the fibres) of the noise-free covariances: past the glints' spread (2 px).
+FIBRE_LAGS_PX = (4, 8, 16)
 #: A pixel counts "far lighter" / "far greyer" beyond these high-passed values (ln units).
 LIGHTER_THRESHOLDS = (0.4, 0.8)
 GREYER_THRESHOLDS = (0.1, 0.25)
@@ -57,15 +60,7 @@ def _highpass(channel: np.ndarray, sigma: float = HIGHPASS_SIGMA_PX) -> np.ndarr
     return channel - cv2.GaussianBlur(channel, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
 
 
-def fibre_axis(log_luminance: np.ndarray) -> int:
-    """The image axis the fibres run along (0: vertical, 1: horizontal), from the gradient energy:
-    across the fibres the image changes from pixel to pixel, along them it hardly does."""
-    gy = np.diff(log_luminance, axis=0)
-    gx = np.diff(log_luminance, axis=1)
-    return 0 if float(np.mean(gx ** 2)) >= float(np.mean(gy ** 2)) else 1
-
-
-def _along(channel: np.ndarray, axis: int, sigma: float = ALONG_FIBRE_PX) -> np.ndarray:
+def _along(channel: np.ndarray, axis: int, sigma: float) -> np.ndarray:
     """A 1-D Gaussian blur along ``axis`` (0: down the columns)."""
     size = int(2 * round(3 * sigma) + 1)
     kernel = cv2.getGaussianKernel(size, sigma).astype(np.float32)
@@ -110,12 +105,13 @@ def _channels(pixels_linear: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nda
 FEATURE_NAMES: tuple[str, ...] = ()   # filled below from a probe call
 
 
-def _features(pixels_linear: np.ndarray) -> dict[str, float]:
+def _features(pixels_linear: np.ndarray, axis: int = 0) -> dict[str, float]:
+    if axis not in (0, 1):
+        raise ValueError(f"fibre_axis must be 0 (fibres run down the image) or 1 (across it), got {axis!r}")
     lum, c1, c2, towards_grey = _channels(pixels_linear)
-    axis = fibre_axis(lum)
     feats: dict[str, float] = {}
-    for tag, smooth in (("px", False), ("fb", True)):
-        planes = [(_along(p, axis) if smooth else p) for p in (lum, c1, c2)]
+    for tag, smooth in (("px", 0.0),) + tuple((f"fb{int(a)}", a) for a in ALONG_FIBRE_PX):
+        planes = [(_along(p, axis, smooth) if smooth else p) for p in (lum, c1, c2)]
         hl, h1, h2 = (_highpass(p) for p in planes)
         grey = h1 * towards_grey[0] + h2 * towards_grey[1]        # towards neutral (0 for neutral hair)
         # the edges hold the reflected border's artefacts: leave out the blur's width
@@ -130,8 +126,12 @@ def _features(pixels_linear: np.ndarray) -> dict[str, float]:
         for t in LIGHTER_THRESHOLDS:
             feats[f"{tag}_lighter_{t}"] = float(np.mean(hl > t))
         g = np.quantile(grey, (0.1, 0.5, 0.9, 0.98))
+        g_low = np.quantile(grey, (0.02, 0.25))
         feats[f"{tag}_grey_sd"] = _robust_sd(grey)
         feats[f"{tag}_grey_upper"] = float(g[3] - g[1])
+        # more saturated than the surroundings: fibres of more pigment, never greys (spread alone)
+        feats[f"{tag}_grey_lower"] = float(g[1] - g_low[0])
+        feats[f"{tag}_grey_lower_iq"] = float(g[1] - g_low[1])
         feats[f"{tag}_grey_skew"] = float((g[2] - g[1]) - (g[1] - g[0])) / max(float(g[2] - g[0]), 1e-6)
         for t in GREYER_THRESHOLDS:
             feats[f"{tag}_greyer_{t}"] = float(np.mean(grey > t))
@@ -139,21 +139,51 @@ def _features(pixels_linear: np.ndarray) -> dict[str, float]:
         feats[f"{tag}_chroma_p95"] = float(np.quantile(chroma, 0.95))
         feats[f"{tag}_corr_lum_grey"] = _corr(hl, grey)
         feats[f"{tag}_lighter_and_greyer"] = float(np.mean((hl > LIGHTER_THRESHOLDS[0]) & (grey > GREYER_THRESHOLDS[0])))
-    feats["fb_over_px_lum"] = feats["fb_lum_sd"] / max(feats["px_lum_sd"], 1e-6)
-    feats["fb_over_px_grey"] = feats["fb_grey_sd"] / max(feats["px_grey_sd"], 1e-6)
+    for a in ALONG_FIBRE_PX:
+        feats[f"fb{int(a)}_over_px_lum"] = feats[f"fb{int(a)}_lum_sd"] / max(feats["px_lum_sd"], 1e-6)
+        feats[f"fb{int(a)}_over_px_grey"] = feats[f"fb{int(a)}_grey_sd"] / max(feats["px_grey_sd"], 1e-6)
+    # whole fibre runs: the mean of each column (row, for horizontal fibres), high-passed across
+    cols = [np.mean(p, axis=axis) for p in (lum, c1, c2)]
+    cl, k1, k2 = (c - cv2.GaussianBlur(c.reshape(1, -1), (0, 0), HIGHPASS_SIGMA_PX,
+                                       borderType=cv2.BORDER_REFLECT).ravel() for c in cols)
+    m = int(np.ceil(2 * HIGHPASS_SIGMA_PX))
+    cl, cg = cl[m:-m], (k1 * towards_grey[0] + k2 * towards_grey[1])[m:-m]
+    feats["col_lum_sd"] = float(np.std(cl))
+    feats["col_grey_sd"] = float(np.std(cg))
+    feats["col_lum_skew"] = float(np.mean((cl - cl.mean()) ** 3) / max(np.std(cl) ** 3, 1e-9))
+    feats["col_corr_lum_grey"] = _corr(cl, cg)
+    feats["col_over_px_lum"] = feats["col_lum_sd"] / max(feats["px_lum_sd"], 1e-6)
+    # the fibres' own variation, free of the noise: covariance along the fibres at a lag (the noise of
+    # two pixels apart is independent, a fibre's colour is the same), as a signed standard deviation
+    hl, h1, h2 = (_highpass(p) for p in (lum, c1, c2))
+    hg = h1 * towards_grey[0] + h2 * towards_grey[1]
+    if axis == 1:
+        hl, h1, h2, hg = hl.T, h1.T, h2.T, hg.T
+    hl, h1, h2, hg = (a[:, m:-m] for a in (hl, h1, h2, hg))
+    for lag in FIBRE_LAGS_PX:
+        def acov(a: np.ndarray, b: np.ndarray) -> float:
+            a0, b0 = a[:-lag] - a.mean(), b[lag:] - b.mean()
+            return float(np.mean(a0 * b0))
+        for name, a, b in (("lum", hl, hl), ("grey", hg, hg), ("lum_grey", hl, hg)):
+            v = acov(a, b) if name != "lum_grey" else 0.5 * (acov(a, b) + acov(b, a))
+            feats[f"lag{lag}_{name}"] = float(np.sign(v) * np.sqrt(abs(v)))
+        v = acov(h1, h1) + acov(h2, h2)
+        feats[f"lag{lag}_chroma"] = float(np.sign(v) * np.sqrt(abs(v)))
     feats["saturation"] = float(np.hypot(np.median(c1), np.median(c2)))
     return feats
 
 
-def texture_features(pixels_linear: np.ndarray) -> np.ndarray:
+def texture_features(pixels_linear: np.ndarray, fibre_axis: int = 0) -> np.ndarray:
     """Statistics of the swatch area's texture at the fibre scale, ``FEATURE_NAMES`` order.
 
     ``pixels_linear`` is the colour-corrected linear float (H, W, 3) swatch area of the all-lights
-    frame, at the capture's full resolution (a fibre about a pixel wide). The statistics respond to
-    the fibres' spread and grey share and hardly to a global gain or a colour cast (they are taken
-    on logarithms after the local mean is taken away; only ``saturation``, the area's mean chroma,
-    follows a cast)."""
-    return np.array(list(_features(pixels_linear).values()), float)
+    frame, at the capture's full resolution (a fibre about a pixel wide); ``fibre_axis`` the image
+    axis the fibres run along (0, down the image, at the bench camera: the rig holds the strands
+    along its y axis, the image's vertical; noise this strong makes a guess from the image unsafe).
+    The statistics respond to the fibres' spread and grey share and hardly to a global gain or a
+    colour cast (they are taken on logarithms after the local mean is taken away; only
+    ``saturation``, the area's mean chroma, follows a cast)."""
+    return np.array(list(_features(pixels_linear, fibre_axis).values()), float)
 
 
 FEATURE_NAMES = tuple(_features(np.random.default_rng(0).uniform(0.1, 1.0, (32, 32, 3)).astype(np.float32)))
@@ -179,41 +209,62 @@ def lightness(sigma_a) -> float:
 LIGHTNESS_BINS = {"dark": (-np.inf, 0.0), "medium": (0.0, 2.0), "light": (2.0, np.inf)}
 
 
-def design(features: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """The regression's inputs: the features, the covariates, and each feature times each covariate
-    (the texture a given spread makes depends on how dark and how glossy the hair is)."""
+#: The regression designs ``fit_texture`` chooses from, per target, by cross-validation.
+DESIGNS = ("linear", "products")
+
+
+def design(features: np.ndarray, cov: np.ndarray, kind: str = "products") -> np.ndarray:
+    """The regression's inputs: the features and the covariates (``"linear"``), and (``"products"``)
+    also ln sigma_a's square and each feature times mean ln sigma_a, its square and the shine (the
+    texture a given spread makes depends on how dark and how glossy the hair is: in platinum and in
+    black hair a spread of pigment hardly shows)."""
     features = np.atleast_2d(features)
     cov = np.atleast_2d(cov)
-    products = (features[:, :, None] * cov[:, None, :]).reshape(len(features), -1)
-    return np.hstack([features, cov, products])
+    if kind == "linear":
+        return np.hstack([features, cov])
+    if kind != "products":
+        raise ValueError(f"unknown design {kind!r}; choose one of {', '.join(DESIGNS)}")
+    mods = np.column_stack([cov[:, 0], cov[:, 0] ** 2, cov[:, 2]])
+    products = (features[:, :, None] * mods[:, None, :]).reshape(len(features), -1)
+    return np.hstack([features, cov, mods[:, 1:2], products])
 
 
 @dataclass(frozen=True)
 class TextureModel:
-    """A ridge regression per target on standardised ``design`` inputs, with interval scales."""
+    """A ridge regression per target on standardised ``design`` inputs (``kinds``), with interval scales."""
 
-    mean: np.ndarray
-    scale: np.ndarray
+    kinds: dict[str, str]
+    mean: dict[str, np.ndarray]
+    scale: dict[str, np.ndarray]
     coef: dict[str, np.ndarray]
     intercept: dict[str, float]
-    #: per target: the residual scale's ``a + b * light`` (``light`` = lightness clipped to
-    #: ``light_clip``) and, per level, the quantile of |residual| / scale on held-out renders.
+    #: per target: the residual's scale per lightness bin (``"scale"``: the mean |out-of-fold error| of
+    #: the training renders in the bin) and, per level (``"k"``), the quantile of |error| / scale on
+    #: the held-out renders: an interval is the reading +- k * scale.
     interval: dict[str, dict]
     feature_names: tuple[str, ...] = FEATURE_NAMES
     meta: dict = field(default_factory=dict)
 
     def predict(self, features: np.ndarray, cov: np.ndarray) -> dict[str, np.ndarray]:
-        x = (design(features, cov) - self.mean) / self.scale
-        return {t: x @ self.coef[t] + self.intercept[t] for t in TARGETS}
+        out = {}
+        for t in TARGETS:
+            x = (design(features, cov, self.kinds[t]) - self.mean[t]) / self.scale[t]
+            out[t] = x @ self.coef[t] + self.intercept[t]
+        return out
 
     def residual_scale(self, target: str, light: np.ndarray | float) -> np.ndarray:
-        spec = self.interval[target]
-        lo, hi = spec["light_clip"]
-        return np.maximum(spec["a"] + spec["b"] * np.clip(light, lo, hi), spec["floor"])
+        """The typical |error| of ``target`` for hair of ``lightness`` ``light`` (per ``LIGHTNESS_BINS``)."""
+        scales = self.interval[target]["scale"]
+        light = np.asarray(light, float)
+        out = np.zeros(light.shape)
+        for name, (lo, hi) in LIGHTNESS_BINS.items():
+            out = np.where((light >= lo) & (light < hi), scales[name], out)
+        return out
 
     def to_dict(self) -> dict:
-        return {"kind": "ridge", "feature_names": list(self.feature_names), "mean": self.mean.tolist(),
-                "scale": self.scale.tolist(), "coef": {t: v.tolist() for t, v in self.coef.items()},
+        return {"kind": "ridge", "feature_names": list(self.feature_names), "designs": self.kinds,
+                "mean": {t: v.tolist() for t, v in self.mean.items()},
+                "scale": {t: v.tolist() for t, v in self.scale.items()}, "coef": {t: v.tolist() for t, v in self.coef.items()},
                 "intercept": self.intercept, "interval": self.interval, "meta": self.meta}
 
     @classmethod
@@ -222,7 +273,8 @@ class TextureModel:
         if names != FEATURE_NAMES:
             raise ValueError("texture_model.json was fitted on other features than inference.texture computes; "
                              "fit it again (python -m hairdigi.inference.training.fit_texture fit)")
-        return cls(np.array(data["mean"]), np.array(data["scale"]), {t: np.array(v) for t, v in data["coef"].items()},
+        arrays = {key: {t: np.array(v) for t, v in data[key].items()} for key in ("mean", "scale", "coef")}
+        return cls(dict(data["designs"]), arrays["mean"], arrays["scale"], arrays["coef"],
                    {t: float(v) for t, v in data["intercept"].items()}, data["interval"], names, data.get("meta", {}))
 
 

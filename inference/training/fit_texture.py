@@ -13,7 +13,8 @@ skips what is done); the camera model is applied when the features are computed,
 own seed.
 
 ``... fit`` fits ``inference.texture``'s model on about 80% of the samples and calibrates its
-intervals on the held-out 20%; it writes ``resources/models/texture_model.json`` and the evidence,
+intervals on out-of-sample errors (the held-out 20% and the training renders' out-of-fold errors);
+it writes ``resources/models/texture_model.json`` and the evidence,
 ``texture_evaluation.json`` and ``.png`` (predicted against true, held-out errors overall and by
 lightness, and a learning curve). ``main([])`` does both.
 """
@@ -190,6 +191,8 @@ def main(argv: list[str] | None = None) -> int:
 #: shine read to about 0.03 (``hairdigi bench shine``), drawn per sample from its camera seed.
 SIGMA_JITTER, SHINE_JITTER = 0.10, 0.03
 HOLDOUT_SHARE = 0.2
+#: Pseudo-count pulling a lightness bin's error scale towards the overall one.
+SHRINK = 5.0
 ALPHAS = tuple(10.0 ** np.arange(-3, 3.01, 0.5))
 
 
@@ -232,20 +235,26 @@ def ridge_fit(x: np.ndarray, y: np.ndarray, alphas=ALPHAS) -> tuple[np.ndarray, 
     return mean, scale, best[1], float(y0), float(best[2])
 
 
-def fit_model(features: np.ndarray, cov: np.ndarray, targets: np.ndarray):
-    """A ``TextureModel`` (without intervals) fitted on the given samples."""
+def fit_model(features: np.ndarray, cov: np.ndarray, targets: np.ndarray, kinds: dict[str, str] | None = None):
+    """A ``TextureModel`` (without intervals) fitted on the given samples; ``kinds`` (the design per
+    target) default to the one with the lower 5-fold cross-validated error on these samples."""
     from hairdigi.inference import texture
 
-    x = texture.design(features, cov)
-    coef, intercept, alphas = {}, {}, {}
-    mean = scale = None
+    kinds = dict(kinds) if kinds else {}
     for k, target in enumerate(texture.TARGETS):
-        mean, scale, coef[target], intercept[target], alphas[target] = ridge_fit(x, targets[:, k])
-    return texture.TextureModel(mean, scale, coef, intercept, {}, meta={"alpha": alphas})
+        if target not in kinds:
+            errs = {kind: float(np.mean(np.abs(_oof(features, cov, targets, {t: kind for t in texture.TARGETS})[:, k]
+                                               - targets[:, k]))) for kind in texture.DESIGNS}
+            kinds[target] = min(errs, key=errs.get)
+    mean, scale, coef, intercept, alphas = {}, {}, {}, {}, {}
+    for k, target in enumerate(texture.TARGETS):
+        x = texture.design(features, cov, kinds[target])
+        mean[target], scale[target], coef[target], intercept[target], alphas[target] = ridge_fit(x, targets[:, k])
+    return texture.TextureModel(kinds, mean, scale, coef, intercept, {}, meta={"alpha": alphas})
 
 
-def _oof(features, cov, targets, folds: int = 5, seed: int = 0) -> np.ndarray:
-    """Out-of-fold predictions (n, 2) by ``folds``-fold cross-fitting."""
+def _oof(features, cov, targets, kinds: dict[str, str] | None = None, folds: int = 5, seed: int = 0) -> np.ndarray:
+    """Out-of-fold predictions (n, 2) by ``folds``-fold cross-fitting (designs chosen per fold unless given)."""
     from hairdigi.inference import texture
 
     order = np.random.default_rng(seed).permutation(len(targets))
@@ -253,7 +262,7 @@ def _oof(features, cov, targets, folds: int = 5, seed: int = 0) -> np.ndarray:
     for f in range(folds):
         test = order[f::folds]
         train = np.setdiff1d(order, test)
-        model = fit_model(features[train], cov[train], targets[train])
+        model = fit_model(features[train], cov[train], targets[train], kinds)
         p = model.predict(features[test], cov[test])
         pred[test] = np.column_stack([p[t] for t in texture.TARGETS])
     return pred
@@ -267,7 +276,8 @@ def conformal_k(ratios: np.ndarray, level: float) -> float:
 
 
 def fit(samples: list, out_dir: Path | None = None, plot: bool = True) -> dict:
-    """Fit on ~80% of ``samples``, calibrate the intervals on the held-out ~20%, write the model and
+    """Fit on ~80% of ``samples``, calibrate the intervals on out-of-sample errors (the held-out ~20%
+    and the training renders' out-of-fold errors), write the model and
     the evidence to ``out_dir`` (default: the package's ``resources/models``); returns the evaluation."""
     from hairdigi.inference import texture
     from hairdigi.resources import MODELS
@@ -287,25 +297,31 @@ def fit(samples: list, out_dir: Path | None = None, plot: bool = True) -> dict:
     hold, train = np.sort(order[:n_hold]), np.sort(order[n_hold:])
 
     model = fit_model(features[train], cov[train], targets[train])
-    # the residual's scale by lightness: |out-of-fold residual| on the training samples, a + b * light
-    oof = _oof(features[train], cov[train], targets[train])
-    clip = [float(np.quantile(light, 0.05)), float(np.quantile(light, 0.95))]
-    lt = np.clip(light[train], *clip)
+    # the residual's scale by lightness: |out-of-fold residual| on the training samples, per bin
+    oof = _oof(features[train], cov[train], targets[train], model.kinds)
     interval = {}
     pred_hold = model.predict(features[hold], cov[hold])
     for k, target in enumerate(texture.TARGETS):
-        a_mat = np.column_stack([np.ones(len(train)), lt])
         resid = np.abs(oof[:, k] - targets[train, k])
-        (a, b), *_ = np.linalg.lstsq(a_mat, resid, rcond=None)
-        floor = float(max(0.25 * np.mean(resid), 1e-3))
-        spec = {"a": float(a), "b": float(b), "light_clip": clip, "floor": floor}
+        scales = {}
+        for name, (lo, hi) in texture.LIGHTNESS_BINS.items():
+            m = (light[train] >= lo) & (light[train] < hi)
+            # shrunk towards the overall mean |error| when the bin holds few renders
+            scales[name] = float((resid[m].sum() + SHRINK * resid.mean()) / (m.sum() + SHRINK))
+        spec = {"scale": scales, "n_bins": {name: int(np.sum((light[train] >= lo) & (light[train] < hi)))
+                                            for name, (lo, hi) in texture.LIGHTNESS_BINS.items()}}
         interval[target] = spec
-        tmp = texture.TextureModel(model.mean, model.scale, model.coef, model.intercept, interval)
+        tmp = texture.TextureModel(model.kinds, model.mean, model.scale, model.coef, model.intercept, interval)
         lo, hi = texture.TARGET_LIMITS[target]
         p = np.clip(pred_hold[target], lo, hi)
         ratios = np.abs(p - targets[hold, k]) / tmp.residual_scale(target, light[hold])
-        spec["k"] = {"p68": conformal_k(ratios, 0.68), "p95": conformal_k(ratios, 0.95)}
-    model = texture.TextureModel(model.mean, model.scale, model.coef, model.intercept, interval,
+        # the held-out renders alone (~20%) give a p95 from one or two errors: the training renders'
+        # out-of-fold errors (each read by a model that did not see it) join them
+        oof_ratios = np.abs(np.clip(oof[:, k], lo, hi) - targets[train, k]) / tmp.residual_scale(target, light[train])
+        both = np.concatenate([ratios, oof_ratios])
+        spec["k"] = {"p68": conformal_k(both, 0.68), "p95": conformal_k(both, 0.95)}
+        spec["k_from"] = {"held_out": int(len(ratios)), "out_of_fold": int(len(oof_ratios))}
+    model = texture.TextureModel(model.kinds, model.mean, model.scale, model.coef, model.intercept, interval,
                                  meta={**model.meta, "samples": n, "train": int(len(train)), "held_out": int(n_hold),
                                        "data_version": DATA_VERSION, "spp": SPP, "sigma_jitter": SIGMA_JITTER,
                                        "shine_jitter": SHINE_JITTER,
@@ -313,9 +329,15 @@ def fit(samples: list, out_dir: Path | None = None, plot: bool = True) -> dict:
     evaluation = evaluate(model, features, cov, targets, light, truths, train, hold)
     evaluation["feature_seconds_per_sample"] = feature_seconds
     evaluation["render_seconds_per_sample_median"] = float(np.median([t.get("render_seconds", np.nan) for t in truths]))
-    evaluation["learning_curve"] = learning_curve(features, cov, targets, train, hold)
-    evaluation["oof_train"] = {t: {"mae": float(np.mean(np.abs(oof[:, k] - targets[train, k])))}
-                               for k, t in enumerate(texture.TARGETS)}
+    evaluation["learning_curve"] = learning_curve(features, cov, targets, train, hold, model.kinds)
+    # the intervals' coverage on the training renders' out-of-fold errors (part of their calibration)
+    evaluation["oof_train"] = {}
+    for k, t in enumerate(texture.TARGETS):
+        lo, hi = texture.TARGET_LIMITS[t]
+        r = np.abs(np.clip(oof[:, k], lo, hi) - targets[train, k]) / model.residual_scale(t, light[train])
+        evaluation["oof_train"][t] = {"mae": float(np.mean(np.abs(np.clip(oof[:, k], lo, hi) - targets[train, k]))),
+                                      "coverage_p68": float(np.mean(r <= interval[t]["k"]["p68"])),
+                                      "coverage_p95": float(np.mean(r <= interval[t]["k"]["p95"]))}
     out_dir.mkdir(parents=True, exist_ok=True)
     with atomic_path(out_dir / texture.MODEL_FILE) as tmp:
         tmp.write_text(json.dumps(model.to_dict(), indent=1) + "\n")
@@ -339,8 +361,8 @@ def evaluate(model, features, cov, targets, light, truths, train, hold) -> dict:
 
     out = {"targets": list(texture.TARGETS), "n_train": int(len(train)), "n_held_out": int(len(hold)),
            "lightness_bins": {k: [float(v) for v in b] for k, b in texture.LIGHTNESS_BINS.items()},
-           "note": ("held-out: renders the model was not fitted on; the intervals' k was calibrated on them "
-                    "(split conformal), so their coverage here is near the level by construction"),
+           "note": ("held-out: renders the model was not fitted on; the intervals' k was calibrated on their "
+                    "errors together with the training renders' out-of-fold errors (oof_train)"),
            "held_out": {}, "points": []}
     readings = [texture.reading_from(model, features[i], *estimate_inputs(truths[i])) for i in hold]
     for k, target in enumerate(texture.TARGETS):
@@ -351,6 +373,8 @@ def evaluate(model, features, cov, targets, light, truths, train, hold) -> dict:
         in95 = np.array([r.intervals[target]["p95"][0] <= t <= r.intervals[target]["p95"][1]
                          for r, t in zip(readings, targets[hold, k])])
         block = {"overall": _errors(err, in68, in95)}
+        # what the texture adds: the error of reading every swatch as the training mean
+        block["overall"]["mae_of_the_training_mean"] = float(np.mean(np.abs(targets[train, k].mean() - targets[hold, k])))
         for name, (lo, hi) in texture.LIGHTNESS_BINS.items():
             m = (light[hold] >= lo) & (light[hold] < hi)
             block[name] = _errors(err[m], in68[m], in95[m])
@@ -365,7 +389,7 @@ def evaluate(model, features, cov, targets, light, truths, train, hold) -> dict:
     return out
 
 
-def learning_curve(features, cov, targets, train, hold, sizes=(0.25, 0.5, 1.0)) -> list[dict]:
+def learning_curve(features, cov, targets, train, hold, kinds: dict[str, str], sizes=(0.25, 0.5, 1.0)) -> list[dict]:
     """Held-out MAE of models fitted on growing shares of the training samples."""
     from hairdigi.inference import texture
 
@@ -373,7 +397,7 @@ def learning_curve(features, cov, targets, train, hold, sizes=(0.25, 0.5, 1.0)) 
     for share in sizes:
         m = max(10, int(round(share * len(train))))
         sub = train[:m]
-        model = fit_model(features[sub], cov[sub], targets[sub])
+        model = fit_model(features[sub], cov[sub], targets[sub], kinds)
         p = model.predict(features[hold], cov[hold])
         row = {"n_train": int(m)}
         for k, target in enumerate(texture.TARGETS):
@@ -400,7 +424,7 @@ def plot_evaluation(evaluation: dict, path: Path) -> None:
         hi = np.array([p["p95"][k][1] for p in pts])
         light = np.array([p["lightness"] for p in pts])
         ax.errorbar(true, pred, yerr=[pred - lo, hi - pred], fmt="none", ecolor="0.75", lw=1, zorder=1)
-        sc = ax.scatter(true, pred, c=light, cmap="copper_r", s=22, zorder=2, edgecolors="k", linewidths=0.3)
+        sc = ax.scatter(true, pred, c=light, cmap="copper", s=22, zorder=2, edgecolors="k", linewidths=0.3)
         top = max(true.max(), hi.max()) * 1.05
         ax.plot([0, top], [0, top], "k--", lw=0.8)
         block = evaluation["held_out"][target]["overall"]
@@ -410,12 +434,14 @@ def plot_evaluation(evaluation: dict, path: Path) -> None:
     fig.colorbar(sc, ax=axes[1], label="lightness  -mean ln(sigma_a + 0.01)")
     ax = axes[2]
     lc = evaluation["learning_curve"]
-    for target in evaluation["targets"]:
-        ax.plot([r["n_train"] for r in lc], [r[f"{target}_mae"] for r in lc], "o-", label=names[target])
+    for target, colour in zip(evaluation["targets"], ("C0", "C1")):
+        ax.plot([r["n_train"] for r in lc], [r[f"{target}_mae"] for r in lc], "o-", color=colour, label=names[target])
+        ax.axhline(evaluation["held_out"][target]["overall"]["mae_of_the_training_mean"], color=colour, ls=":", lw=1,
+                   label=f"{target}: reading the training mean")
     ax.set_xlabel("training renders")
     ax.set_ylabel("held-out MAE")
     ax.set_title("learning curve", fontsize=9)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7)
     fig.tight_layout()
     with atomic_path(path, ".png") as tmp:
         fig.savefig(tmp, dpi=90)
