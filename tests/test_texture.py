@@ -12,7 +12,9 @@ import pytest
 from hairdigi.inference import texture
 from hairdigi.inference.training import fit_texture
 
-#: What the packaged model must do on a uniform swatch (see texture_evaluation.json).
+#: What the packaged model must do on a uniform swatch (see texture_evaluation.json). The grey share
+#: is read (held-out MAE 0.057); the spread is not, at 32 spp (its reading stays near the training
+#: mean, 0.25, and its p95 interval spans most of 0-0.5): the test only keeps it from reading high.
 UNIFORM_GREY_BELOW, UNIFORM_SPREAD_BELOW, GREY_GAP = 0.1, 0.3, 0.05
 
 #: Held-out swatches: (sigma_a, shine, spread, grey share, strand seed): a medium brown with greys
