@@ -119,9 +119,9 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
             if uniform.reachable:
                 refinement, appearance = uniform, unmeasured_variation(reading.estimate)
                 warnings += _warn(WarningKind.APPEARANCE, [
-                    f"appearance: the fibre spread {reading.value.fibre_spread:.2f} and grey share "
-                    f"{reading.value.grey_fraction:.2f} read from the texture do not fit this swatch's colour "
-                    f"(no such hair renders it, uniform fibres do); they are not reported as measured"])
+                    f"appearance: the grey share {reading.value.grey_fraction:.2f} read from the texture does not "
+                    f"fit this swatch's colour (no such hair renders it, uniform fibres do); it is not reported "
+                    f"as measured"])
         params = refinement.params
         if not refinement.reachable:
             warnings += _warn(WarningKind.UNREACHABLE, [
