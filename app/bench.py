@@ -162,7 +162,7 @@ def bench_shine(args: argparse.Namespace) -> int:
 
 def bench_structure(args: argparse.Namespace) -> int:
     """The swatch's fibre structure: today's interpenetrating swatch against a layered one, fibre counts, lights."""
-    from hairdigi.render.bench_structure import run
+    from hairdigi.inference.training.bench_structure import run
 
     out = Path("packaging/bench/structure") if args.out == BENCH_OUT else Path(args.out)
     rows = run(out, quick=args.quick)

@@ -19,7 +19,7 @@ import numpy as np
 
 from hairdigi.hardware.cameras import Frame
 from hairdigi.render.base import rig_geometry
-from hairdigi.render.camera_model import CameraModel, sensor_response, spread_glints
+from hairdigi.render.camera_model import NOMINAL_EXPOSURE, CameraModel, sensor_response, spread_glints  # noqa: F401
 from hairdigi.render.base.files import atomic_path, cache_dir
 from hairdigi.render.chart import colorchecker_reflectances
 from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
@@ -29,10 +29,6 @@ from hairdigi.render.renderer import Renderer, SceneSpec
 SIM_SIZE = (400, 300)
 #: The hidden swatch of the demo: a copper-dyed light brown.
 DEFAULT_HIDDEN = HairParams((190, 80, 40), 0.5, 0.5, 0.6)
-#: The bench's exposure, set as an operator sets it with the exposure check: the chart's white patch
-#: in its band (8-bit level about 195, ``hardware.exposure.WHITE_BAND``), with room for +0.5 EV of
-#: error before the chart clips (a platinum swatch's glints may: that capture is then refused).
-NOMINAL_EXPOSURE = 2.0 ** -0.25
 CACHE_VERSION = 4  # bumped when the absorption mapping or the light images change (4: glints spread, not removed)
 
 

@@ -15,6 +15,10 @@ import numpy as np
 from hairdigi.render.srgb import linear_to_srgb8
 
 ADC_BITS = 12
+#: The simulated bench's exposure, set as an operator sets it with the exposure check: the chart's white
+#: patch in its band (8-bit level about 195, ``hardware.exposure.WHITE_BAND``), with room for +0.5 EV of
+#: error before the chart clips (a platinum swatch's glints may: that capture is then refused).
+NOMINAL_EXPOSURE = 2.0 ** -0.25
 
 
 @dataclass

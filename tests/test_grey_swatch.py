@@ -37,7 +37,7 @@ def crop_render(renderer: Renderer, sigma_a: tuple[float, float, float], grey: f
 
 def rig_render(renderer: Renderer, sigma_a: tuple[float, float, float], grey: float, spread: float) -> np.ndarray:
     """The swatch on its holder beside the chart, at the bench camera, through the simulated rig's camera."""
-    from hairdigi.hardware.sim_rig import NOMINAL_EXPOSURE
+    from hairdigi.render.camera_model import NOMINAL_EXPOSURE
     from hairdigi.render.camera_model import CameraModel, sensor_response, spread_glints
     from hairdigi.render.chart import colorchecker_reflectances
 

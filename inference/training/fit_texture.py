@@ -118,7 +118,7 @@ def capture(lights: np.ndarray, camera_seed: int, exposure_ev: float = 0.0) -> n
     (``exposure_ev`` off it), the camera model (small calibrated errors, noise, 12-bit ADC, 8-bit
     sRGB), decoded to linear and corrected back to radiance at the nominal exposure (linear float32,
     (h, w, 3))."""
-    from hairdigi.hardware.sim_rig import NOMINAL_EXPOSURE
+    from hairdigi.render.camera_model import NOMINAL_EXPOSURE
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.render.camera_model import random_camera, sensor_response
 
