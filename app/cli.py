@@ -161,12 +161,10 @@ def cmd_estimate(args: argparse.Namespace) -> int:
            else "encoder alone")
     print(f"dye rgb {tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
           f"{p.melanin_concentration:.2f} (ratio {p.melanin_ratio:.2f}); {how}; wrote {args.out}")
-    if record.appearance is not None and record.appearance.measured:
-        look, iv = record.appearance.value, record.appearance.intervals
-        parts = [f"{name.replace('_', ' ')} {getattr(look, name):.3f}"
-                 + (f" (68%: {iv[name]['p68'][0]:.3f}-{iv[name]['p68'][1]:.3f})" if "p68" in iv.get(name, {}) else "")
-                 for name in record.appearance.measured]
-        print("appearance: " + ", ".join(parts))
+    if record.appearance is not None:
+        from hairdigi.app.rig_cli import appearance_lines
+
+        print("appearance: " + "; ".join(appearance_lines(record.appearance)))
     for warning in estimate.warnings:
         print(f"warning: {warning.message}", file=sys.stderr)
     if args.render:
@@ -499,8 +497,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="simulated dead light(s), numbered from 0")
     p.add_argument("--spp", type=spp, default=32, help="samples per pixel of the simulated rig's light renders")
     p.add_argument("--hidden", metavar="PARAMS.json",
-                   help="the simulated swatch's hidden parameters (Table 1, as render --params reads them); "
-                        "the chain's estimate is then judged against them")
+                   help="the simulated swatch's hidden parameters (Table 1, as render --params reads them, and "
+                        "optionally an \"appearance\" block: longitudinal_roughness, fibre_spread, grey_fraction); "
+                        "the chain's estimate is then judged against them, at the rig and away from it")
     p.add_argument("--still", help="import a RAW still of the rig (DNG, CR2, NEF, ...; the chart in view) into "
                                    "the session and estimate it; needs no camera or light board")
     p.set_defaults(func=cmd_rig)

@@ -35,8 +35,24 @@ def open_session(args) -> RigSession:
             from hairdigi.render.base.params import load_params
 
             simulated["hidden"] = load_params(args.hidden)
+            simulated["appearance"] = hidden_appearance(args.hidden)
     roi = tuple(int(v) for v in args.roi.split(",")) if args.roi else None
     return open_rig(args.session, args.sim, args.camera, args.port, roi, require_lights=False, **simulated)[0]
+
+
+def hidden_appearance(path):
+    """The ``appearance`` block of a hidden swatch's JSON (shine, fibre spread, greys), or None."""
+    from hairdigi.render.base.appearance import Appearance, AppearanceError
+    from hairdigi.render.base.files import read_json
+    from hairdigi.render.base.params import HairParamsError
+
+    data = read_json(path, HairParamsError, "no such parameter file", "not valid JSON ({exc})")
+    if not isinstance(data, dict) or data.get("appearance") is None:
+        return None
+    try:
+        return Appearance.from_dict(data["appearance"])
+    except AppearanceError as exc:
+        raise HairParamsError(f"{path}: appearance: {exc}") from None
 
 
 def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
@@ -89,6 +105,20 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
                 f"ratio {hidden.melanin_ratio:.2f}")
             from hairdigi.render.judge import judge
 
+            look = session.camera.appearance
+            if result.record.appearance is not None:
+                from hairdigi.app.evaluate_appearance import judge_everywhere
+
+                read = result.record.appearance.value
+                say(f"hidden appearance: shine {look.longitudinal_roughness:.2f}, fibre spread {look.fibre_spread:.2f}, "
+                    f"greys {look.grey_fraction:.2f}; read: shine {read.longitudinal_roughness:.2f}, grey share "
+                    f"{read.grey_fraction:.2f}")
+                where = judge_everywhere((hidden, look), (result.record.sigma_a, read),
+                                         session.region(session.frame().srgb))
+                out["truth_de2000_everywhere"] = where
+                say("against the hidden truth, mean-colour ΔE2000: " + ", ".join(
+                    f"{name} {de:.2f}" for name, de in where.items()) + " (transfer: another camera, a key light "
+                    "and a grey sky)")
             verdict = judge(hidden, result.record.refinement.sigma_a or p)
             out["truth_de2000"] = verdict.de2000
             say(f"against the hidden truth (both rendered at the rig's swatch pose, {verdict.spp} spp, common "
@@ -107,6 +137,8 @@ def say_record(record, say=print) -> None:
     if "mean_colour_de2000_p68" in u:
         say(f"stated colour interval: within ΔE2000 {u['mean_colour_de2000_p68']:.2f} of the truth in 68% and "
             f"{u['mean_colour_de2000_p95']:.2f} in 95% of held-out captures ({u.get('mean_colour_source', '')})")
+    if record.appearance is not None:
+        say("appearance: " + "; ".join(appearance_lines(record.appearance)))
     for warning in record.warnings:
         say(f"warning: {warning.message}")
 
@@ -183,3 +215,17 @@ def detection_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16) -> list
     out.mkdir(parents=True, exist_ok=True)
     write_csv_atomic(out / "rig_bench.csv", rows)
     return rows
+
+
+def appearance_lines(estimate) -> list[str]:
+    """Each appearance field with its 68% interval, or "not measured" (an ``AppearanceEstimate``)."""
+    names = {"longitudinal_roughness": "shine", "fibre_spread": "fibre spread", "grey_fraction": "grey share"}
+    lines = []
+    for key, label in names.items():
+        value = getattr(estimate.value, key)
+        p68 = estimate.intervals.get(key, {}).get("p68")
+        if key not in estimate.measured:
+            lines.append(f"{label} {value:.2f} (not measured)")
+        else:
+            lines.append(f"{label} {value:.2f}" + (f" (68%: {p68[0]:.2f}-{p68[1]:.2f})" if p68 else ""))
+    return lines

@@ -221,7 +221,9 @@ class RigSession:
         self.lights.all_off()
         for i, st in enumerate(before):
             self.lights.set_light(i, st.on)
-        return dead_lights(dark, singles, self._roi(dark))
+        # the whole frame, not the swatch: glossy hair sends light 0 (along the fibres) almost nothing,
+        # though the light works (it lights the holder and the chart as the others do)
+        return dead_lights(dark, singles, (0, 0, dark.shape[1], dark.shape[0]))
 
     def _roi(self, image: np.ndarray) -> tuple[int, int, int, int]:
         if self.swatch_roi is not None:

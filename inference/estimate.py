@@ -222,7 +222,6 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
     if calibration_path is not None:
         from hairdigi.inference.calibration import (apply_profile, calibration_warnings, correction_warnings,
                                                     load_profile)
-        from hairdigi.inference.preprocess import to_linear
 
         profile = load_profile(calibration_path)
         raw = image

@@ -52,6 +52,8 @@ SIGMA_LEVELS = (0.0, 0.03, 0.08, 0.16, 0.3, 0.5, 0.8, 1.3, 2.0, 3.2, 5.5, 12.0)
 _LOG_OFFSET = 0.02
 #: A final residual above this (ΔE2000) means no swatch of Table 1 hair renders the capture's colour.
 REACHABLE_DE = 1.0   # log(sigma + offset): the curve is smooth there down to sigma = 0
+#: More check-and-correct renders for a swatch of varied fibres (greys, spread).
+VARIED_EXTRA_ITERATIONS = 2
 
 
 @dataclass(frozen=True)
@@ -301,12 +303,15 @@ def refine(prior: HairParams, target: np.ndarray, view: View = CameraPose(),
     history: list[float] = []
     spec, size = scene_for(view, settings, appearance)
     nonfinite = 0
-    for k in range(settings.iterations):
+    # varied fibres: the mixture curve only approximates light passing between unlike fibres, so
+    # the check renders may need two more corrections
+    iterations = settings.iterations + (VARIED_EXTRA_ITERATIONS if appearance.varied else 0)
+    for k in range(iterations):
         result = renderer.render(sigma, spec, size, settings.spp, settings.seed)
         nonfinite += result.nonfinite
         rendered = result.linear.reshape(-1, 3).mean(0)
         history.append(float(delta_e2000(rendered, target)))
-        if history[-1] < settings.tolerance_de or k == settings.iterations - 1:
+        if history[-1] < settings.tolerance_de or k == iterations - 1:
             break   # the returned sigma is always the last one rendered, with its measured residual
         # shift the goal by the residual and invert again: the curve supplies the slope
         goal = np.clip(goal + (target - rendered), 1e-6, None)
