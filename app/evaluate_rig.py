@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.render.base.appearance import DEFAULT_APPEARANCE
 from hairdigi.render.base.files import write_csv_atomic, write_json_atomic
 from hairdigi.render.base.params import HairParams, sample_params
 
@@ -76,7 +77,8 @@ def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, se
     if result.record is None:
         return row
     rec = result.record
-    refined = judge(hidden, rec.refinement.sigma_a if rec.refinement.sigma_a else rec.hair)
+    look = None if rec.appearance is None or rec.appearance.value == DEFAULT_APPEARANCE else rec.appearance.value
+    refined = judge(hidden, rec.refinement.sigma_a if rec.refinement.sigma_a else rec.hair, looks=(None, look))
     encoder = judge(hidden, HairParams.from_dict(rec.encoder["hair"]))
     row.update(de2000=refined.de2000, encoder_de2000=encoder.de2000,
                residual_de2000=rec.refinement.residual_de2000, refine_seconds=rec.refinement.seconds,

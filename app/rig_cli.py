@@ -119,7 +119,9 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
                 say("against the hidden truth, mean-colour ΔE2000: " + ", ".join(
                     f"{name} {de:.2f}" for name, de in where.items()) + " (transfer: another camera, a key light "
                     "and a grey sky)")
-            verdict = judge(hidden, result.record.refinement.sigma_a or p)
+            read = result.record.appearance
+            verdict = judge(hidden, result.record.refinement.sigma_a or p,
+                            looks=(session.camera.appearance, None if read is None else read.value))
             out["truth_de2000"] = verdict.de2000
             say(f"against the hidden truth (both rendered at the rig's swatch pose, {verdict.spp} spp, common "
                 f"seed): mean-colour ΔE2000 {verdict.de2000:.2f}")

@@ -126,7 +126,10 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
             sigma_guess = uniform.inverse(mean_linear(texture_pixels))[0]
         variation = _read_variation(texture_pixels, sigma_guess, value.longitudinal_roughness)
         if variation is not None:
-            value = replace(value, **{k: float(getattr(variation, k)) for k in FROM_TEXTURE})
+            # a share whose 68% interval reaches 0 is not told from none: it is reported (and rendered) as 0,
+            # with its interval, so uniform hair is not drawn with a few greys it does not have
+            value = replace(value, **{k: 0.0 if _reaches_zero(variation.intervals.get(k)) else float(getattr(variation, k))
+                                      for k in FROM_TEXTURE})
             measured += list(FROM_TEXTURE)
             method.update({k: "read from the texture (inference.texture's model)" for k in FROM_TEXTURE})
             intervals.update({k: v for k, v in variation.intervals.items() if k in FROM_TEXTURE})
@@ -142,6 +145,10 @@ FROM_TEXTURE = ("grey_fraction",)
 #: Whether estimates read fibre spread and greys from the texture (``hairdigi evaluate --appearance
 #: --no-variation`` turns it off for the whole process, to measure what the reading adds).
 READ_VARIATION = True
+
+
+def _reaches_zero(interval: dict | None) -> bool:
+    return interval is not None and "p68" in interval and interval["p68"][0] <= 1e-3
 
 
 def _read_variation(pixels: np.ndarray, sigma: np.ndarray | None, shine: float):

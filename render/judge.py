@@ -31,10 +31,16 @@ class Verdict:
 
 def judge(truth: HairParams | np.ndarray, estimate: HairParams | np.ndarray, scene=None,
           size: int | tuple[int, int] = JUDGE_SIZE, spp: int = JUDGE_SPP, seed: int = JUDGE_SEED,
-          renderer=None) -> Verdict:
-    """Mean-colour ΔE2000 between ``truth`` and ``estimate`` (Table 1 parameters or ``sigma_a``)."""
-    ta, n_truth = judge_mean(truth, scene, size, spp, seed, renderer)
-    tb, n_est = judge_mean(estimate, scene, size, spp, seed, renderer)
+          renderer=None, looks: tuple = (None, None)) -> Verdict:
+    """Mean-colour ΔE2000 between ``truth`` and ``estimate`` (Table 1 parameters or ``sigma_a``), each
+    with its appearance in ``looks`` (shine and fibre variation; None: the default uniform hair)."""
+    from dataclasses import replace
+
+    from hairdigi.render.renderer import SceneSpec
+
+    base = scene or SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop")
+    ta, n_truth = judge_mean(truth, replace(base, appearance=looks[0]), size, spp, seed, renderer)
+    tb, n_est = judge_mean(estimate, replace(base, appearance=looks[1]), size, spp, seed, renderer)
     return Verdict(float(delta_e2000(np.clip(tb, 1e-9, None), np.clip(ta, 1e-9, None))),
                    tuple(float(v) for v in ta), tuple(float(v) for v in tb), spp, n_truth + n_est)
 
