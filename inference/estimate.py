@@ -34,6 +34,10 @@ from hairdigi.resources import MODELS
 UNCERTAINTY_TABLE = MODELS / "uncertainty.json"
 
 
+#: A fibre variation read from the texture must let the refinement fit the capture's colour this well
+#: (ΔE2000; the chain's 95% colour interval, ``hairdigi evaluate --rig``), or uniform fibres are tried.
+VARIATION_FIT_DE = 0.46
+
 #: The colour's ΔE2000 through the whole simulated rig chain (``hairdigi evaluate --rig``).
 CHAIN_TABLE = MODELS / "chain_uncertainty.json"
 
@@ -111,17 +115,19 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
         warnings += reading.warnings
         appearance = reading.estimate
         refinement = refine(est.params, mean_linear(fitted), view, settings, renderer, reading.value, reading.curve)
-        if not refinement.reachable and reading.value.varied:
-            # the colour checks the texture's reading: if no hair of the read variation renders it but
-            # uniform fibres do, the reading is wrong for this swatch, and is not reported as measured
+        if reading.value.varied and refinement.residual_de2000 > VARIATION_FIT_DE:
+            # the colour checks the texture's reading: if hair of the read variation renders the capture's
+            # colour worse than the chain's precision, and uniform fibres render it better, the reading is
+            # wrong for this swatch (black hair's glints read as greys), and is not reported as measured
             uniform = refine(est.params, mean_linear(fitted), view, settings, renderer,
                              replace(reading.value, fibre_spread=0.0, grey_fraction=0.0), reading.curve)
-            if uniform.reachable:
-                refinement, appearance = uniform, unmeasured_variation(reading.estimate)
+            if uniform.residual_de2000 < refinement.residual_de2000:
                 warnings += _warn(WarningKind.APPEARANCE, [
-                    f"appearance: the grey share {reading.value.grey_fraction:.2f} read from the texture does not "
-                    f"fit this swatch's colour (no such hair renders it, uniform fibres do); it is not reported "
-                    f"as measured"])
+                    f"appearance: with the grey share {reading.value.grey_fraction:.2f} read from the texture, no "
+                    f"hair renders this swatch's colour within ΔE2000 {VARIATION_FIT_DE} (residual "
+                    f"{refinement.residual_de2000:.2f}; uniform fibres {uniform.residual_de2000:.2f}): it is not "
+                    f"reported as measured"])
+                refinement, appearance = uniform, unmeasured_variation(reading.estimate)
         params = refinement.params
         if not refinement.reachable:
             warnings += _warn(WarningKind.UNREACHABLE, [
