@@ -199,12 +199,18 @@ def evaluate_rig_command(args: argparse.Namespace) -> int:
         print(f"blocked: {line}")
     if args.ship:
         from hairdigi.inference.estimate import CHAIN_TABLE
-        from hairdigi.render.base.files import write_json_atomic
 
-        write_json_atomic(CHAIN_TABLE, s["table"])
-        print(f"shipped the chain's colour interval: {CHAIN_TABLE}")
+        _ship(CHAIN_TABLE, s["table"], "the chain's colour interval")
     print(f"rig_evaluation.csv, .json and .png in {args.out}")
     return 0
+
+
+def _ship(path: Path, table: dict, what: str) -> None:
+    """Write a measured table into the model's resources (``evaluate --ship``)."""
+    from hairdigi.render.base.files import write_json_atomic
+
+    write_json_atomic(path, table)
+    print(f"shipped {what}: {path}")
 
 
 def evaluate_appearance_command(args: argparse.Namespace) -> int:
@@ -232,10 +238,8 @@ def evaluate_appearance_command(args: argparse.Namespace) -> int:
         print(f"not estimated: {line}")
     if args.ship:
         from hairdigi.inference.appearance import UNCERTAINTY
-        from hairdigi.render.base.files import write_json_atomic
 
-        write_json_atomic(UNCERTAINTY, s["table"])
-        print(f"shipped the appearance's intervals: {UNCERTAINTY}")
+        _ship(UNCERTAINTY, s["table"], "the appearance's intervals")
     print(f"appearance_evaluation.csv, .json and .png in {args.out}")
     return 0
 
