@@ -199,9 +199,8 @@ def summarise(rows: list[dict]) -> dict:
         }
     read = [r for r in rows if r.get("mode") == "read" and "fit" in r]
     widths = {}
-    for name in ("longitudinal_roughness", "fibre_spread", "grey_fraction"):
-        errors = [r[f"err_{name}"] for r in read if name == "longitudinal_roughness" or r.get(f"est_{name}", 0) != 0
-                  or r.get(f"true_{name}", 0) == 0]
+    for name in ("longitudinal_roughness",):   # the grey share's intervals are the texture model's own
+        errors = [r[f"err_{name}"] for r in read]
         if len(errors) >= 5:
             widths[name] = {"p68": round(float(np.quantile(errors, 0.68)), 4),
                             "p95": round(float(np.quantile(errors, 0.95)), 4)}
@@ -218,16 +217,18 @@ def _plot(rows: list[dict], path: Path) -> None:
 
     judges = ["fit", "light0", "light1", "light2", "transfer"]
     fig, ax = plt.subplots(figsize=(8, 4))
-    for m, (mode, colour) in enumerate((("read", "C0"), ("no light frames", "C3"))):
+    for m, (mode, colour, label) in enumerate((("read", "C0", "with the single-light frames (shine read)"),
+                                               ("no light frames", "C3", "without them (shine held at 0.3)"))):
         done = [r for r in rows if r.get("mode") == mode and "fit" in r and "today's world" not in r["hidden"]]
         for j, name in enumerate(judges):
             v = [r[name] for r in done]
             ax.scatter(np.full(len(v), j + (m - 0.5) * 0.25), v, s=14, alpha=0.7, color=colour,
-                       label=f"appearance {mode}" if j == 0 else None)
+                       label=label if j == 0 else None)
     ax.axhline(1.0, ls="--", color="grey", lw=0.8)
     ax.set_xticks(range(len(judges)), ["fit (rig view)", "light 0 alone", "light 1 alone", "light 2 alone",
                                        "transfer (key light, sky,\nanother camera)"], fontsize=8)
-    ax.set_yscale("symlog", linthresh=1.0)
+    ax.set_yscale("log")
+    ax.set_ylim(0.03, 40)
     ax.set_ylabel("mean-colour ΔE2000 vs truth")
     ax.set_title("shine and fibre variation through the simulated rig, judged away from it")
     ax.legend(fontsize=8)

@@ -85,6 +85,8 @@ def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, se
                stated_p68=rec.uncertainty.get("mean_colour_de2000_p68"),
                stated_p95=rec.uncertainty.get("mean_colour_de2000_p95"),
                warnings=" | ".join(w.kind.value for w in rec.warnings),
+               shine=None if rec.appearance is None else rec.appearance.value.longitudinal_roughness,
+               grey_share=None if rec.appearance is None else rec.appearance.value.grey_fraction,
                nonfinite=refined.nonfinite + encoder.nonfinite + rec.refinement.nonfinite)
     return row
 

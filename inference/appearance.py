@@ -118,7 +118,10 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
                 f"appearance: the shine read is at the edge of what the tables hold ({tables.betas[0]:g}-"
                 f"{tables.betas[-1]:g}); the hair may be glossier or rougher than that")))
     intervals = intervals_for(value, tuple(measured))
-    if texture_pixels is not None:
+    if texture_pixels is not None and not texture_scale_fits(texture_pixels):
+        method["grey_fraction"] = (f"not read: the swatch area is {texture_pixels.shape[1]} px wide, and the texture "
+                                   f"model reads fibres at {TEXTURE_SWATCH_WIDTH} px (the bench camera's frame)")
+    elif texture_pixels is not None:
         if sigma_guess is None:   # the uniform swatch's sigma_a of this colour: what the texture is read against
             from hairdigi.inference.refine import mean_linear, response_curve
 
@@ -145,6 +148,17 @@ FROM_TEXTURE = ("grey_fraction",)
 #: Whether estimates read fibre spread and greys from the texture (``hairdigi evaluate --appearance
 #: --no-variation`` turns it off for the whole process, to measure what the reading adds).
 READ_VARIATION = True
+
+
+#: The swatch area's width in the frames the texture model was fitted on (the bench camera's 400x300
+#: frame, ``rig_geometry.swatch_roi``): its features are read at that many pixels per fibre.
+TEXTURE_SWATCH_WIDTH = 130
+
+
+def texture_scale_fits(pixels: np.ndarray, tolerance: float = 0.25) -> bool:
+    """Whether a swatch area shows its fibres at the texture model's scale (a RAW still at twice the
+    feed's resolution, or a frame of another camera, does not)."""
+    return abs(pixels.shape[1] / TEXTURE_SWATCH_WIDTH - 1.0) <= tolerance
 
 
 def _reaches_zero(interval: dict | None) -> bool:
