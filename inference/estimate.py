@@ -35,7 +35,8 @@ UNCERTAINTY_TABLE = MODELS / "uncertainty.json"
 
 
 #: A fibre variation read from the texture must let the refinement fit the capture's colour this well
-#: (ΔE2000; the chain's 95% colour interval, ``hairdigi evaluate --rig``), or uniform fibres are tried.
+#: (ΔE2000; the chain's 95% colour interval when it was chosen, ``hairdigi evaluate --rig``), or uniform
+#: fibres are tried.
 VARIATION_FIT_DE = 0.46
 
 #: The colour's ΔE2000 through the whole simulated rig chain (``hairdigi evaluate --rig``).
