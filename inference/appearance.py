@@ -16,13 +16,14 @@ without ``--lights``) keeps the default shine, and its record says "shine not me
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from hairdigi.render.base.appearance import (DEFAULT_APPEARANCE, SHINE_RANGE, SPREAD_RANGE, GREY_RANGE, Appearance,
                                              AppearanceEstimate)
-from hairdigi.inference.shine import SHINE_FLOOR
+from hairdigi.inference.shine import SHINE_FLOOR, estimate_shine, shine_tables
 from hairdigi.render.base.files import read_json
 from hairdigi.render.base.records import EstimateWarning, WarningKind
 from hairdigi.render.base.rig_geometry import N_LIGHTS
@@ -89,8 +90,6 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
                     ) -> AppearanceReading:
     """The appearance from the single-light means ``light_means`` (L, 3) at ``view`` (None: not
     captured) and the all-lights swatch area ``texture_pixels`` (linear) for spread and greys."""
-    import time
-
     start = time.perf_counter()
     value, measured, method, warnings, curve = DEFAULT_APPEARANCE, [], {}, [], None
     if light_means is None:
@@ -104,8 +103,6 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
             f"shine not measured: light {', '.join(map(str, dark))} gave the swatch no light in its own frame; "
             f"check that every light works (Lights > Check), then capture again. The default shine 0.3 was assumed")))
     else:
-        from hairdigi.inference.shine import estimate_shine, shine_tables  # noqa: E402 (renders on first use)
-
         tables = shine_tables(view, settings, renderer=renderer)
         shine = estimate_shine(np.asarray(light_means, float), tables)
         value = Appearance(longitudinal_roughness=round(shine.longitudinal_roughness, 4))
@@ -131,8 +128,8 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
         if variation is not None:
             # a share whose 68% interval reaches 0 is not told from none: it is reported (and rendered) as 0,
             # with its interval, so uniform hair is not drawn with a few greys it does not have
-            value = replace(value, **{k: 0.0 if _reaches_zero(variation.intervals.get(k)) else float(getattr(variation, k))
-                                      for k in FROM_TEXTURE})
+            value = replace(value, **{k: 0.0 if _reaches_zero(variation.intervals.get(k))
+                                      else float(getattr(variation, k)) for k in FROM_TEXTURE})
             measured += list(FROM_TEXTURE)
             method.update({k: "read from the texture (inference.texture's model)" for k in FROM_TEXTURE})
             intervals.update({k: v for k, v in variation.intervals.items() if k in FROM_TEXTURE})

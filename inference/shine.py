@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import threading
 import time
 from dataclasses import asdict, dataclass, replace
 
@@ -64,9 +65,18 @@ class ShineTables:
         return out
 
 
+_TABLES_LOCK = threading.Lock()   # one build at a time: the app's warm-up and a first capture wait for each other
+
+
 def shine_tables(view: View, settings: RefineSettings = RefineSettings(), betas=BETA_GRID, renderer=None,
                  cache: bool = True) -> ShineTables:
-    """Render (or load) the per-light tables at ``view``: ``len(betas) x N_LIGHTS x 4`` small renders."""
+    """Render (or load) the per-light tables at ``view``: ``len(betas) x N_LIGHTS x 4`` small renders.
+    A second caller while they render waits, then loads them from the cache."""
+    with _TABLES_LOCK:
+        return _shine_tables(view, settings, betas, renderer, cache)
+
+
+def _shine_tables(view: View, settings: RefineSettings, betas, renderer, cache: bool) -> ShineTables:
     from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()

@@ -53,8 +53,3 @@ def split_strands(strands: Strands, groups: int, grey_fraction: float, seed: int
     grey, pigmented = order[:n_grey], order[n_grey:]
     return [strands.subset(np.sort(pigmented[k::groups])) for k in range(groups)] + [strands.subset(np.sort(grey))]
 
-
-def grey_share(parts: list[Strands]) -> float:
-    """The grey group's share of all strands (what ``split_strands`` made of ``grey_fraction``)."""
-    total = sum(p.n_strands for p in parts)
-    return parts[-1].n_strands / total if total else 0.0

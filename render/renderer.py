@@ -27,7 +27,7 @@ from hairdigi.render.absorption import hair_bsdf, hair_sigma_a
 from hairdigi.render.hairfile import hair_model_strands
 from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
 from hairdigi.render.base.params import HairParams
-from hairdigi.render.fibres import FIBRE_GROUPS, GREY_KEY, group_keys, group_sigma_a, split_strands
+from hairdigi.render.fibres import FIBRE_GROUPS, group_keys, group_sigma_a, split_strands
 from hairdigi.render.srgb import linear_to_srgb8
 from hairdigi.render.strands import STYLES, Strands, hairstyle_strands, layered_swatch_strands, swatch_strands
 from hairdigi.render.variant import is_jit, load_scene, mi, select_variant
@@ -48,12 +48,15 @@ class SceneSpec:
     Yuksel ``.hair`` model (a ``name`` ending in ``.hair`` is taken as that path: ``SceneSpec("x.hair")``
     is ``SceneSpec("hairfile", hair_file="/abs/x.hair")``); the model is fitted to the head and cut to
     ``strands`` strands (``hairfile.hair_model_strands``). ``framing`` (swatch only) is ``"crop"``, all hair, as in
-    the training set, or ``"rig"``, the whole swatch on its holder. ``env`` applies to hairstyles.
+    the training set, or ``"rig"``, the whole swatch on its holder. ``env`` lights hairstyles.
     ``strands``, ``max_depth`` None take the scene's defaults. ``lights`` scales the three rig lights.
     ``chart`` adds a colour chart of (24, 3) linear reflectances beside the swatch (swatch only), at
     ``chart_center`` on the holder (x, y; default ``rig_geometry.CHART_CENTER``). ``crop`` (swatch
     only) renders just that x, y, w, h window of the film (``rig_geometry.RigRegion.render_plan``).
-    ``swatch_model`` (swatch only) picks its strands from ``SWATCH_MODELS``.
+    ``swatch_model`` (swatch only) picks its strands from ``SWATCH_MODELS``. ``appearance``
+    (``render.base.appearance.Appearance``) is the hair's shine, fibre spread and grey share; a varied
+    one is drawn as ``fibre_groups`` pigment groups and a grey group (``render.fibres``). A swatch's
+    ``env`` ``"key-sky"`` adds a key light and a grey sky (the rig's lights set to 0: away from the rig).
     """
 
     name: str = "swatch"
