@@ -141,3 +141,20 @@ def test_a_light_of_another_colour_is_warned_about(glossy_rig):
         glossy_rig.calibrate()
     assert any("light 1 tints" in w.message for w in tinted.record.warnings), tinted.record.warning_messages()
     assert not any("tints" in w.message for w in glossy_rig.capture().record.warnings)
+
+
+def test_a_hidden_swatch_file_may_carry_an_appearance_and_a_bad_one_is_named(tmp_path):
+    import json
+
+    from hairdigi.app.rig_cli import hidden_appearance
+    from hairdigi.render.base.params import HairParamsError
+
+    hair = {"dye_rgb": [190, 80, 40], "dye_concentration": 0.5, "melanin_concentration": 0.5, "melanin_ratio": 0.6}
+    path = tmp_path / "hidden.json"
+    path.write_text(json.dumps({"hair": hair}))
+    assert hidden_appearance(path) is None
+    path.write_text(json.dumps({"hair": hair, "appearance": {"longitudinal_roughness": 0.2, "grey_fraction": 0.1}}))
+    assert hidden_appearance(path) == Appearance(0.2, 0.0, 0.1)
+    path.write_text(json.dumps({"hair": hair, "appearance": {"grey_fraction": 2}}))
+    with pytest.raises(HairParamsError, match="hidden.json.*grey_fraction"):
+        hidden_appearance(path)
