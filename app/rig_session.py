@@ -299,11 +299,11 @@ class RigSession:
             calibration=self.profile, simulated=self.simulated, swatch_roi=roi,
             light_frames=[f.srgb for f in singles], light_exposures=tuple(factors))
         result = CaptureResult(capture.id, image_path, meta_path)
-        result.blocked = self.blockers(frame.srgb)
+        result.blocked, chart = self._check(frame.srgb)
         if estimate and not result.blocked:
             _estimate(result, frame.srgb, None, self.encoder_or_reason, self.profile, self.region(frame.srgb),
                       profile_warnings(self.profile, self.settings()), on_encoder_estimate,
-                      [(f.srgb, k) for f, k in zip(singles, factors)])
+                      [(f.srgb, k) for f, k in zip(singles, factors)], chart)
         result.seconds = time.perf_counter() - start
         _write_result(self.folder, result, roi)
         return result
@@ -381,30 +381,35 @@ class RigSession:
 
     def blockers(self, image: np.ndarray) -> list[str]:
         """Reasons not to estimate from this frame; empty when it is fit."""
-        reasons = []
+        return self._check(image)[0]
+
+    def _check(self, image: np.ndarray):
+        """The reasons not to estimate from this frame, and its chart detection (None if not found)."""
+        reasons, chart = [], None
         status, why = self.calibration_status()
         if status == "uncalibrated":
             reasons += why
         try:
-            detect_chart(image)
+            chart = detect_chart(image)
         except CalibrationError as exc:
             reasons.append(str(exc))
         swatch = check_exposure(image, self._roi(image))[0]
         if swatch.status == "over":
             reasons.append(swatch.message)
-        return reasons
+        return reasons, chart
 
 
 def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | None, encoder_or_reason,
               profile: CalibrationProfile, view: RigRegion, stale: list[str],
               on_encoder_estimate: Callable[[HairParams], None] | None = None,
-              singles: list[tuple[np.ndarray, float]] = ()) -> None:
+              singles: list[tuple[np.ndarray, float]] = (), chart=None) -> None:
     """Colour-correct the frame (``linear`` where the source has it, else the 8-bit ``image``) with
     ``profile``, keep it linear, estimate the swatch area ``view`` as the rig sees it, and fill ``result``.
 
     ``singles``: each light's own frame and its exposure over the frame's, corrected with the same
     profile (the rig's LEDs are one make; a profile fitted on a chart lit from one side would fold
-    that light's geometry into the colour) and scaled back to the frame's exposure."""
+    that light's geometry into the colour) and scaled back to the frame's exposure; ``chart``, the
+    frame's chart detection, checks that one profile holds for each light."""
     from hairdigi.inference.estimate import calibration_summary, estimate_image, record
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.inference.refine import fitted_pixels, mean_linear
@@ -418,12 +423,8 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
     warnings = [EstimateWarning(WarningKind.CALIBRATION, w) for w in stale + correction_warnings(
         profile, mean_linear(fitted_pixels(to_linear(source), view)), mean_linear(fitted_pixels(corrected, view)))]
     lights = [apply_profile(frame, profile) / np.float32(factor) for frame, factor in singles] or None
-    if lights:
-        try:
-            warnings += [EstimateWarning(WarningKind.CALIBRATION, w)
-                         for w in light_colour_warnings(detect_chart(image), lights)]
-        except CalibrationError:
-            pass   # a frame without a chart was blocked before this
+    if lights and chart is not None:
+        warnings += [EstimateWarning(WarningKind.CALIBRATION, w) for w in light_colour_warnings(chart, lights)]
     estimate = estimate_image(corrected, encoder, view=view, extra_warnings=warnings,
                               on_encoder_estimate=on_encoder_estimate, light_images=lights)
     result.params = estimate.params

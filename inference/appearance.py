@@ -166,15 +166,12 @@ def _read_variation(pixels: np.ndarray, sigma: np.ndarray | None, shine: float):
     """The texture model's reading, or None when the model is not installed (or reading is off)."""
     if not READ_VARIATION:
         return None
+    from hairdigi.inference import texture
+
     try:
-        from hairdigi.inference import texture
-    except ImportError:
-        return None
-    try:
-        reading = texture.read_variation(pixels, sigma, shine)
+        return texture.read_variation(pixels, sigma, shine)
     except FileNotFoundError:
         return None
-    return reading
 
 
 def unmeasured_variation(estimate: AppearanceEstimate) -> AppearanceEstimate:
