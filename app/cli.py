@@ -98,11 +98,13 @@ def cmd_dataset(args: argparse.Namespace) -> int:
     config = DatasetConfig(n=args.n, size=args.size, spp=args.spp, seed=args.seed,
                            strands=args.strands or defaults_for("swatch").strands,
                            max_depth=args.depth or defaults_for("swatch").max_depth, shard_size=args.shard_size,
-                           store=args.store)
+                           store=args.store, swatch_model=args.swatch_model, appearance=args.appearance)
     if args.address and args.backend != "ray":
         raise CliError("--address names a Ray cluster: use it with --backend ray")
+    # datasets of the first swatch and fixed appearance keep their folder names
+    tags = "" if (args.swatch_model, args.appearance) == ("today", "fixed") else f"-{args.swatch_model}-{args.appearance}"
     out = Path(args.out) if args.out else (_cache_dir() / "datasets" /
-                                           f"swatch-s{args.seed}-{args.size}px-{args.spp}spp-{args.store}")
+                                           f"swatch-s{args.seed}-{args.size}px-{args.spp}spp-{args.store}{tags}")
     generate(config, out, workers=args.workers, backend=args.backend, address=args.address, variant=args.variant)
     print(f"dataset complete: {config.n} swatches in {out}")
     return 0
@@ -256,8 +258,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         return evaluate_rig_command(args)
     if args.appearance:
         return evaluate_appearance_command(args)
+    from hairdigi.render.renderer import DEFAULT_SWATCH_MODEL
+
     data = Path(args.data) if args.data else _cache_dir() / "datasets" / (
-        f"heldout-s1000003-{args.size}px-{args.spp}spp-linear16")
+        f"heldout-s1000003-{args.size}px-{args.spp}spp-linear16-{DEFAULT_SWATCH_MODEL}")
     if args.prepare_only:
         root = prepare_heldout(data, args.n, args.size, args.spp, args.workers)
         print(f"held-out swatches and the truth's judge renders ready in {root}")
@@ -401,6 +405,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--store", choices=("linear16", "srgb8"), default="linear16",
                    help="linear16: linear float16 radiance (the capture chain is applied in training)")
     p.add_argument("--seed", type=seed, default=0)
+    p.add_argument("--swatch-model", choices=("layered", "today"), default="layered",
+                   help="layered: fibres that never meet (the default); today: the first swatch")
+    p.add_argument("--appearance", choices=("random", "fixed"), default="random",
+                   help="random: shine, fibre spread and greys drawn per swatch; fixed: uniform hair, shine 0.3")
     p.add_argument("--strands", type=strands, default=None)
     p.add_argument("--depth", type=depth, default=None)
     p.add_argument("--shard-size", type=v.int_in(1, v.MAX_SHARD_SIZE), default=50)

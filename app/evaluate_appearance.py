@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.app.evaluate_rig import error_stats
-from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
+from hairdigi.render.base.appearance import APPEARANCE_DRAW, DEFAULT_APPEARANCE, FIELDS, Appearance
 from hairdigi.render.base.files import write_csv_atomic, write_json_atomic
 from hairdigi.render.base.params import HairParams, sample_params
 from hairdigi.render.base.rig_geometry import CameraPose, N_LIGHTS
@@ -61,8 +61,8 @@ def hidden_set(config: AppearanceSet) -> list[tuple[str, HairParams, Appearance,
     rng = np.random.default_rng(SEED)
     named = [(n, h, a, 101 + i) for i, (n, (h, a)) in enumerate(CASES.items())]
     drawn = [(f"random {i}", sample_params(rng),
-              Appearance(round(float(rng.uniform(0.12, 0.5)), 3), round(float(rng.uniform(0.0, 0.5)), 3),
-                         round(float(rng.uniform(0.0, 0.3)), 3)), 201 + i) for i in range(config.random)]
+              Appearance(*(round(float(rng.uniform(*APPEARANCE_DRAW[f])), 3) for f in FIELDS)), 201 + i)
+             for i in range(config.random)]
     return named + drawn
 
 

@@ -29,7 +29,8 @@ from hairdigi.render.renderer import Renderer, SceneSpec
 SIM_SIZE = (400, 300)
 #: The hidden swatch of the demo: a copper-dyed light brown.
 DEFAULT_HIDDEN = HairParams((190, 80, 40), 0.5, 0.5, 0.6)
-CACHE_VERSION = 4  # bumped when the absorption mapping or the light images change (4: glints spread, not removed)
+CACHE_VERSION = 5  # bumped when the absorption mapping or the light images change (4: glints spread, not removed;
+#                   5: the layered swatch, render.renderer.DEFAULT_SWATCH_MODEL)
 
 
 def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int = 32, strand_seed: int = 0,

@@ -294,9 +294,13 @@ def find_swatch_roi(img: np.ndarray) -> Roi:
     if chart is not None:
         mask[chart > 0] = 0
         n, _, stats, _ = cv2.connectedComponentsWithStats(cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel))
-    # a swatch on its holder is a large, filled rectangle; streaks inside an all-hair image are not
+    # a swatch on its holder is a large, filled rectangle with holder on every side; streaks inside an
+    # all-hair image are not, nor is a band across the whole frame (the lighter half of all-hair shading)
+    def across(s) -> bool:
+        return (s[0] <= 1 and s[0] + s[2] >= sw - 1) or (s[1] <= 1 and s[1] + s[3] >= sh - 1)
+
     candidates = [(int(s[4]), i) for i, s in enumerate(stats) if i > 0 and s[4] >= 0.10 * sh * sw
-                  and s[4] >= 0.6 * s[2] * s[3] and s[2] * s[3] <= 0.85 * sh * sw]
+                  and s[4] >= 0.6 * s[2] * s[3] and s[2] * s[3] <= 0.85 * sh * sw and not across(s)]
     if not candidates:
         return Roi(0, 0, w, h)
     x, y, bw, bh = (int(v) for v in stats[max(candidates)[1], :4])

@@ -174,6 +174,8 @@ def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool)
     renderer = renderer or default_renderer()
     spec, size = scene_for(view, settings)
     key_data = [2, asdict(settings), view_key(view), spec.n_strands, spec.depth, renderer.variant]
+    if spec.swatch_model != "today":   # the first swatch's curves kept their keys
+        key_data.append(spec.swatch_model)
     key = hashlib.sha256(json.dumps(key_data, sort_keys=True).encode()).hexdigest()[:16]
     path = cache_dir() / "response" / f"curve-{key}.json"
     if cache and path.exists():

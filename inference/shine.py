@@ -81,8 +81,10 @@ def _shine_tables(view: View, settings: RefineSettings, betas, renderer, cache: 
 
     renderer = renderer or default_renderer()
     spec, size = scene_for(view, settings)
-    key = hashlib.sha256(json.dumps([1, asdict(settings), view_key(view), list(betas), spec.n_strands, spec.depth,
-                                     renderer.variant], sort_keys=True).encode()).hexdigest()[:16]
+    key_data = [1, asdict(settings), view_key(view), list(betas), spec.n_strands, spec.depth, renderer.variant]
+    if spec.swatch_model != "today":   # the first swatch's tables kept their keys
+        key_data.append(spec.swatch_model)
+    key = hashlib.sha256(json.dumps(key_data, sort_keys=True).encode()).hexdigest()[:16]
     path = cache_dir() / "response" / f"shine-{key}.npz"
     if cache and path.exists():
         data = np.load(path)

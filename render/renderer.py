@@ -29,15 +29,18 @@ from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.fibres import FIBRE_GROUPS, group_keys, group_sigma_a, split_strands
 from hairdigi.render.srgb import linear_to_srgb8
-from hairdigi.render.strands import STYLES, Strands, hairstyle_strands, layered_swatch_strands, swatch_strands
+from hairdigi.render.strands import (STYLES, Strands, hairstyle_strands, layered_radius,
+                                     layered_swatch_strands, swatch_strands)
 from hairdigi.render.variant import is_jit, load_scene, mi, select_variant
 
 #: The scene of a ``.hair`` model (``SceneSpec.hair_file``).
 HAIR_FILE_SCENE = "hairfile"
-#: The swatch's strand models (``SceneSpec.swatch_model``): "today", ``swatch_strands`` (a few layers,
-#: fibres pass through one another); "layered", ``layered_swatch_strands`` (no fibre meets another,
-#: optically thick; resources/models/swatch-structure.md).
-SWATCH_MODELS = ("today", "layered")
+#: The swatch's strand models (``SceneSpec.swatch_model``): "layered", ``layered_swatch_strands`` (no
+#: fibre meets another, optically thick: the default since issue 18); "today", ``swatch_strands`` (the
+#: first swatch: a few layers whose fibres pass through one another, 1.4-1.8 ΔE2000 lighter at equal
+#: sigma_a). resources/models/swatch-structure.md measures both.
+SWATCH_MODELS = ("layered", "today")
+DEFAULT_SWATCH_MODEL = "layered"
 
 
 @dataclass(frozen=True)
@@ -75,7 +78,7 @@ class SceneSpec:
     crop: tuple[int, int, int, int] | None = None   # swatch: render only this x, y, w, h of the film
     appearance: Appearance | None = None            # shine, fibre spread, greys; None: the default (uniform)
     fibre_groups: int | None = None                  # pigment groups of a varied appearance; None: FIBRE_GROUPS
-    swatch_model: str = "today"                      # swatch strands: one of SWATCH_MODELS (strands_for)
+    swatch_model: str | None = None                  # swatch strands: one of SWATCH_MODELS; None: the default
 
     def __post_init__(self) -> None:
         if isinstance(self.name, str) and self.name.lower().endswith(".hair") and self.hair_file is None:
@@ -111,9 +114,12 @@ class SceneSpec:
             raise ValueError(f"fibre_groups must be a whole number between 1 and 64, got {self.fibre_groups!r}")
         if not all(np.isfinite(float(v)) and v >= 0 for v in self.lights):
             raise ValueError(f"lights {self.lights} must be finite scales >= 0")
-        if self.swatch_model not in SWATCH_MODELS or (self.swatch_model != "today" and self.name != "swatch"):
+        if self.name == "swatch" and self.swatch_model is None:
+            object.__setattr__(self, "swatch_model", DEFAULT_SWATCH_MODEL)
+        if (self.swatch_model is not None and self.swatch_model not in SWATCH_MODELS) or \
+                (self.swatch_model is not None and self.name != "swatch"):
             raise ValueError(f"swatch_model {self.swatch_model!r}: choose one of {', '.join(SWATCH_MODELS)} "
-                             f"(a model other than 'today' applies to the swatch only)")
+                             f"(it applies to the swatch scene only)")
         if self.camera is not None:
             check_camera(self.camera, self.name)
 
@@ -166,7 +172,7 @@ def absorption_of(hair: HairParams | np.ndarray) -> np.ndarray:
 def strands_for(spec: SceneSpec) -> Strands:
     if spec.name == "swatch":
         if spec.swatch_model == "layered":
-            return layered_swatch_strands(spec.n_strands, seed=spec.strand_seed)
+            return layered_swatch_strands(spec.n_strands, seed=spec.strand_seed, radius=layered_radius(spec.n_strands))
         return swatch_strands(spec.n_strands, seed=spec.strand_seed)
     if spec.name == HAIR_FILE_SCENE:
         return hair_model_strands(spec.hair_file, spec.n_strands, seed=spec.strand_seed)

@@ -148,6 +148,20 @@ def swatch_strands(n_strands: int = 2000, seed: int = 0, radius: float = 0.004,
 
 #: Clearance between neighbouring fibre surfaces in ``layered_swatch_strands``, in radii.
 LAYER_CLEARANCE = 0.02
+#: Layers of the layered swatch: within its thick limit (10-40 layers agree within noise) whatever its
+#: strand count, which sets how fine its fibres are (``layered_radius``).
+SWATCH_LAYERS = 20
+
+
+def layered_radius(n_strands: int, layers: int = SWATCH_LAYERS, fill: float = 0.8, most: float = 0.004) -> float:
+    """The fibre radius at which ``n_strands`` fill ``layers`` layers of the holder's width, at most
+    ``most`` (fewer strands, as small test renders use, make fewer layers rather than a block).
+
+    sigma_a is per fibre radius, so the colour does not depend on it (measured at the rig's swatch
+    area: 2000 fibres of radius 0.004, 4000 of 0.002 and 8000 of 0.001 agree within 0.04-0.77
+    ΔE2000, render noise); a finer fibre makes a thinner stack, as a real swatch is, and no shadow
+    of its own edge on the holder."""
+    return min(most, fill * SWATCH_WIDTH * layers / (2.0 * n_strands))
 
 
 def layered_swatch_strands(n_strands: int = 2000, seed: int = 0, radius: float = 0.004,

@@ -90,12 +90,12 @@ def test_the_swatch_area_of_a_tilted_camera_lies_on_the_swatch(pose):
     region fitted and rendered holds hair, not holder), and covers most of it."""
     import cv2
 
-    from hairdigi.render.base.rig_geometry import (RIG_HALF_WIDTH, RIG_TARGET, SWATCH_HALF, CameraPose, project,
-                                                   swatch_roi)
+    from hairdigi.render.base.rig_geometry import (RIG_HALF_WIDTH, RIG_TARGET, SWATCH_HALF, SWATCH_VISIBLE_HALF_LENGTH,
+                                                   CameraPose, project, swatch_roi)
 
     pose, size, half_width = CameraPose(*pose), (400, 300), RIG_HALF_WIDTH * 1.1
     x, y, w, h = swatch_roi(size, pose=pose, half_width=half_width)
-    hw, hl = SWATCH_HALF[0] - 0.05, 0.58 - 0.05
+    hw, hl = SWATCH_HALF[0] - 0.05, SWATCH_VISIBLE_HALF_LENGTH - 0.05
     quad = project(np.array([(-hw, hl, 0), (hw, hl, 0), (hw, -hl, 0), (-hw, -hl, 0)]), pose, RIG_TARGET, half_width,
                    size).astype(np.float32)
     for corner in ((x, y), (x + w, y), (x, y + h), (x + w, y + h)):

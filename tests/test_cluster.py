@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hairdigi.inference.training.dataset import SHARD_FIELDS, DatasetConfig, generate, load, shard_path
+from hairdigi.inference.training.dataset import OPTIONAL_FIELDS, SHARD_FIELDS, DatasetConfig, generate, load, shard_path
 
 REPO = Path(__file__).resolve().parents[1]
 TINY = dict(n=6, size=16, spp=1, seed=0, strands=150, shard_size=2)
@@ -77,8 +77,8 @@ def test_ray_dataset_is_bitwise_the_local_one(ray_instance, local_dataset, tmp_p
     generate(config, tmp_path, workers=2, progress=False, backend="ray")
     ray_shards, local_shards = _shards(tmp_path, config.n_shards), _shards(local_dataset, config.n_shards)
     for r, l in zip(ray_shards, local_shards):
-        assert list(r) == list(l) == list(SHARD_FIELDS)
-        for name in SHARD_FIELDS:
+        assert list(r) == list(l) == list(SHARD_FIELDS + OPTIONAL_FIELDS)
+        for name in SHARD_FIELDS + OPTIONAL_FIELDS:
             assert r[name].dtype == l[name].dtype and np.array_equal(r[name], l[name]), name
     images, params, cameras, manifest = load(tmp_path)
     assert images.shape == (6, 16, 16, 3) and np.array_equal(images, load(local_dataset)[0])

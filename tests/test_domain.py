@@ -22,7 +22,7 @@ GARBAGE = {
 
 
 #: Why each is not a swatch: the reason its warnings must give.
-REASONS = {"noise": "no strand direction", "solid colour": "flat colour", "near-white noise": "flat colour",
+REASONS = {"noise": "colour channels vary independently", "solid colour": "flat colour", "near-white noise": "flat colour",
            "near-black noise": "flat colour", "grey noise as RGB": "no colour (R = G = B",
            "checkerboard": "far more contrast than a hair swatch", "white card": "flat colour"}
 

@@ -42,7 +42,7 @@ def rig_render(renderer: Renderer, sigma_a: tuple[float, float, float], grey: fl
     from hairdigi.render.chart import colorchecker_reflectances
 
     spec = SceneSpec("swatch", framing="rig", chart=tuple(map(tuple, colorchecker_reflectances())),
-                     target=rig_geometry.RIG_TARGET, half_width=rig_geometry.RIG_HALF_WIDTH, strands=1000,
+                     target=rig_geometry.RIG_TARGET, half_width=rig_geometry.RIG_HALF_WIDTH,
                      appearance=Appearance(0.3, spread, grey))
     linear = renderer.render(np.array(sigma_a, np.float32), spec, RIG, 16, seed=17).linear
     return sensor_response(spread_glints(linear) * NOMINAL_EXPOSURE, CameraModel(), np.random.default_rng(0))

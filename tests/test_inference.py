@@ -84,6 +84,38 @@ def test_dataset_resumes_only_missing_shards(tmp_path):
         generate(DatasetConfig(**{**TINY, "spp": 4}), root, workers=1, progress=False)
 
 
+def test_dataset_draws_and_records_each_swatchs_appearance_and_keeps_old_datasets(tmp_path):
+    """Issue 18: swatches of random shine, spread and greys on the layered swatch, each recorded in its
+    shard; a dataset made before (no appearance, today's swatch) keeps its samples and still resumes."""
+    import json
+
+    from hairdigi.inference.training.dataset import read_shard, sample_spec, scene_of
+    from hairdigi.render.base.appearance import APPEARANCE_DRAW, FIELDS
+
+    config = DatasetConfig(**TINY)
+    generate(config, tmp_path / "new", workers=1, progress=False)
+    looks = np.concatenate([read_shard(p)["appearance"] for p in sorted((tmp_path / "new").glob("shard-*.npz"))])
+    assert looks.shape == (8, 3) and len(np.unique(looks[:, 0])) == 8
+    for k, name in enumerate(FIELDS):
+        low, high = APPEARANCE_DRAW[name]
+        assert np.all((looks[:, k] >= low) & (looks[:, k] <= high)), name
+    assert scene_of(config, 0).swatch_model == "layered" and scene_of(config, 0).appearance is not None
+    # the old layout: a manifest without the new settings is read as today's swatch, fixed appearance
+    old = DatasetConfig(**TINY, swatch_model="today", appearance="fixed")
+    assert [sample_spec(old, i).params for i in range(8)] == [sample_spec(config, i).params for i in range(8)]
+    root = tmp_path / "old"
+    generate(old, root, workers=1, progress=False)
+    manifest = json.loads((root / "manifest.json").read_text())
+    for key in ("swatch_model", "appearance"):
+        del manifest["config"][key]
+    (root / "manifest.json").write_text(json.dumps(manifest))
+    shard_path(root, 1).unlink()
+    generate(old, root, workers=1, progress=False)            # resumes under the legacy defaults
+    with pytest.raises(ValueError, match="other settings"):
+        generate(config, root, workers=1, progress=False)      # the new draws are another dataset
+    assert np.allclose(read_shard(shard_path(root, 0))["appearance"], [0.3, 0.0, 0.0])
+
+
 def test_blur_augmentation_averages_noise_and_keeps_the_colour():
     from hairdigi.inference.training.train import augment
 
@@ -182,11 +214,11 @@ def test_missing_model_names_the_fix(tmp_path, capsys):
 
 def test_swatch_area_is_found_in_a_rig_frame_and_crops_are_kept_whole():
     p = HairParams((120, 60, 30), 0.5, 0.4, 0.6)
-    rig = render(p, SceneSpec("swatch", framing="rig", strands=1500), 128, 8).srgb
+    rig = render(p, SceneSpec("swatch", framing="rig"), 128, 8).srgb
     roi = find_swatch_roi(rig)
     # the swatch is 1 unit wide in a 1.9-unit view: about 67 px, centred
     assert 50 < roi.w < 85 and abs(roi.x + roi.w / 2 - 64) < 10, roi
-    crop = render(p, SceneSpec("swatch", framing="crop", strands=1500), 96, 8).srgb
+    crop = render(p, SceneSpec("swatch", framing="crop"), 96, 8).srgb
     assert find_swatch_roi(crop) == Roi(0, 0, 96, 96)
     region, _ = swatch_crop(rig)
     assert region.shape[0] == region.shape[1] >= 32

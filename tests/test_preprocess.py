@@ -82,7 +82,7 @@ def rig_frames():
     frames = {}
     for centre in chart_positions():
         spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET,
-                         half_width=rig_geometry.RIG_HALF_WIDTH, chart_center=centre, strands=1000)
+                         half_width=rig_geometry.RIG_HALF_WIDTH, chart_center=centre)
         linear = spread_glints(renderer.render(DEFAULT_HIDDEN, spec, SIM, 4, seed=1).linear)
         frames[centre] = sensor_response(linear, CameraModel(), rng)
     return frames

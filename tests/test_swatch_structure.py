@@ -71,7 +71,10 @@ def test_swatch_model_is_validated() -> None:
 
     with pytest.raises(ValueError, match="swatch_model"):
         SceneSpec("swatch", swatch_model="dense")
-    assert SceneSpec("swatch").swatch_model == "today"
+    assert SceneSpec("swatch").swatch_model == "layered"          # the default since issue 18
+    assert SceneSpec("wavy").swatch_model is None                   # a hairstyle has no swatch model
+    with pytest.raises(ValueError, match="swatch scene only"):
+        SceneSpec("wavy", swatch_model="layered")
 
 
 def test_layered_swatch_renders_darker_than_todays_at_equal_sigma_a() -> None:
@@ -86,7 +89,9 @@ def test_layered_swatch_renders_darker_than_todays_at_equal_sigma_a() -> None:
     renderer = Renderer(max_cached=2)
     sigma = np.array([0.35, 0.6, 1.2])
     lightness = {}
-    for model in ("today", "layered"):
-        image = renderer.render(sigma, dataclasses.replace(spec, swatch_model=model), film, 32, seed=5).linear
+    for model, strands in (("today", 2000), ("layered", None)):   # each at its own strand count
+        image = renderer.render(sigma, dataclasses.replace(spec, swatch_model=model, strands=strands), film, 32,
+                                seed=5).linear
         lightness[model] = float(linear_rgb_to_lab(image.reshape(-1, 3).mean(0))[0])
-    assert 1.0 < lightness["today"] - lightness["layered"] < 5.0
+    # 32² at 32 spp reads about 6 L* (the bench's 48² at 64 spp: 2.6); either way far beyond noise
+    assert 1.0 < lightness["today"] - lightness["layered"] < 8.0

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance, sample_appearance
+from hairdigi.render.base.appearance import FIELDS as APPEARANCE_FIELDS
 from hairdigi.render.base.files import atomic_path
 
 from hairdigi.render.base.params import HairParams, sample_params
@@ -31,7 +33,10 @@ from hairdigi.render.base.rig_geometry import CAMERA_DISTANCE, FRAMING_HALF_WIDT
 MANIFEST = "manifest.json"
 STORES = ("linear16", "srgb8")
 #: Settings added after datasets were made, with the value those older datasets implicitly used.
-LEGACY_DEFAULTS = {"store": "srgb8"}
+LEGACY_DEFAULTS = {"store": "srgb8", "swatch_model": "today", "appearance": "fixed"}
+#: How a sample's appearance (shine, fibre spread, greys) is drawn: ``fixed`` is the default uniform
+#: hair (datasets before issue 18); ``random`` draws ``render.base.appearance.APPEARANCE_DRAW``.
+APPEARANCES = ("random", "fixed")
 
 
 @dataclass(frozen=True)
@@ -49,10 +54,18 @@ class DatasetConfig:
     framing: str = "crop"
     shard_size: int = 100
     store: str = "linear16"   # "linear16": linear float16 radiance; "srgb8": 8-bit sRGB (older datasets)
+    swatch_model: str = "layered"   # render.renderer.SWATCH_MODELS
+    appearance: str = "random"      # APPEARANCES
 
     def __post_init__(self) -> None:
+        from hairdigi.render.renderer import SWATCH_MODELS
+
         if self.store not in STORES:
             raise ValueError(f"dataset store {self.store!r} is not one of {', '.join(STORES)}")
+        if self.swatch_model not in SWATCH_MODELS:
+            raise ValueError(f"dataset swatch_model {self.swatch_model!r} is not one of {', '.join(SWATCH_MODELS)}")
+        if self.appearance not in APPEARANCES:
+            raise ValueError(f"dataset appearance {self.appearance!r} is not one of {', '.join(APPEARANCES)}")
         for name, low in (("size", 8), ("spp", 1), ("n", 1), ("shard_size", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
@@ -70,6 +83,7 @@ class SampleSpec:
     camera: CameraPose
     strand_seed: int
     render_seed: int
+    look: Appearance = DEFAULT_APPEARANCE
 
 
 def sample_spec(config: DatasetConfig, index: int) -> SampleSpec:
@@ -89,7 +103,9 @@ def sample_spec(config: DatasetConfig, index: int) -> SampleSpec:
             raise ValueError(f"polar_max_deg {config.polar_max_deg} leaves almost no camera clear of the "
                              "rig lights; use a smaller cap (45° is the default)")
         camera = _draw_camera(config, np.random.default_rng([config.seed, index, retry]))
-    return SampleSpec(index, params, camera, strand_seed, render_seed)
+    # drawn last, so a dataset of fixed appearance keeps the samples it had before appearances were drawn
+    look = sample_appearance(rng) if config.appearance == "random" else DEFAULT_APPEARANCE
+    return SampleSpec(index, params, camera, strand_seed, render_seed, look)
 
 
 def camera_is_clear(camera: CameraPose, framing: str = "crop") -> bool:
@@ -132,6 +148,9 @@ def _die_with_parent() -> None:
 #: The arrays of a shard file, in the order they are written.
 #: ``nonfinite``: per sample, the NaN or Inf values the path tracer returned (replaced by 0 in ``images``).
 SHARD_FIELDS = ("images", "params", "cameras", "seeds", "indices", "nonfinite")
+#: Arrays written since issue 18 and absent from older shards: ``appearance`` (N, 3), the sample's
+#: shine, fibre spread and grey share (``render.base.appearance.FIELDS``).
+OPTIONAL_FIELDS = ("appearance",)
 #: Where shards are rendered: ``local`` processes, or ``ray`` tasks (``inference.training.cluster``).
 BACKENDS = ("local", "ray")
 
@@ -164,7 +183,8 @@ def scene_of(config: DatasetConfig, index: int):
 
     s = sample_spec(config, index)
     return SceneSpec("swatch", camera=s.camera, framing=config.framing, strands=config.strands,
-                     strand_seed=s.strand_seed, max_depth=config.max_depth)
+                     strand_seed=s.strand_seed, max_depth=config.max_depth, swatch_model=config.swatch_model,
+                     appearance=None if s.look == DEFAULT_APPEARANCE else s.look)
 
 
 def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
@@ -183,7 +203,7 @@ def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
     if variant is not None:
         select_variant(variant)
     indices = shard_indices(config, shard)
-    images, vectors, cameras, seeds, nonfinite = [], [], [], [], []
+    images, vectors, cameras, seeds, nonfinite, looks = [], [], [], [], [], []
     renderer = _renderer()
     for i in indices:
         s = sample_spec(config, i)
@@ -193,16 +213,17 @@ def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
         cameras.append([s.camera.polar_deg, s.camera.azimuth_deg, s.camera.distance])
         seeds.append([s.strand_seed, s.render_seed])
         nonfinite.append(result.nonfinite)
+        looks.append([getattr(s.look, f) for f in APPEARANCE_FIELDS])
     return {"images": np.stack(images), "params": np.stack(vectors), "cameras": np.array(cameras),
             "seeds": np.array(seeds, dtype=np.int64), "indices": np.array(list(indices)),
-            "nonfinite": np.array(nonfinite, dtype=np.int64)}
+            "nonfinite": np.array(nonfinite, dtype=np.int64), "appearance": np.array(looks, dtype=np.float32)}
 
 
 def write_shard(root: str | os.PathLike, shard: int, arrays: dict[str, np.ndarray]) -> Path:
     """Write a shard's arrays to ``shard-NNNNN.npz`` in ``root`` atomically (a temporary file, renamed)."""
     path = shard_path(Path(root), shard)
     with atomic_path(path, ".npz") as tmp:
-        np.savez(tmp, **{name: arrays[name] for name in SHARD_FIELDS})
+        np.savez(tmp, **{name: arrays[name] for name in SHARD_FIELDS + OPTIONAL_FIELDS if name in arrays})
     return path
 
 
@@ -221,7 +242,9 @@ def read_shard(path: Path, expected: range | None = None) -> dict[str, np.ndarra
             missing = [name for name in SHARD_FIELDS if name not in npz.files]
             if missing:
                 raise DatasetError(f"{path}: damaged dataset shard (no {', '.join(missing)} array); {fix}")
-            arrays = {name: npz[name] for name in (("indices",) if expected is not None else SHARD_FIELDS)}
+            names = ("indices",) if expected is not None else \
+                SHARD_FIELDS + tuple(n for n in OPTIONAL_FIELDS if n in npz.files)
+            arrays = {name: npz[name] for name in names}
     except DatasetError:
         raise
     except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError, TypeError) as exc:
@@ -273,7 +296,8 @@ def _check_manifest(root: Path, config: DatasetConfig, variant: str | None = Non
         from hairdigi.render.variant import mi
         write_json_atomic(path, {"config": asdict(config), "format": "shard-NNNNN.npz: images (N,S,S,3) "
                                  "linear float16 radiance (store linear16) or uint8 sRGB (srgb8); params (N,6) normalised Table 1 vector; cameras (N,3) "
-                                 "polar°, azimuth°, distance; seeds (N,2) strand, render; indices (N,)",
+                                 "polar°, azimuth°, distance; seeds (N,2) strand, render; indices (N,); "
+                                 "appearance (N,3) shine, fibre spread, grey share (since issue 18)",
                                  "mitsuba_variant": variant or mi.variant(),
                                  "created": time.strftime("%Y-%m-%dT%H:%M:%S")})
 

@@ -69,8 +69,9 @@ def heldout_config(n: int, size: int = 64, spp: int = 64) -> DatasetConfig:
     from hairdigi.render.renderer import defaults_for
 
     sw = defaults_for("swatch")
+    # today's world: uniform hair of shine 0.3 (evaluate --appearance judges shine and variation)
     return DatasetConfig(n=n, size=size, spp=spp, seed=EVAL_SEED, strands=sw.strands, max_depth=sw.max_depth,
-                         shard_size=50, store="linear16")
+                         shard_size=50, store="linear16", appearance="fixed")
 
 
 def judge_render(config: DatasetConfig, index: int, hair, judge: Judge = JUDGE):

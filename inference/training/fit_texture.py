@@ -29,16 +29,17 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.render.base.appearance import APPEARANCE_DRAW
 from hairdigi.render.base.files import atomic_path, cache_dir
 
 #: Bumped when what a cached sample holds or how it is rendered changes.
-DATA_VERSION = 2   # 2: a quarter of the swatch area per sample
+DATA_VERSION = 4   # 2: a quarter of the swatch area per sample; 4: the layered swatch, 8000 fibres
 SEED = 1818
 SIZE = (400, 300)
 SPP = 32
-SHINE_DRAW = (0.12, 0.5)
-SPREAD_DRAW = (0.0, 0.5)
-GREY_DRAW = (0.0, 0.3)
+SHINE_DRAW = APPEARANCE_DRAW["longitudinal_roughness"]
+SPREAD_DRAW = APPEARANCE_DRAW["fibre_spread"]
+GREY_DRAW = APPEARANCE_DRAW["grey_fraction"]
 #: Shares of the draws that are black hair and platinum hair (the rest: Table 1 uniform).
 BLACK_SHARE, PLATINUM_SHARE = 0.1, 0.1
 
@@ -133,30 +134,51 @@ def sample_path(index: int) -> Path:
     return data_dir() / f"sample-{index:05d}.npz"
 
 
-def render_dataset(n: int, seed: int = SEED, log=print) -> int:
-    """Render samples 0..n-1 that are not cached yet; returns how many were rendered now."""
+_RENDERER: list = []
+
+
+def render_sample(index: int, seed: int = SEED, variant: str | None = None) -> str:
+    """Render sample ``index`` into the cache (atomically) and return a line saying what it was."""
     from hairdigi.render.renderer import Renderer
+    from hairdigi.render.variant import select_variant
+
+    if variant:
+        select_variant(variant)
+
+    if not _RENDERER:   # one renderer per process, reused by its next samples
+        _RENDERER.append(Renderer(max_cached=1))
+    truth = draw_sample(index, seed)
+    start = time.perf_counter()
+    lights = render_swatch_lights(truth["sigma_a"], truth["shine"], truth["fibre_spread"],
+                                  truth["grey_fraction"], truth["strand_seed"], truth["render_seed"], _RENDERER[0],
+                                  roi=quadrant_roi(truth["quadrant"]))
+    seconds = time.perf_counter() - start
+    truth["render_seconds"] = seconds
+    with atomic_path(sample_path(index), ".npz") as tmp:
+        np.savez_compressed(tmp, lights=lights.astype(np.float16), truth=json.dumps(truth))
+    return (f"sample {index}: {truth['family']} spread {truth['fibre_spread']:.2f} grey {truth['grey_fraction']:.2f} "
+            f"shine {truth['shine']:.2f} in {seconds:.1f} s")
+
+
+def render_dataset(n: int, seed: int = SEED, log=print, workers: int = 1, variant: str | None = None) -> int:
+    """Render samples 0..n-1 that are not cached yet, in ``workers`` processes; returns how many were
+    rendered now."""
+    import multiprocessing as mp
+    from functools import partial
+
+    from hairdigi.inference.training.dataset import _die_with_parent
 
     data_dir().mkdir(parents=True, exist_ok=True)
-    renderer = Renderer(max_cached=1)
-    done = 0
-    for index in range(n):
-        path = sample_path(index)
-        if path.exists():
-            continue
-        truth = draw_sample(index, seed)
-        start = time.perf_counter()
-        lights = render_swatch_lights(truth["sigma_a"], truth["shine"], truth["fibre_spread"],
-                                      truth["grey_fraction"], truth["strand_seed"], truth["render_seed"], renderer,
-                                      roi=quadrant_roi(truth["quadrant"]))
-        seconds = time.perf_counter() - start
-        truth["render_seconds"] = seconds
-        with atomic_path(path, ".npz") as tmp:
-            np.savez_compressed(tmp, lights=lights.astype(np.float16), truth=json.dumps(truth))
-        done += 1
-        log(f"sample {index}: {truth['family']} spread {truth['fibre_spread']:.2f} grey {truth['grey_fraction']:.2f} "
-            f"shine {truth['shine']:.2f} in {seconds:.1f} s", flush=True)
-    return done
+    todo = [index for index in range(n) if not sample_path(index).exists()]
+    if workers <= 1:
+        lines = map(partial(render_sample, seed=seed, variant=variant), todo)
+        for line in lines:
+            log(line, flush=True)
+        return len(todo)
+    with mp.get_context("spawn").Pool(workers, initializer=_die_with_parent) as pool:
+        for line in pool.imap_unordered(partial(render_sample, seed=seed, variant=variant), todo):
+            log(line, flush=True)
+    return len(todo)
 
 
 def load_samples(n: int | None = None) -> list[tuple[dict, np.ndarray]]:
@@ -179,9 +201,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("command", nargs="?", choices=("render", "fit", "all"), default="all")
     parser.add_argument("--n", type=int, default=150, help="samples to render (cached ones are kept)")
     parser.add_argument("--seed", type=int, default=SEED)
+    parser.add_argument("--workers", type=int, default=1, help="render processes")
+    parser.add_argument("--variant", default=None,
+                        help="Mitsuba variant (scalar_rgb renders these small scenes faster than llvm_ad_rgb)")
     args = parser.parse_args(argv)
+    if args.variant:
+        from hairdigi.render.variant import select_variant
+        select_variant(args.variant)
     if args.command in ("render", "all"):
-        render_dataset(args.n, args.seed)
+        render_dataset(args.n, args.seed, workers=args.workers, variant=args.variant)
     if args.command in ("fit", "all"):
         fit(load_samples())
     return 0

@@ -77,6 +77,15 @@ class Appearance:
 
 DEFAULT_APPEARANCE = Appearance()
 
+#: The ranges synthetic swatches are drawn from (issue 18's held-out set; the training data of the
+#: encoder and of the texture model): shine, fibre spread, grey share, each uniform.
+APPEARANCE_DRAW = {"longitudinal_roughness": (0.12, 0.5), "fibre_spread": (0.0, 0.5), "grey_fraction": (0.0, 0.3)}
+
+
+def sample_appearance(rng) -> Appearance:
+    """One appearance drawn uniformly over ``APPEARANCE_DRAW`` by ``rng`` (a numpy Generator)."""
+    return Appearance(**{name: float(rng.uniform(*APPEARANCE_DRAW[name])) for name in FIELDS})
+
 
 @dataclass(frozen=True)
 class AppearanceEstimate:

@@ -257,11 +257,17 @@ class RigRegion:
 SWATCH_HALF = (0.5, 0.7)
 
 
-def swatch_roi(size: tuple[int, int], margin: float = 0.05, visible_half_length: float = 0.58,
+#: How much of its 0.7 half-length the default (layered) swatch shows: all of it, as its strands
+#: pass through their ends. The first swatch ("today") showed about 0.58: Mitsuba's B-spline stops
+#: short of its end points.
+SWATCH_VISIBLE_HALF_LENGTH = 0.7
+
+
+def swatch_roi(size: tuple[int, int], margin: float = 0.05, visible_half_length: float = SWATCH_VISIBLE_HALF_LENGTH,
                pose: CameraPose = CameraPose(), half_width: float = RIG_HALF_WIDTH) -> tuple[int, int, int, int]:
     """The swatch's visible area in a rig-view frame of ``size``, as x, y, w, h pixels, inset by
-    ``margin`` units (Mitsuba's B-spline stops short of its end points: the swatch shows about
-    ``visible_half_length`` of its 0.7 half-length). ``pose`` (around ``RIG_TARGET``) and
+    ``margin`` units (``visible_half_length``: how much of its half-length the swatch shows, as
+    ``SWATCH_VISIBLE_HALF_LENGTH``). ``pose`` (around ``RIG_TARGET``) and
     ``half_width`` are the camera's; the default is the bench camera. A tilted camera sees the swatch
     as a quadrilateral: the box is the largest one inside it."""
     half_w, half_l = SWATCH_HALF[0] - margin, visible_half_length - margin
