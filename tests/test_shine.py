@@ -46,6 +46,6 @@ def test_shine_is_read_from_the_three_lights(tmp_path, monkeypatch):
                                                           lights=tuple(float(i == light) for i in range(N_LIGHTS))),
                                            film, 32, 123).linear.reshape(-1, 3).mean(0) for light in range(N_LIGHTS)])
         est = estimate_shine(single, tables)
-        assert abs(est.longitudinal_roughness - beta) <= 0.05, (beta, est)
+        assert abs(est.longitudinal_roughness - beta) <= 0.05 + 1e-9, (beta, est)   # the grid's step is 0.01
         # and the colour with it (red and green; at 24² and 16 spp the tables' darkest blue is noise)
         assert np.allclose(est.sigma_a[:2], sigma[:2], rtol=0.4) and est.sigma_a[2] > 1.0, (sigma, est.sigma_a)

@@ -145,9 +145,13 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
         "sd 0.015 EV, colour cast sd 0.8%, shot and read noise, 12-bit ADC, 8-bit sRGB).",
         "- Datasets: " + "; ".join(
             f"`hairdigi dataset --n {ds['n']} --size {ds['size']} --spp {ds['spp']} --seed {ds['seed']} "
-            f"--store {ds.get('store', 'srgb8')}`" for ds in datasets) +
+            f"--store {ds.get('store', 'srgb8')} --strands {ds.get('strands')} "
+            f"--swatch-model {ds.get('swatch_model', 'today')} --appearance {ds.get('appearance', 'fixed')}`"
+            for ds in datasets) +
         f": uniform Table 1 parameters, cameras uniform on a {datasets[0]['polar_max_deg']}° cap (distance ±"
         f"{100 * datasets[0]['distance_jitter']:.0f}%) clear of the rig lights, a new strand layout per swatch, "
+        + ("shine, fibre spread and grey share drawn uniformly over render.base.appearance.APPEARANCE_DRAW, "
+           if datasets[0].get("appearance") == "random" else "") +
         f"crop framing (all hair), linear float16 radiance. {sum(ds['n_loaded'] for ds in datasets)} swatches "
         f"loaded; {100 * history['train']['val_fraction']:.0f}% held for validation.",
         f"- Preprocessing: {card['preprocessing']}.", "",
