@@ -168,15 +168,20 @@ def view_key(view: View) -> dict:
     return view.to_dict() if isinstance(view, RigRegion) else asdict(view)
 
 
+def cache_key(head: list, spec, variant: str) -> str:
+    """The disk-cache key of renders of ``spec``'s swatch: ``head`` (what the caller renders) with the
+    swatch's strands, depth, the variant and its model (left out for the first swatch, "today", so
+    its cached files keep their keys)."""
+    data = [*head, spec.n_strands, spec.depth, variant] + ([spec.swatch_model] if spec.swatch_model != "today" else [])
+    return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
+
+
 def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool) -> ResponseCurve:
     from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()
     spec, size = scene_for(view, settings)
-    key_data = [2, asdict(settings), view_key(view), spec.n_strands, spec.depth, renderer.variant]
-    if spec.swatch_model != "today":   # the first swatch's curves kept their keys
-        key_data.append(spec.swatch_model)
-    key = hashlib.sha256(json.dumps(key_data, sort_keys=True).encode()).hexdigest()[:16]
+    key = cache_key([2, asdict(settings), view_key(view)], spec, renderer.variant)
     path = cache_dir() / "response" / f"curve-{key}.json"
     if cache and path.exists():
         try:

@@ -15,8 +15,6 @@ log) is the shine.
 """
 from __future__ import annotations
 
-import hashlib
-import json
 import threading
 import time
 from dataclasses import asdict, dataclass, replace
@@ -24,7 +22,7 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from hairdigi.render.base.appearance import Appearance
-from hairdigi.inference.refine import ResponseCurve, RefineSettings, View, scene_for, view_key
+from hairdigi.inference.refine import ResponseCurve, RefineSettings, View, cache_key, scene_for, view_key
 from hairdigi.render.base.files import cache_dir
 from hairdigi.render.base.rig_geometry import N_LIGHTS
 
@@ -81,10 +79,7 @@ def _shine_tables(view: View, settings: RefineSettings, betas, renderer, cache: 
 
     renderer = renderer or default_renderer()
     spec, size = scene_for(view, settings)
-    key_data = [1, asdict(settings), view_key(view), list(betas), spec.n_strands, spec.depth, renderer.variant]
-    if spec.swatch_model != "today":   # the first swatch's tables kept their keys
-        key_data.append(spec.swatch_model)
-    key = hashlib.sha256(json.dumps(key_data, sort_keys=True).encode()).hexdigest()[:16]
+    key = cache_key([1, asdict(settings), view_key(view), list(betas)], spec, renderer.variant)
     path = cache_dir() / "response" / f"shine-{key}.npz"
     if cache and path.exists():
         data = np.load(path)

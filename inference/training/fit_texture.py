@@ -171,8 +171,7 @@ def render_dataset(n: int, seed: int = SEED, log=print, workers: int = 1, varian
     data_dir().mkdir(parents=True, exist_ok=True)
     todo = [index for index in range(n) if not sample_path(index).exists()]
     if workers <= 1:
-        lines = map(partial(render_sample, seed=seed, variant=variant), todo)
-        for line in lines:
+        for line in map(partial(render_sample, seed=seed, variant=variant), todo):
             log(line, flush=True)
         return len(todo)
     with mp.get_context("spawn").Pool(workers, initializer=_die_with_parent) as pool:
@@ -205,9 +204,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--variant", default=None,
                         help="Mitsuba variant (scalar_rgb renders these small scenes faster than llvm_ad_rgb)")
     args = parser.parse_args(argv)
-    if args.variant:
-        from hairdigi.render.variant import select_variant
-        select_variant(args.variant)
     if args.command in ("render", "all"):
         render_dataset(args.n, args.seed, workers=args.workers, variant=args.variant)
     if args.command in ("fit", "all"):
