@@ -246,6 +246,38 @@ def evaluate_appearance_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def evaluate_cycles_command(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --cycles``: swatches rendered in Blender Cycles, estimated, rendered back in Cycles."""
+    from hairdigi.inference.training.evaluate_cycles import CyclesSet, evaluate_cycles
+    from hairdigi.render.blender_run import BlenderError, blender_command
+
+    try:
+        if blender_command() is None:
+            raise BlenderError("no Blender found: set HAIRDIGI_BLENDER to a Python that has bpy (python3.11 -m venv "
+                               "VENV && VENV/bin/pip install bpy==5.0.1) or to a blender executable")
+    except BlenderError as exc:
+        print(f"hairdigi evaluate --cycles: {exc}", file=sys.stderr)
+        return 2
+    s = evaluate_cycles(args.out, CyclesSet(random=args.rig_random, spp=args.spp))
+    print(f"{s['judged']} of {s['swatches']} Cycles swatches judged; mean-colour ΔE2000 against the truth, "
+          f"median / p95 / worst:")
+    for key, label in (("twin_residual", "hairdigi's Mitsuba twin against the input"),
+                       ("fit", "the estimated σa rendered back in Cycles, rig view"),
+                       ("transfer", "the same, another camera, a key light and a grey sky")):
+        st = s[key]
+        if st["n"]:
+            print(f"  {label}: {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}")
+    for key, label in (("sigma_rel_error", "σa relative error (median channel), refined"),
+                       ("encoder_sigma_rel_error", "the same, encoder alone")):
+        st = s[key]
+        if st["n"]:
+            print(f"  {label}: {st['median']:.3f} / {st['p95']:.3f} / {st['worst']:.3f}")
+    for line in s["errors"]:
+        print(f"not judged: {line}")
+    print(f"cycles_evaluation.csv, .json and .png in {args.out}")
+    return 0
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.training.evaluate import evaluate, prepare_heldout
@@ -258,6 +290,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         return evaluate_rig_command(args)
     if args.appearance:
         return evaluate_appearance_command(args)
+    if args.cycles:
+        return evaluate_cycles_command(args)
     from hairdigi.render.renderer import DEFAULT_SWATCH_MODEL
 
     data = Path(args.data) if args.data else _cache_dir() / "datasets" / (
@@ -481,6 +515,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "spread and greys through the simulated rig, judged in the rig view, each light alone and a "
                    "scene the estimate never saw (--rig-random N random swatches beside the named cases; --ship "
                    "writes the appearance's intervals)")
+    p.add_argument("--cycles", action="store_true", help="instead: swatches of another strand generator rendered "
+                   "in Blender Cycles (HAIRDIGI_BLENDER), estimated, and rendered back in Cycles: the fit and a "
+                   "transfer judged in another renderer (--rig-random N random swatches beside the hard cases; "
+                   "--spp: Cycles samples, 128 or more)")
     p.add_argument("--ship", action="store_true", help="with --rig: ship the measured colour interval "
                    "(resources/models/chain_uncertainty.json); with --appearance, the appearance's intervals")
     p.add_argument("--no-variation", action="store_true", help="with --appearance: read the shine only, not the "

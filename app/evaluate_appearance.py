@@ -28,15 +28,13 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.evaluate_rig import error_stats
 from hairdigi.render.base.appearance import APPEARANCE_DRAW, DEFAULT_APPEARANCE, FIELDS, Appearance
 from hairdigi.render.base.files import write_csv_atomic, write_json_atomic
 from hairdigi.render.base.params import HairParams, sample_params
-from hairdigi.render.base.rig_geometry import CameraPose, N_LIGHTS
+from hairdigi.render.base.rig_geometry import N_LIGHTS, TRANSFER_POSE
+from hairdigi.render.metrics import error_stats
 
 SEED = 2_026_118
-#: Where the transfer is judged: another camera, all hair in view (the crop framing).
-TRANSFER_POSE = CameraPose(40.0, 30.0)
 JUDGE_SIZE, JUDGE_SPP = 64, 32
 #: Named cases beside the random draws (Table 1, appearance): black and platinum with greys,
 #: a saturated dye with spread, and today's world.

@@ -26,6 +26,7 @@ import numpy as np
 from hairdigi.render.base.appearance import DEFAULT_APPEARANCE
 from hairdigi.render.base.files import write_csv_atomic, write_json_atomic
 from hairdigi.render.base.params import HairParams, sample_params
+from hairdigi.render.metrics import error_stats
 
 #: Named hard cases of the held-out hidden swatches (Table 1: dye RGB, dye conc., melanin conc., ratio).
 HARD_CASES = {
@@ -153,15 +154,6 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
     write_json_atomic(out / "rig_evaluation.json", {"summary": summary, "rows": rows})
     _plot(rows, out / "rig_evaluation.png")
     return summary
-
-
-def error_stats(values) -> dict:
-    """n, median, p95 and worst of the values that are not None (rounded for the tables)."""
-    v = np.asarray([x for x in values if x is not None], float)
-    if not len(v):
-        return {"n": 0}
-    return {"n": int(len(v)), "median": round(float(np.median(v)), 3), "p95": round(float(np.quantile(v, 0.95)), 3),
-            "worst": round(float(v.max()), 3)}
 
 
 def summarise(rows: list[dict], hidden: list[tuple[str, HairParams]]) -> dict:

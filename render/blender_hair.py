@@ -118,7 +118,7 @@ def build_rig(rig, mat):
         bpy.data.objects.remove(obj)
     world = bpy.data.worlds.new("black")
     world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = float(rig.get("sky", 0.0))
     scene.world = world
     holder = rig["holder"]
     _quad("holder", holder["corners"], _diffuse("holder", holder["albedo"]))
@@ -167,8 +167,9 @@ def build_rig(rig, mat):
     return groom
 
 
-def render_mean(path, spp, seed=0, threads=0):
-    """Render the scene in Cycles to an OpenEXR beside ``path`` and write its mean linear colour there."""
+def render_mean(path, spp, seed=0, threads=0, want_pixels=False):
+    """Render the scene in Cycles to an OpenEXR beside ``path`` and write its mean linear colour there
+    (and, with ``want_pixels``, the linear RGB image, rows from the top)."""
     import time
 
     import bpy
@@ -189,9 +190,13 @@ def render_mean(path, spp, seed=0, threads=0):
     pixels = list(image.pixels)
     n = len(pixels) // 4
     mean = [sum(pixels[c::4]) / n for c in range(3)]
+    out = {"mean_linear": mean, "seconds": seconds, "spp": spp, "exr": exr, "blender": bpy.app.version_string}
+    if want_pixels:
+        width, height = image.size
+        rows = [[pixels[4 * (y * width + x):4 * (y * width + x) + 3] for x in range(width)] for y in range(height)]
+        out["pixels"] = rows[::-1]          # Blender's rows run from the bottom
     with open(path, "w") as f:
-        json.dump({"mean_linear": mean, "seconds": seconds, "spp": spp, "exr": exr,
-                   "blender": bpy.app.version_string}, f, indent=2)
+        json.dump(out, f)
     return mean
 
 
@@ -206,6 +211,8 @@ def main(argv):
     parser.add_argument("--render", help="render in Cycles and write the mean colour to this JSON")
     parser.add_argument("--spp", type=int, default=64)
     parser.add_argument("--threads", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--pixels", action="store_true", help="with --render: also write the image's pixels")
     args = parser.parse_args(argv)
     mat = build_material()
     if args.scene:
@@ -217,7 +224,7 @@ def main(argv):
     if args.blend:
         bpy.ops.wm.save_as_mainfile(filepath=args.blend)
     if args.render:
-        render_mean(args.render, args.spp, threads=args.threads)
+        render_mean(args.render, args.spp, seed=args.seed, threads=args.threads, want_pixels=args.pixels)
 
 
 def script_args(argv):

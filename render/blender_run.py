@@ -73,12 +73,15 @@ def layered_swatch(layers: int = CHECK_LAYERS, radius: float = CHECK_RADIUS, gap
 
 
 def rig_for_blender(strands: Strands, pose: rg.CameraPose = rg.RIG_SWATCH_POSE, framing: str = "crop",
-                    size: int | tuple[int, int] = 64, max_depth: int = 32) -> dict:
+                    size: int | tuple[int, int] = 64, max_depth: int = 32, lights=(1.0,) * rg.N_LIGHTS,
+                    env: str = "studio", bspline: bool = True) -> dict:
     """hairdigi's swatch rig as the Blender script builds it: ``strands`` as Mitsuba draws them (its
-    B-splines sampled 4 times a segment), the holder, the three lights and the camera at ``pose``."""
+    B-splines sampled 4 times a segment; ``bspline=False``: the points as they are, for strands that
+    are not Mitsuba's), the holder, the rig's lights at ``lights`` of full power and the camera at
+    ``pose``; ``env`` ``"key-sky"`` adds the key light and the grey sky of ``scenes.key_and_sky``."""
     from hairdigi.render import scenes
 
-    curves = strands.curves(per_segment=4)
+    curves = strands.curves(per_segment=4) if bspline else strands
     m = rg.look_at_matrix(pose.position(), np.zeros(3))
     width, height = (size, size) if isinstance(size, int) else size
     (cx, cy), (w, h) = rg.HOLDER_CENTER, rg.HOLDER_SIZE
@@ -87,8 +90,11 @@ def rig_for_blender(strands: Strands, pose: rg.CameraPose = rg.RIG_SWATCH_POSE, 
                     "radii": curves.radii.astype(float).tolist(), "counts": curves.counts.tolist()},
         "holder": {"corners": [[cx - w / 2, cy - h / 2, 0], [cx + w / 2, cy - h / 2, 0], [cx + w / 2, cy + h / 2, 0],
                                [cx - w / 2, cy + h / 2, 0]], "albedo": scenes.HOLDER_ALBEDO},
-        "lights": [{"corners": rg.light_corners(i).tolist(), "radiance": scenes.LIGHT_RADIANCE}
-                   for i in range(rg.N_LIGHTS)],
+        "lights": [{"corners": rg.light_corners(i).tolist(), "radiance": scenes.LIGHT_RADIANCE * float(k)}
+                   for i, k in enumerate(lights) if k > 0]
+                  + ([{"corners": rg.square_corners(scenes.KEY_POSITION, scenes.KEY_SIZE).tolist(),
+                       "radiance": scenes.KEY_RADIANCE}] if env == scenes.KEY_SKY else []),
+        "sky": scenes.SKY_RADIANCE if env == scenes.KEY_SKY else 0.0,
         "camera": {"origin": m[:3, 3].tolist(), "left": m[:3, 0].tolist(), "up": m[:3, 1].tolist(),
                    "forward": m[:3, 2].tolist(), "fov_deg": rg.framing_fov(framing, pose.distance)},
         "size": [width, height], "max_depth": max_depth,

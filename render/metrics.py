@@ -23,6 +23,15 @@ def delta_e2000(rgb_a: np.ndarray, rgb_b: np.ndarray) -> np.ndarray:
     return colour.delta_E(linear_rgb_to_lab(rgb_a), linear_rgb_to_lab(rgb_b), method="CIE 2000")
 
 
+def error_stats(values) -> dict:
+    """n, median, p95 and worst of the values that are not None (rounded for the evaluations' tables)."""
+    v = np.asarray([x for x in values if x is not None], float)
+    if not len(v):
+        return {"n": 0}
+    return {"n": int(len(v)), "median": round(float(np.median(v)), 3), "p95": round(float(np.quantile(v, 0.95)), 3),
+            "worst": round(float(v.max()), 3)}
+
+
 def mean_colour_delta_e(image_a: np.ndarray, image_b: np.ndarray) -> float:
     """ΔE2000 between the mean linear colours of two images (what a viewer sees from afar)."""
     return float(delta_e2000(image_a.reshape(-1, 3).mean(0), image_b.reshape(-1, 3).mean(0)))

@@ -128,11 +128,12 @@ def swatch_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: int
 KEY_SKY = "key-sky"
 KEY_POSITION = (-1.6, -2.2, 2.6)      # low on the root side, across the fibres: unlike any rig light
 KEY_RADIANCE = 24.0
+KEY_SIZE = 0.6
 SKY_RADIANCE = 0.25
 
 
 def key_and_sky() -> dict:
-    return {"key": area_light(np.array(KEY_POSITION), (0, 0, 0), 0.6, KEY_RADIANCE),
+    return {"key": area_light(np.array(KEY_POSITION), (0, 0, 0), KEY_SIZE, KEY_RADIANCE),
             "sky": {"type": "constant", "radiance": {"type": "rgb", "value": [SKY_RADIANCE] * 3}}}
 
 

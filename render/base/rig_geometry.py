@@ -122,13 +122,18 @@ def light_position(index: int) -> np.ndarray:
     return LIGHT_DISTANCE * spherical_direction(*LIGHT_POSITIONS[index])
 
 
+def square_corners(position, size: float, target=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """(4, 3) corners of a ``size`` square at ``position`` facing ``target`` (an area light)."""
+    m = look_at_matrix(np.asarray(position, float), np.asarray(target, float))
+    half = size / 2
+    return np.array([m[:3, 3] + half * (sx * m[:3, 0] + sy * m[:3, 1]) for sx, sy in
+                     ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+
+
 @functools.lru_cache(maxsize=None)
 def light_corners(index: int) -> np.ndarray:
     """(4, 3) corners of rig light ``index``, a LIGHT_SIZE square facing the holder (read-only, cached)."""
-    m = look_at_matrix(light_position(index), np.zeros(3))
-    half = LIGHT_SIZE / 2
-    corners = np.array([m[:3, 3] + half * (sx * m[:3, 0] + sy * m[:3, 1]) for sx, sy in
-                        ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+    corners = square_corners(light_position(index), LIGHT_SIZE)
     corners.setflags(write=False)
     return corners
 
@@ -184,6 +189,9 @@ RIG_HALF_WIDTH = 1.375
 #: off the swatch's normal towards the chart. Refinement renders the swatch from this pose.
 RIG_SWATCH_POSE = CameraPose(float(np.degrees(np.arctan2(RIG_TARGET[0], CAMERA_DISTANCE))), 0.0,
                              float(np.hypot(RIG_TARGET[0], CAMERA_DISTANCE)))
+#: Away from the rig (issue 18's transfer): another camera over the swatch, all hair in view; lit by
+#: ``scenes.KEY_SKY``'s key light and grey sky.
+TRANSFER_POSE = CameraPose(40.0, 30.0)
 
 
 def rig_scale(size: tuple[int, int]) -> float:
