@@ -160,6 +160,25 @@ def bench_shine(args: argparse.Namespace) -> int:
     return 0
 
 
+#: A shine read on the simulated rig's demo capture (copper) leaves this rms log misfit (its record's
+#: appearance method): the scale below which a spread cannot be told from uniform fibres.
+CAPTURE_SHINE_MISFIT = 0.025
+
+
+def bench_spread(args: argparse.Namespace) -> int:
+    """Fibre spread against uniform fibres, as the three single-light means see them (no render once the tables exist)."""
+    from hairdigi.inference.training.bench_shine import run_spread_bench
+
+    out = Path("packaging/bench/spread") if args.out == BENCH_OUT else Path(args.out)
+    rows = run_spread_bench(out, CAPTURE_SHINE_MISFIT)
+    top = [r for r in rows if r["spread"] == 0.5]
+    print("uniform fibres fit the nine means of a swatch of spread 0.5 within rms log "
+          + ", ".join(f"{r['hair']} (shine {r['beta']:g}) {r['uniform_misfit_rms_log']:.4f}" for r in top)
+          + f"; a rig capture's own shine misfit is {CAPTURE_SHINE_MISFIT}")
+    print(f"wrote {out / 'spread_bench.csv'} and {out / 'spread_bench.png'}")
+    return 0
+
+
 def bench_structure(args: argparse.Namespace) -> int:
     """The swatch's fibre structure: today's interpenetrating swatch against a layered one, fibre counts, lights."""
     from hairdigi.inference.training.bench_structure import run
@@ -197,6 +216,7 @@ BENCHES: dict[str, Bench] = {
     "library": _elsewhere("hairdigi.app.library_cli", "bench_library"),    # issue 20: find in a library of --n swatches
     "memory": _elsewhere("hairdigi.app.bench_memory", "bench_memory"),     # issue 22: peak memory of the largest inputs
     "shine": bench_shine,                                                   # issue 18: shine from the three lights
+    "spread": bench_spread,                                                 # issue 18: can the lights read a spread?
     "fibres": bench_fibres,                                                 # issue 18: how many fibre groups
     "structure": bench_structure,                                           # issue 18: the swatch's fibre structure
 }

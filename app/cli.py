@@ -258,17 +258,23 @@ def evaluate_cycles_command(args: argparse.Namespace) -> int:
     except BlenderError as exc:
         print(f"hairdigi evaluate --cycles: {exc}", file=sys.stderr)
         return 2
-    s = evaluate_cycles(args.out, CyclesSet(random=args.rig_random, spp=args.spp))
+    s = evaluate_cycles(args.out, CyclesSet(random=args.rig_random, size=args.size, spp=args.spp,
+                                            shine=not args.default_shine))
     print(f"{s['judged']} of {s['swatches']} Cycles swatches judged; mean-colour ΔE2000 against the truth, "
           f"median / p95 / worst:")
-    for key, label in (("twin_residual", "hairdigi's Mitsuba twin against the input"),
-                       ("fit", "the estimated σa rendered back in Cycles, rig view"),
-                       ("transfer", "the same, another camera, a key light and a grey sky")):
-        st = s[key]
-        if st["n"]:
-            print(f"  {label}: {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}")
-    for key, label in (("sigma_rel_error", "σa relative error (median channel), refined"),
-                       ("encoder_sigma_rel_error", "the same, encoder alone")):
+    for mode in ("read", "no light frames"):
+        if mode not in s:
+            continue
+        print(f"  {mode}:")
+        for key, label in (("twin_residual", "hairdigi's Mitsuba twin against the input"),
+                           ("fit", "the estimate rendered back in Cycles, rig view"),
+                           ("transfer", "the same, another camera, a key light and a grey sky"),
+                           ("sigma_rel_error", "σa relative error (median channel)")):
+            st = s[mode][key]
+            if st["n"]:
+                print(f"    {label}: {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}")
+    for key, label in (("shine_abs_error", "shine absolute error"),
+                       ("encoder_sigma_rel_error", "σa relative error, encoder alone")):
         st = s[key]
         if st["n"]:
             print(f"  {label}: {st['median']:.3f} / {st['p95']:.3f} / {st['worst']:.3f}")
@@ -519,6 +525,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "in Blender Cycles (HAIRDIGI_BLENDER), estimated, and rendered back in Cycles: the fit and a "
                    "transfer judged in another renderer (--rig-random N random swatches beside the hard cases; "
                    "--spp: Cycles samples, 128 or more)")
+    p.add_argument("--default-shine", action="store_true", help="with --cycles: every hidden swatch at the default "
+                   "shine, no single-light frames (the renderer and the swatch's structure alone)")
     p.add_argument("--ship", action="store_true", help="with --rig: ship the measured colour interval "
                    "(resources/models/chain_uncertainty.json); with --appearance, the appearance's intervals")
     p.add_argument("--no-variation", action="store_true", help="with --appearance: read the shine only, not the "

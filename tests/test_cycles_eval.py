@@ -74,8 +74,9 @@ def test_the_blender_scene_has_the_rig_or_the_transfers_lights() -> None:
 
 def test_the_hidden_set_holds_the_hard_cases_and_fixed_draws() -> None:
     first, again = hidden_set(CyclesSet(random=3)), hidden_set(CyclesSet(random=3))
-    assert [n for n, _, _ in first][:len(CASES)] == list(CASES) and len(first) == len(CASES) + 3
-    assert [h.to_vector().tolist() for _, h, _ in first] == [h.to_vector().tolist() for _, h, _ in again]
+    assert [n for n, *_ in first][:len(CASES)] == list(CASES) and len(first) == len(CASES) + 3
+    assert [(h.to_vector().tolist(), b) for _, h, b, _ in first] == [(h.to_vector().tolist(), b) for _, h, b, _ in again]
+    assert {b for _, _, b, _ in hidden_set(CyclesSet(random=3, shine=False))} == {0.3}
 
 
 def test_evaluate_cycles_without_blender_says_how_to_get_it(monkeypatch, capsys) -> None:
@@ -95,7 +96,7 @@ def _blender() -> str | None:
 def test_a_cycles_swatch_is_estimated_and_judged_back_in_cycles(tmp_path) -> None:
     from hairdigi.inference.encoder import Encoder
 
-    row = _one("copper", CASES["copper"], 305, CyclesSet(size=48, spp=64), Encoder(), tmp_path)
+    row = _one("copper", *CASES["copper"], 305, CyclesSet(size=48, spp=64), Encoder(), tmp_path)
     assert "error" not in row, row
     # copper in another renderer, on another swatch: the estimate renders back within the chain's precision
     assert row["fit"] < 1.0 and row["transfer"] < 1.5, row

@@ -104,3 +104,72 @@ def _plot(rows: list[dict], path: Path) -> None:
     a.legend(fontsize=7)
     fig.tight_layout()
     save_figure(fig, path)
+
+
+#: The spread bench's hairs (sigma_a per fibre radius) and shines; spreads up to the draw's top (0.5) and past it.
+SPREAD_HAIRS = {"platinum": (0.05, 0.08, 0.15), "brown": (0.35, 0.6, 1.2), "dark": (2.0, 3.0, 5.0)}
+SPREAD_BETAS, SPREADS = (0.2, 0.35), (0.0, 0.25, 0.5, 0.75, 1.0)
+
+
+def spread_from_means(tables) -> list[dict]:
+    """Can the three single-light means tell a fibre spread from uniform fibres? For each hair, shine
+    and spread, the nine means of the varied swatch (each pigment group on the per-light tables, as
+    ``refine.varied_curve`` mixes them) are fitted by uniform fibres (sigma_a and shine free, least
+    squares in log, as ``estimate_shine``); the rms log misfit left is what a reading could use.
+    Pure arithmetic on ``tables`` (``inference.shine.ShineTables``)."""
+    from scipy.optimize import least_squares
+
+    from hairdigi.render.fibres import FIBRE_GROUPS, group_z
+
+    z = group_z(FIBRE_GROUPS)
+    rows = []
+    for name, sigma in SPREAD_HAIRS.items():
+        sigma = np.asarray(sigma, float)
+        for beta in SPREAD_BETAS:
+            for spread in SPREADS:
+                target = np.mean([tables.predict(sigma * np.exp(spread * zz), beta) for zz in z], 0)
+
+                def misfit(p: np.ndarray) -> np.ndarray:
+                    return (np.log(tables.predict(np.exp(p[:3]), p[3])) - np.log(target)).ravel()
+
+                fit = least_squares(misfit, np.r_[np.log(sigma), beta],
+                                    bounds=([-9.0] * 3 + [tables.betas[0]], [5.0] * 3 + [tables.betas[-1]]))
+                rows.append({"hair": name, "beta": beta, "spread": spread,
+                             "uniform_misfit_rms_log": round(float(np.sqrt(np.mean(fit.fun ** 2))), 5),
+                             "uniform_beta": round(float(fit.x[3]), 4),
+                             "uniform_sigma_a": [round(float(v), 4) for v in np.exp(fit.x[:3])]})
+    return rows
+
+
+def run_spread_bench(out_dir: str | os.PathLike, capture_misfit: float | None = None) -> list[dict]:
+    """``spread_from_means`` at the bench camera's swatch area (the tables rendered or loaded), written
+    with a plot against ``capture_misfit`` (a real capture's shine misfit, for scale)."""
+    from hairdigi.inference.refine import RefineSettings
+    from hairdigi.inference.shine import shine_tables
+    from hairdigi.render.base.rig_geometry import RigRegion, swatch_roi
+
+    size = (400, 300)
+    rows = spread_from_means(shine_tables(RigRegion(size, swatch_roi(size)), RefineSettings()))
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv_atomic(out / "spread_bench.csv", rows)
+    import matplotlib.pyplot as plt
+
+    from hairdigi.render.io.figures import save_figure
+
+    fig, ax = plt.subplots(figsize=(6, 3.6))
+    for name in SPREAD_HAIRS:
+        for beta, style in zip(SPREAD_BETAS, ("-", "--")):
+            sel = [r for r in rows if r["hair"] == name and r["beta"] == beta]
+            ax.plot([r["spread"] for r in sel], [r["uniform_misfit_rms_log"] for r in sel], style, marker="o",
+                    label=f"{name}, shine {beta:g}")
+    if capture_misfit is not None:
+        ax.axhline(capture_misfit, color="grey", ls=":", label=f"a rig capture's own misfit ({capture_misfit:g})")
+    ax.axvspan(0, 0.5, color="0.92", zorder=0)
+    ax.set_xlabel("fibre spread (std of ln σa)")
+    ax.set_ylabel("uniform fibres' best misfit (rms log)")
+    ax.set_title("the lights' nine means: spread against uniform fibres", fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, out / "spread_bench.png")
+    return rows

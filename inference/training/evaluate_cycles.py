@@ -7,14 +7,21 @@ makes the project's swatch look like the photograph. This evaluation answers it 
 hairdigi's generator never draws (``other_swatch``: fibres crossing at small angles, layer by layer,
 of other thicknesses, fills and depths):
 
-1. each hidden swatch (Table 1 hard cases and random draws, uniform fibres of the default shine) is
-   rendered in Cycles at the rig's swatch pose, all hair in view, and shot through the camera model
+1. each hidden swatch (Table 1 hard cases and random draws, uniform fibres, each with its own shine)
+   is rendered in Cycles at the rig's swatch pose, all hair in view, and shot through the camera model
    (``evaluate.capture``: noise, 12-bit ADC, 8-bit sRGB), as ``hairdigi estimate`` would be given it;
-2. ``estimate_image`` estimates it (the encoder, then refinement by synthesis in Mitsuba);
-3. the estimated σa is rendered **back in Cycles** on the hidden swatch's own strands with the truth's
-   sampler seed, and compared with the truth: at the rig's pose (**fit**), and in a scene neither saw
-   (**transfer**: another camera, one key light across the fibres and a grey sky, as ``evaluate
-   --appearance``'s). Mean-colour ΔE2000; also the σa's relative error per channel.
+   so is each light alone, 1.5 EV longer, as the rig takes its single-light frames;
+2. ``estimate_image`` estimates it (the encoder, the shine read from the three single-light frames,
+   then refinement by synthesis in Mitsuba), and again without the single-light frames (the shine
+   held at the default, as for an old capture);
+3. each estimate (σa and shine) is rendered **back in Cycles** on the hidden swatch's own strands
+   with the truth's sampler seed, and compared with the truth: at the rig's pose (**fit**), and in a
+   scene neither saw (**transfer**: another camera, one key light across the fibres and a grey sky,
+   as ``evaluate --appearance``'s). Mean-colour ΔE2000; also the σa's relative error per channel
+   and the shine's absolute error.
+
+``CyclesSet(shine=False)`` (``--default-shine``) keeps every swatch at the default shine and reads no
+single-light frames: the renderer and the swatch's structure alone.
 
 Blender runs in its own Python (``HAIRDIGI_BLENDER``; see ``render.blender_run``). The first study of
 this kind (``shared/reference/inverse-notes.md``, 16 swatches, the project's first, interpenetrating
@@ -32,26 +39,29 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.render.base.params import HairParams, sample_params
-from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE, TRANSFER_POSE
+from hairdigi.render.base.rig_geometry import N_LIGHTS, RIG_SWATCH_POSE, TRANSFER_POSE
 from hairdigi.render.strands import SWATCH_LENGTH, SWATCH_WIDTH, Strands
 
 SEED = 2_026_125
-#: Named hard cases beside the random draws (Table 1).
+#: Named hard cases beside the random draws: Table 1 and the shine (Mitsuba's and Cycles' roughness).
 CASES = {
-    "black": HairParams((20, 20, 20), 0.2, 0.97, 0.95),
-    "platinum": HairParams((245, 240, 225), 0.15, 0.04, 0.2),
-    "saturated red": HairParams((230, 20, 30), 1.0, 0.08, 0.3),
-    "saturated blue": HairParams((30, 60, 230), 0.9, 0.1, 0.5),
-    "copper": HairParams((190, 80, 40), 0.5, 0.5, 0.6),
+    "black": (HairParams((20, 20, 20), 0.2, 0.97, 0.95), 0.3),
+    "platinum, glossy": (HairParams((245, 240, 225), 0.15, 0.04, 0.2), 0.15),
+    "saturated red, rough": (HairParams((230, 20, 30), 1.0, 0.08, 0.3), 0.45),
+    "saturated blue": (HairParams((30, 60, 230), 0.9, 0.1, 0.5), 0.3),
+    "copper": (HairParams((190, 80, 40), 0.5, 0.5, 0.6), 0.25),
 }
+#: The single-light frames' exposure over the all-lights frame (as the rig takes them, ``RigSession``).
+LIGHT_EV = 1.5
 
 
 @dataclass(frozen=True)
 class CyclesSet:
-    random: int = 7          # random Table 1 draws beside the named cases
+    random: int = 7          # random draws (Table 1, shine over APPEARANCE_DRAW) beside the named cases
     size: int = 64           # the input's and the judge's side in pixels
     spp: int = 128           # Cycles samples per pixel, input and judge
     threads: int = 2
+    shine: bool = True       # hidden shines vary, and the single-light frames are rendered and read
 
 
 def other_swatch(seed: int) -> tuple[Strands, dict]:
@@ -87,23 +97,35 @@ def other_swatch(seed: int) -> tuple[Strands, dict]:
                                                  "height": round(float(z), 4)}
 
 
-def hidden_set(config: CyclesSet) -> list[tuple[str, HairParams, int]]:
+def hidden_set(config: CyclesSet) -> list[tuple[str, HairParams, float, int]]:
+    """(name, Table 1, shine, strand layout) of each hidden swatch; without ``config.shine`` every shine is
+    the default."""
+    from hairdigi.render.base.appearance import APPEARANCE_DRAW, DEFAULT_SHINE
+
     rng = np.random.default_rng(SEED)
-    named = [(n, h, 301 + i) for i, (n, h) in enumerate(CASES.items())]
-    return named + [(f"random {i}", sample_params(rng), 401 + i) for i in range(config.random)]
+    named = [(n, h, b, 301 + i) for i, (n, (h, b)) in enumerate(CASES.items())]
+    drawn = [(f"random {i}", sample_params(rng), round(float(rng.uniform(*APPEARANCE_DRAW["longitudinal_roughness"])), 3),
+              401 + i) for i in range(config.random)]
+    return [(n, h, b if config.shine else DEFAULT_SHINE, k) for n, h, b, k in named + drawn]
 
 
 def cycles_render(sigma_a, strands: Strands, scene: str, config: CyclesSet, seed: int, folder: Path,
-                  pixels: bool = False) -> dict:
-    """One Cycles render of ``strands`` with absorption ``sigma_a``: ``scene`` "rig" (the rig's swatch
-    pose, its three lights) or "transfer"; the mean linear colour (and the pixels) and the seconds."""
+                  pixels: bool = False, shine: float | None = None) -> dict:
+    """One Cycles render of ``strands`` with absorption ``sigma_a`` and ``shine`` (None: the default):
+    ``scene`` "rig" (the rig's swatch pose, its three lights), "light0".."light2" (one light alone) or
+    "transfer"; the mean linear colour (and the pixels) and the seconds."""
+    from hairdigi.render.absorption import LONGITUDINAL_ROUGHNESS
     from hairdigi.render.blender_run import rig_for_blender, run_script
     from hairdigi.render.interchange import HairLook, blender_script_text
     from hairdigi.render.scenes import KEY_SKY
 
-    look = HairLook("hidden", tuple(float(v) for v in sigma_a))
+    look = HairLook("hidden", tuple(float(v) for v in sigma_a),
+                    longitudinal_roughness=LONGITUDINAL_ROUGHNESS if shine is None else float(shine))
     if scene == "rig":
         rig = rig_for_blender(strands, RIG_SWATCH_POSE, "crop", config.size, bspline=False)
+    elif scene.startswith("light"):
+        alone = tuple(1.0 if f"light{i}" == scene else 0.0 for i in range(N_LIGHTS))
+        rig = rig_for_blender(strands, RIG_SWATCH_POSE, "crop", config.size, lights=alone, bspline=False)
     else:
         rig = rig_for_blender(strands, TRANSFER_POSE, "crop", config.size, lights=(0.0, 0.0, 0.0), env=KEY_SKY,
                               bspline=False)
@@ -117,38 +139,55 @@ def cycles_render(sigma_a, strands: Strands, scene: str, config: CyclesSet, seed
     return out
 
 
-def _one(name: str, hidden: HairParams, layout: int, config: CyclesSet, encoder, folder: Path) -> dict:
+def _one(name: str, hidden: HairParams, shine: float, layout: int, config: CyclesSet, encoder, folder: Path) -> dict:
+    """One hidden swatch: rendered in Cycles, estimated (with and without its single-light frames),
+    each estimate rendered back in Cycles and judged against the truth."""
     from hairdigi.inference.estimate import estimate_image
+    from hairdigi.inference.preprocess import to_linear
     from hairdigi.inference.training.evaluate import capture
     from hairdigi.render.absorption import hair_sigma_a
     from hairdigi.render.metrics import delta_e2000
 
+    def de(a, b) -> float:
+        return round(float(delta_e2000(np.clip(np.asarray(a), 1e-9, None), np.clip(np.asarray(b), 1e-9, None))), 3)
+
     strands, drawn = other_swatch(layout)
     truth = hair_sigma_a(hidden)
-    row = {"hidden": name, "layout": layout, **{f"swatch_{k}": v for k, v in drawn.items()},
+    row = {"hidden": name, "layout": layout, "true_shine": shine, **{f"swatch_{k}": v for k, v in drawn.items()},
            "true_sigma_a": [round(float(v), 5) for v in truth]}
     start = time.perf_counter()
-    shot = cycles_render(truth, strands, "rig", config, layout, folder, pixels=True)
+    shot = cycles_render(truth, strands, "rig", config, layout, folder, pixels=True, shine=shine)
     row["cycles_s"] = round(shot["seconds"], 2)
-    linear = np.asarray(shot["pixels"], np.float32)
-    frame = capture(linear, layout)
-    result = estimate_image(frame, encoder)
-    row["estimate_s"] = round(result.seconds, 2)
-    if result.refinement is None:
-        row["error"] = "no refinement"
-        return row
-    sigma = np.asarray(result.refinement.sigma_a, float)
-    row.update(est_sigma_a=[round(float(v), 5) for v in sigma],
-               sigma_rel_error=round(float(np.median(np.abs(sigma / np.maximum(truth, 1e-6) - 1))), 4),
-               twin_residual=round(result.refinement.residual_de2000, 3),
-               warnings=" | ".join(w.kind.value for w in result.warnings))
-    fit = cycles_render(sigma, strands, "rig", config, layout, folder)
-    row["fit"] = round(float(delta_e2000(np.clip(fit["mean_linear"], 1e-9, None),
-                                         np.clip(np.asarray(shot["mean_linear"]), 1e-9, None))), 3)
-    means = [cycles_render(s, strands, "transfer", config, layout, folder)["mean_linear"] for s in (truth, sigma)]
-    row["transfer"] = round(float(delta_e2000(np.clip(means[1], 1e-9, None), np.clip(means[0], 1e-9, None))), 3)
-    encoder_sigma = hair_sigma_a(result.encoder.params)
-    row["encoder_sigma_rel_error"] = round(float(np.median(np.abs(encoder_sigma / np.maximum(truth, 1e-6) - 1))), 4)
+    frame = capture(np.asarray(shot["pixels"], np.float32), layout)
+    lights = None
+    if config.shine:   # each light alone, 1.5 EV longer, as the rig takes them; back to the frame's exposure
+        lights = [to_linear(capture(np.asarray(cycles_render(truth, strands, f"light{i}", config, layout, folder,
+                                                             pixels=True, shine=shine)["pixels"], np.float32)
+                                    * np.float32(2.0 ** LIGHT_EV), layout + 7 * (i + 1)))
+                  / np.float32(2.0 ** LIGHT_EV) for i in range(N_LIGHTS)]
+    truth_away = cycles_render(truth, strands, "transfer", config, layout, folder, shine=shine)["mean_linear"]
+    modes = [("read", lights)] + ([("no light frames", None)] if config.shine else [])
+    for mode, singles in modes:
+        tag = "" if mode == "read" else "nolights_"
+        result = estimate_image(frame, encoder, light_images=singles)
+        row[f"{tag}estimate_s"] = round(result.seconds, 2)
+        if result.refinement is None:
+            row["error"] = "no refinement"
+            return row
+        sigma = np.asarray(result.refinement.sigma_a, float)
+        est_shine = result.appearance.value.longitudinal_roughness if result.appearance else None
+        back = cycles_render(sigma, strands, "rig", config, layout, folder, shine=est_shine)["mean_linear"]
+        away = cycles_render(sigma, strands, "transfer", config, layout, folder, shine=est_shine)["mean_linear"]
+        row.update({f"{tag}est_sigma_a": [round(float(v), 5) for v in sigma], f"{tag}est_shine": est_shine,
+                    f"{tag}sigma_rel_error": round(float(np.median(np.abs(sigma / np.maximum(truth, 1e-6) - 1))), 4),
+                    f"{tag}twin_residual": round(result.refinement.residual_de2000, 3),
+                    f"{tag}fit": de(back, shot["mean_linear"]), f"{tag}transfer": de(away, truth_away),
+                    f"{tag}warnings": " | ".join(w.kind.value for w in result.warnings)})
+        if mode == "read":
+            encoder_sigma = hair_sigma_a(result.encoder.params)
+            row["encoder_sigma_rel_error"] = round(float(np.median(np.abs(encoder_sigma / np.maximum(truth, 1e-6)
+                                                                          - 1))), 4)
+            row["shine_abs_error"] = None if est_shine is None else round(abs(est_shine - shine), 4)
     row["seconds"] = round(time.perf_counter() - start, 1)
     return row
 
@@ -166,9 +205,9 @@ def evaluate_cycles(out_dir: str | os.PathLike, config: CyclesSet = CyclesSet(),
     rows = []
     hidden = hidden_set(config)
     with tempfile.TemporaryDirectory(prefix="hairdigi-cycles-eval-") as tmp:
-        for name, params, layout in tqdm(hidden, desc="cycles swatches", unit="swatch", disable=not progress):
+        for name, params, shine, layout in tqdm(hidden, desc="cycles swatches", unit="swatch", disable=not progress):
             try:
-                rows.append(_one(name, params, layout, config, encoder, Path(tmp)))
+                rows.append(_one(name, params, shine, layout, config, encoder, Path(tmp)))
             except Exception as exc:   # noqa: BLE001 - a failure is reported in the table, the run goes on
                 rows.append({"hidden": name, "layout": layout, "error": f"{type(exc).__name__}: {exc}"})
             write_json_atomic(out / "cycles_evaluation.json", {"summary": summarise(rows, config), "rows": rows})
@@ -185,18 +224,19 @@ def summarise(rows: list[dict], config: CyclesSet) -> dict:
     from hairdigi.render.metrics import error_stats
 
     done = [r for r in rows if "transfer" in r]
-    return {"swatches": len(rows), "judged": len(done),
-            "errors": [f"{r['hidden']}: {r['error']}" for r in rows if r.get("error")],
-            "fit": error_stats(r["fit"] for r in done),
-            "transfer": error_stats(r["transfer"] for r in done),
-            "twin_residual": error_stats(r["twin_residual"] for r in done),
-            "sigma_rel_error": error_stats(r["sigma_rel_error"] for r in done),
-            "encoder_sigma_rel_error": error_stats(r["encoder_sigma_rel_error"] for r in done),
-            "cycles_s": error_stats(r["cycles_s"] for r in done),
-            "estimate_s": error_stats(r["estimate_s"] for r in done),
-            "by_case": {r["hidden"]: {"fit": r["fit"], "transfer": r["transfer"]} for r in done},
-            "settings": {"size": config.size, "spp": config.spp, "transfer_pose": [TRANSFER_POSE.polar_deg,
-                                                                                    TRANSFER_POSE.azimuth_deg]}}
+    out = {"swatches": len(rows), "judged": len(done),
+           "errors": [f"{r['hidden']}: {r['error']}" for r in rows if r.get("error")],
+           "encoder_sigma_rel_error": error_stats(r["encoder_sigma_rel_error"] for r in done),
+           "shine_abs_error": error_stats(r.get("shine_abs_error") for r in done),
+           "cycles_s": error_stats(r["cycles_s"] for r in done),
+           "by_case": {r["hidden"]: {"fit": r["fit"], "transfer": r["transfer"]} for r in done},
+           "settings": {"size": config.size, "spp": config.spp, "shine": config.shine,
+                        "transfer_pose": [TRANSFER_POSE.polar_deg, TRANSFER_POSE.azimuth_deg]}}
+    for mode, tag in (("read", ""), ("no light frames", "nolights_")):
+        if mode == "read" or config.shine:
+            out[mode] = {key: error_stats(r.get(f"{tag}{key}") for r in done)
+                         for key in ("fit", "transfer", "twin_residual", "sigma_rel_error", "estimate_s")}
+    return out
 
 
 def _plot(rows: list[dict], path: Path) -> None:
@@ -211,6 +251,9 @@ def _plot(rows: list[dict], path: Path) -> None:
                                       ("fit", "σa rendered back in Cycles, rig view"),
                                       ("transfer", "σa rendered back in Cycles, key light + sky, another camera"))):
         ax.bar(x + (k - 1) * 0.27, [r[key] for r in done], 0.27, label=label)
+    if any("nolights_transfer" in r for r in done):
+        ax.scatter(x + 0.27, [r["nolights_transfer"] for r in done], marker="x", color="k", zorder=3,
+                   label="transfer without the single-light frames (shine held at 0.3)")
     ax.axhline(1.0, ls="--", color="grey", lw=0.8)
     ax.set_xticks(x, [r["hidden"] for r in done], rotation=30, ha="right", fontsize=8)
     ax.set_ylabel("mean-colour ΔE2000 vs truth")
