@@ -82,6 +82,22 @@ def bench_refine(args: argparse.Namespace) -> int:
     return 0
 
 
+def bench_check_spp(args: argparse.Namespace) -> int:
+    """The refinement's check renders at the rig's swatch area: their spp against the error they leave."""
+    import numpy as np
+
+    from hairdigi.inference.training.bench_refine import CHECK_SETTINGS, bench_check_spp as run
+
+    out = Path("packaging/bench/check-spp") if args.out == BENCH_OUT else Path(args.out)
+    rows = run(out)
+    for label, _ in CHECK_SETTINGS:
+        sel = [r for r in rows if r["setting"] == label]
+        print(f"{label}: ΔE2000 median {np.median([r['de2000'] for r in sel]):.2f}, worst "
+              f"{max(r['de2000'] for r in sel):.2f}; polish {np.median([r['polish_s'] for r in sel]):.2f} s")
+    print(f"wrote {out / 'check_spp_bench.csv'}")
+    return 0
+
+
 def bench_dataset(args: argparse.Namespace) -> int:
     """Dataset rendering: the local pool and a local Ray instance, swatches per second."""
     from hairdigi.inference.training.bench_dataset import run_dataset_bench
@@ -211,6 +227,7 @@ BENCHES: dict[str, Bench] = {
     "rig": bench_rig,
     "encoder": bench_encoder,
     "refine": bench_refine,
+    "check-spp": bench_check_spp,                                           # the refinement's check renders at the rig
     "dataset": bench_dataset,
     "previews": bench_previews,
     "library": _elsewhere("hairdigi.app.library_cli", "bench_library"),    # issue 20: find in a library of --n swatches

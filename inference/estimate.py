@@ -111,8 +111,12 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
         singles = None if light_images is None else np.array(
             [mean_linear(fitted_pixels(im, view) if isinstance(view, RigRegion) else swatch_crop(im, roi)[0])
              for im in light_images])
+        # a rig view's single-light frames show the holder and the chart too: a light dark there is dead
+        levels = None if light_images is None or not isinstance(view, RigRegion) else np.array(
+            [mean_linear(im) for im in light_images])
         reading = read_appearance(singles, view, settings, renderer,
-                                  texture_pixels=to_linear(fitted) if isinstance(view, RigRegion) else None)
+                                  texture_pixels=to_linear(fitted) if isinstance(view, RigRegion) else None,
+                                  frame_levels=levels)
         warnings += reading.warnings
         appearance = reading.estimate
         refinement = refine(est.params, mean_linear(fitted), view, settings, renderer, reading.value, reading.curve)

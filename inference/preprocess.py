@@ -273,6 +273,34 @@ def _search_image(img: np.ndarray) -> tuple[np.ndarray, float]:
     return cv2.resize(img, size, interpolation=cv2.INTER_AREA), scale
 
 
+#: A swatch on a holder is far more textured than the holder around it (the simulated rig: the ring's
+#: detail energy is 0.3-0.4 of the swatch's); in an all-hair image (the layered swatch at 48-150 px,
+#: or Cycles' swatches, whose strands read as noise to the coherence test) the "ring" is hair too,
+#: 0.8-1.1 of the patch found inside it.
+HOLDER_RING_ENERGY = 0.6
+
+
+def _detail_energy(img: np.ndarray) -> np.ndarray:
+    gray = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    return np.abs(gray - cv2.GaussianBlur(gray, (0, 0), 1.0))
+
+
+def holder_around(img: np.ndarray, box: tuple[int, int, int, int]) -> bool:
+    """Whether the region ``box`` (x, y, w, h) stands on something smoother than itself (a holder):
+    the median detail energy of a ring around it is under ``HOLDER_RING_ENERGY`` of its own."""
+    x, y, bw, bh = box
+    h, w = img.shape[:2]
+    pad = max(2, int(round(0.15 * min(bw, bh))))
+    energy = _detail_energy(img)
+    ring = np.zeros((h, w), bool)
+    ring[max(0, y - pad):y + bh + pad, max(0, x - pad):x + bw + pad] = True
+    ring[y:y + bh, x:x + bw] = False
+    if not ring.any():
+        return True
+    inside = float(np.median(energy[y:y + bh, x:x + bw]))
+    return float(np.median(energy[ring])) < HOLDER_RING_ENERGY * max(inside, 1e-6)
+
+
 def find_swatch_roi(img: np.ndarray) -> Roi:
     """The bounding box of the largest filled region unlike the frame's border, the colour chart
     masked out; the whole image when no such region stands out, or when the border itself is hair
@@ -304,6 +332,8 @@ def find_swatch_roi(img: np.ndarray) -> Roi:
     if not candidates:
         return Roi(0, 0, w, h)
     x, y, bw, bh = (int(v) for v in stats[max(candidates)[1], :4])
+    if not holder_around(small, (x, y, bw, bh)):
+        return Roi(0, 0, w, h)   # as textured outside as inside: a patch of an all-hair image, not a swatch
     x0, y0 = int(np.floor(x / scale)), int(np.floor(y / scale))
     x1, y1 = min(w, int(np.ceil((x + bw) / scale))), min(h, int(np.ceil((y + bh) / scale)))
     if min(x1 - x0, y1 - y0) < MIN_SIDE:

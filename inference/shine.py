@@ -22,7 +22,8 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from hairdigi.render.base.appearance import Appearance
-from hairdigi.inference.refine import ResponseCurve, RefineSettings, View, cache_key, scene_for, view_key
+from hairdigi.inference.refine import (ResponseCurve, RefineSettings, View, cache_key, curve_settings, scene_for,
+                                       view_key)
 from hairdigi.render.base.files import cache_dir
 from hairdigi.render.base.rig_geometry import N_LIGHTS
 
@@ -79,7 +80,7 @@ def _shine_tables(view: View, settings: RefineSettings, betas, renderer, cache: 
 
     renderer = renderer or default_renderer()
     spec, size = scene_for(view, settings)
-    key = cache_key([1, asdict(settings), view_key(view), list(betas)], spec, renderer.variant)
+    key = cache_key([1, curve_settings(settings), view_key(view), list(betas)], spec, renderer.variant)
     path = cache_dir() / "response" / f"shine-{key}.npz"
     if cache and path.exists():
         data = np.load(path)

@@ -112,3 +112,18 @@ def test_images_that_are_not_hair_are_still_flagged(name):
         return   # refused outright is refused too
     warnings = domain_warnings(domain_stats(crop))
     assert any(w.startswith("out of domain") for w in warnings), (name, warnings)
+
+
+@pytest.mark.parametrize("name", ["cycles-glossy-brown-48.png", "cycles-brown-48.png"])
+def test_a_small_all_hair_image_from_another_renderer_is_taken_whole(name):
+    """All-hair swatches rendered in Blender Cycles (``hairdigi evaluate --cycles``: shine 0.21 and 0.31,
+    48 px) read as noise to the coherence test, and the finder took a blob of glints for a swatch on a
+    holder and refused the image ("the swatch area found is only 17x23 px"). Around such a blob is
+    hair, not a smoother holder, so the image is taken whole."""
+    from pathlib import Path
+
+    from hairdigi.inference.preprocess import read_image
+
+    image = read_image(Path(__file__).parent / "data" / name)
+    assert find_swatch_roi(image) == Roi(0, 0, 48, 48)
+    assert swatch_crop(image)[0].shape[:2] == (48, 48)

@@ -238,7 +238,7 @@ def test_convergence_sweep_reports_each_input_spp(tiny_model, tmp_path):
     judge = Judge(**SMALL_JUDGE)
     root = prepare_heldout(tmp_path / "h", n=3, size=32, spp=4, workers=1, judge=judge, progress=False)
     rows = convergence_sweep(Encoder(onnx_path), root, tmp_path / "sweep", spps=(2, 16), count=3,
-                             settings=RefineSettings(size=16, spp=2, iterations=1), judge=judge, progress=False)
+                             settings=RefineSettings(size=16, spp=2, check_spp=2, iterations=1), judge=judge, progress=False)
     assert [r["spp"] for r in rows] == [2, 16] and rows[0]["swatches"] == 3
     assert all(r["encoder_de_max"] >= r["encoder_de_median"] >= 0 for r in rows)
     assert (tmp_path / "sweep" / "convergence.csv").exists() and (tmp_path / "sweep" / "convergence.png").exists()
@@ -263,7 +263,7 @@ def test_evaluate_judges_clean_inputs_and_measures_interval_coverage(tiny_model,
 
     _, onnx_path, _ = tiny_model
     summary = evaluate(Encoder(onnx_path), tmp_path / "eval", n=6, size=32, spp=4, workers=1,
-                       settings=RefineSettings(size=16, spp=2, iterations=1), judge=Judge(**SMALL_JUDGE),
+                       settings=RefineSettings(size=16, spp=2, check_spp=2, iterations=1), judge=Judge(**SMALL_JUDGE),
                        progress=False)
     a = summary["buckets"]["all"]
     assert a["count"] == 6 and summary["n"] == 6

@@ -11,7 +11,7 @@ from hairdigi.render.base.params import HairParams, sample_params
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.base.rig_geometry import CameraPose
 
-SMALL = RefineSettings(size=24, spp=8, iterations=3, strand_seed=3)   # 3: the layered swatch took 3 for copper
+SMALL = RefineSettings(size=24, spp=8, check_spp=8, iterations=3, strand_seed=3)   # 3: the layered swatch took 3 for copper
 
 
 def test_sigma_to_table1_reproduces_sigma_and_stays_near_the_prior():

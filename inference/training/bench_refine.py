@@ -46,7 +46,7 @@ def bench_refine(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLi
     grid = [(size, spp) for size in sizes for spp in spps]
     for size, spp in tqdm(grid, desc="refine bench", unit="setting", disable=not progress):
         for k in iterations:
-            settings = replace(RefineSettings(), size=size, spp=spp, iterations=k, tolerance_de=0.0)
+            settings = replace(RefineSettings(), size=size, spp=spp, check_spp=spp, iterations=k, tolerance_de=0.0)
             de, residual, curve_s, polish_s = [], [], [], []
             for i in indices:
                 r = refine(priors[i], mean_linear(frames[i]), sample_spec(config, i).camera, settings)
@@ -79,3 +79,52 @@ def _plot(rows: list[dict], path: Path) -> None:
     ax.grid(True, alpha=0.3)
     ax.legend()
     save_figure(fig, path)
+
+
+#: The check-spp bench's hairs (Table 1) at the bench camera's swatch area, and the settings it compares.
+CHECK_HAIRS = {"copper": HairParams((190, 80, 40), 0.5, 0.5, 0.6), "platinum": HairParams((245, 240, 225), 0.15, 0.04, 0.2),
+               "dark brown": HairParams((60, 40, 30), 0.2, 0.8, 0.9), "saturated blue": HairParams((30, 60, 230), 0.9, 0.1, 0.5)}
+CHECK_SETTINGS = (("check 32 spp, 2 iterations", {"check_spp": 32}), ("check 64 spp, 2 iterations", {"check_spp": 64}),
+                  ("check 128 spp, 2 iterations", {"check_spp": 128}),
+                  ("no check: the curve at 256 spp", {"spp": 256, "iterations": 0}))
+CHECK_JUDGE_SPP, CHECK_JUDGE_SEED = 384, 11
+
+
+def bench_check_spp(out_dir: str | os.PathLike, progress: bool = True) -> list[dict]:
+    """The refinement's check renders at the rig's swatch area: its result is the sigma_a whose fixed-seed
+    check render matches the capture, so it inherits that render's noise. Each hair's truth, rendered at
+    ``CHECK_JUDGE_SPP`` with another seed, is the capture; each setting's answer is rendered the same way
+    and judged against it (mean-colour ΔE2000). Writes ``check_spp_bench.csv``."""
+    import time
+
+    from tqdm import tqdm
+
+    from hairdigi.inference.refine import response_curve, scene_for
+    from hairdigi.render.absorption import hair_sigma_a
+    from hairdigi.render.base.files import write_csv_atomic
+    from hairdigi.render.base.rig_geometry import RigRegion, swatch_roi
+    from hairdigi.render.renderer import default_renderer
+
+    renderer = default_renderer()
+    frame = (400, 300)
+    view = RigRegion(frame, swatch_roi(frame))
+    spec, film = scene_for(view, RefineSettings())
+
+    def judged(sigma) -> np.ndarray:
+        return renderer.render(np.asarray(sigma, float), spec, film, CHECK_JUDGE_SPP, CHECK_JUDGE_SEED).linear.reshape(-1, 3).mean(0)
+
+    rows = []
+    for name, hair in tqdm(CHECK_HAIRS.items(), desc="check spp", unit="hair", disable=not progress):
+        target = judged(hair_sigma_a(hair))
+        for label, change in CHECK_SETTINGS:
+            settings = replace(RefineSettings(), **change)
+            curve = response_curve(view, settings, renderer)          # rendered once per setting, cached
+            start = time.perf_counter()
+            r = refine(hair, target, view, settings, renderer, curve=curve)
+            seconds = time.perf_counter() - start
+            rows.append({"hair": name, "setting": label, "de2000": round(float(delta_e2000(judged(r.sigma_a), target)), 3),
+                         "residual_de2000": round(r.residual_de2000, 3), "polish_s": round(seconds, 2)})
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv_atomic(out / "check_spp_bench.csv", rows)
+    return rows

@@ -106,7 +106,9 @@ def hidden_set(config: CyclesSet) -> list[tuple[str, HairParams, float, int]]:
     named = [(n, h, b, 301 + i) for i, (n, (h, b)) in enumerate(CASES.items())]
     drawn = [(f"random {i}", sample_params(rng), round(float(rng.uniform(*APPEARANCE_DRAW["longitudinal_roughness"])), 3),
               401 + i) for i in range(config.random)]
-    return [(n, h, b if config.shine else DEFAULT_SHINE, k) for n, h, b, k in named + drawn]
+    if not config.shine:   # every swatch at the default shine: its name no longer says glossy or rough
+        return [(n.split(",")[0], h, DEFAULT_SHINE, k) for n, h, _, k in named + drawn]
+    return named + drawn
 
 
 def cycles_render(sigma_a, strands: Strands, scene: str, config: CyclesSet, seed: int, folder: Path,
@@ -187,7 +189,7 @@ def _one(name: str, hidden: HairParams, shine: float, layout: int, config: Cycle
             encoder_sigma = hair_sigma_a(result.encoder.params)
             row["encoder_sigma_rel_error"] = round(float(np.median(np.abs(encoder_sigma / np.maximum(truth, 1e-6)
                                                                           - 1))), 4)
-            row["shine_abs_error"] = None if est_shine is None else round(abs(est_shine - shine), 4)
+            row["shine_abs_error"] = None if est_shine is None or not config.shine else round(abs(est_shine - shine), 4)
     row["seconds"] = round(time.perf_counter() - start, 1)
     return row
 

@@ -104,9 +104,11 @@ def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
 
 
 def write_csv_atomic(path: str | os.PathLike, rows: list[dict]) -> Path:
-    """Rows of one shape as CSV, the first row's keys as the header."""
+    """Rows as CSV: the header is every key in the order first met (a row without one leaves it empty:
+    a failed case's row holds its error, not the figures)."""
+    fields = list(dict.fromkeys(key for row in rows for key in row))
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer = csv.DictWriter(f, fieldnames=fields)
         writer.writeheader()
         writer.writerows(rows)
     return Path(path)
