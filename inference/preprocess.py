@@ -273,11 +273,14 @@ def _search_image(img: np.ndarray) -> tuple[np.ndarray, float]:
     return cv2.resize(img, size, interpolation=cv2.INTER_AREA), scale
 
 
-#: A swatch on a holder is far more textured than the holder around it (the simulated rig: the ring's
-#: detail energy is 0.3-0.4 of the swatch's); in an all-hair image (the layered swatch at 48-150 px,
-#: or Cycles' swatches, whose strands read as noise to the coherence test) the "ring" is hair too,
-#: 0.8-1.1 of the patch found inside it.
+#: A swatch on a holder differs from the holder around it in texture or in colour (``swatch_score``'s
+#: two cues): the simulated rig's ring of holder has 0.3-0.5 of a brown swatch's detail energy, and a
+#: black swatch, as smooth as the holder (0.5-0.8 of its energy), differs from it by 90-110 codes of
+#: colour. In an all-hair image (the layered swatch at 48-150 px, or Cycles' swatches, whose strands
+#: read as noise to the coherence test) the "ring" around a blob of glints is the same hair: 1.0 of
+#: its energy, 15 codes of colour.
 HOLDER_RING_ENERGY = 0.6
+HOLDER_RING_COLOUR = 30.0     # 8-bit codes (the norm of the medians' RGB difference)
 
 
 def _detail_energy(img: np.ndarray) -> np.ndarray:
@@ -286,19 +289,26 @@ def _detail_energy(img: np.ndarray) -> np.ndarray:
 
 
 def holder_around(img: np.ndarray, box: tuple[int, int, int, int]) -> bool:
-    """Whether the region ``box`` (x, y, w, h) stands on something smoother than itself (a holder):
-    the median detail energy of a ring around it is under ``HOLDER_RING_ENERGY`` of its own."""
+    """Whether the region ``box`` (x, y, w, h) stands on a holder: a ring around it smoother than the
+    region (median detail energy under ``HOLDER_RING_ENERGY`` of its own) or of another colour (medians
+    ``HOLDER_RING_COLOUR`` codes apart)."""
     x, y, bw, bh = box
     h, w = img.shape[:2]
     pad = max(2, int(round(0.15 * min(bw, bh))))
-    energy = _detail_energy(img)
     ring = np.zeros((h, w), bool)
     ring[max(0, y - pad):y + bh + pad, max(0, x - pad):x + bw + pad] = True
     ring[y:y + bh, x:x + bw] = False
     if not ring.any():
         return True
+    energy = _detail_energy(img)
     inside = float(np.median(energy[y:y + bh, x:x + bw]))
-    return float(np.median(energy[ring])) < HOLDER_RING_ENERGY * max(inside, 1e-6)
+    if float(np.median(energy[ring])) < HOLDER_RING_ENERGY * max(inside, 1e-6):
+        return True
+    pixels = img.reshape(-1, 3).astype(np.float32)
+    inner = np.zeros((h, w), bool)
+    inner[y:y + bh, x:x + bw] = True
+    colour_gap = np.median(pixels[ring.ravel()], axis=0) - np.median(pixels[inner.ravel()], axis=0)
+    return float(np.linalg.norm(colour_gap)) > HOLDER_RING_COLOUR
 
 
 def find_swatch_roi(img: np.ndarray) -> Roi:
@@ -333,7 +343,7 @@ def find_swatch_roi(img: np.ndarray) -> Roi:
         return Roi(0, 0, w, h)
     x, y, bw, bh = (int(v) for v in stats[max(candidates)[1], :4])
     if not holder_around(small, (x, y, bw, bh)):
-        return Roi(0, 0, w, h)   # as textured outside as inside: a patch of an all-hair image, not a swatch
+        return Roi(0, 0, w, h)   # like its surroundings in texture and colour: a patch of an all-hair image
     x0, y0 = int(np.floor(x / scale)), int(np.floor(y / scale))
     x1, y1 = min(w, int(np.ceil((x + bw) / scale))), min(h, int(np.ceil((y + bh) / scale)))
     if min(x1 - x0, y1 - y0) < MIN_SIDE:

@@ -127,3 +127,19 @@ def test_a_small_all_hair_image_from_another_renderer_is_taken_whole(name):
     image = read_image(Path(__file__).parent / "data" / name)
     assert find_swatch_roi(image) == Roi(0, 0, 48, 48)
     assert swatch_crop(image)[0].shape[:2] == (48, 48)
+
+
+def test_a_black_swatch_as_smooth_as_its_holder_is_still_found():
+    """The other side of taking all-hair images whole: a black swatch on the holder (the simulated rig's
+    RAW still of black hair, developed by rawpy, scaled to 200x150) is about as smooth as the grey holder
+    around it, but far darker: it stands on a holder, and is found, not the whole frame (taking it whole
+    put the estimate 9.9 from the truth in ``hairdigi evaluate --rig``)."""
+    from pathlib import Path
+
+    from hairdigi.inference.preprocess import read_image
+
+    image = read_image(Path(__file__).parent / "data" / "rig-still-black-200.png")
+    roi = find_swatch_roi(image)
+    assert (roi.w, roi.h) != (200, 150)
+    swatch = rig_geometry.swatch_roi((200, 150))
+    assert overlap((roi.x, roi.y, roi.w, roi.h), swatch) > 0.8 * swatch[2] * swatch[3]
