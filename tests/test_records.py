@@ -157,3 +157,18 @@ def _raises(call, *args) -> str:
     except FileNotFoundError as exc:
         return str(exc)
     return "returned"
+
+
+def test_a_table_with_a_failed_row_is_written_whole(tmp_path):
+    """An evaluation's rows differ in shape (a failed case holds its error, not the figures): the CSV's
+    header is every key, in the order first met, and a row without one leaves it empty."""
+    import csv
+
+    from hairdigi.render.base.files import write_csv_atomic
+
+    rows = [{"hidden": "copper", "fit": 0.4}, {"hidden": "random 0", "error": "ImageError: too small"}]
+    path = write_csv_atomic(tmp_path / "t.csv", rows)
+    with open(path, newline="", encoding="utf-8") as f:
+        read = list(csv.DictReader(f))
+    assert list(read[0]) == ["hidden", "fit", "error"]
+    assert read[0]["error"] == "" and read[1]["fit"] == "" and read[1]["error"] == "ImageError: too small"
