@@ -301,7 +301,6 @@ def appearance_lines(estimate: AppearanceEstimate | None, pending: bool = False)
     (the default the previews render with); ``pending``: the encoder's first look, read at refinement."""
     value = estimate.value if estimate is not None else DEFAULT_APPEARANCE
     measured = estimate.measured if estimate is not None else ()
-    intervals = estimate.intervals if estimate is not None else {}
     lines = []
     for name, (label, fmt) in APPEARANCE_LABELS.items():
         v = fmt.format(getattr(value, name))
@@ -310,8 +309,7 @@ def appearance_lines(estimate: AppearanceEstimate | None, pending: bool = False)
         elif name not in measured:
             text = f"{label}: {v} — not measured (default)"
         else:
-            p68 = (intervals.get(name) or {}).get("p68")
-            text = f"{label}: {v}" + (f" (68%: {fmt.format(p68[0])}–{fmt.format(p68[1])})" if p68 else "")
+            text = f"{label}: {v}" + estimate.interval_text(name, fmt, "–")
         lines.append((name, text))
     return tuple(lines)
 

@@ -225,9 +225,8 @@ def appearance_lines(estimate) -> list[str]:
     lines = []
     for key, label in names.items():
         value = getattr(estimate.value, key)
-        p68 = estimate.intervals.get(key, {}).get("p68")
         if key not in estimate.measured:
             lines.append(f"{label} {value:.2f} (not measured)")
         else:
-            lines.append(f"{label} {value:.2f}" + (f" (68%: {p68[0]:.2f}-{p68[1]:.2f})" if p68 else ""))
+            lines.append(f"{label} {value:.2f}" + estimate.interval_text(key))
     return lines

@@ -169,3 +169,21 @@ def test_a_grey_share_is_reported_only_when_its_95_percent_interval_excludes_non
     assert _reaches_zero(uniform_copper)
     assert not _reaches_zero({"p68": [0.13, 0.27], "p95": [0.08, 0.32]})   # a fifth of greys
     assert not _reaches_zero(None)
+
+
+def test_a_share_reported_as_none_says_it_was_not_told_from_none():
+    """A grey share set to 0 by the 95% rule while its 68% interval excludes 0 is not shown as
+    "0.00 (68%: 0.02-0.16)", which reads as a contradiction, but as not told from none."""
+    from hairdigi.app.review import appearance_lines
+    from hairdigi.app.rig_cli import appearance_lines as cli_lines
+    from hairdigi.render.base.appearance import AppearanceEstimate
+
+    intervals = {"grey_fraction": {"p68": [0.019, 0.155], "p95": [0.0, 0.21]},
+                 "longitudinal_roughness": {"p68": [0.29, 0.31], "p95": [0.27, 0.33]}}
+    estimate = AppearanceEstimate(Appearance(0.3, 0.0, 0.0), intervals, ("longitudinal_roughness", "grey_fraction"))
+    cli = dict(zip(("shine", "spread", "grey"), cli_lines(estimate)))
+    assert cli["grey"] == "grey share 0.00 (not told from none; 95%: 0.00-0.21)"
+    assert cli["shine"] == "shine 0.30 (68%: 0.29-0.31)"
+    window = dict(appearance_lines(estimate))
+    assert window["grey_fraction"].endswith("(not told from none; 95%: 0%–21%)")
+    assert "(68%: 0.29–0.31)" in window["longitudinal_roughness"]

@@ -104,6 +104,19 @@ class AppearanceEstimate:
     def shine_measured(self) -> bool:
         return "longitudinal_roughness" in self.measured
 
+    def interval_text(self, name: str, fmt: str = "{:.2f}", dash: str = "-") -> str:
+        """`` (68%: lo-hi)`` for a measured field; for a share reported as none while its 68% interval
+        excludes it (greys are kept only when their 95% interval excludes none), that it was not told
+        from none, with the 95% interval; "" without intervals."""
+        levels = self.intervals.get(name) or {}
+        p68, p95 = levels.get("p68"), levels.get("p95")
+        if p68 is None:
+            return ""
+        value = getattr(self.value, name)
+        if p95 is not None and not p68[0] <= value <= p68[1]:
+            return f" (not told from none; 95%: {fmt.format(p95[0])}{dash}{fmt.format(p95[1])})"
+        return f" (68%: {fmt.format(p68[0])}{dash}{fmt.format(p68[1])})"
+
     def with_value(self, **changes) -> "AppearanceEstimate":
         return replace(self, value=replace(self.value, **changes))
 
