@@ -201,6 +201,12 @@ def _border(values: np.ndarray, share: float = 0.06) -> np.ndarray:
                            values[:, :bw].reshape(-1, *values.shape[2:]), values[:, -bw:].reshape(-1, *values.shape[2:])])
 
 
+def _detail_energy(img: np.ndarray) -> np.ndarray:
+    """Each pixel's detail: its grey level's distance from a 1-px blur (texture, and the sensor's noise)."""
+    gray = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    return np.abs(gray - cv2.GaussianBlur(gray, (0, 0), 1.0))
+
+
 def swatch_score(img: np.ndarray) -> np.ndarray:
     """How unlike the holder each pixel's neighbourhood is; the holder is what the frame's border shows.
 
@@ -212,8 +218,7 @@ def swatch_score(img: np.ndarray) -> np.ndarray:
     local = cv2.GaussianBlur(f, (0, 0), sigma)
     background = np.median(_border(local), axis=0)
     colour_distance = np.linalg.norm(local - background, axis=2)
-    gray = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32)
-    detail = gray - cv2.GaussianBlur(gray, (0, 0), 1.0)
+    detail = _detail_energy(img)
     energy = np.sqrt(cv2.GaussianBlur(detail * detail, (0, 0), sigma))
     background_energy = float(np.median(_border(energy)))
     return np.maximum(colour_distance / 12.0, energy / (1.8 * background_energy + 1.5))
@@ -281,11 +286,6 @@ def _search_image(img: np.ndarray) -> tuple[np.ndarray, float]:
 #: its energy, 15 codes of colour.
 HOLDER_RING_ENERGY = 0.6
 HOLDER_RING_COLOUR = 30.0     # 8-bit codes (the norm of the medians' RGB difference)
-
-
-def _detail_energy(img: np.ndarray) -> np.ndarray:
-    gray = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32)
-    return np.abs(gray - cv2.GaussianBlur(gray, (0, 0), 1.0))
 
 
 def holder_around(img: np.ndarray, box: tuple[int, int, int, int]) -> bool:

@@ -71,8 +71,8 @@ class RefineSettings:
     iterations: int = 2
     #: The check renders' samples. The result is the sigma_a whose fixed-seed check render matches the
     #: capture, so it inherits that render's noise offset: on the layered swatch (8000 thin fibres, sparse
-    #: glints) 32 spp left 0.39 ΔE2000 on the demo's copper against a 384-spp judge, 64 spp 0.20
-    #: (``hairdigi bench refine``; ``resources/models/encoder.md``).
+    #: glints), 4 hairs at the bench camera's swatch area against a 384-spp judge, 32 spp left median
+    #: 0.49 ΔE2000, 64 spp 0.17, 128 spp 0.15 (``hairdigi bench check-spp``; ``resources/models/encoder.md``).
     check_spp: int = 64
     tolerance_de: float = 0.05      # stop polishing once the residual ΔE2000 is below this
     framing: str = "crop"

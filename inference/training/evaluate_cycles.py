@@ -141,6 +141,11 @@ def cycles_render(sigma_a, strands: Strands, scene: str, config: CyclesSet, seed
     return out
 
 
+def _relative_error(sigma, truth) -> float:
+    """The median channel's |sigma / truth - 1|."""
+    return round(float(np.median(np.abs(np.asarray(sigma, float) / np.maximum(truth, 1e-6) - 1))), 4)
+
+
 def _one(name: str, hidden: HairParams, shine: float, layout: int, config: CyclesSet, encoder, folder: Path) -> dict:
     """One hidden swatch: rendered in Cycles, estimated (with and without its single-light frames),
     each estimate rendered back in Cycles and judged against the truth."""
@@ -181,14 +186,12 @@ def _one(name: str, hidden: HairParams, shine: float, layout: int, config: Cycle
         back = cycles_render(sigma, strands, "rig", config, layout, folder, shine=est_shine)["mean_linear"]
         away = cycles_render(sigma, strands, "transfer", config, layout, folder, shine=est_shine)["mean_linear"]
         row.update({f"{tag}est_sigma_a": [round(float(v), 5) for v in sigma], f"{tag}est_shine": est_shine,
-                    f"{tag}sigma_rel_error": round(float(np.median(np.abs(sigma / np.maximum(truth, 1e-6) - 1))), 4),
+                    f"{tag}sigma_rel_error": _relative_error(sigma, truth),
                     f"{tag}twin_residual": round(result.refinement.residual_de2000, 3),
                     f"{tag}fit": de(back, shot["mean_linear"]), f"{tag}transfer": de(away, truth_away),
                     f"{tag}warnings": " | ".join(w.kind.value for w in result.warnings)})
         if mode == "read":
-            encoder_sigma = hair_sigma_a(result.encoder.params)
-            row["encoder_sigma_rel_error"] = round(float(np.median(np.abs(encoder_sigma / np.maximum(truth, 1e-6)
-                                                                          - 1))), 4)
+            row["encoder_sigma_rel_error"] = _relative_error(hair_sigma_a(result.encoder.params), truth)
             row["shine_abs_error"] = None if est_shine is None or not config.shine else round(abs(est_shine - shine), 4)
     row["seconds"] = round(time.perf_counter() - start, 1)
     return row
