@@ -30,6 +30,7 @@ class Frame:
     linear: np.ndarray | None = None      # (H, W, 3) float32 linear RGB where the source has it
     meta: dict = field(default_factory=dict)
     time: float = field(default_factory=time.time)
+    mosaic: np.ndarray | None = None      # (H, W) uint16 sensor counts where the source gives raw Bayer data
 
 
 class Camera(Protocol):
