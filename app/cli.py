@@ -249,14 +249,15 @@ def evaluate_appearance_command(args: argparse.Namespace) -> int:
 def evaluate_cycles_command(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --cycles``: swatches rendered in Blender Cycles, estimated, rendered back in Cycles."""
     from hairdigi.inference.training.evaluate_cycles import CyclesSet, evaluate_cycles
-    from hairdigi.render.blender_run import BlenderError, blender_command
+    from hairdigi.render.blender_run import BlenderError, blender_command, probe_blender
 
     try:
         if blender_command() is None:
             raise BlenderError("no Blender found: set HAIRDIGI_BLENDER to a Python that has bpy (python3.11 -m venv "
                                "VENV && VENV/bin/pip install bpy==5.0.1) or to a blender executable")
+        probe_blender()   # a Blender that does not run stops here, before any swatch is made
     except BlenderError as exc:
-        print(f"hairdigi evaluate --cycles: {exc}", file=sys.stderr)
+        print(f"hairdigi evaluate --cycles: error: {exc}", file=sys.stderr)
         return 2
     s = evaluate_cycles(args.out, CyclesSet(random=args.rig_random, size=args.size, spp=args.spp,
                                             shine=not args.default_shine))
@@ -281,6 +282,9 @@ def evaluate_cycles_command(args: argparse.Namespace) -> int:
     for line in s["errors"]:
         print(f"not judged: {line}")
     print(f"cycles_evaluation.csv, .json and .png in {args.out}")
+    if not s["judged"]:
+        raise CliError(f"none of the {s['swatches']} Cycles swatches was judged (first error: "
+                       f"{(s['errors'] or ['none given'])[0]}); the figures above are empty")
     return 0
 
 

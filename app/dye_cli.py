@@ -9,6 +9,18 @@ from pathlib import Path
 from hairdigi.app import validation as v
 
 HAIRSTYLE_SIZE, HAIRSTYLE_SPP = 384, 16
+MAX_NAME = 200
+
+
+def dye_name(text: str) -> str:
+    """An argparse type: a dye's name, not empty, at most ``MAX_NAME`` characters, no control characters."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("a dye needs a name (it is empty)")
+    if len(text) > MAX_NAME:
+        raise argparse.ArgumentTypeError(f"a name of {len(text)} characters is longer than {MAX_NAME}; shorten it")
+    if any(ord(c) < 32 or 127 <= ord(c) < 160 for c in text):
+        raise argparse.ArgumentTypeError("the name holds control characters (an escape sequence?); type it plainly")
+    return text
 
 
 def add_dye_parser(sub) -> None:
@@ -22,7 +34,7 @@ def add_dye_parser(sub) -> None:
     a.add_argument("--pair", nargs=2, action="append", required=True, metavar=("BASE.json", "DYED.json"),
                    help="a natural base's record and the same hair dyed (estimate records or session "
                         "captures' <id>.result.json); two bases or more measure the lift")
-    a.add_argument("--name", required=True, help="the dye's name")
+    a.add_argument("--name", required=True, type=dye_name, help=f"the dye's name (at most {MAX_NAME} characters)")
     a.add_argument("--out", required=True, help="the dye record JSON to write")
     a.add_argument("--allow-mixed-calibrations", action="store_true",
                    help="accept records corrected with different calibrations (the record warns)")
@@ -33,7 +45,7 @@ def add_dye_parser(sub) -> None:
     a.add_argument("--dose", type=v.float_in(0.0, 10.0), default=1.0, help="deposit scale (1: as characterised)")
     a.add_argument("--out", required=True, help="the prediction JSON (renders with hairdigi render --params)")
     a.add_argument("--render", help="also render the predicted swatch to this PNG")
-    a.add_argument("--scene", nargs="+", choices=HAIRSTYLES, default=[],
+    a.add_argument("--scene", nargs="+", action="extend", choices=HAIRSTYLES, default=[],
                    help="with --render: also these hairstyles, beside it as <name>-<scene>.png")
 
     a = acts.add_parser("dose", help="the deposit scale that brings a base nearest a target colour")
@@ -78,6 +90,7 @@ def _check(args: argparse.Namespace) -> None:
     elif args.dye_action == "card":
         out = v.check_output_file(args.out, "--out", (".png",), "a PNG", inputs)
         v.check_output_file(out.with_suffix(".pdf"), "--out (its PDF)", (".pdf",), "a PDF", inputs)
+        v.check_output_file(out.with_suffix(".json"), "--out (its JSON table)", (".json",), "JSON", inputs)
 
 
 def _read_dye(path: str):

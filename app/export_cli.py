@@ -34,8 +34,23 @@ def export_record(record: str | Path, fmt: str, out: str | Path, blend: str | Pa
     return written
 
 
-def cmd_export_look(args: argparse.Namespace) -> int:
+def check_export_look(args: argparse.Namespace) -> str:
+    """The record is a readable file; the outputs have their format's extension and are none of the inputs
+    nor a session's, library's or the package's files (checked before anything is written). The output."""
+    from hairdigi.app import validation as v
+
+    v.check_input_file(args.record, "record")
     out = args.out or str(Path(args.record).with_suffix("").with_suffix(SUFFIXES[args.format]))
+    inputs = {"record": args.record}
+    v.check_distinct({"--out": out, "--blend": args.blend})
+    v.check_output_file(out, "--out", (SUFFIXES[args.format],), f"{args.format} ({SUFFIXES[args.format]})", inputs)
+    if args.blend:
+        v.check_output_file(args.blend, "--blend", (".blend",), "a Blender file", inputs)
+    return out
+
+
+def cmd_export_look(args: argparse.Namespace) -> int:
+    out = check_export_look(args)
     for path in export_record(args.record, args.format, out, args.blend, args.name):
         print(f"wrote {path}")
     return 0

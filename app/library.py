@@ -25,7 +25,10 @@ import numpy as np
 from hairdigi.app.swatch_colour import ILLUMINANTS, delta_e
 
 KINDS = ("capture", "estimate", "dye")   # dye: predictions of issue "Hair-dye development", same layout
-BUSY_TIMEOUT_S = 60.0
+BUSY_TIMEOUT_S = 5.0            # SQLite: the longest wait for another writer's lock
+CONNECT_TIMEOUT_S = 5           # PostgreSQL: per host, to connect and be answered
+LOCK_TIMEOUT_S = 5.0            # PostgreSQL: the longest wait for a lock (advisory locks included)
+STATEMENT_TIMEOUT_S = 60.0      # PostgreSQL: the longest statement
 #: CIEDE2000's lightness weight S_L = 1 + 0.015 (L - 50)^2 / sqrt(20 + (L - 50)^2) is at most this on 0-100.
 SL_MAX = 1.0 + 0.015 * 2500 / (20 + 2500) ** 0.5 + 1e-6
 FIRST_BAND = 4.0     # L* either side of the query read first
@@ -134,64 +137,128 @@ class Swatch:
 
 # --- connections -----------------------------------------------------------------------------------
 class _Db:
-    """One connection, SQLite or PostgreSQL, behind the same few calls (SQL written with ``?``)."""
+    """One connection, SQLite or PostgreSQL, behind the same few calls (SQL written with ``?``).
+
+    Every wait is bounded: SQLite waits ``BUSY_TIMEOUT_S`` for another writer's lock; PostgreSQL
+    ``CONNECT_TIMEOUT_S`` per host to connect, ``LOCK_TIMEOUT_S`` for a lock and
+    ``STATEMENT_TIMEOUT_S`` for a statement. A wait that runs out is one line naming the lock or the
+    server (:class:`LibraryError`), as is a read-only file or another program's database."""
 
     def __init__(self, where: str) -> None:
         self.where = where
+        self.shown = redact(where)
         self.postgres = is_url(where)
         if self.postgres:
             try:
                 import psycopg
             except ModuleNotFoundError:
                 raise LibraryError("a PostgreSQL library needs psycopg: pip install 'psycopg[binary]'") from None
+            options = (f"-c lock_timeout={int(LOCK_TIMEOUT_S * 1000)} "
+                       f"-c statement_timeout={int(STATEMENT_TIMEOUT_S * 1000)}")
             try:
-                self.conn = psycopg.connect(where, autocommit=True, connect_timeout=10)
+                self.conn = psycopg.connect(where, autocommit=True, connect_timeout=CONNECT_TIMEOUT_S,
+                                            options=options)
             except psycopg.Error as exc:
-                raise LibraryError(f"cannot connect to the library at {_redact(where)}: "
-                                   f"{str(exc).strip().splitlines()[0]}") from None
+                raise LibraryError(f"cannot connect to the library at {self.shown} within {CONNECT_TIMEOUT_S} s a "
+                                   f"host: {_first_line(exc, where)}; check that the server runs and answers, or "
+                                   f"set HAIRDIGI_LIBRARY to another library") from None
         else:
             path = Path(where).expanduser()
+            self._check_file(path)
             path.parent.mkdir(parents=True, exist_ok=True)
             try:
                 self.conn = sqlite3.connect(path, timeout=BUSY_TIMEOUT_S, isolation_level=None,
                                             check_same_thread=False)
-                self.conn.execute("PRAGMA journal_mode=WAL")
+                self.conn.execute(f"PRAGMA busy_timeout={int(BUSY_TIMEOUT_S * 1000)}")
+                self._check_ours(path)
+                with self.errors():
+                    self.conn.execute("PRAGMA journal_mode=WAL")
             except sqlite3.DatabaseError as exc:
                 raise LibraryError(f"{path}: not a hairdigi library ({exc})") from None
             self.conn.execute("PRAGMA synchronous=NORMAL")
             self.conn.execute("PRAGMA foreign_keys=ON")
-            self.conn.execute(f"PRAGMA busy_timeout={int(BUSY_TIMEOUT_S * 1000)}")
+
+    def _check_file(self, path: Path) -> None:
+        """A library file must be a regular file the user can write, in a folder they can write (SQLite
+        writes its WAL and shared-memory files beside it)."""
+        if path.exists() and not path.is_file():
+            raise LibraryError(f"{path}: the library is not a regular file (a folder or device); set "
+                               f"HAIRDIGI_LIBRARY to a file")
+        folder = path.parent if path.parent.exists() else None
+        file_ro = path.exists() and (not os.access(path, os.W_OK) or not path.stat().st_mode & 0o222)
+        if file_ro or folder and not os.access(folder, os.W_OK | os.X_OK):
+            which = path if file_ro else folder
+            raise LibraryError(f"{path}: the library is read-only ({which} is not writable); make it writable "
+                               f"(chmod u+w) or set HAIRDIGI_LIBRARY to a copy")
+
+    def _check_ours(self, path: Path) -> None:
+        """An existing database with tables but no ``schema_version`` belongs to another program: never changed."""
+        with self.errors():
+            tables = [r[0] for r in self.conn.execute(
+                "SELECT name FROM sqlite_master WHERE type = 'table' ORDER BY name").fetchall()]
+        if tables and "schema_version" not in tables:
+            shown = ", ".join(tables[:5]) + (", ..." if len(tables) > 5 else "")
+            raise LibraryError(f"{path}: a SQLite database of another program (tables {shown}), not a hairdigi "
+                               f"library; it is left unchanged: set HAIRDIGI_LIBRARY to a new file")
+
+    @contextmanager
+    def errors(self) -> Iterator[None]:
+        """Database errors a user can meet (a lock held too long, a read-only file, a server gone) as one line."""
+        try:
+            yield
+        except sqlite3.OperationalError as exc:
+            text = str(exc)
+            if "locked" in text or "busy" in text:
+                raise LibraryError(f"the library {self.shown} is locked by another process (a write that did not "
+                                   f"finish within {BUSY_TIMEOUT_S:g} s); try again when it ends, or find the "
+                                   f"process holding {self.shown}") from None
+            if "readonly" in text or "read-only" in text:
+                raise LibraryError(f"the library {self.shown} is read-only ({text}); make it and its folder "
+                                   f"writable, or set HAIRDIGI_LIBRARY to a copy") from None
+            raise LibraryError(f"the library {self.shown}: {text}") from None
+        except Exception as exc:
+            if not self.postgres or not type(exc).__module__.startswith("psycopg"):
+                raise
+            name = type(exc).__name__
+            if name in ("LockNotAvailable", "QueryCanceled"):
+                raise LibraryError(f"the library {self.shown}: {'a lock' if name == 'LockNotAvailable' else 'a query'} "
+                                   f"waited longer than {LOCK_TIMEOUT_S if name == 'LockNotAvailable' else STATEMENT_TIMEOUT_S:g} "
+                                   f"s (another session holds it); try again when it ends") from None
+            raise LibraryError(f"the library {self.shown}: {_first_line(exc, self.where)}") from None
 
     def _sql(self, sql: str) -> str:
         return sql.replace("?", "%s") if self.postgres else sql
 
     def execute(self, sql: str, params: tuple | list = ()):
-        return self.conn.execute(self._sql(sql), params)
+        with self.errors():
+            return self.conn.execute(self._sql(sql), params)
 
     def executemany(self, sql: str, rows: list) -> None:
-        if self.postgres:
-            with self.conn.cursor() as cur:
-                cur.executemany(self._sql(sql), rows)
-        else:
-            self.conn.executemany(sql, rows)
+        with self.errors():
+            if self.postgres:
+                with self.conn.cursor() as cur:
+                    cur.executemany(self._sql(sql), rows)
+            else:
+                self.conn.executemany(sql, rows)
 
     def query(self, sql: str, params: tuple | list = ()) -> list[tuple]:
-        return list(self.execute(sql, params).fetchall())
+        with self.errors():
+            return list(self.execute(sql, params).fetchall())
 
     @contextmanager
     def transaction(self) -> Iterator[None]:
         """One transaction: committed when the block ends, rolled back if it raises."""
         if self.postgres:
-            with self.conn.transaction():
+            with self.errors(), self.conn.transaction():
                 yield
             return
-        self.conn.execute("BEGIN IMMEDIATE")   # take the write lock now: two writers queue, never deadlock
+        self.execute("BEGIN IMMEDIATE")   # take the write lock now: two writers queue, never deadlock
         try:
             yield
         except BaseException:
             self.conn.execute("ROLLBACK")
             raise
-        self.conn.execute("COMMIT")
+        self.execute("COMMIT")
 
     def has_table(self, name: str) -> bool:
         if self.postgres:
@@ -202,11 +269,35 @@ class _Db:
         self.conn.close()
 
 
-def _redact(url: str) -> str:
-    """A URL without its password, for messages."""
+def redact(where: str) -> str:
+    """A library's location without its password (a URL's ``user:PASSWORD@`` or ``password=`` setting)."""
     import re
 
-    return re.sub(r"(://[^:/@]+):[^@]*@", r"\1:***@", url)
+    where = re.sub(r"(://[^:/@]*):[^@/]*@", r"\1:***@", str(where))
+    return re.sub(r"(?i)(password\s*=\s*)('[^']*'|[^&\s]*)", r"\1***", where)
+
+
+_redact = redact
+
+
+def _first_line(exc: BaseException, where: str) -> str:
+    """A driver's message, first line, with the location's password masked wherever it appears."""
+    import re
+    from urllib.parse import unquote, urlsplit
+
+    text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+    try:
+        password = urlsplit(where).password
+    except ValueError:
+        password = None
+    for secret in {password, unquote(password or "")} - {None, ""}:
+        text = text.replace(secret, "***")
+    return redact(text)
+
+
+def like_escape(text: str) -> str:
+    """``text`` matched literally by ``LIKE ... ESCAPE '\\'``: its ``%``, ``_`` and ``\\`` escaped."""
+    return text.replace("\\", "\\\\").replace("%", "\\%").replace("_", "\\_")
 
 
 def _now() -> str:
@@ -307,7 +398,8 @@ class Library:
     def resolve(self, key: str) -> str:
         """The full id of the one swatch whose id (or capture id) starts with ``key``."""
         key = key.strip().lstrip("#")
-        rows = self.db.query("SELECT id FROM swatches WHERE id LIKE ? OR capture_id = ? LIMIT 2", (key + "%", key))
+        rows = self.db.query("SELECT id FROM swatches WHERE id LIKE ? ESCAPE '\\' OR capture_id = ? LIMIT 2",
+                             (like_escape(key) + "%", key))
         if not rows:
             raise LibraryError(f"no swatch {key!r} in the library; see hairdigi library find")
         if len(rows) > 1:
@@ -390,9 +482,9 @@ class Library:
         (lightness under daylight, light to dark, swatches without a colour last); at most ``limit``."""
         where, params = "", ()
         if text:
-            like = f"%{text}%"
-            where = ("WHERE id LIKE ? OR capture_id LIKE ? OR session LIKE ? OR note LIKE ? "
-                     "OR id IN (SELECT swatch_id FROM tags WHERE tag LIKE ?)")
+            like = f"%{like_escape(text)}%"
+            where = ("WHERE id LIKE ? ESCAPE '\\' OR capture_id LIKE ? ESCAPE '\\' OR session LIKE ? ESCAPE '\\' "
+                     "OR note LIKE ? ESCAPE '\\' OR id IN (SELECT swatch_id FROM tags WHERE tag LIKE ? ESCAPE '\\')")
             params = (like,) * 5
         if order == "colour":
             where = ("LEFT JOIN colours ON colours.swatch_id = swatches.id AND colours.illuminant = 'daylight' "
@@ -413,7 +505,9 @@ class Library:
         if under not in ILLUMINANTS:
             raise LibraryError(f"unknown light {under!r}; choose one of {', '.join(ILLUMINANTS)}")
         lab = np.asarray(lab, float)
-        k = max(1, int(k))
+        if int(k) < 1:
+            raise LibraryError(f"k {k}: ask for at least one match")
+        k = int(k)
         band = FIRST_BAND
         while True:
             rows = self.db.query("SELECT swatch_id, l, a, b FROM colours WHERE illuminant = ? AND l BETWEEN ? AND ?",

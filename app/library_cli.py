@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.library import Library, LibraryError, Swatch, open_library
+from hairdigi.app import validation as v
+from hairdigi.app.library import Library, LibraryError, Swatch, open_library, redact
 from hairdigi.app.swatch_colour import ILLUMINANTS, hex_lab, lab_hex
 
 EXPORT_COLUMNS = ("id", "kind", "session", "capture_id", "captured", "imported", "reliable", "tags", "note",
@@ -30,6 +31,19 @@ def _open(progress=None) -> Library:
     return library
 
 
+MAX_K = 10_000
+MAX_TAG, MAX_NOTE = 200, 10_000
+
+
+def text_up_to(limit: int, what: str):
+    """An argparse type: text of at most ``limit`` characters."""
+    def parse(text: str) -> str:
+        if len(text) > limit:
+            raise argparse.ArgumentTypeError(f"{what} of {len(text)} characters is longer than {limit}; shorten it")
+        return text
+    return parse
+
+
 def query_lab(near: str, under: str) -> np.ndarray:
     """CIELAB of ``near``: ``#RRGGBB``, or a record file's swatch under ``under``."""
     text = near.strip()
@@ -44,13 +58,18 @@ def query_lab(near: str, under: str) -> np.ndarray:
     return np.asarray(row.labs[under])
 
 
+def printable(text: str) -> str:
+    """Text safe for a terminal: control characters (ANSI escapes, carriage returns) shown as ``?``."""
+    return "".join("?" if (ord(c) < 32 or 127 <= ord(c) < 160) else c for c in str(text))
+
+
 def swatch_line(s: Swatch, under: str = "daylight") -> str:
     lab = s.labs.get(under)
     colour = lab_hex(lab) if lab else "-------"
     where = f"{Path(s.session).name}/{s.capture_id}" if s.session else Path(s.record_path or "").name
     tags = f" [{', '.join(s.tags)}]" if s.tags else ""
     note = f" — {s.note}" if s.note else ""
-    return f"{s.id}  {s.kind:8s} {colour}  {s.captured or '':24s} {where}{tags}{note}"
+    return printable(f"{s.id}  {s.kind:8s} {colour}  {s.captured or '':24s} {where}{tags}{note}")
 
 
 def export_rows(library: Library) -> list[dict]:
@@ -73,17 +92,48 @@ def export_rows(library: Library) -> list[dict]:
     return rows
 
 
-def write_export(library: Library, csv_path: str | None = None, xlsx_path: str | None = None) -> list[Path]:
-    from hairdigi.render.base.files import atomic_path, write_text_atomic
+#: OWASP's CSV injection advice: a cell starting with one of these is read as a formula by a spreadsheet.
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+#: The most characters an XLSX cell holds (Excel's limit; openpyxl writes more, and Excel cuts them).
+XLSX_CELL_MAX = 32_767
 
-    rows = export_rows(library)
-    written = []
+
+def neutral_cell(value):
+    """A table cell no spreadsheet runs: text starting with ``= + - @`` TAB or CR gets a leading ``'``."""
+    if isinstance(value, str) and value.startswith(FORMULA_STARTS):
+        return "'" + value
+    return value
+
+
+def _xlsx_cell(value, row: dict, column: str):
+    """A cell for openpyxl: neutralised, stored as text (never a formula), and within Excel's size."""
+    value = neutral_cell(value)
+    if isinstance(value, str) and len(value) > XLSX_CELL_MAX:
+        raise LibraryError(f"swatch {row['id']}: its {column} is {len(value)} characters, more than an Excel cell "
+                           f"holds ({XLSX_CELL_MAX}); shorten it (hairdigi library note) or export --csv")
+    return value
+
+
+def check_export_paths(csv_path: str | None, xlsx_path: str | None, library_where: str | None = None) -> None:
+    """Both outputs have their extension, differ, and are none of the library's, a session's or the package's files."""
+    from hairdigi.app import validation as v
+    from hairdigi.app.library import is_url
+
+    inputs = {"library": library_where} if library_where and not is_url(library_where) else {}
+    v.check_distinct({"--csv": csv_path, "--xlsx": xlsx_path})
     if csv_path:
-        buffer = io.StringIO()
-        writer = csv.DictWriter(buffer, fieldnames=EXPORT_COLUMNS)
-        writer.writeheader()
-        writer.writerows(rows)
-        written.append(write_text_atomic(csv_path, buffer.getvalue()))
+        v.check_output_file(csv_path, "--csv", (".csv",), "CSV", inputs)
+    if xlsx_path:
+        v.check_output_file(xlsx_path, "--xlsx", (".xlsx",), "an Excel workbook", inputs)
+
+
+def write_export(library: Library, csv_path: str | None = None, xlsx_path: str | None = None) -> list[Path]:
+    """The library as CSV and/or XLSX, both published together; cells that a spreadsheet would run as a
+    formula are neutralised (a leading ``'``)."""
+    from hairdigi.render.base.files import atomic_paths
+
+    rows = [{k: neutral_cell(v) for k, v in row.items()} for row in export_rows(library)]
+    book = None
     if xlsx_path:
         from openpyxl import Workbook
 
@@ -92,15 +142,29 @@ def write_export(library: Library, csv_path: str | None = None, xlsx_path: str |
         sheet.title = "swatches"
         sheet.append(list(EXPORT_COLUMNS))
         for row in rows:
-            sheet.append([row[k] for k in EXPORT_COLUMNS])
-        with atomic_path(xlsx_path) as tmp:
-            book.save(tmp)
-        written.append(Path(xlsx_path))
-    return written
+            sheet.append([_xlsx_cell(row[k], row, k) for k in EXPORT_COLUMNS])
+            for cell in sheet[sheet.max_row]:
+                if cell.data_type == "f":     # openpyxl reads any text starting with "=" as a formula
+                    cell.data_type = "s"
+    with atomic_paths(csv_path, xlsx_path) as (csv_tmp, xlsx_tmp):
+        if csv_tmp is not None:
+            with open(csv_tmp, "w", newline="", encoding="utf-8") as f:
+                writer = csv.DictWriter(f, fieldnames=EXPORT_COLUMNS)
+                writer.writeheader()
+                writer.writerows(rows)
+        if xlsx_tmp is not None:
+            book.save(xlsx_tmp)
+    return [Path(p) for p in (csv_path, xlsx_path) if p]
 
 
 # --- commands --------------------------------------------------------------------------------------
 def cmd_library(args: argparse.Namespace) -> int:
+    from hairdigi.app.library import location
+
+    if args.library_command == "export":   # the outputs are checked before the library is opened
+        if not args.csv and not args.xlsx:
+            raise LibraryError("give --csv FILE, --xlsx FILE or both")
+        check_export_paths(args.csv, args.xlsx, location())
     with _open() as library:
         return COMMANDS[args.library_command](library, args)
 
@@ -109,7 +173,7 @@ def _import(library: Library, args) -> int:
     from hairdigi.app.library_import import import_paths
 
     n = import_paths(library, args.paths, progress=lambda line: print(line, flush=True))
-    print(f"imported {n} swatches; the library at {library.where} holds {library.count()}")
+    print(f"imported {n} swatches; the library at {redact(library.where)} holds {library.count()}")
     return 0
 
 
@@ -148,7 +212,7 @@ def _export(library: Library, args) -> int:
 
 
 def _info(library: Library, args) -> int:
-    print(f"library: {library.where}\nschema version: {library.version}\nswatches: {library.count()}\n"
+    print(f"library: {redact(library.where)}\nschema version: {library.version}\nswatches: {library.count()}\n"
           f"sessions imported: {len(library.sessions())}")
     return 0
 
@@ -166,14 +230,14 @@ def add_parser(sub) -> None:
     q.add_argument("--near", required=True, help="an estimate record (JSON) or #RRGGBB")
     q.add_argument("--under", choices=ILLUMINANTS, default="daylight",
                    help="the light the colours are compared under (approximations; see app/swatch_colour.py)")
-    q.add_argument("--k", type=int, default=10, help="how many matches (default 10)")
+    q.add_argument("--k", type=v.int_in(1, MAX_K), default=10, help=f"how many matches (1 to {MAX_K}; default 10)")
     q = lib.add_parser("tag", help="tag a swatch (its id or a unique start of it, or its capture id)")
     q.add_argument("swatch")
-    q.add_argument("tags", nargs="+")
+    q.add_argument("tags", nargs="+", type=text_up_to(MAX_TAG, "a tag"))
     q.add_argument("--remove", action="store_true", help="remove these tags instead")
     q = lib.add_parser("note", help="set a swatch's note")
     q.add_argument("swatch")
-    q.add_argument("text")
+    q.add_argument("text", type=text_up_to(MAX_NOTE, "a note"))
     q = lib.add_parser("export", help="every swatch as a table")
     q.add_argument("--csv", help="CSV file to write")
     q.add_argument("--xlsx", help="Excel file to write (openpyxl)")

@@ -122,10 +122,22 @@ def first_run_sessions() -> list[Path]:
 
 
 def first_run(library: Library, progress=print) -> int:
-    """On a library's first open: import the sessions written before it; once (remembered in the library)."""
+    """On a library's first open: import the sessions written before it; once (remembered in the library).
+
+    A session that cannot be imported (a corrupt capture) is skipped with one line naming it and the
+    fix; the others are imported, and the first run is not tried again, so one damaged old session
+    never locks every command out."""
     if library.setting(FIRST_RUN_KEY) is not None:
         return 0
-    sessions = first_run_sessions()
-    total = import_paths(library, sessions, progress) if sessions else 0
-    library.set_setting(FIRST_RUN_KEY, json.dumps({"sessions": [str(s) for s in sessions], "swatches": total}))
+    total, done, skipped = 0, [], []
+    for session in first_run_sessions():
+        try:
+            total += import_paths(library, [session], progress)
+            done.append(str(session))
+        except (LibraryError, RecordError, OSError, ValueError) as exc:
+            reason = " ".join(str(exc).split())[:300]
+            skipped.append({"session": str(session), "reason": reason})
+            progress(f"skipped the old session {session} in the first import: {reason}; fix or move that capture, "
+                     f"then hairdigi library import {session}")
+    library.set_setting(FIRST_RUN_KEY, json.dumps({"sessions": done, "skipped": skipped, "swatches": total}))
     return total

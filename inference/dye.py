@@ -199,6 +199,41 @@ def check_calibrations(pairs: list[tuple[HairSample, HairSample]], allow_mixed: 
             f"--allow-mixed-calibrations, so colour differences between them are part of the dye"]
 
 
+def check_distinct_records(base: HairSample, dyed: HairSample) -> None:
+    """Refuse a pair whose base and dyed records are one file (same path or checksum)."""
+    same_path = bool(base.path) and base.path == dyed.path
+    if same_path or (base.sha256 and base.sha256 == dyed.sha256):
+        raise DyeError(f"{dyed.label} is the same record as its base {base.label}: a dye is measured from the "
+                       f"hair before and after dyeing; give the dyed swatch's record as the second of --pair")
+
+
+#: A base whose Table 1 dye concentration is above this reads as dyed hair, not a natural base.
+DYED_BASE_CONCENTRATION = 0.3
+
+
+def dyed_base_warnings(base: HairSample) -> list[str]:
+    """Warn when a base is a dye prediction or reads as dyed: the model takes all its absorption as melanin."""
+    record = base.record
+    if (record.provenance or {}).get("prediction"):
+        return [f"dyed base: {base.label} is a dye prediction, not natural hair; the model reads all its absorption "
+                f"as melanin, so the result is a second dye on top of the first"]
+    hair = record.hair
+    if hair is not None and hair.dye_concentration > DYED_BASE_CONCENTRATION:
+        return [f"dyed base: {base.label} reads as dyed hair (Table 1 dye concentration {hair.dye_concentration:.2f}); "
+                f"the model takes a natural base, so its dye is counted as melanin"]
+    return []
+
+
+def same_base_spread(pairs: list[tuple[HairSample, HairSample]], curve: ResponseCurve) -> float:
+    """The largest ΔE2000 between two dyed swatches of one base (0 with one pair per base)."""
+    worst = 0.0
+    for i, (base_i, dyed_i) in enumerate(pairs):
+        for base_j, dyed_j in pairs[i + 1:]:
+            if _distinct_bases(np.array([base_i.sigma_a, base_j.sigma_a])) == 1:
+                worst = max(worst, float(delta_e2000(colour_of(dyed_i.sigma_a, curve), colour_of(dyed_j.sigma_a, curve))))
+    return worst
+
+
 # --- the fit -------------------------------------------------------------------------------------------
 def _distinct_bases(bases: np.ndarray) -> int:
     """How many of the bases' ``sigma_a`` differ (relative difference, largest channel) from each other."""
@@ -253,9 +288,12 @@ def characterise(pairs: list[tuple[HairSample, HairSample]], name: str, curve: R
     if not name or not name.strip():
         raise DyeError("a dye needs a name; give --name")
     curve = curve or rig_curve()
+    for base, dyed in pairs:
+        check_distinct_records(base, dyed)
     warnings = check_calibrations(pairs, allow_mixed)
     for base, dyed in pairs:
         check_explainable(base, dyed, curve)
+        warnings += dyed_base_warnings(base)
         for s in (base, dyed):
             if not s.record.reliable:
                 warnings.append(f"unreliable record: {s.label} is flagged ({'; '.join(s.record.warning_messages())})")
@@ -292,6 +330,9 @@ def characterise(pairs: list[tuple[HairSample, HairSample]], name: str, curve: R
         lifts.append(l_j)
         deposits.append(dep_j)
     dep_lo, dep_hi = np.percentile(deposits, [16, 84], axis=0)
+    # a bounded fit's draws can all fall on one side of the estimate: an interval always holds its estimate
+    dep_lo, dep_hi = np.minimum(dep_lo, deposit), np.maximum(dep_hi, deposit)
+    lift_lo, lift_hi = (min(float(np.percentile(lifts, 16)), lift), max(float(np.percentile(lifts, 84)), lift))
     # residuals, in sigma_a and as the swatch's mean-colour ΔE2000
     pair_records, residual_de = [], []
     for (base, dyed_s), (bk, dk) in zip(pairs, keys):
@@ -301,15 +342,18 @@ def characterise(pairs: list[tuple[HairSample, HairSample]], name: str, curve: R
         pair_records.append(DyePairRecord(base.path, base.sha256, dyed_s.path, dyed_s.sha256,
                                           tuple(base.sigma_a), tuple(dyed_s.sigma_a), base.calibration,
                                           dyed_s.calibration, tuple(dyed_s.sigma_a - fitted), de))
-    if measurable and max(residual_de) > DISAGREE_DE:
+    if max(residual_de) > DISAGREE_DE:
         warnings.append(f"the pairs disagree: one lift and deposit leave a pair {max(residual_de):.1f} ΔE2000 from "
                         f"its dyed swatch; were they all dyed with this product, developer and time?")
+    elif (spread := same_base_spread(pairs, curve)) > DISAGREE_DE:
+        warnings.append(f"the pairs disagree: two dyed swatches of one base are {spread:.1f} ΔE2000 apart; were "
+                        f"they all dyed with this product, developer and time?")
     sources = sorted({s.interval_source for s in samples.values()})
     return DyeRecord(
         name=name.strip(), deposit_sigma_a=tuple(float(v) for v in deposit), lift=lift, lift_measured=measurable,
         pairs=tuple(pair_records), deposit_low=tuple(dep_lo), deposit_high=tuple(dep_hi),
-        lift_low=float(np.percentile(lifts, 16)) if measurable else None,
-        lift_high=float(np.percentile(lifts, 84)) if measurable else None,
+        lift_low=lift_lo if measurable else None,
+        lift_high=lift_hi if measurable else None,
         residual_de2000_max=max(residual_de), residual_de2000_mean=float(np.mean(residual_de)),
         shine_change=None, warnings=tuple(warnings),
         intervals={"coverage": 0.68, "method": "16th-84th percentiles of the fit over Monte Carlo draws of each "
@@ -388,6 +432,7 @@ def apply(dye: DyeRecord, base: HairSample, dose: float = 1.0, curve: ResponseCu
                                                    f"not a capture")]
     warnings += [EstimateWarning(WarningKind.CALIBRATION if w.startswith("calibration") else WarningKind.OTHER,
                                  f"dye: {w}") for w in dye.warnings]
+    warnings += [EstimateWarning(WarningKind.OTHER, w) for w in dyed_base_warnings(base)]
     if not exact:
         warnings.append(EstimateWarning(WarningKind.UNREACHABLE, "unreachable: no Table 1 hair has the predicted "
                                         "sigma_a; the hair block is the nearest, refinement.sigma_a the prediction"))

@@ -53,6 +53,27 @@ def run_script(script: Path, args: list[str], timeout: float = 1800.0) -> str:
     return proc.stdout
 
 
+def probe_blender(timeout: float = 300.0) -> None:
+    """Run a two-line script in the chosen Blender (it must import bpy and print); BlenderError if it does not,
+    so that a broken ``HAIRDIGI_BLENDER`` stops a job before its work, not after it."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="hairdigi-probe-") as tmp:
+        script = Path(tmp) / "probe.py"
+        script.write_text("import bpy\nprint('hairdigi-blender-ok', bpy.app.version_string)\n", encoding="utf-8")
+        try:
+            out = run_script(script, [], timeout=timeout)
+        except subprocess.TimeoutExpired:
+            raise BlenderError(f"HAIRDIGI_BLENDER did not answer a two-line script within {timeout:g} s; check "
+                               f"that it runs: {os.environ.get('HAIRDIGI_BLENDER') or 'blender'}") from None
+        except OSError as exc:
+            raise BlenderError(f"Blender cannot be started ({exc.strerror or exc}); set HAIRDIGI_BLENDER to a Python "
+                               f"that has bpy or to a blender executable") from None
+    if "hairdigi-blender-ok" not in out:
+        raise BlenderError("Blender ran but did not import bpy and print; set HAIRDIGI_BLENDER to a Python that "
+                           "has bpy or to a blender executable")
+
+
 #: The check's swatch: fibres in staggered layers that never pass through one another. The rig's own
 #: swatch (``strands.swatch_strands``) lets fibres interpenetrate; Mitsuba's curves let a ray that
 #: starts inside a fibre leave through it, Cycles intersects it, and the two then differ by up to ΔE2000

@@ -84,6 +84,14 @@ def safe_name(text: str) -> str:
     return name if not name[0].isdigit() else f"hair_{name}"
 
 
+def xml_text(text: str) -> str:
+    """Text XML 1.0 can hold anywhere, comments included: no control characters, no ``--``, no final ``-``."""
+    text = re.sub(r"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f\ud800-\udfff\ufffe\uffff]", "?", text)
+    while "--" in text:
+        text = text.replace("--", "-_")
+    return text[:-1] + "_" if text.endswith("-") else text
+
+
 def _f(x: float) -> str:
     return f"{x:.9g}"
 
@@ -98,6 +106,7 @@ def materialx_text(look: HairLook) -> str:
            f"sigma_a per fibre radius in linear Rec.709 ({COLOUR_SPACE}), as rendered by Mitsuba 3's hair BSDF "
            f"(Chiang 2016); cuticle_angle {_f(look.cuticle_angle)} is a tilt of {_f(look.tilt_deg)} degrees "
            f"towards the root for curves drawn root to tip; shine: {shine}.")
+    doc = xml_text(doc)
     return f"""<?xml version="1.0"?>
 <materialx version="1.39" colorspace="{COLOUR_SPACE}">
   <!-- {doc} -->

@@ -20,7 +20,32 @@ HAIRSTYLE, HAIRSTYLE_SIZE, HAIRSTYLE_SPP = "wavy", 192, 8
 
 
 def _slug(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "-", name.strip()).strip("-") or "dye"
+    return re.sub(r"[^A-Za-z0-9._-]+", "-", name.strip()).strip("-.") or "dye"
+
+
+def _saved_name(path: Path) -> str | None:
+    """The name of the dye saved at ``path`` (None: no such file, or not a dye record)."""
+    from hairdigi.render.base.dye_record import DyeRecord
+    from hairdigi.render.base.records import RecordError, read_record
+
+    try:
+        return read_record(path, DyeRecord).name if path.exists() else None
+    except RecordError:
+        return ""
+
+
+def dye_path(folder: Path, name: str) -> Path:
+    """Where the dye ``name`` is saved: its name as a file name, numbered (``-2``, ``-3``...) where that file
+    holds another dye ("Copper 7.4" and "Copper/7.4" both read ``Copper-7.4``), so no dye is ever written
+    over by another; the same name again replaces its own file (the dye characterised again)."""
+    name = name.strip()
+    slug = _slug(name)[:80]
+    path = folder / f"{slug}.json"
+    n = 2
+    while path.exists() and _saved_name(path) != name:
+        path = folder / f"{slug}-{n}.json"
+        n += 1
+    return path
 
 
 def select_path(combo: QComboBox, path: Path) -> bool:
@@ -120,6 +145,7 @@ class DyePanel(QWidget):
         self.name_edit = QLineEdit()
         self.name_edit.setPlaceholderText("dye name, e.g. Copper 7.4")
         row.addWidget(self.name_edit, 1)
+        self.name_edit.setMaxLength(200)   # a pasted megabyte is no name (hairdigi dye --name takes 200 too)
         save = QPushButton("Characterise && save")
         save.clicked.connect(self.characterise)
         row.addWidget(save)
@@ -229,7 +255,7 @@ class DyePanel(QWidget):
         except DyeError as exc:
             self.show_status(str(exc))
             return
-        path = self.dyes_folder / f"{_slug(name)}.json"
+        path = dye_path(self.dyes_folder, name)
         write_record(path, dye)
         lift = (f"lift {dye.lift:.2f} ({dye.lift_low:.2f}–{dye.lift_high:.2f})" if dye.lift_measured
                 else f"lift {dye.lift:.2f}, assumed (one base)")

@@ -138,4 +138,10 @@ class AppearanceEstimate:
         method = data.get("method") or {}
         if not isinstance(intervals, dict) or not isinstance(method, dict):
             raise AppearanceError("appearance 'intervals' and 'method' must be objects")
+        for name, levels in intervals.items():
+            for level, bounds in (levels.items() if isinstance(levels, dict) else ()):
+                if (isinstance(bounds, list) and len(bounds) == 2 and all(isinstance(b, (int, float)) for b in bounds)
+                        and bounds[0] > bounds[1]):
+                    raise AppearanceError(f"appearance {name!r} {level} interval {bounds} is inverted (low above "
+                                          f"high); the record is damaged")
         return cls(value, intervals, tuple(measured), method)

@@ -16,7 +16,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from hairdigi.render.base.records import RecordError
+from hairdigi.render.base.records import RecordError, check_interval, check_sigma_a
 
 #: The layout written today (1: the first dye record, hairdigi 0.2).
 DYE_SCHEMA_VERSION = 1
@@ -150,11 +150,15 @@ class DyeRecord:
             raise RecordError(f"the {what}'s 'schema_version' is {version!r}; this hairdigi reads 1 to "
                               f"{DYE_SCHEMA_VERSION} (update hairdigi for newer records)")
         deposit = _vec(data, "deposit_sigma_a", what)
-        if min(deposit) < 0:
-            raise RecordError(f"the {what}'s 'deposit_sigma_a' {list(deposit)} has a negative value")
+        check_sigma_a(deposit, f"the {what}'s 'deposit_sigma_a'")
         lift = _num(data, "lift", what)
         if not 0.0 <= lift < 1.0:
             raise RecordError(f"the {what}'s 'lift' is {lift}, not in [0, 1)")
+        low, high = _vec(data, "deposit_low", what, optional=True), _vec(data, "deposit_high", what, optional=True)
+        for i, (lo, hi) in enumerate(zip(low or (), high or ())):
+            check_interval(lo, hi, f"the {what}'s deposit channel {i}")
+        check_interval(_num(data, "lift_low", what, optional=True), _num(data, "lift_high", what, optional=True),
+                       f"the {what}'s lift")
         pairs = data.get("pairs")
         if not isinstance(pairs, list) or not pairs:
             raise RecordError(f"the {what}'s 'pairs' is {pairs!r}, not a list of the pairs it was measured on")

@@ -8,6 +8,7 @@ import errno
 import json
 import os
 import re
+import stat
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -120,25 +121,50 @@ MAX_JSON_BYTES = 16 * 1024 * 1024
 
 def read_bytes(path: str | os.PathLike, error: type[Exception], what: str, max_bytes: int,
                too_large: str, missing: str = "no such file") -> bytes:
-    """A file's bytes; every way reading fails raises ``error`` naming the path and the fix.
+    """A regular file's bytes, at most ``max_bytes``; every way reading fails raises ``error`` naming the
+    path and the fix.
 
     ``what`` names the expected file ("a JSON file"); ``too_large`` is the fix for a file over
-    ``max_bytes``, which is refused before it is read."""
+    ``max_bytes``, which is refused before it is read. A device (``/dev/zero``), a FIFO or a socket is
+    refused before a byte is read: it is opened without blocking and checked on the open descriptor, and
+    never more than ``max_bytes`` + 1 bytes are read (a file that grows while read is refused too)."""
     path = Path(path)
     try:
-        if path.is_dir():
-            raise error(f"{path}: is a folder, not {what}; give the file's path")
-        size = path.stat().st_size
-        if size > max_bytes:
-            raise error(f"{path}: {size / 1e6:.0f} MB is too large for {what} (at most "
-                        f"{max_bytes / 1e6:.0f} MB); {too_large}")
-        return path.read_bytes()
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
     except FileNotFoundError:
         raise error(f"{path}: {missing}") from None
+    except IsADirectoryError:
+        raise error(f"{path}: is a folder, not {what}; give the file's path") from None
     except PermissionError:
         raise error(f"{path}: permission denied; make it readable (chmod +r) or use a copy") from None
     except OSError as exc:
         raise error(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    try:
+        info = os.fstat(fd)
+        if stat.S_ISDIR(info.st_mode):
+            raise error(f"{path}: is a folder, not {what}; give the file's path")
+        if not stat.S_ISREG(info.st_mode):
+            raise error(f"{path}: is not a regular file (a device, pipe or socket), not {what}; give a file")
+        if info.st_size > max_bytes:
+            raise error(f"{path}: {info.st_size / 1e6:.0f} MB is too large for {what} (at most "
+                        f"{max_bytes / 1e6:.0f} MB); {too_large}")
+        with os.fdopen(fd, "rb", closefd=False) as f:
+            data = f.read(max_bytes + 1)
+        if len(data) > max_bytes:
+            raise error(f"{path}: grew past {max_bytes / 1e6:.0f} MB while read, too large for {what}; "
+                        f"{too_large}")
+        return data
+    except OSError as exc:
+        raise error(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    finally:
+        os.close(fd)
+
+
+def sha256_file(path: str | os.PathLike, error: type[Exception] = ValueError, max_bytes: int = 16 * 1024 * 1024) -> str:
+    """The sha256 of a regular file of at most ``max_bytes`` (read as :func:`read_bytes` reads)."""
+    import hashlib
+
+    return hashlib.sha256(read_bytes(path, error, "a file", max_bytes, "check the file name")).hexdigest()
 
 
 def read_json(path: str | os.PathLike, error: type[Exception], missing: str, invalid: str):
@@ -238,6 +264,19 @@ def _record_kind(path: Path) -> str | None:
     return None
 
 
+def _is_sqlite(path: Path) -> bool:
+    """Whether an existing regular file is a SQLite database (its 16-byte header), or its WAL or journal."""
+    if path.name.endswith(("-wal", "-shm", "-journal")) and _is_sqlite(path.with_name(path.name.rsplit("-", 1)[0])):
+        return True
+    try:
+        if not path.is_file():
+            return False
+        with open(path, "rb") as f:
+            return f.read(16) == b"SQLite format 3\x00"
+    except OSError:
+        return False
+
+
 def protected_reason(path: str | os.PathLike, allow: tuple = ()) -> str | None:
     """Why ``path`` must not be written over: it belongs to a rig session (its calibration, its
     captures), a dataset (manifest, shards) or the hairdigi package (its folders, a checkout's tests
@@ -262,6 +301,8 @@ def protected_reason(path: str | os.PathLike, allow: tuple = ()) -> str | None:
             return "is part of the hairdigi package (its code, tests or resources)"
         if p in extra_files:
             return "is part of the hairdigi checkout"
+    if _is_sqlite(real):
+        return "is a SQLite database (a swatch library?)"
     kind = _record_kind(real)
     if kind:
         return f"is {kind}, which hairdigi reads back"

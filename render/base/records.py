@@ -25,8 +25,12 @@ from pathlib import Path
 from typing import Any
 
 from hairdigi.render.base.appearance import AppearanceError, AppearanceEstimate
-from hairdigi.render.base.files import read_json, write_json_atomic
+from hairdigi.render.base.files import MAX_JSON_BYTES, read_json, sha256_file, write_json_atomic
 from hairdigi.render.base.params import HairParams, HairParamsError
+
+#: The largest absorption (per fibre radius) a record may hold: Table 1's darkest hair is under 10; a fibre
+#: at 100 passes e^-200 of the light, black to any renderer (MaterialX and Cycles refuse far larger values).
+SIGMA_A_MAX = 100.0
 
 #: The layout written today. 1: hairdigi 0.1.0's dicts (no ``schema_version``); 2: the typed records.
 SCHEMA_VERSION = 2
@@ -306,6 +310,7 @@ class RefinementRecord:
             return cls()
         vec = {k: (None if data.get(k) is None else _floats(data[k], 3, k, what))
                for k in ("sigma_a", "target_linear_rgb", "rendered_linear_rgb")}
+        check_sigma_a(vec["sigma_a"], f"the {what}'s 'sigma_a'")
         return cls(ran=True, **vec,
                    residual_de2000=_need(data, "residual_de2000", float, what, None, required=False),
                    iterations=_need(data, "iterations", int, what, 0, required=False),
@@ -376,6 +381,7 @@ class EstimateRecord:
     def from_json(cls, data) -> "EstimateRecord":
         what = "estimate record"
         _version(data, what)
+        _check_kind(data, cls.KIND, what)
         hair = data.get("hair")
         if hair is not None:
             try:
@@ -385,7 +391,7 @@ class EstimateRecord:
         blocked = _need(data, "blocked", list, what, [], required=False)
         roi = data.get("swatch_roi")
         return cls(hair=hair, warnings=warnings_from_json(data.get("warnings"), what),
-                   uncertainty=_need(data, "uncertainty", dict, what, {}, required=False),
+                   uncertainty=_check_uncertainty(_need(data, "uncertainty", dict, what, {}, required=False), what),
                    encoder=_need(data, "encoder", dict, what, {}, required=False),
                    refinement=RefinementRecord.from_json(data.get("refinement") or {"ran": False}),
                    provenance=_need(data, "provenance", dict, what, {}, required=False),
@@ -393,6 +399,42 @@ class EstimateRecord:
                    blocked=tuple(str(b) for b in blocked),
                    swatch_roi=None if roi is None else _roi(roi, what),
                    appearance=_appearance(data.get("appearance"), what))
+
+
+def check_sigma_a(sigma, what: str) -> None:
+    """An absorption is three numbers from 0 to ``SIGMA_A_MAX``; else RecordError naming ``what``."""
+    if sigma is not None and not all(0.0 <= float(s) <= SIGMA_A_MAX for s in sigma):
+        raise RecordError(f"{what} {[float(s) for s in sigma]} is outside 0 to {SIGMA_A_MAX:g} per fibre radius "
+                          f"(no hair absorbs a negative or such an amount); the record is damaged: estimate again")
+
+
+def check_interval(low, high, what: str) -> None:
+    """An interval's low end must not lie above its high end."""
+    if _real(low) and _real(high) and low > high:
+        raise RecordError(f"{what}'s interval is inverted (low {low} above high {high}); the record is damaged: "
+                          f"estimate again")
+
+
+def _check_uncertainty(uncertainty: dict, what: str) -> dict:
+    """Per-parameter intervals hold low <= high."""
+    params = uncertainty.get("parameters")
+    for name, entry in (params.items() if isinstance(params, dict) else ()):
+        if isinstance(entry, dict):
+            check_interval(entry.get("low"), entry.get("high"), f"the {what}'s {name!r}")
+    return uncertainty
+
+
+def _check_kind(data: dict, kind: str, what: str) -> None:
+    """A record of another kind (a dye record, a calibration profile) is named, not read as this one."""
+    other = data.get("kind")
+    if other is None and "matrix" in data and "method" in data:
+        other = "calibration"
+    if other is not None and other != kind:
+        raise RecordError(f"this is a {str(other)[:40]!r} record, not an {what}; give the record that hairdigi "
+                          f"estimate (or a capture) wrote")
+    if other is None and not any(k in data for k in ("hair", "capture", "blocked")):
+        raise RecordError(f"this JSON holds no 'hair', 'capture' or 'blocked': not an {what}; give the record "
+                          f"that hairdigi estimate (or a capture) wrote")
 
 
 def _appearance(data, what: str) -> AppearanceEstimate | None:
@@ -426,7 +468,7 @@ def write_record(path: str | os.PathLike, record) -> Path:
 
 def record_sha256(path: str | os.PathLike) -> str:
     """The checksum a record is cited by (dye records cite the estimates they came from)."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    return sha256_file(path, RecordError, MAX_JSON_BYTES)
 
 
 def capture_profile(capture: dict | None, result: dict | None) -> dict | None:

@@ -1,0 +1,490 @@
+"""Careless and hostile input, third round (issue 30): export, the library, dye development, single-light frames.
+
+One numbered class of the issue per section. Most cases run the command line in this process
+(``main``), which is what a subprocess would run, minus the start-up; cases that may hang (a FIFO)
+or need a second process (a lock) run it in a subprocess with a timeout. Every refused case is one
+stderr line and exit 2, and leaves the files it was pointed at byte for byte as they were.
+"""
+import csv
+import hashlib
+import json
+import os
+import socket
+import sqlite3
+import subprocess
+import sys
+import threading
+import time
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hairdigi.app.cli import main
+from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.records import EstimateRecord, RefinementRecord, write_record
+
+ROOT = Path(__file__).resolve().parent.parent
+CAPTURE = "20261124-101500-123"
+HAIR = HairParams((190.0, 70.0, 40.0), 0.5, 0.3, 0.4)
+
+
+# --- helpers ---------------------------------------------------------------------------------------
+def sha(path: Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def snapshot(folder: Path) -> dict[str, str]:
+    return {str(p.relative_to(folder)): sha(p) for p in sorted(folder.rglob("*")) if p.is_file() and not p.is_symlink()}
+
+
+def one_line(code: int, capsys, *needles: str, expect_code: int = 2) -> str:
+    """The command ended with ``expect_code`` and one stderr line holding every needle (no traceback)."""
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert code == expect_code, (code, err[-2000:])
+    assert "Traceback" not in err and len(lines) == 1, err[-2000:]
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+    return lines[0]
+
+
+def estimate_record(sigma=(0.6, 0.9, 1.4), hair: HairParams = HAIR, **kw) -> EstimateRecord:
+    return EstimateRecord(hair=hair, refinement=RefinementRecord(ran=True, sigma_a=tuple(map(float, sigma))), **kw)
+
+
+def cli(*args, env=None, timeout=120, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "hairdigi.app.cli", *map(str, args)], capture_output=True,
+                          text=True, timeout=timeout, cwd=cwd,
+                          env={**os.environ, "OMP_WAIT_POLICY": "PASSIVE", **(env or {})})
+
+
+@pytest.fixture
+def ws(tmp_path, monkeypatch):
+    """A working folder: an estimate record, a rig session, a fresh library and no pre-library sessions."""
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("HAIRDIGI_LIBRARY", str(tmp_path / "lib.sqlite"))
+    monkeypatch.setenv("HAIRDIGI_SESSIONS", str(tmp_path / "no-sessions"))
+    write_record(tmp_path / "r.json", estimate_record())
+    session = tmp_path / "s"
+    (session / "captures").mkdir(parents=True)
+    (session / "calibration.json").write_text(json.dumps({"kind": "calibration", "matrix": [[1, 0, 0]] * 3,
+                                                          "method": "linear"}))
+    (session / "captures" / f"{CAPTURE}.json").write_text(json.dumps({"id": CAPTURE, "image": f"{CAPTURE}.png",
+                                                                      "image_sha256": "0" * 64}))
+    write_record(session / "captures" / f"{CAPTURE}.result.json", estimate_record(capture=f"{CAPTURE}.png"))
+    return tmp_path
+
+
+def dye_record_json(name: str = "copper", deposit=(0.3, 0.6, 0.8), **extra) -> dict:
+    pair = {"base": "b.json", "base_sha256": "0" * 64, "dyed": "d.json", "dyed_sha256": "1" * 64,
+            "base_sigma_a": [0.5, 0.7, 1.0], "dyed_sigma_a": [0.8, 1.3, 1.8]}
+    return {"kind": "dye", "schema_version": 1, "name": name, "deposit_sigma_a": list(deposit), "lift": 0.1,
+            "lift_measured": False, "pairs": [pair], **extra}
+
+
+# --- 1. data loss, exit 0 --------------------------------------------------------------------------
+@pytest.mark.parametrize("out, needle", [
+    ("r.json", "record input"),                           # the record itself
+    ("s/calibration.json", ".mtlx"),
+    (f"s/captures/{CAPTURE}.result.json", ".mtlx"),
+    (f"s/captures/{CAPTURE}.mtlx", "rig session"),
+    ("look.txt", ".mtlx"),                                # no extension checked
+    ("lib.sqlite", ".mtlx"),
+])
+def test_export_never_writes_over_its_record_or_a_session(ws, capsys, out, needle):
+    before = snapshot(ws)
+    one_line(main(["export", "r.json", "--format", "materialx", "--out", out]), capsys, "--out", needle)
+    assert snapshot(ws) == before
+
+
+def test_export_default_output_never_replaces_a_record_named_like_it(ws, capsys):
+    write_record(ws / "look.py", estimate_record())        # a record named look.py, exported as Blender
+    before = snapshot(ws)
+    one_line(main(["export", "look.py", "--format", "blender"]), capsys, "look.py", "record input")
+    assert snapshot(ws) == before
+
+
+def test_library_export_never_writes_over_the_library_or_a_session(ws, capsys):
+    assert main(["library", "import", "r.json"]) == 0
+    capsys.readouterr()
+    before = snapshot(ws)
+    for args, needle in ((["--csv", "lib.sqlite"], "--csv"),                       # the library itself
+                         (["--csv", f"s/captures/{CAPTURE}.json"], "--csv"),
+                         (["--csv", f"s/captures/{CAPTURE}.csv"], "rig session"),
+                         (["--csv", "x.csv", "--xlsx", "x.csv"], "--xlsx"),        # one name for both
+                         (["--xlsx", "r.json"], "--xlsx")):
+        one_line(main(["library", "export", *args]), capsys, needle)
+        assert snapshot(ws) == before, args
+    # the library file is refused even under a name with the right extension (a copy named .csv)
+    (ws / "copy.csv").write_bytes((ws / "lib.sqlite").read_bytes())
+    one_line(main(["library", "export", "--csv", "copy.csv"]), capsys, "SQLite database")
+
+
+def test_dye_card_never_writes_its_table_over_the_dye_or_a_session(ws, capsys):
+    (ws / "copper.json").write_text(json.dumps(dye_record_json()))
+    before = snapshot(ws)
+    one_line(main(["dye", "card", "copper.json", "--out", "copper.png"]), capsys, "JSON table", "dye input")
+    one_line(main(["dye", "card", "copper.json", "--out", "s/calibration.png"]), capsys, "calibration of the rig")
+    assert snapshot(ws) == before
+
+
+def test_dye_panel_never_saves_one_dye_over_another(tmp_path):
+    from hairdigi.app.gui.dye_panel import dye_path
+
+    saved = []
+    for name in ["Copper 7.4", "Copper/7.4", "Copper-7.4", "染料", "色", "dye", ".json"]:
+        path = dye_path(tmp_path, name)
+        assert path not in saved, (name, path)
+        path.write_text(json.dumps(dye_record_json(name)))
+        saved.append(path)
+    assert dye_path(tmp_path, "Copper/7.4") == saved[1]          # the same dye again replaces its own file
+    assert dye_path(tmp_path, "色") == saved[4]
+
+
+# --- 2. formula injection ------------------------------------------------------------------------------
+def test_exported_tables_neutralise_formulas(ws, capsys):
+    from openpyxl import load_workbook
+
+    from hairdigi.app.library import Library
+
+    assert main(["library", "import", "r.json"]) == 0
+    with Library() as lib:
+        sid = lib.all()[0].id
+    hostile = ['=HYPERLINK("http://evil/x","click")', "=cmd|' /C calc'!A0", "+1+1", "-2+3", "@SUM(A1)", "\tx", "\rx"]
+    for i, text in enumerate(hostile):
+        capsys.readouterr()
+        assert main(["library", "note", sid, "--", text]) == 0
+        assert main(["library", "tag", sid, f"t{i}"]) == 0
+        assert main(["library", "export", "--csv", f"t{i}.csv", "--xlsx", f"t{i}.xlsx"]) == 0
+        row = next(csv.DictReader(open(ws / f"t{i}.csv", newline="", encoding="utf-8")))
+        assert row["note"] == "'" + text, row["note"]
+        sheet = load_workbook(ws / f"t{i}.xlsx").active
+        header = [c.value for c in sheet[1]]
+        cell = sheet.cell(2, header.index("note") + 1)
+        assert cell.data_type != "f" and cell.value.startswith("'") and len(cell.value) == len(text) + 1, cell.value  # XML reads CR as LF
+    # numbers stay numbers
+    assert isinstance(sheet.cell(2, header.index("sigma_r") + 1).value, float)
+
+
+# --- 5. device files and FIFOs as inputs ----------------------------------------------------------------
+@pytest.mark.parametrize("args", [
+    ["library", "find", "--near", "/dev/zero"],
+    ["export", "/dev/zero", "--format", "materialx", "--out", "z.mtlx"],
+    ["library", "import", "/dev/zero"],
+])
+def test_device_files_are_refused_before_a_byte_is_read(ws, capsys, args):
+    start = time.perf_counter()
+    one_line(main(args), capsys, "/dev/zero")
+    assert time.perf_counter() - start < 30
+
+
+def test_device_file_as_a_dye_target_or_record_is_refused(ws, capsys):
+    from hairdigi.inference.dye import DyeError, target_colour
+    from hairdigi.render.base.files import read_json
+    from hairdigi.render.base.records import RecordError, read_record, record_sha256
+
+    with pytest.raises(DyeError, match="not a regular file"):
+        target_colour("/dev/zero", curve=object())
+    with pytest.raises(RecordError, match="not a regular file"):
+        read_record("/dev/zero", EstimateRecord)
+    with pytest.raises(RecordError, match="not a regular file"):
+        record_sha256("/dev/zero")
+    with pytest.raises(ValueError, match="not a regular file"):
+        read_json("/dev/urandom", ValueError, "missing", "bad")
+
+
+def test_a_fifo_never_hangs_a_command(ws):
+    os.mkfifo(ws / "pipe.json")
+    run = cli("library", "find", "--near", ws / "pipe.json", cwd=ws, timeout=120,
+              env={"HAIRDIGI_LIBRARY": str(ws / "lib.sqlite"), "HAIRDIGI_SESSIONS": str(ws / "none")})
+    assert run.returncode == 2 and "not a regular file" in run.stderr and "Traceback" not in run.stderr, run.stderr
+    run = cli("export", ws / "pipe.json", "--format", "materialx", "--out", ws / "p.mtlx", cwd=ws, timeout=120)
+    assert run.returncode == 2 and "regular file" in run.stderr, run.stderr
+
+
+# --- 6. the library under a lock or read-only ---------------------------------------------------------------
+def test_a_read_only_library_is_one_line(ws, capsys):
+    assert main(["library", "info"]) == 0
+    capsys.readouterr()
+    (ws / "lib.sqlite").chmod(0o444)
+    try:
+        one_line(main(["library", "info"]), capsys, "read-only", "lib.sqlite")
+    finally:
+        (ws / "lib.sqlite").chmod(0o644)
+
+
+def test_a_held_lock_times_out_in_seconds_naming_the_library(ws, capsys):
+    from hairdigi.app.library import BUSY_TIMEOUT_S
+
+    assert main(["library", "import", "r.json"]) == 0
+    capsys.readouterr()
+    holder = sqlite3.connect(ws / "lib.sqlite", isolation_level=None)
+    holder.execute("BEGIN IMMEDIATE")            # another process writing, for longer than the timeout
+    try:
+        from hairdigi.app.library import Library
+
+        with Library() as lib:
+            sid = lib.all()[0].id
+        start = time.perf_counter()
+        one_line(main(["library", "tag", sid, "x"]), capsys, "locked", "lib.sqlite")
+        assert time.perf_counter() - start < BUSY_TIMEOUT_S + 5
+    finally:
+        holder.execute("ROLLBACK")
+        holder.close()
+    assert BUSY_TIMEOUT_S <= 5
+
+
+class SilentServer:
+    """A TCP server that accepts connections and never answers (a PostgreSQL host that hangs)."""
+
+    def __init__(self) -> None:
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(8)
+        self.port = self.sock.getsockname()[1]
+        self.held = []
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:
+                return
+            self.held.append(conn)
+
+    def close(self) -> None:
+        self.sock.close()
+        for c in self.held:
+            c.close()
+
+
+def test_a_postgresql_server_that_never_answers_times_out_without_the_password(ws, capsys, monkeypatch):
+    pytest.importorskip("psycopg")
+    from hairdigi.app.library import CONNECT_TIMEOUT_S
+
+    server = SilentServer()
+    try:
+        monkeypatch.setenv("HAIRDIGI_LIBRARY", f"postgresql://lab:s3cr3t-pw@127.0.0.1:{server.port}/hairdigi")
+        start = time.perf_counter()
+        line = one_line(main(["library", "info"]), capsys, "127.0.0.1", "lab:***@")
+        assert time.perf_counter() - start < 2 * CONNECT_TIMEOUT_S + 5
+        assert "s3cr3t" not in line
+    finally:
+        server.close()
+
+
+def test_postgresql_sessions_have_lock_and_statement_timeouts(monkeypatch):
+    psycopg = pytest.importorskip("psycopg")
+    from hairdigi.app import library as L
+
+    seen = {}
+
+    def fake_connect(where, **kw):
+        seen.update(kw)
+        raise psycopg.OperationalError("connection refused")
+
+    monkeypatch.setattr(psycopg, "connect", fake_connect)
+    with pytest.raises(L.LibraryError):
+        L._Db("postgresql://u:pw@h/db")
+    assert seen["connect_timeout"] <= 5
+    assert "lock_timeout=" in seen["options"] and "statement_timeout=" in seen["options"]
+
+
+# --- 7. one corrupt old capture --------------------------------------------------------------------------
+def test_a_corrupt_old_session_is_skipped_with_one_line_and_the_rest_imported(ws, monkeypatch):
+    old = ws / "old"
+    for name, corrupt in (("a", False), ("b", True)):
+        cap = old / name / "captures"
+        cap.mkdir(parents=True)
+        (cap / f"{CAPTURE}.json").write_text("{not json" if corrupt else json.dumps(
+            {"id": CAPTURE, "image": f"{CAPTURE}.png", "image_sha256": "1" * 64}))
+        write_record(cap / f"{CAPTURE}.result.json", estimate_record(capture=f"{CAPTURE}.png"))
+    env = {"HAIRDIGI_LIBRARY": str(ws / "old.sqlite"), "HAIRDIGI_SESSIONS": str(old)}
+    run = cli("library", "info", env=env, cwd=ws)
+    assert run.returncode == 0, run.stderr
+    skipped = [l for l in run.stderr.splitlines() if "skipped" in l]
+    assert len(skipped) == 1 and str(old / "b") in skipped[0] and "library import" in skipped[0], run.stderr
+    assert "swatches: 1" in run.stdout
+    again = cli("library", "info", env=env, cwd=ws)
+    assert again.returncode == 0 and "skipped" not in again.stderr, again.stderr
+
+
+# --- 8. secrets ------------------------------------------------------------------------------------
+def test_no_password_is_shown(monkeypatch):
+    from hairdigi.app.library import _first_line, redact
+
+    for url in ("postgresql://lab:s3cr3t@db.lab:5432/hairdigi", "postgres://lab:s3cr3t@db/x?sslmode=require",
+                "postgresql://db/x?user=lab&password=s3cr3t", "host=db password=s3cr3t dbname=x"):
+        assert "s3cr3t" not in redact(url) and "***" in redact(url), redact(url)
+    assert "s3cr3t" not in _first_line(ValueError("FATAL: bad s3cr3t"), "postgresql://lab:s3cr3t@db/x")
+
+
+def test_library_info_masks_the_password():
+    from hairdigi.app import library_cli
+
+    class Fake:
+        where, version = "postgresql://lab:s3cr3t@db/x", 2
+
+        def count(self):
+            return 0
+
+        def sessions(self):
+            return []
+
+    import io
+    from contextlib import redirect_stdout
+
+    buf = io.StringIO()
+    with redirect_stdout(buf):
+        library_cli._info(Fake(), None)
+    assert "s3cr3t" not in buf.getvalue() and "lab:***@db" in buf.getvalue()
+
+
+# --- 9. a broken Blender ------------------------------------------------------------------------------
+def test_a_broken_blender_stops_evaluate_cycles_with_exit_2(ws, capsys, monkeypatch):
+    monkeypatch.setenv("HAIRDIGI_BLENDER", "/bin/false")
+    one_line(main(["evaluate", "--cycles", "--out", "ev"]), capsys, "Blender")
+    assert not (ws / "ev" / "cycles_evaluation.json").exists()
+
+
+# --- 10. impossible values -------------------------------------------------------------------------------
+@pytest.mark.parametrize("sigma", [(-0.5, 0.9, 1.4), (1e300, 1.0, 1.0)])
+def test_impossible_absorption_is_refused_everywhere(ws, capsys, sigma):
+    write_record(ws / "bad.json", estimate_record(sigma))
+    one_line(main(["export", "bad.json", "--format", "materialx", "--out", "bad.mtlx"]), capsys, "outside 0 to")
+    one_line(main(["library", "import", "bad.json"]), capsys, "outside 0 to")
+    (ws / "dye.json").write_text(json.dumps(dye_record_json(deposit=(1e300, 0.1, 0.1))))
+    from hairdigi.render.base.dye_record import DyeRecord
+    from hairdigi.render.base.records import RecordError, read_record
+
+    with pytest.raises(RecordError, match="outside 0 to"):
+        read_record(ws / "dye.json", DyeRecord)
+    assert not (ws / "bad.mtlx").exists()
+
+
+def test_inverted_intervals_are_refused(ws):
+    from hairdigi.render.base.dye_record import DyeRecord
+    from hairdigi.render.base.records import RecordError
+
+    data = estimate_record().to_json()
+    data["uncertainty"] = {"parameters": {"melanin_ratio": {"value": 0.4, "low": 0.6, "high": 0.2}}}
+    with pytest.raises(RecordError, match="inverted"):
+        EstimateRecord.from_json(data)
+    data = estimate_record().to_json()
+    data["appearance"] = {"longitudinal_roughness": 0.3, "measured": ["longitudinal_roughness"],
+                          "intervals": {"longitudinal_roughness": {"p68": [0.4, 0.2]}}}
+    with pytest.raises(RecordError, match="inverted"):
+        EstimateRecord.from_json(data)
+    with pytest.raises(RecordError, match="inverted"):
+        DyeRecord.from_json(dye_record_json(lift_measured=True, lift_low=0.5, lift_high=0.1))
+    with pytest.raises(RecordError, match="inverted"):
+        DyeRecord.from_json(dye_record_json(deposit_low=[0.5, 0.1, 0.1], deposit_high=[0.1, 0.9, 0.9]))
+
+
+# --- 12. hostile file names ------------------------------------------------------------------------------
+@pytest.mark.parametrize("name", ["copper--v2.result.json", 'x--><evil a="1"><!--.json', "a\x1b[31mred-.json"])
+def test_materialx_is_well_formed_whatever_the_record_is_called(ws, capsys, name):
+    write_record(ws / name, estimate_record())
+    assert main(["export", name, "--format", "materialx", "--out", "out.mtlx"]) == 0
+    root = ET.parse(ws / "out.mtlx").getroot()            # raises on a malformed document
+    assert root.tag == "materialx" and not root.findall(".//evil")
+
+
+# --- 14. size --------------------------------------------------------------------------------------
+def test_a_10_mb_dye_name_is_refused_at_once(ws, capsys):
+    write_record(ws / "b.json", estimate_record())
+    write_record(ws / "d.json", estimate_record((0.9, 1.4, 2.0)))
+    start = time.perf_counter()
+    with pytest.raises(SystemExit) as exc:
+        main(["dye", "characterise", "--pair", "b.json", "d.json", "--name", "x" * 10_000_000, "--out", "y.json"])
+    assert exc.value.code == 2 and time.perf_counter() - start < 10
+    assert "longer than 200" in capsys.readouterr().err
+    assert not (ws / "y.json").exists()
+
+
+def test_an_xlsx_cell_over_excels_limit_is_refused_not_cut(ws, capsys):
+    from hairdigi.app.library import Library
+
+    assert main(["library", "import", "r.json"]) == 0
+    with Library() as lib:
+        lib.note(lib.all()[0].id, "n" * 40_000)
+    capsys.readouterr()
+    one_line(main(["library", "export", "--xlsx", "big.xlsx", "--csv", "big.csv"]), capsys, "32767", "note")
+    assert not (ws / "big.xlsx").exists() and not (ws / "big.csv").exists()
+    with pytest.raises(SystemExit):
+        main(["library", "note", "x", "n" * 20_000])         # the command line takes at most 10,000
+
+
+# --- 15. another program's SQLite file ---------------------------------------------------------------------
+def test_another_programs_database_is_left_alone(ws, capsys, monkeypatch):
+    other = ws / "firefox.sqlite"
+    con = sqlite3.connect(other)
+    con.execute("CREATE TABLE moz_places (id INTEGER, url TEXT)")
+    con.commit()
+    con.close()
+    before = sha(other)
+    monkeypatch.setenv("HAIRDIGI_LIBRARY", str(other))
+    one_line(main(["library", "info"]), capsys, "another program", "moz_places")
+    assert sha(other) == before and not (ws / "firefox.sqlite-wal").exists()
+
+
+# --- 16. records of the wrong kind ---------------------------------------------------------------------------
+def test_records_of_another_kind_are_named_not_read_as_estimates(ws, capsys):
+    (ws / "dye.json").write_text(json.dumps(dye_record_json()))
+    one_line(main(["library", "import", "dye.json"]), capsys, "'dye' record")
+    one_line(main(["library", "import", "s/calibration.json"]), capsys, "'calibration' record")
+    (ws / "profile.json").write_text(json.dumps({"matrix": [[1, 0, 0]] * 3, "method": "linear"}))
+    one_line(main(["library", "import", "profile.json"]), capsys, "'calibration' record")
+    (ws / "other.json").write_text(json.dumps({"anything": 1}))
+    one_line(main(["export", "other.json", "--format", "materialx", "--out", "o.mtlx"]), capsys, "not an estimate")
+    from hairdigi.inference.dye import DyeError, load_sample
+
+    with pytest.raises(DyeError, match="'dye' record"):
+        load_sample(ws / "dye.json")
+
+
+# --- 17. small things --------------------------------------------------------------------------------------
+@pytest.mark.parametrize("k", ["0", "-1"])
+def test_find_k_must_be_positive(ws, capsys, k):
+    with pytest.raises(SystemExit) as exc:
+        main(["library", "find", "--near", "#8a4a30", "--k", k])
+    assert exc.value.code == 2
+
+
+def test_repeated_scene_keeps_every_one():
+    from hairdigi.app.cli import build_parser
+
+    args = build_parser().parse_args(["dye", "apply", "d.json", "--base", "b.json", "--out", "p.json", "--render",
+                                      "p.png", "--scene", "wavy", "--scene", "bob"])
+    assert args.scene == ["wavy", "bob"]
+
+
+def test_like_wildcards_match_literally(ws):
+    from hairdigi.app.library import Library, LibraryError
+
+    assert main(["library", "import", "r.json"]) == 0
+    with Library() as lib:
+        with pytest.raises(LibraryError, match="no swatch"):
+            lib.resolve("%")
+        with pytest.raises(LibraryError, match="no swatch"):
+            lib.resolve("_")
+        assert lib.all("%") == [] and lib.all("_") == []
+        sid = lib.all()[0].id
+        lib.note(sid, "100% grey_ish")
+        assert [s.id for s in lib.all("0% g")] == [sid] and [s.id for s in lib.all("y_i")] == [sid]
+
+
+def test_escape_sequences_never_reach_the_terminal(ws, capsys):
+    from hairdigi.app.library import Library
+
+    assert main(["library", "import", "r.json"]) == 0
+    with Library() as lib:
+        sid = lib.all()[0].id
+        lib.note(sid, "\x1b]0;pwned\x07\x1b[2J note\r")
+    capsys.readouterr()
+    assert main(["library", "find", "--near", "#8a4a30"]) == 0
+    out = capsys.readouterr().out
+    assert "\x1b" not in out and "\x07" not in out and "\r" not in out and "note" in out
