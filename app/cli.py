@@ -361,7 +361,8 @@ def cmd_rig(args: argparse.Namespace) -> int:
 def cmd_app(args: argparse.Namespace) -> int:
     from hairdigi.app.gui.main import run_app
 
-    return run_app(sim=args.sim, session=args.session, tour=args.tour)
+    camera = None if args.genicam is None else f"genicam:{args.genicam}"
+    return run_app(sim=args.sim, session=args.session, tour=args.tour, camera=camera)
 
 
 def cmd_model_card(args: argparse.Namespace) -> int:
@@ -547,6 +548,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("rig", help="the capture chain without a window (use --sim without hardware)")
     p.add_argument("--sim", action="store_true", help="the simulated rig: a pty light board and rendered frames")
     p.add_argument("--camera", default="0", help="OpenCV camera index or URL (real rig)")
+    p.add_argument("--genicam", nargs="?", const="", metavar="ID", help="a GenICam camera through Aravis (the first "
+                   "found, or its ID: arv-tool-0.8 lists them); with --sim, the simulated rig through Aravis's fake camera")
     p.add_argument("--port", help="serial port of the light board (real rig); see --list-ports")
     p.add_argument("--roi", help="swatch area x,y,w,h in the camera frame (real rig; default: found)")
     p.add_argument("--list-ports", action="store_true", help="list serial ports and light boards, then exit")
@@ -568,6 +571,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("app", help="the desktop app")
     p.add_argument("--sim", action="store_true", help="use the simulated rig")
+    p.add_argument("--genicam", nargs="?", const="", metavar="ID", help="a GenICam camera (as rig --genicam)")
     p.add_argument("--session", default=None, help="session folder (default: from the settings)")
     p.add_argument("--tour", help="calibrate and capture once, time it, save a screenshot in this folder, quit")
     p.set_defaults(func=cmd_app)

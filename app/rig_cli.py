@@ -37,7 +37,8 @@ def open_session(args) -> RigSession:
             simulated["hidden"] = load_params(args.hidden)
             simulated["appearance"] = hidden_appearance(args.hidden)
     roi = tuple(int(v) for v in args.roi.split(",")) if args.roi else None
-    return open_rig(args.session, args.sim, args.camera, args.port, roi, require_lights=False, **simulated)[0]
+    camera = args.camera if getattr(args, "genicam", None) is None else f"genicam:{args.genicam}"
+    return open_rig(args.session, args.sim, camera, args.port, roi, require_lights=False, **simulated)[0]
 
 
 def hidden_appearance(path):

@@ -109,9 +109,10 @@ class RigSession:
     def simulated_rig(cls, folder: str | Path, hidden: HairParams | None = None, camera_model=None,
                       dead: set[int] | None = None, spp: int = 32, encoder=None,
                       pose: CameraPose = CameraPose(), half_width: float = RIG_HALF_WIDTH,
-                      appearance=None, strand_seed: int = 0) -> "RigSession":
+                      appearance=None, strand_seed: int = 0, genicam: str | None = None) -> "RigSession":
         """The bench in software: a pty light board, the rendered rig, and a camera model; the hidden
-        swatch is ``hidden`` with ``appearance`` (shine and fibre variation; default uniform)."""
+        swatch is ``hidden`` with ``appearance`` (shine and fibre variation; default uniform). With
+        ``genicam`` (Aravis's fake camera ID) the frames come through the GenICam path as 12-bit Bayer."""
         from hairdigi.render.base.appearance import DEFAULT_APPEARANCE
         from hairdigi.hardware.sim_lights import SimulatedLightBoard
         from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SimRig
@@ -122,7 +123,13 @@ class RigSession:
         rig = SimRig(hidden or DEFAULT_HIDDEN, camera_model or CameraModel(), spp=spp,
                      dead_lights=set(dead or ()), board=board, pose=pose, half_width=half_width,
                      appearance=appearance or DEFAULT_APPEARANCE, strand_seed=strand_seed)
-        session = cls(rig, lights, folder, rig.roi, encoder, simulated=True)
+        camera = rig
+        if genicam is not None:    # the same rig seen through Aravis's fake camera, as a 12-bit lab camera
+            from hairdigi.hardware.sim_genicam import open_lab_camera
+
+            response = np.asarray(rig.camera.cast, np.float32) * np.float32(2.0 ** rig.camera.exposure_ev)
+            camera = open_lab_camera(rig.radiance, response=response, size=rig.size, device_id=genicam)[0]
+        session = cls(camera, lights, folder, rig.roi, encoder, simulated=True)
         session._board = board
         for i in range(N_LIGHTS):
             lights.set_light(i, True, 255)
@@ -236,10 +243,9 @@ class RigSession:
     def calibrate(self, method: str | None = None, frames: int = 4) -> CalibrationProfile:
         """Fit a CCM on the mean of a few frames, averaged in linear light (less noise), and save the profile."""
         from hairdigi.inference.calibration import DEFAULT_METHOD
-        from hairdigi.inference.preprocess import to_linear
         from hairdigi.render.srgb import linear_to_srgb8
 
-        linear = np.mean([to_linear(self.frame().srgb) for _ in range(frames)], axis=0)
+        linear = np.mean([frame_linear(self.frame()) for _ in range(frames)], axis=0)
         self.profile = calibrate(linear_to_srgb8(linear), method or DEFAULT_METHOD, settings=self.settings(),
                                  linear=linear)
         save_profile(self.profile_path, self.profile)
@@ -297,13 +303,14 @@ class RigSession:
         image_path, meta_path, capture = save_capture(
             self.folder / "captures", frame.srgb, lights=self.settings().get("lights"), frame_meta=frame.meta,
             calibration=self.profile, simulated=self.simulated, swatch_roi=roi,
-            light_frames=[f.srgb for f in singles], light_exposures=tuple(factors))
+            light_frames=[f.srgb for f in singles], light_exposures=tuple(factors),
+            mosaic=None if frame.mosaic is None else (frame.mosaic, frame.meta["bayer"]))
         result = CaptureResult(capture.id, image_path, meta_path)
         result.blocked, chart = self._check(frame.srgb)
-        if estimate and not result.blocked:
-            _estimate(result, frame.srgb, None, self.encoder_or_reason, self.profile, self.region(frame.srgb),
+        if estimate and not result.blocked:   # a raw frame is estimated from its linear light, as a RAW still
+            _estimate(result, frame.srgb, frame.linear, self.encoder_or_reason, self.profile, self.region(frame.srgb),
                       profile_warnings(self.profile, self.settings()), on_encoder_estimate,
-                      [(f.srgb, k) for f, k in zip(singles, factors)], chart)
+                      [(f.srgb if f.linear is None else f.linear, k) for f, k in zip(singles, factors)], chart)
         result.seconds = time.perf_counter() - start
         _write_result(self.folder, result, roi)
         return result
@@ -487,22 +494,47 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason) -> Cap
     return result
 
 
+def genicam_id(camera) -> str | None:
+    """The GenICam device ID a camera setting names (``genicam:ID``; "" for ``genicam``: the first found), or None."""
+    name, _, device = str(camera).partition(":")
+    return device if name == "genicam" else None
+
+
+def frame_linear(frame) -> np.ndarray:
+    """A frame's linear RGB: the camera's own where it has one (raw Bayer), else its 8-bit sRGB decoded."""
+    from hairdigi.inference.preprocess import to_linear
+
+    return frame.linear if frame.linear is not None else to_linear(frame.srgb)
+
+
 def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", port: str | None = None, roi=None,
              fallback: bool = False, require_lights: bool = True, **simulated) -> tuple[RigSession, str | None]:
     """The rig for the command line and the window alike, and why it is the simulated one (or None).
 
-    ``sim`` gives the simulated rig (``simulated`` goes to :meth:`RigSession.simulated_rig`). Otherwise
+    ``camera`` is an OpenCV index or URL, or ``genicam[:ID]`` (a GenICam camera; with ``sim``, the simulated
+    rig through Aravis's fake camera). ``sim`` gives the simulated rig (``simulated`` goes to
+    :meth:`RigSession.simulated_rig`). Otherwise
     the camera and the light board on ``port``, found on the serial ports when empty; without a board
     the session has no lights unless ``require_lights``. When they do not answer, ``fallback`` gives
     the simulated rig and the reason; without it the CameraError or LightError is raised.
     """
+    genicam = genicam_id(camera)
+    if sim and genicam is not None:
+        from hairdigi.hardware.genicam import FAKE_ID
+
+        return RigSession.simulated_rig(folder, genicam=genicam or FAKE_ID, **simulated), None
     if not sim:
         from hairdigi.hardware.cameras import CameraError, OpenCVCamera
         from hairdigi.hardware.lights import discover
 
         opened = None
         try:
-            opened = OpenCVCamera(int(camera) if str(camera).isdigit() else camera)
+            if genicam is not None:
+                from hairdigi.hardware.genicam import GenICamCamera
+
+                opened = GenICamCamera(genicam or None)
+            else:
+                opened = OpenCVCamera(int(camera) if str(camera).isdigit() else camera)
             port = port or next((p for p, _ in discover()), None)
             if port is None and require_lights:
                 raise LightError("no light board answered on any serial port; plug it in, or name it with --port")

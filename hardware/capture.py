@@ -43,9 +43,22 @@ def _write_png(path: Path, srgb: np.ndarray) -> None:
     _atomic_bytes(path, png.tobytes())
 
 
+def _write_dng(path: Path, mosaic: np.ndarray, bayer: dict) -> None:
+    """A raw Bayer frame as it came from the sensor, as a DNG that ``read_raw`` decodes."""
+    import io
+
+    from hairdigi.hardware.bayer import write_dng
+
+    data = io.BytesIO()
+    write_dng(data, mosaic, bayer["layout"], bayer["black"], bayer["white"], bayer.get("model", "hairdigi GenICam camera"))
+    _atomic_bytes(path, data.getvalue())
+
+
 def save_capture(folder: str | os.PathLike, srgb: np.ndarray | None = None, raw_path: str | os.PathLike | None = None,
-                 capture_id: str | None = None, light_frames: tuple | list = (), **fields) -> tuple[Path, Path, CaptureRecord]:
-    """Write ``<id>.png`` (lossless, as captured) or a copy of the RAW file, each light's own frame
+                 capture_id: str | None = None, light_frames: tuple | list = (),
+                 mosaic: tuple[np.ndarray, dict] | None = None, **fields) -> tuple[Path, Path, CaptureRecord]:
+    """Write ``<id>.png`` (lossless, as captured), a copy of the RAW file, or ``<id>.dng`` of a raw Bayer
+    frame (``mosaic``: its counts and ``{layout, black, white}``), each light's own frame
     ``<id>-light<i>.png`` (``light_frames``, light order), then the capture record ``<id>.json``
     (``fields`` are ``CaptureRecord``'s). Nothing is processed before all are on disk.
 
@@ -65,6 +78,9 @@ def save_capture(folder: str | os.PathLike, srgb: np.ndarray | None = None, raw_
         image_path = folder / f"{capture_id}{raw_path.suffix.lower()}"
         with atomic_path(image_path) as tmp:
             shutil.copyfile(raw_path, tmp)
+    elif mosaic is not None:
+        image_path = folder / f"{capture_id}.dng"
+        _write_dng(image_path, *mosaic)
     elif srgb is not None:
         image_path = folder / f"{capture_id}.png"
         _write_png(image_path, srgb)

@@ -120,7 +120,8 @@ class FrameSource:
                 self._read()
             except Exception as exc:   # a driver error stops the feed; next_frame reports it
                 with self._published:
-                    self.error = f"{getattr(self.camera, 'name', 'camera')}: {exc}"
+                    name = getattr(self.camera, "name", "camera")
+                    self.error = str(exc) if str(exc).startswith(name) else f"{name}: {exc}"
                     self._published.notify_all()
                     report = list(self._error_subscribers)
                 for on_error in report:

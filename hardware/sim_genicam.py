@@ -37,6 +37,9 @@ WHITE = 4095
 REGISTERS = {"BlackLevel": 0xF000, "ExposureAuto": 0xF004, "BalanceWhiteAuto": 0xF008}
 #: The exposure at which a scene's linear value 1.0 reaches the white level at gain 0.
 REFERENCE_EXPOSURE_US = 10_000.0
+#: The optical low-pass filter's blur, in pixels (a Gaussian's sigma): without one, each colour samples
+#: a quarter of the pixels, and a rendered scene's per-pixel noise aliases into the chart's patches.
+OLPF_SIGMA = 0.8
 #: Read noise of the simulated sensor, in counts.
 READ_NOISE = 1.5
 
@@ -101,8 +104,10 @@ def _pointer(gobject) -> int:
 class LabSensor:
     """A 12-bit RGGB sensor filling the fake camera's buffers from ``scene()``: (H, W, 3) linear light."""
 
-    def __init__(self, scene: Callable[[], np.ndarray], response=(1.0, 1.0, 1.0), seed: int = 0) -> None:
+    def __init__(self, scene: Callable[[], np.ndarray], response=(1.0, 1.0, 1.0), seed: int = 0,
+                 blur: float = OLPF_SIGMA) -> None:
         self.scene = scene
+        self.blur = blur
         self.response = np.asarray(response, np.float32)
         self._rng = np.random.default_rng(seed)
         self._lib = _library()
@@ -128,6 +133,8 @@ class LabSensor:
         light = np.asarray(self.scene(), np.float32)
         if light.shape[:2] != (height, width):
             light = cv2.resize(light, (width, height), interpolation=cv2.INTER_AREA)
+        if self.blur:     # the optical low-pass filter in front of a Bayer sensor
+            light = cv2.GaussianBlur(light, (0, 0), self.blur)
         black = self.register("BlackLevel")
         scale = (exposure_us / REFERENCE_EXPOSURE_US) * 10.0 ** (gain / 20.0) * (WHITE - black)
         rgb = light * (self.response * np.float32(scale))
@@ -180,9 +187,13 @@ def use_lab_genicam() -> Path:
 
 
 def open_lab_camera(scene: Callable[[], np.ndarray], settings: GenICamSettings = GenICamSettings(),
-                    response=(1.0, 1.0, 1.0), size: tuple[int, int] | None = None) -> tuple[GenICamCamera, LabSensor]:
+                    response=(1.0, 1.0, 1.0), size: tuple[int, int] | None = None,
+                    device_id: str = FAKE_ID) -> tuple[GenICamCamera, LabSensor]:
     """The fake camera as a 12-bit lab camera showing ``scene``, opened through :class:`GenICamCamera`;
     ``size`` (width, height) sets its region."""
+    if device_id != FAKE_ID:
+        raise CameraError(f"genicam:{device_id}: the simulated rig shows through Aravis's in-process fake camera "
+                          f"({FAKE_ID}) only; leave out --sim for a real camera")
     use_lab_genicam()
     if size is not None:
         settings = GenICamSettings(**{**settings.__dict__, "region": (0, 0, int(size[0]), int(size[1]))})

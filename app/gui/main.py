@@ -46,11 +46,12 @@ class SettingsDialog(QDialog):
         self.accept()
 
 
-def run_app(sim: bool = False, session: str | None = None, tour: str | None = None) -> int:
+def run_app(sim: bool = False, session: str | None = None, tour: str | None = None, camera: str | None = None) -> int:
+    """The window on the rig; ``camera`` (an OpenCV index or URL, or ``genicam[:ID]``) overrides the setting."""
     app = QApplication.instance() or QApplication(sys.argv[:1])
     settings = read_settings()
     folder = Path(session or settings["output_folder"])
-    rig, reason = open_rig(folder, sim, settings["camera"], settings["serial_port"], fallback=True)
+    rig, reason = open_rig(folder, sim, camera or settings["camera"], settings["serial_port"], fallback=True)
     offscreen = os.environ.get("QT_QPA_PLATFORM") == "offscreen"
     window = MainWindow(rig, {"hairstyle_size": settings["hairstyle_size"]}, strand_view=not offscreen)
     menu = window.menuBar().addMenu("&File")

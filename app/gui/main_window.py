@@ -76,7 +76,8 @@ class MainWindow(QMainWindow):
         self.feed.start()
         self.refresh_lights()
         self.refresh_calibration()
-        source = "simulated rig (no camera or light board found, or --sim)" if session.simulated else "camera"
+        camera = getattr(session.camera, "name", "camera")
+        source = f"simulated rig (no camera or light board found, or --sim); {camera}" if session.simulated else camera
         self.statusBar().showMessage(f"{source}; session {session.folder}")
         if self.model.settings.warm:   # the preview scenes are built before the first capture needs them
             self.run_task(self.model.warm_work())
