@@ -6,19 +6,19 @@ APT_PACKAGES := libllvm19 xvfb xauth libgl1 libegl1 libglx-mesa0 libgl1-mesa-dri
 	libfontconfig1 libxkbcommon-x11-0 libxcb-icccm4 libxcb-keysyms1 libxcb-cursor0 libxcb-image0 \
 	libxcb-render-util0 libxcb-xkb1 libxcb-randr0 libxcb-shape0 libxcb-xinerama0 \
 	gcc-avr avr-libc arduino-core-avr simavr libsimavr-dev libelf-dev gcc make pkg-config \
-	postgresql
+	postgresql libaravis-0.8-0 gir1.2-aravis-0.8 aravis-tools aravis-tools-cli libgirepository1.0-dev libcairo2-dev
 export OMP_WAIT_POLICY := PASSIVE
 
 .PHONY: setup system-deps demo app test bench clean
 
-system-deps:  ## Debian packages: libLLVM 19 for Mitsuba's llvm variant, Xvfb and xcb for Qt/VTK
+system-deps:  ## Debian packages: libLLVM 19 for Mitsuba's llvm variant, Xvfb and xcb for Qt/VTK, Aravis 0.8 (GenICam cameras, its fake camera) and what PyGObject builds against
 	@if dpkg -s $(APT_PACKAGES) >/dev/null 2>&1; then echo "system packages present"; \
 	else apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(APT_PACKAGES); fi
 
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e ".[test,train,cluster]"
+	$(PY) -m pip install -q -e ".[test,train,cluster,genicam]"
 	touch $@
 
 setup: system-deps $(VENV)/.installed
