@@ -119,9 +119,11 @@ class ResponseCurve:
         return {"sigma": self.sigma.tolist(), "mean": self.mean.tolist(), "seconds": self.seconds}
 
 
-def scene_for(view: View, settings: RefineSettings, appearance: Appearance | None = None):
+def scene_for(view: View, settings: RefineSettings, appearance: Appearance | None = None,
+              swatch_model: str | None = None):
     """The scene and render size that show what the capture's fitted pixels show (with the hair's
-    ``appearance``; None: the default uniform hair)."""
+    ``appearance``; None: the default uniform hair), on the swatch structure ``swatch_model`` (None:
+    the default; ``render.swatch_family``)."""
     from hairdigi.render.renderer import SceneSpec
 
     look = None if appearance is None or appearance == DEFAULT_APPEARANCE else appearance
@@ -129,9 +131,9 @@ def scene_for(view: View, settings: RefineSettings, appearance: Appearance | Non
         film, crop, _ = view.render_plan(settings.size * settings.size)
         return SceneSpec("swatch", camera=view.pose, framing="rig", target=view.target,
                          half_width=view.half_width, crop=crop, strand_seed=settings.strand_seed,
-                         appearance=look), film
+                         appearance=look, swatch_model=swatch_model), film
     return SceneSpec("swatch", camera=view, framing=settings.framing, strand_seed=settings.strand_seed,
-                     appearance=look), settings.size
+                     appearance=look, swatch_model=swatch_model), settings.size
 
 
 def varied_curve(curve: ResponseCurve, appearance: Appearance) -> ResponseCurve:
@@ -162,10 +164,11 @@ _CURVE_LOCK = threading.Lock()   # one curve at a time: the app's warm-up and a 
 
 
 def response_curve(view: View, settings: RefineSettings = RefineSettings(), renderer=None,
-                   cache: bool = True) -> ResponseCurve:
-    """The swatch's response curve seen from ``view``: ``len(levels) / 3`` renders, cached on disk."""
+                   cache: bool = True, swatch_model: str | None = None) -> ResponseCurve:
+    """The swatch's response curve seen from ``view``: ``len(levels) / 3`` renders, cached on disk;
+    on the structure ``swatch_model`` (None: the default) in layout ``settings.strand_seed``."""
     with _CURVE_LOCK:
-        return _response_curve(view, settings, renderer, cache)
+        return _response_curve(view, settings, renderer, cache, swatch_model)
 
 
 def curve_settings(settings: RefineSettings) -> dict:
@@ -189,11 +192,12 @@ def cache_key(head: list, spec, variant: str) -> str:
     return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
 
 
-def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool) -> ResponseCurve:
+def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool,
+                    swatch_model: str | None = None) -> ResponseCurve:
     from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()
-    spec, size = scene_for(view, settings)
+    spec, size = scene_for(view, settings, swatch_model=swatch_model)
     key = cache_key([2, curve_settings(settings), view_key(view)], spec, renderer.variant)
     path = cache_dir() / "response" / f"curve-{key}.json"
     if cache and path.exists():

@@ -68,18 +68,20 @@ _TABLES_LOCK = threading.Lock()   # one build at a time: the app's warm-up and a
 
 
 def shine_tables(view: View, settings: RefineSettings = RefineSettings(), betas=BETA_GRID, renderer=None,
-                 cache: bool = True) -> ShineTables:
-    """Render (or load) the per-light tables at ``view``: ``len(betas) x N_LIGHTS x 4`` small renders.
-    A second caller while they render waits, then loads them from the cache."""
+                 cache: bool = True, swatch_model: str | None = None) -> ShineTables:
+    """Render (or load) the per-light tables at ``view``: ``len(betas) x N_LIGHTS x 4`` small renders,
+    on the swatch structure ``swatch_model`` (None: the default; ``render.swatch_family``). A second
+    caller while they render waits, then loads them from the cache."""
     with _TABLES_LOCK:
-        return _shine_tables(view, settings, betas, renderer, cache)
+        return _shine_tables(view, settings, betas, renderer, cache, swatch_model)
 
 
-def _shine_tables(view: View, settings: RefineSettings, betas, renderer, cache: bool) -> ShineTables:
+def _shine_tables(view: View, settings: RefineSettings, betas, renderer, cache: bool,
+                  swatch_model: str | None = None) -> ShineTables:
     from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()
-    spec, size = scene_for(view, settings)
+    spec, size = scene_for(view, settings, swatch_model=swatch_model)
     key = cache_key([1, curve_settings(settings), view_key(view), list(betas)], spec, renderer.variant)
     path = cache_dir() / "response" / f"shine-{key}.npz"
     if cache and path.exists():

@@ -31,6 +31,7 @@ from hairdigi.render.fibres import FIBRE_GROUPS, group_keys, group_sigma_a, spli
 from hairdigi.render.srgb import linear_to_srgb8
 from hairdigi.render.strands import (STYLES, Strands, hairstyle_strands, layered_radius,
                                      layered_swatch_strands, swatch_strands)
+from hairdigi.render.swatch_family import STRUCTURES, structure_strands
 from hairdigi.render.variant import is_jit, load_scene, mi, select_variant
 
 #: The scene of a ``.hair`` model (``SceneSpec.hair_file``).
@@ -38,8 +39,9 @@ HAIR_FILE_SCENE = "hairfile"
 #: The swatch's strand models (``SceneSpec.swatch_model``): "layered", ``layered_swatch_strands`` (no
 #: fibre meets another, optically thick: the default since issue 18); "today", ``swatch_strands`` (the
 #: first swatch: a few layers whose fibres pass through one another, 1.4-1.8 ΔE2000 lighter at equal
-#: sigma_a). resources/models/swatch-structure.md measures both.
-SWATCH_MODELS = ("layered", "today")
+#: sigma_a). resources/models/swatch-structure.md measures both. The others are ``render.swatch_family``'s
+#: physical structures (deposited, tilted layers, ...), which ``hairdigi evaluate --structures`` hides.
+SWATCH_MODELS = ("layered", "today") + tuple(k for k in STRUCTURES if k != "layered")
 DEFAULT_SWATCH_MODEL = "layered"
 
 
@@ -173,7 +175,9 @@ def strands_for(spec: SceneSpec) -> Strands:
     if spec.name == "swatch":
         if spec.swatch_model == "layered":
             return layered_swatch_strands(spec.n_strands, seed=spec.strand_seed, radius=layered_radius(spec.n_strands))
-        return swatch_strands(spec.n_strands, seed=spec.strand_seed)
+        if spec.swatch_model == "today":
+            return swatch_strands(spec.n_strands, seed=spec.strand_seed)
+        return structure_strands(spec.swatch_model, spec.n_strands, seed=spec.strand_seed)
     if spec.name == HAIR_FILE_SCENE:
         return hair_model_strands(spec.hair_file, spec.n_strands, seed=spec.strand_seed)
     return hairstyle_strands(spec.name, spec.n_strands, seed=spec.strand_seed)

@@ -1,0 +1,272 @@
+"""``hairdigi evaluate --structures``: the estimate on swatches of other physical structures.
+
+hairdigi's refinement inverts its own swatch (``layered``). A lab's swatch lies another way, and at
+equal ``sigma_a`` another structure renders another colour. This evaluation hides a Table 1 hair (the
+hard cases and random draws, each with its own shine) in every structure of ``render.swatch_family``,
+in a strand layout no estimate renders, and asks whether the ``sigma_a`` returned is the hair's:
+
+1. the hidden swatch is rendered at the rig's swatch pose, all hair in view, under all lights and each
+   light alone (1.5 EV longer, as the rig takes them), through the camera model
+   (``evaluate.capture``: noise, 12-bit ADC, 8-bit sRGB);
+2. ``estimate_image`` estimates it (the encoder, the shine from the single-light frames, refinement);
+   the answer as shipped (``shipped``: the default structure's ``sigma_a``) and mapped to the family
+   (``family``: ``inference.structure.to_family``) are both judged;
+3. each answer is rendered back **on the hidden swatch's own strands** with the truth's sampler seed
+   and compared with the truth: at the rig's pose (**fit**) and away from it (**transfer**: another
+   camera, a key light and a grey sky). Mean-colour ΔE2000; the ``sigma_a``'s relative error.
+4. **Layouts**: the named hairs are hidden again in a second layout of one structure; the two answers,
+   rendered on one layout, differ by the **layout nuisance**.
+
+With ``HAIRDIGI_BLENDER`` set, ``blender=True`` renders the hidden swatches and the judge in Blender
+Cycles instead of Mitsuba (another renderer as well as another structure).
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from hairdigi.render.base.params import HairParams, sample_params
+from hairdigi.render.base.rig_geometry import N_LIGHTS, RIG_SWATCH_POSE, TRANSFER_POSE
+
+SEED = 2_026_1126
+#: The hard cases: Table 1 and the shine.
+CASES = {
+    "black": (HairParams((20, 20, 20), 0.2, 0.97, 0.95), 0.3),
+    "platinum, glossy": (HairParams((245, 240, 225), 0.15, 0.04, 0.2), 0.18),
+    "saturated red, rough": (HairParams((230, 20, 30), 1.0, 0.08, 0.3), 0.45),
+    "saturated blue": (HairParams((30, 60, 230), 0.9, 0.1, 0.5), 0.3),
+    "copper": (HairParams((190, 80, 40), 0.5, 0.5, 0.6), 0.25),
+}
+#: The hidden structures (``render.swatch_family``): hairdigi's own and the physical family.
+HIDDEN = ("layered", "deposited", "deposited-coarse", "spread", "wavy", "tilted", "loose")
+#: The structure the layout nuisance is measured on, and the layouts (seeds no estimate renders).
+LAYOUT_STRUCTURE, LAYOUT_SEEDS = "deposited", (601, 602)
+LIGHT_EV = 1.5
+MODES = ("shipped", "family")
+
+
+@dataclass(frozen=True)
+class StructureSet:
+    random: int = 2          # random Table 1 draws beside the named cases
+    size: int = 48           # the input's and the judge's side in pixels
+    spp: int = 128           # samples per pixel, input and judge
+    structures: tuple[str, ...] = HIDDEN
+    layouts: bool = True     # measure the layout nuisance
+    blender: bool = False    # hidden swatches and judge in Blender Cycles (HAIRDIGI_BLENDER)
+
+
+def hidden_hairs(config: StructureSet) -> list[tuple[str, HairParams, float]]:
+    """(name, Table 1, shine) of each hidden hair."""
+    from hairdigi.render.base.appearance import APPEARANCE_DRAW
+
+    rng = np.random.default_rng(SEED)
+    drawn = [(f"random {i}", sample_params(rng), round(float(rng.uniform(*APPEARANCE_DRAW["longitudinal_roughness"])), 3))
+             for i in range(config.random)]
+    return [(n, h, b) for n, (h, b) in CASES.items()] + drawn
+
+
+class _Mitsuba:
+    """Renders the hidden swatch's scenes in Mitsuba."""
+
+    def __init__(self, config: StructureSet) -> None:
+        from hairdigi.render.renderer import default_renderer
+
+        self.config, self.renderer = config, default_renderer()
+
+    def mean(self, sigma, structure: str, layout: int, scene: str, shine: float, pixels: bool = False):
+        from hairdigi.render.base.appearance import Appearance
+        from hairdigi.render.renderer import SceneSpec
+        from hairdigi.render.scenes import KEY_SKY
+
+        look = Appearance(longitudinal_roughness=float(shine))
+        if scene == "transfer":
+            spec = SceneSpec("swatch", env=KEY_SKY, lights=(0.0,) * N_LIGHTS, camera=TRANSFER_POSE, framing="crop",
+                             swatch_model=structure, strand_seed=layout, appearance=look)
+        else:
+            lights = (1.0,) * N_LIGHTS if scene == "rig" else tuple(
+                1.0 if f"light{i}" == scene else 0.0 for i in range(N_LIGHTS))
+            spec = SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop", swatch_model=structure,
+                             strand_seed=layout, lights=lights, appearance=look)
+        result = self.renderer.render(np.asarray(sigma, float), spec, self.config.size, self.config.spp, 11 + layout)
+        return result.linear if pixels else result.linear.reshape(-1, 3).mean(0)
+
+
+class _Cycles:
+    """Renders the hidden swatch's scenes in Blender Cycles (``evaluate_cycles.cycles_render``)."""
+
+    def __init__(self, config: StructureSet, folder: Path) -> None:
+        from hairdigi.inference.training.evaluate_cycles import CyclesSet
+
+        self.cycles = CyclesSet(size=config.size, spp=config.spp)
+        self.folder = folder
+
+    def mean(self, sigma, structure: str, layout: int, scene: str, shine: float, pixels: bool = False):
+        from hairdigi.inference.training.evaluate_cycles import cycles_render
+        from hairdigi.render.swatch_family import structure_strands
+        from hairdigi.render.renderer import defaults_for
+
+        strands = structure_strands(structure, defaults_for("swatch").strands, layout)
+        out = cycles_render(sigma, strands, scene, self.cycles, layout, self.folder, pixels=pixels, shine=shine)
+        return np.asarray(out["pixels"], np.float32) if pixels else np.asarray(out["mean_linear"])
+
+
+def _de(a, b) -> float:
+    from hairdigi.render.metrics import delta_e2000
+
+    return round(float(delta_e2000(np.clip(np.asarray(a), 1e-9, None), np.clip(np.asarray(b), 1e-9, None))), 3)
+
+
+def _rel(sigma, truth) -> float:
+    return round(float(np.median(np.abs(np.asarray(sigma, float) / np.maximum(truth, 1e-6) - 1))), 4)
+
+
+def _estimate(render, truth, structure: str, layout: int, shine: float, encoder, family, index: int):
+    """The hidden swatch's capture and single-light frames, estimated: (result, {mode: sigma_a})."""
+    from hairdigi.inference.estimate import estimate_image
+    from hairdigi.inference.preprocess import to_linear
+    from hairdigi.inference.structure import to_family
+    from hairdigi.inference.training.evaluate import capture
+
+    frame = capture(render.mean(truth, structure, layout, "rig", shine, pixels=True).astype(np.float32), index)
+    lights = [to_linear(capture(render.mean(truth, structure, layout, f"light{i}", shine, pixels=True)
+                                .astype(np.float32) * np.float32(2.0 ** LIGHT_EV), index + 7 * (i + 1)))
+              / np.float32(2.0 ** LIGHT_EV) for i in range(N_LIGHTS)]
+    result = estimate_image(frame, encoder, light_images=lights)
+    if result.refinement is None:
+        raise RuntimeError("no refinement")
+    sigma = np.asarray(result.refinement.sigma_a, float)
+    return result, {"shipped": sigma, "family": to_family(sigma, family)}
+
+
+def _one(name: str, hidden: HairParams, shine: float, structure: str, layout: int, render, encoder, family,
+         index: int) -> dict:
+    from hairdigi.inference.structure import nuisance
+    from hairdigi.render.absorption import hair_sigma_a
+
+    truth = hair_sigma_a(hidden)
+    row = {"hidden": name, "structure": structure, "layout": layout, "true_shine": shine,
+           "true_sigma_a": [round(float(v), 5) for v in truth]}
+    start = time.perf_counter()
+    result, answers = _estimate(render, truth, structure, layout, shine, encoder, family, index)
+    est_shine = result.appearance.value.longitudinal_roughness if result.appearance else shine
+    truth_rig = render.mean(truth, structure, layout, "rig", shine)
+    truth_away = render.mean(truth, structure, layout, "transfer", shine)
+    row.update({"estimate_s": round(result.seconds, 2), "est_shine": est_shine,
+                "twin_residual": round(result.refinement.residual_de2000, 3),
+                "warnings": " | ".join(w.kind.value for w in result.warnings),
+                "structure_nuisance": max(nuisance(answers["family"], family).values())})
+    for mode, sigma in answers.items():
+        row.update({f"{mode}_sigma_a": [round(float(v), 5) for v in sigma],
+                    f"{mode}_sigma_rel_error": _rel(sigma, truth),
+                    f"{mode}_fit": _de(render.mean(sigma, structure, layout, "rig", est_shine), truth_rig),
+                    f"{mode}_transfer": _de(render.mean(sigma, structure, layout, "transfer", est_shine), truth_away)})
+    row["seconds"] = round(time.perf_counter() - start, 1)
+    return row
+
+
+def _layout_row(name: str, hidden: HairParams, shine: float, render, encoder, family, index: int) -> dict:
+    """One hair hidden in two layouts of ``LAYOUT_STRUCTURE``: its two answers rendered on the first."""
+    from hairdigi.render.absorption import hair_sigma_a
+
+    truth = hair_sigma_a(hidden)
+    a, b = (_estimate(render, truth, LAYOUT_STRUCTURE, s, shine, encoder, family, index + k)
+            for k, s in enumerate(LAYOUT_SEEDS))
+    row = {"hidden": name, "structure": LAYOUT_STRUCTURE, "layouts": list(LAYOUT_SEEDS)}
+    for mode in MODES:
+        shine_a = a[0].appearance.value.longitudinal_roughness if a[0].appearance else shine
+        row[f"{mode}_layout_nuisance"] = _de(render.mean(a[1][mode], LAYOUT_STRUCTURE, LAYOUT_SEEDS[0], "rig", shine_a),
+                                             render.mean(b[1][mode], LAYOUT_STRUCTURE, LAYOUT_SEEDS[0], "rig", shine_a))
+    return row
+
+
+def evaluate_structures(out_dir: str | os.PathLike, config: StructureSet = StructureSet(), progress: bool = True) -> dict:
+    """Every hidden hair in every structure, estimated and judged on its own strands; table, summary, plot."""
+    from tqdm import tqdm
+
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.inference.refine import RefineSettings
+    from hairdigi.inference.structure import family_curves
+    from hairdigi.render.base.files import write_csv_atomic, write_json_atomic
+
+    encoder = Encoder()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    family = family_curves(RIG_SWATCH_POSE, RefineSettings())
+    family_s = round(time.perf_counter() - start, 1)
+    hairs = hidden_hairs(config)
+    jobs = [(h, s, 501 + k) for k, s in enumerate(config.structures) for h in hairs]
+    rows: list[dict] = []
+    layout_rows: list[dict] = []
+    with tempfile.TemporaryDirectory(prefix="hairdigi-structures-") as tmp:
+        render = _Cycles(config, Path(tmp)) if config.blender else _Mitsuba(config)
+        for i, ((name, params, shine), structure, layout) in enumerate(
+                tqdm(jobs, desc="hidden swatches", unit="swatch", disable=not progress)):
+            try:
+                rows.append(_one(name, params, shine, structure, layout, render, encoder, family, 100 * i))
+            except Exception as exc:   # noqa: BLE001 - a failure is reported in the table, the run goes on
+                rows.append({"hidden": name, "structure": structure, "error": f"{type(exc).__name__}: {exc}"})
+            write_json_atomic(out / "structures_evaluation.json", {"rows": rows})
+        if config.layouts:
+            for i, (name, params, shine) in enumerate(tqdm(hairs[:len(CASES)], desc="layouts", disable=not progress)):
+                try:
+                    layout_rows.append(_layout_row(name, params, shine, render, encoder, family, 90_000 + 10 * i))
+                except Exception as exc:   # noqa: BLE001
+                    layout_rows.append({"hidden": name, "error": f"{type(exc).__name__}: {exc}"})
+    summary = summarise(rows, layout_rows, config, family_s)
+    write_json_atomic(out / "structures_evaluation.json", {"summary": summary, "rows": rows, "layouts": layout_rows})
+    write_csv_atomic(out / "structures_evaluation.csv", [{k: (json.dumps(v) if isinstance(v, list) else v)
+                                                         for k, v in r.items()} for r in rows])
+    _plot(rows, out / "structures_evaluation.png", config)
+    return summary
+
+
+def summarise(rows: list[dict], layout_rows: list[dict], config: StructureSet, family_s: float = 0.0) -> dict:
+    """Median / p95 / worst by mode, by structure (own against others), the layout nuisance and costs."""
+    from hairdigi.render.metrics import error_stats
+
+    done = [r for r in rows if "shipped_fit" in r]
+    out = {"swatches": len(rows), "judged": len(done), "renderer": "cycles" if config.blender else "mitsuba",
+           "errors": [f"{r['hidden']} ({r['structure']}): {r['error']}" for r in rows if r.get("error")],
+           "family_curves_s": family_s, "estimate_s": error_stats(r["estimate_s"] for r in done),
+           "twin_residual": error_stats(r["twin_residual"] for r in done),
+           "structure_nuisance": error_stats(r["structure_nuisance"] for r in done),
+           "settings": {"size": config.size, "spp": config.spp, "structures": list(config.structures)}}
+    groups = {"own (layered)": [r for r in done if r["structure"] == "layered"],
+              "others": [r for r in done if r["structure"] != "layered"]}
+    for mode in MODES:
+        out[mode] = {g: {k: error_stats(r[f"{mode}_{k}"] for r in rs) for k in ("fit", "transfer", "sigma_rel_error")}
+                     for g, rs in groups.items()}
+        out[mode]["by_structure"] = {s: {k: error_stats(r[f"{mode}_{k}"] for r in done if r["structure"] == s)
+                                         for k in ("fit", "transfer")} for s in config.structures}
+        out[mode]["layout_nuisance"] = error_stats(r.get(f"{mode}_layout_nuisance") for r in layout_rows)
+    return out
+
+
+def _plot(rows: list[dict], path: Path, config: StructureSet) -> None:
+    import matplotlib.pyplot as plt
+
+    from hairdigi.render.io.figures import save_figure
+
+    done = [r for r in rows if "shipped_fit" in r]
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    for ax, key in zip(axes, ("fit", "transfer")):
+        x = np.arange(len(config.structures))
+        for k, mode in enumerate(MODES):
+            values = [[r[f"{mode}_{key}"] for r in done if r["structure"] == s] for s in config.structures]
+            ax.boxplot([v or [np.nan] for v in values], positions=x + (k - 0.5) * 0.35, widths=0.3,
+                       patch_artist=True, boxprops={"facecolor": f"C{k}"}, medianprops={"color": "k"})
+            ax.plot([], [], color=f"C{k}", lw=6, label=mode)
+        ax.axhline(1.0, ls="--", color="grey", lw=0.8)
+        ax.set_xticks(x, config.structures, rotation=30, ha="right", fontsize=8)
+        ax.set_title(f"{key}: estimate vs truth, rendered on the hidden strands")
+    axes[0].set_ylabel("mean-colour ΔE2000")
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    save_figure(fig, path)
