@@ -10,6 +10,8 @@ from hairdigi.app import validation as v
 
 HAIRSTYLE_SIZE, HAIRSTYLE_SPP = 384, 16
 MAX_NAME = 200
+#: Fewer predictions than this give no p95 to judge ``evaluate --dye``'s goal by.
+MIN_GOAL_PREDICTIONS = 20
 
 
 def dye_name(text: str) -> str:
@@ -199,13 +201,16 @@ def cmd_evaluate_dye(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.training.evaluate_dye import DyeEvalConfig, evaluate_dye
 
-    config = DyeEvalConfig(dyes=args.n if args.n != 300 else DyeEvalConfig.dyes)
+    config = DyeEvalConfig(dyes=args.n if args.n != 300 else DyeEvalConfig.dyes, size=args.size, spp=args.spp)
     if getattr(args, "rig", False):        # --dye --rig: the captures are the simulated rig's
         from hairdigi.app.dye_eval_rig import evaluate_dye_rig
 
         summary = evaluate_dye_rig(Encoder(args.model), args.out, config)
     else:
         summary = evaluate_dye(Encoder(args.model), args.out, config)
+    n = summary.get("prediction_de2000", {}).get("n", 0)
     for line in summary["text"]:
+        if n < MIN_GOAL_PREDICTIONS and line.endswith(("met)", "NOT met)")):   # a p95 of a few is no p95
+            line = line[:line.rindex(":")] + f": not judged, {n} predictions are too few (under {MIN_GOAL_PREDICTIONS}); raise --n)"
         print(line)
     return 0

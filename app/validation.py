@@ -302,6 +302,9 @@ def check_estimate(args: argparse.Namespace) -> None:
         load_profile(args.calibration)   # a corrupt profile stops here, before the model is loaded
     if args.model:
         check_input_file(args.model, "--model")
+    for i, light in enumerate((getattr(args, "lights", None) or "").split(",") if getattr(args, "lights", None) else ()):
+        check_input_file(light, f"--lights (light {i})")   # a device or FIFO is refused before it is read
+        inputs[f"--lights (light {i})"] = light
     check_distinct({"--out": args.out, "--render": args.render})
     check_output_file(args.out, "--out", (".json",), "JSON", inputs)
     if not getattr(args, "no_refine", False):
@@ -367,7 +370,12 @@ def check_cache_writable() -> None:
 
 
 def check_display() -> None:
-    """A window needs a display: on Linux, a reachable X server or Wayland, or an offscreen Qt platform."""
+    """A window needs a display: on Linux, a reachable X server or Wayland, or an offscreen Qt platform.
+
+    Checked before Qt starts, since Qt aborts the process (exit 134) on a display it cannot open: a
+    Wayland socket must exist; ``DISPLAY`` must be ``[host]:number[.screen]``, a local one must have its
+    socket, a remote one (``localhost:10.0`` of an ssh -X session, ``remotehost:0``) must answer on its
+    TCP port within ``DISPLAY_TIMEOUT_S``."""
     import sys
 
     platform = os.environ.get("QT_QPA_PLATFORM", "")
@@ -376,15 +384,54 @@ def check_display() -> None:
         return
     fix = "run it on the desktop, or without one under a virtual X server: xvfb-run hairdigi app ..."
     wayland, display = os.environ.get("WAYLAND_DISPLAY"), os.environ.get("DISPLAY")
-    if wayland:
+    wayland_problem = _wayland_problem(wayland) if wayland else None
+    if wayland and wayland_problem is None:
         return
     if not display:
+        if wayland_problem:
+            raise ArgumentError(f"no display: {wayland_problem}, and DISPLAY is not set; {fix}")
         raise ArgumentError(f"no display: DISPLAY is not set (no X server or Wayland to open the window on); {fix}")
-    host, _, number = display.partition(":")
-    number = number.split(".")[0]
-    if host in ("", "unix") and number.isdigit() and not Path(f"/tmp/.X11-unix/X{number}").exists():
-        raise ArgumentError(f"no display: DISPLAY={display} names no running X server (no "
-                            f"/tmp/.X11-unix/X{number}); {fix}")
+    problem = _x_display_problem(display)
+    if problem:
+        raise ArgumentError(f"no display: {problem}" + (f" (and {wayland_problem})" if wayland_problem else "")
+                            + f"; {fix}")
+
+
+DISPLAY_TIMEOUT_S = 3.0
+
+
+def _wayland_problem(name: str) -> str | None:
+    """Why ``WAYLAND_DISPLAY`` names no running compositor (its socket is missing), or None."""
+    runtime = os.environ.get("XDG_RUNTIME_DIR", "")
+    socket_path = Path(name) if os.path.isabs(name) else Path(runtime or "/nonexistent") / name
+    if socket_path.is_socket():
+        return None
+    return f"WAYLAND_DISPLAY={name[:60]} names no running compositor (no socket {socket_path})"
+
+
+def _x_display_problem(display: str) -> str | None:
+    """Why ``DISPLAY`` names no X server this process can reach, or None."""
+    import re
+    import socket
+
+    shown = "".join(c if 32 <= ord(c) < 127 else "?" for c in display[:60])   # no escape reaches the terminal
+    match = re.fullmatch(r"(?:(?P<proto>[A-Za-z]+)/)?(?P<host>[^:]*):(?P<number>\d+)(?:\.\d+)?", display)
+    if not match:
+        return f"DISPLAY={shown!r} is not a display name ([host]:number[.screen], e.g. :0)"
+    host, number = match.group("host"), int(match.group("number"))
+    if host in ("", "unix") and match.group("proto") in (None, "unix"):
+        if not Path(f"/tmp/.X11-unix/X{number}").exists():
+            return f"DISPLAY={shown} names no running X server (no /tmp/.X11-unix/X{number})"
+        return None
+    port = 6000 + number
+    try:
+        with socket.create_connection((host, port), timeout=DISPLAY_TIMEOUT_S):
+            return None
+    except OSError as exc:
+        why = "no answer" if isinstance(exc, TimeoutError) else (exc.strerror or type(exc).__name__)
+        where = "".join(c if 32 <= ord(c) < 127 else "?" for c in host[:60])
+        return (f"DISPLAY={shown}: no X server answers at {where}:{port} ({why}; an ssh -X session that has "
+                f"ended?)")
 
 
 def _parse_roi(text: str, flag: str) -> tuple[int, int, int, int]:
@@ -411,8 +458,33 @@ def check_export(args: argparse.Namespace) -> None:
     check_output_file(args.out, "--out", (".onnx",), "an ONNX model", {"--run": args.run}, allow=(_models_folder(),))
 
 
+#: ``evaluate``'s modes: at most one runs (``--dye --rig`` is the dye protocol on the simulated rig).
+EVALUATE_MODES = ("dye", "rig", "appearance", "cycles", "convergence", "prepare_only")
+#: Flags that go with one mode only.
+EVALUATE_MODE_FLAGS = {"ship": ("rig", "appearance"), "no_variation": ("appearance",), "default_shine": ("cycles",)}
+
+
+def _flag(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def check_evaluate_modes(args: argparse.Namespace) -> None:
+    """Contradictory modes (``--rig --cycles``) and flags without their mode are refused, not half obeyed."""
+    chosen = [m for m in EVALUATE_MODES if getattr(args, m, None)]
+    if chosen[:2] == ["dye", "rig"]:
+        chosen = ["dye"] + chosen[2:]
+    if len(chosen) > 1:
+        raise ArgumentError(f"{' and '.join(map(_flag, chosen))} are different evaluations; run them one at a time")
+    for flag, modes in EVALUATE_MODE_FLAGS.items():
+        if getattr(args, flag, False) and not any(getattr(args, m, False) for m in modes) or (
+                flag == "ship" and args.ship and getattr(args, "dye", False)):
+            raise ArgumentError(f"{_flag(flag)} goes with {' or '.join(map(_flag, modes))}; add it or leave "
+                                f"{_flag(flag)} out")
+
+
 def check_evaluate(args: argparse.Namespace) -> None:
-    """``hairdigi evaluate``: the model and the output folder."""
+    """``hairdigi evaluate``: its modes, the model and the output folder."""
+    check_evaluate_modes(args)
     if args.model and not args.prepare_only:
         check_input_file(args.model, "--model")
     check_output_dir(args.out, "--out", {"--model": args.model})

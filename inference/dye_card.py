@@ -16,7 +16,7 @@ from hairdigi.inference.dye import apply, describe_colour, sample_of
 from hairdigi.inference.levels import LEVEL_NAMES, LEVELS, natural_base
 from hairdigi.render.absorption import hair_sigma_a
 from hairdigi.render.base.dye_record import DyeRecord
-from hairdigi.render.base.files import atomic_path, write_json_atomic
+from hairdigi.render.base.files import atomic_paths
 from hairdigi.render.base.records import EstimateRecord
 from hairdigi.render.metrics import delta_e2000
 
@@ -92,18 +92,24 @@ def draw_card(dye: DyeRecord, rows: list[dict], dose: float = 1.0):
 
 def shade_card(dye: DyeRecord, out_png: str | os.PathLike, dose: float = 1.0, size: int = CARD_SIZE,
                spp: int = CARD_SPP, curve=None) -> tuple[Path, Path, Path, list[dict]]:
-    """Write the card as PNG, PDF (beside it) and JSON; returns the three paths and the rows."""
-    from hairdigi.render.io.figures import save_figure
+    """Write the card as PNG, PDF (beside it) and JSON, all three published together (a failure leaves none
+    of them half made, and the old card whole); returns the three paths and the rows."""
+    import json
+
+    import matplotlib.pyplot as plt
 
     out_png = Path(out_png)
     rows = card_rows(dye, size, spp, dose=dose, curve=curve)
     fig = draw_card(dye, rows, dose)
-    pdf = out_png.with_suffix(".pdf")
-    with atomic_path(pdf, ".pdf") as tmp:
-        fig.savefig(tmp, format="pdf")
-    save_figure(fig, out_png, dpi=150)
-    table = out_png.with_suffix(".json")
+    pdf, table = out_png.with_suffix(".pdf"), out_png.with_suffix(".json")
     clean = [{k: v for k, v in r.items() if not k.startswith("_")} for r in rows]
-    write_json_atomic(table, {"dye": dye.name, "dose": dose, "render": {"size": size, "spp": spp, "seed": CARD_SEED,
-                                                                          "framing": "crop"}, "levels": clean})
+    try:
+        with atomic_paths(out_png, pdf, table, suffixes=(".png", ".pdf", ".json")) as (png_tmp, pdf_tmp, json_tmp):
+            fig.savefig(pdf_tmp, format="pdf")
+            fig.savefig(png_tmp, dpi=150, format="png")
+            json_tmp.write_text(json.dumps({"dye": dye.name, "dose": dose, "render": {
+                "size": size, "spp": spp, "seed": CARD_SEED, "framing": "crop"}, "levels": clean}, indent=2) + "\n",
+                encoding="utf-8")
+    finally:
+        plt.close(fig)
     return out_png, pdf, table, clean

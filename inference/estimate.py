@@ -213,8 +213,10 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
     image = read_image(image_path)
     lights = None
     if light_paths is not None:
-        lights = [read_image(path) for path in light_paths]
-        check_light_frames(lights, image)
+        from hairdigi.inference.light_frames import read_light_frame   # 8/16-bit PNG or linear EXR
+
+        lights = [read_light_frame(path) for path in light_paths]
+        check_light_frames(lights, image, sums=False)   # their sum is checked at the image's exposure, below
         factors = light_exposures or _recorded_exposures(image_path, light_paths) or [1.0] * len(lights)
         lights = [to_linear(im) / np.float32(k) for im, k in zip(lights, factors)]
     if rig_view is None:

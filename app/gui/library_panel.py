@@ -262,24 +262,57 @@ class LibraryPanel(QWidget):
         return start(task, POOL)
 
 
-def add_library_dock(window) -> QDockWidget | None:
-    """The Library panel as a dock of ``window``, on the library ``HAIRDIGI_LIBRARY`` names (or the default)."""
+def _open_or_reason():
+    """The library, or the one line why it cannot be opened (run in a worker: a lock or a server may take seconds)."""
     from hairdigi.app.library import LibraryError, open_library
 
-    dock = QDockWidget("Library", window)
     try:
-        library = open_library()
+        return open_library()
     except (LibraryError, OSError) as exc:
-        dock.setWidget(QLabel(f"library unavailable: {exc}"))
-    else:
-        panel = LibraryPanel(library, window)
-        dock.setWidget(panel)
-        dock.destroyed.connect(lambda *_: library.close())
+        return " ".join(str(exc).split())
+
+
+def unavailable_label(text: str) -> QLabel:
+    """A label that shows all of a long message: wrapped, selectable, and in its tooltip."""
+    label = QLabel(text)
+    label.setWordWrap(True)
+    label.setAlignment(Qt.AlignmentFlag.AlignTop | Qt.AlignmentFlag.AlignLeft)
+    label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+    label.setToolTip(text)
+    label.setMinimumWidth(200)
+    return label
+
+
+def add_library_dock(window) -> QDockWidget:
+    """The Library panel as a dock of ``window``, on the library ``HAIRDIGI_LIBRARY`` names (or the default).
+
+    The library is opened in a worker (a held lock or a slow server costs the window nothing): the dock
+    says so until it is open, then holds the panel, or the one line why the library is unavailable."""
+    dock = QDockWidget("Library", window)
+    dock.setWidget(unavailable_label("opening the library…"))
+
+    def opened(result) -> None:
+        try:
+            if isinstance(result, str):
+                dock.setWidget(unavailable_label(f"library unavailable: {result}"))
+                return
+            panel = LibraryPanel(result, window)
+            dock.setWidget(panel)
+        except RuntimeError:          # the window closed while the library was opening
+            if not isinstance(result, str):
+                result.close()
+            return
+        dock.destroyed.connect(lambda *_: result.close())
         panel.first_run()
         captured = getattr(window, "captured", None)
         session = getattr(getattr(window, "session", None), "folder", None)
         if captured is not None and session is not None:   # every capture goes into the library too
             captured.connect(lambda *_: panel.import_sessions([str(session)]))
+
+    task = Task(_open_or_reason, "library")
+    task.signals.done.connect(opened)
+    task.signals.failed.connect(lambda message: dock.setWidget(unavailable_label(f"library unavailable: {message}")))
+    dock.open_task = start(task, POOL)   # kept: the dock owns the worker until it reports
     window.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock)
     other = getattr(window, "dye_dock", None)
     if isinstance(other, QDockWidget):

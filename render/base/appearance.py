@@ -68,10 +68,19 @@ class Appearance:
         return {name: getattr(self, name) for name in FIELDS}
 
     @classmethod
-    def from_dict(cls, data: dict) -> "Appearance":
-        """From a dict holding any of the three fields (the others take their defaults)."""
+    def from_dict(cls, data: dict, strict: bool = True) -> "Appearance":
+        """From a dict holding any of the three fields (the others take their defaults); ``strict``: a key
+        that is none of them (a misspelt field) is refused, naming the nearest field."""
         if not isinstance(data, dict):
             raise AppearanceError(f"an appearance is an object with {', '.join(FIELDS)}, not {type(data).__name__}")
+        unknown = [k for k in data if k not in FIELDS]
+        if strict and unknown:
+            import difflib
+
+            near = difflib.get_close_matches(str(unknown[0]), FIELDS, n=1)
+            raise AppearanceError(f"{str(unknown[0])[:60]!r} is not an appearance field"
+                                  f"{f' (did you mean {near[0]!r}?)' if near else ''}; the fields are "
+                                  f"{', '.join(FIELDS)}")
         return cls(**{name: data[name] for name in FIELDS if data.get(name) is not None})
 
 
@@ -128,7 +137,7 @@ class AppearanceEstimate:
     def from_json(cls, data) -> "AppearanceEstimate":
         """From a record's ``appearance``; a block holding only some fields (an earlier layout, or an
         edited record) counts those as measured and leaves the rest at their defaults."""
-        value = Appearance.from_dict(data)
+        value = Appearance.from_dict(data, strict=False)   # beside intervals, measured and method
         measured = data.get("measured")
         if measured is None:
             measured = [name for name in FIELDS if data.get(name) is not None]

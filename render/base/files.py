@@ -77,14 +77,40 @@ def atomic_paths(*paths: str | os.PathLike | None, suffixes: tuple = ()) -> Iter
             fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".hd-", suffix=_temp_suffix(path, suffix))
             os.close(fd)
             temps.append(Path(tmp))
-        yield tuple(temps)
-        for tmp, path in zip(temps, targets):
-            if tmp is not None:
-                publish(tmp, path)
+        try:
+            yield tuple(temps)
+            for tmp, path in zip(temps, targets):
+                if tmp is not None:
+                    publish(tmp, path)
+        except Exception as exc:
+            _name_targets(exc, temps, targets)
+            raise
     finally:
         for tmp in temps:
             if tmp is not None:
                 tmp.unlink(missing_ok=True)
+
+
+def _name_targets(exc: Exception, temps: list, targets: list) -> None:
+    """An error while writing names the file asked for, never the temporary one it was written to."""
+    pairs = [(str(t), str(p)) for t, p in zip(temps, targets) if t is not None]
+
+    def fix(value):
+        if isinstance(value, (str, os.PathLike)):
+            text = os.fspath(value)
+            for tmp, path in pairs:
+                text = text.replace(tmp, path).replace(Path(tmp).name, Path(path).name)
+            return text
+        return value
+
+    if isinstance(exc, OSError):
+        for attr in ("filename", "filename2"):
+            if getattr(exc, attr, None) is not None:
+                setattr(exc, attr, fix(getattr(exc, attr)))
+    try:
+        exc.args = tuple(fix(a) for a in exc.args)
+    except (AttributeError, TypeError):
+        pass
 
 
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> Path:
