@@ -31,6 +31,7 @@ class Frame:
     meta: dict = field(default_factory=dict)
     time: float = field(default_factory=time.time)
     mosaic: np.ndarray | None = None      # (H, W) uint16 sensor counts where the source gives raw Bayer data
+    clipped: np.ndarray | None = None     # (H, W, 3) bool: a saturated photosite behind the pixel (RAW stills)
 
 
 class Camera(Protocol):
@@ -141,6 +142,8 @@ def read_raw(path: str | os.PathLike) -> Frame:
     """
     import rawpy
 
+    from hairdigi.hardware.exposure import sensor_clipped
+
     path = Path(path)
     if not path.exists():
         raise CameraError(f"{path}: no such RAW file")
@@ -156,8 +159,14 @@ def read_raw(path: str | os.PathLike) -> Frame:
             # above HALF_SIZE_ABOVE pixels, each 2x2 Bayer block is one pixel: a quarter of the memory
             # and no demosaicing; the swatch and chart keep hundreds of pixels a side
             half = width * height > HALF_SIZE_ABOVE
+            # adjust_maximum_thr=0: the white level is the file's, never the brightest pixel's (LibRaw's default
+            # took a frame's maximum above 75% of white as white: a 12-bit frame peaking at 3300 read 1.17x bright)
             rgb16 = raw.postprocess(gamma=(1, 1), no_auto_bright=True, output_bps=16, use_camera_wb=True,
-                                    output_color=rawpy.ColorSpace.raw, user_flip=0, half_size=half)
+                                    output_color=rawpy.ColorSpace.raw, user_flip=0, half_size=half,
+                                    adjust_maximum_thr=0.0)
+            # clipping is the sensor's: counts at its white level, not the 8-bit encode's 0 or 255
+            clipped = sensor_clipped(raw.raw_image_visible, raw.raw_colors_visible, raw.color_desc.decode(),
+                                     float(np.mean(raw.black_level_per_channel)), float(raw.white_level), half)
             meta = {"camera": f"raw:{path.name}", "raw_pattern": raw.raw_pattern.tolist(),
                     "black_level": [int(v) for v in raw.black_level_per_channel],
                     "white_level": int(raw.white_level), "raw_size": [width, height], "half_size": half}
@@ -170,4 +179,7 @@ def read_raw(path: str | os.PathLike) -> Frame:
     rows = max(1, (1 << 20) // max(1, linear.shape[1]))   # encoded in bands: colour-science works in float64
     for y in range(0, linear.shape[0], rows):
         srgb[y:y + rows] = linear_to_srgb8(linear[y:y + rows])
-    return Frame(srgb, linear, meta)
+    if clipped.shape[:2] != srgb.shape[:2]:   # a camera whose development crops or rotates its sensor
+        clipped = cv2.resize(clipped.astype(np.uint8), (srgb.shape[1], srgb.shape[0]),
+                             interpolation=cv2.INTER_NEAREST).astype(bool)
+    return Frame(srgb, linear, meta, clipped=clipped)

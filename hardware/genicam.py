@@ -214,8 +214,9 @@ class GenICamCamera:
                 return False
             try:
                 got = self._apply_exposure()
-            except CameraError:
-                self.exposure_offset_ev = 0.0
+            except CameraError as exc:
+                self._check_alive(str(exc).removeprefix(f"{self.name}: "))   # gone: raised as such
+                self.exposure_offset_ev = 0.0                                # out of its range: the bench's
                 self._apply_exposure()
                 return False
             return abs(got - self.wanted.exposure_us * 2.0 ** ev) <= 0.02 * got
