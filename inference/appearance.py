@@ -48,6 +48,7 @@ class AppearanceReading:
     curve: object | None = None                   # ResponseCurve at the read shine (None: the default's)
     warnings: list[EstimateWarning] = field(default_factory=list)
     seconds: float = 0.0
+    swatch_model: str | None = None               # the structure read (None: the default, not read)
 
     @property
     def value(self) -> Appearance:
@@ -161,12 +162,16 @@ def dark_lights(light_means: np.ndarray, frame_levels: np.ndarray | None = None)
 
 def read_appearance(light_means: np.ndarray | None, view, settings, renderer=None,
                     texture_pixels: np.ndarray | None = None, sigma_guess: np.ndarray | None = None,
-                    frame_levels: np.ndarray | None = None) -> AppearanceReading:
+                    frame_levels: np.ndarray | None = None, structures: tuple[str, ...] | None = None
+                    ) -> AppearanceReading:
     """The appearance from the single-light means ``light_means`` (L, 3) at ``view`` (None: not
     captured) and the all-lights swatch area ``texture_pixels`` (linear) for spread and greys;
-    ``frame_levels`` (L, 3), each single-light frame's whole mean, tells a dead light from glossy hair."""
+    ``frame_levels`` (L, 3), each single-light frame's whole mean, tells a dead light from glossy hair.
+    ``structures``: swatch structures (``render.swatch_family``) to read from the single-light frames
+    with the shine (``inference.structure.read_structure``); None: the default structure alone."""
     start = time.perf_counter()
     value, measured, method, warnings, curve = DEFAULT_APPEARANCE, [], {}, [], None
+    swatch_model = None
     dead, dim = ([], []) if light_means is None else dark_lights(light_means, frame_levels)
     if light_means is None:
         warnings.append(EstimateWarning(WarningKind.APPEARANCE, (
@@ -182,8 +187,17 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
             warnings.append(EstimateWarning(WarningKind.APPEARANCE, (
                 f"appearance: light {', '.join(map(str, dim))} barely lights the swatch in its own frame, which "
                 f"glossy hair does (read as such); if a light may be dead, check it (Lights > Check)")))
-        tables = shine_tables(view, settings, renderer=renderer)
-        shine = estimate_shine(np.asarray(light_means, float), tables)
+        if structures:
+            from hairdigi.inference.structure import read_structure
+
+            structure = read_structure(np.asarray(light_means, float), view, settings, renderer, structures)
+            tables, shine, swatch_model = structure.tables, structure.shine, structure.swatch_model
+            method["structure"] = (f"{swatch_model}: read from the {N_LIGHTS} single-light frames, whose per-light "
+                                   f"tables fit best (rms log misfit " + ", ".join(
+                                       f"{m} {v:.3f}" for m, v in structure.misfits.items()) + ")")
+        else:
+            tables = shine_tables(view, settings, renderer=renderer)
+            shine = estimate_shine(np.asarray(light_means, float), tables)
         value = Appearance(longitudinal_roughness=round(shine.longitudinal_roughness, 4))
         curve = tables.all_lights_curve(shine.longitudinal_roughness)
         measured.append("longitudinal_roughness")
@@ -215,7 +229,7 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
             method.update({k: "read from the texture (inference.texture's model)" for k in FROM_TEXTURE})
             intervals.update({k: v for k, v in variation.intervals.items() if k in FROM_TEXTURE})
     estimate = AppearanceEstimate(value, intervals, tuple(measured), method)
-    return AppearanceReading(estimate, curve, warnings, time.perf_counter() - start)
+    return AppearanceReading(estimate, curve, warnings, time.perf_counter() - start, swatch_model)
 
 
 #: What the texture gives the estimate. The grey share: held-out MAE 0.057 against 0.080 for always

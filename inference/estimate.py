@@ -81,7 +81,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
                    view: View = RIG_SWATCH_POSE, refine_colour: bool = True,
                    settings: RefineSettings = RefineSettings(), extra_warnings: list[EstimateWarning] = (),
                    on_encoder_estimate: Callable[[HairParams], None] | None = None,
-                   renderer=None, light_images: list[np.ndarray] | None = None) -> EstimateResult:
+                   renderer=None, light_images: list[np.ndarray] | None = None,
+                   structures: tuple[str, ...] | None = None) -> EstimateResult:
     """Estimate a colour-corrected image: linear float RGB (a corrected capture) or 8-bit sRGB; a rig
     frame or a crop that is all hair.
 
@@ -90,7 +91,9 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     crop (the rig's swatch pose by default). ``on_encoder_estimate`` is told the encoder's parameters
     before refinement starts (the app shows them at once). ``light_images``: the same view lit by
     each light alone (light order), corrected as ``image`` and at its exposure: the shine is read
-    from them; without them the record says "shine not measured".
+    from them; without them the record says "shine not measured". ``structures``: swatch structures
+    (``render.swatch_family``) to read from the single-light frames with the shine; the refinement
+    renders the one read (None: the default structure alone).
     """
     start = time.perf_counter()
     if isinstance(view, RigRegion):
@@ -116,16 +119,18 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
             [mean_linear(im) for im in light_images])
         reading = read_appearance(singles, view, settings, renderer,
                                   texture_pixels=to_linear(fitted) if isinstance(view, RigRegion) else None,
-                                  frame_levels=levels)
+                                  frame_levels=levels, structures=structures)
         warnings += reading.warnings
         appearance = reading.estimate
-        refinement = refine(est.params, mean_linear(fitted), view, settings, renderer, reading.value, reading.curve)
+        refinement = refine(est.params, mean_linear(fitted), view, settings, renderer, reading.value, reading.curve,
+                            swatch_model=reading.swatch_model)
         if reading.value.varied and refinement.residual_de2000 > VARIATION_FIT_DE:
             # the colour checks the texture's reading: if hair of the read variation renders the capture's
             # colour worse than the chain's precision, and uniform fibres render it better, the reading is
             # wrong for this swatch (black hair's glints read as greys), and is not reported as measured
             uniform = refine(est.params, mean_linear(fitted), view, settings, renderer,
-                             replace(reading.value, fibre_spread=0.0, grey_fraction=0.0), reading.curve)
+                             replace(reading.value, fibre_spread=0.0, grey_fraction=0.0), reading.curve,
+                             swatch_model=reading.swatch_model)
             if uniform.residual_de2000 < refinement.residual_de2000:
                 warnings += _warn(WarningKind.APPEARANCE, [
                     f"appearance: with the grey share {reading.value.grey_fraction:.2f} read from the texture, no "

@@ -306,11 +306,13 @@ def mean_linear(image: np.ndarray, band_pixels: int = 1 << 18) -> np.ndarray:
 
 def refine(prior: HairParams, target: np.ndarray, view: View = CameraPose(),
            settings: RefineSettings = RefineSettings(), renderer=None,
-           appearance: Appearance = DEFAULT_APPEARANCE, curve: ResponseCurve | None = None) -> Refinement:
+           appearance: Appearance = DEFAULT_APPEARANCE, curve: ResponseCurve | None = None,
+           swatch_model: str | None = None) -> Refinement:
     """Refine ``prior`` so that the swatch seen from ``view`` renders with mean linear colour ``target``
-    (the mean of ``fitted_pixels``). The swatch has ``appearance``; ``curve`` is the uniform swatch's
-    response at its shine (from the shine tables), else the default shine's is rendered or loaded.
-    The result's ``sigma_a`` is the median pigmented fibre's."""
+    (the mean of ``fitted_pixels``). The swatch has ``appearance`` and the structure ``swatch_model``
+    (None: the default; ``inference.structure.read_structure`` reads it); ``curve`` is the uniform
+    swatch's response at its shine (from that structure's shine tables), else the default shine's is
+    rendered or loaded. The result's ``sigma_a`` is the median pigmented fibre's."""
     from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()
@@ -319,13 +321,13 @@ def refine(prior: HairParams, target: np.ndarray, view: View = CameraPose(),
     if curve is None:
         if appearance.longitudinal_roughness != DEFAULT_APPEARANCE.longitudinal_roughness:
             raise ValueError("refining at another shine needs that shine's curve (inference.shine's tables)")
-        curve = response_curve(view, settings, renderer)
+        curve = response_curve(view, settings, renderer, swatch_model=swatch_model)
     curve = varied_curve(curve, appearance)
     goal = target.copy()
     sigma, _ = curve.inverse(goal)
     rendered = curve(sigma)          # with no iterations, the curve's own prediction
     history: list[float] = []
-    spec, size = scene_for(view, settings, appearance)
+    spec, size = scene_for(view, settings, appearance, swatch_model)
     nonfinite = 0
     # varied fibres: the mixture curve only approximates light passing between unlike fibres, so
     # the check renders may need two more corrections
@@ -347,4 +349,5 @@ def refine(prior: HairParams, target: np.ndarray, view: View = CameraPose(),
     residual = float(delta_e2000(np.clip(final, 1e-9, None), target))
     return Refinement(params, hair_sigma_a(params), target, np.asarray(final, float), residual, len(history),
                       residual < REACHABLE_DE, time.perf_counter() - start, curve.seconds, curve.cached, history,
-                      nonfinite, view.to_dict() if isinstance(view, RigRegion) else {"crop_pose": asdict(view)})
+                      nonfinite, {**(view.to_dict() if isinstance(view, RigRegion) else {"crop_pose": asdict(view)}),
+                                  "swatch_model": spec.swatch_model})

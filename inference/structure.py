@@ -71,3 +71,39 @@ def nuisance(sigma: np.ndarray, family: FamilyCurves) -> dict[str, float]:
     centre = np.clip(family.mean(sigma), 1e-9, None)
     return {m: round(float(delta_e2000(np.clip(c(sigma), 1e-9, None), centre)), 3)
             for m, c in family.members.items()}
+
+
+#: The structures the single-light frames choose among. Deposited, spread and wavy swatches render
+#: alike at the rig (within 0.1-0.3 ΔE2000 at equal sigma_a), so "deposited" stands for all three.
+READ_MEMBERS = ("layered", "tilted", "deposited", "deposited-coarse", "loose")
+
+
+@dataclass(frozen=True)
+class StructureReading:
+    """The structure whose per-light tables fit the single-light frames best, and its shine."""
+
+    swatch_model: str
+    shine: object                          # inference.shine.ShineEstimate on that structure's tables
+    misfits: dict[str, float]              # rms log misfit of every member's best shine
+    tables: object                         # its ShineTables
+
+    @property
+    def curve(self) -> ResponseCurve:
+        """The all-lights response curve of the structure read, at the shine read."""
+        return self.tables.all_lights_curve(self.shine.longitudinal_roughness)
+
+
+def read_structure(light_means: np.ndarray, view: View, settings: RefineSettings = RefineSettings(),
+                   renderer=None, members: tuple[str, ...] = READ_MEMBERS) -> StructureReading:
+    """Shine and structure from the (L, 3) single-light means: each member's tables give a best shine
+    and a misfit (``inference.shine.estimate_shine``); the member that fits best is read. A fibre off the
+    swatch's axis sends the light along the fibres more of its light and the lights across them less."""
+    from hairdigi.inference.shine import estimate_shine, shine_tables
+
+    fits = {}
+    for member in members:
+        tables = shine_tables(view, settings, renderer=renderer, swatch_model=member)
+        fits[member] = (estimate_shine(np.asarray(light_means, float), tables), tables)
+    best = min(fits, key=lambda m: fits[m][0].residual)
+    return StructureReading(best, fits[best][0], {m: round(f[0].residual, 5) for m, f in fits.items()},
+                            fits[best][1])
