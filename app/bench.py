@@ -236,4 +236,5 @@ BENCHES: dict[str, Bench] = {
     "spread": bench_spread,                                                 # issue 18: can the lights read a spread?
     "fibres": bench_fibres,                                                 # issue 18: how many fibre groups
     "structure": bench_structure,                                           # issue 18: the swatch's fibre structure
+    "genicam": _elsewhere("hairdigi.app.bench_genicam", "bench_genicam"),   # issue 32: frame rate, capture latency
 }

@@ -10,6 +10,7 @@ any RAW still (``hardware.cameras.read_raw``).
 """
 from __future__ import annotations
 
+import functools
 import os
 import re
 from dataclasses import dataclass
@@ -77,6 +78,19 @@ def demosaic(cfa: np.ndarray, layout: str, black: float, white: float) -> np.nda
         total = cv2.filter2D(scaled * masks[c], -1, _KERNEL, borderType=cv2.BORDER_REFLECT)
         out[..., c] = np.where(masks[c] > 0, scaled, total / np.maximum(weight, 1e-6))
     return out
+
+
+@functools.lru_cache(maxsize=1)
+def _srgb_table() -> np.ndarray:
+    from hairdigi.render.srgb import linear_to_srgb8
+
+    return linear_to_srgb8(np.arange(65536, dtype=np.float64) / 65535.0)
+
+
+def srgb8(linear: np.ndarray) -> np.ndarray:
+    """8-bit sRGB of linear RGB in [0, 1] through a 16-bit table: 10x faster than the formula, at most one
+    code off (a live frame's display and the chart finder's input; the estimate takes the linear frame)."""
+    return _srgb_table()[(np.clip(linear, 0.0, 1.0) * 65535.0 + 0.5).astype(np.uint16)]
 
 
 def write_dng(path: str | os.PathLike, cfa: np.ndarray, layout: str, black: float, white: int,

@@ -26,12 +26,12 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
-from hairdigi.hardware.bayer import BayerFormat, bayer_format, demosaic, unpack
+from hairdigi.hardware.bayer import BayerFormat, bayer_format, demosaic, srgb8, unpack
 from hairdigi.hardware.cameras import CameraError, Frame
-from hairdigi.render.srgb import linear_to_srgb8
 
 #: Bayer depths in the order hairdigi prefers them (12 bits: what lab cameras' ADCs give).
 PREFERRED_DEPTHS = (12, 16, 14, 10, 8)
@@ -105,9 +105,12 @@ def choose_format(offered: list[str], wanted: str | None) -> BayerFormat | None:
 class GenICamCamera:
     """One GenICam camera, opened by Aravis device ID (None: the first found), with locked settings."""
 
-    def __init__(self, device_id: str | None = None, settings: GenICamSettings = GenICamSettings()) -> None:
+    def __init__(self, device_id: str | None = None, settings: GenICamSettings = GenICamSettings(),
+                 on_open: Callable[["GenICamCamera"], None] | None = None) -> None:
+        """``on_open(camera)`` runs each time the camera is opened and set up, before acquisition starts."""
         self.aravis = load_aravis()
         self.wanted = settings
+        self.on_open = on_open
         self.device_id = device_id
         self.name = f"genicam:{device_id or 'first camera'}"
         self.serial = ""
@@ -135,6 +138,8 @@ class GenICamCamera:
             self.serial = camera.get_device_serial_number() or self.serial
             self.name = f"genicam:{camera.get_vendor_name()} {camera.get_model_name()} #{self.serial}"
             self.format = self._configure()
+            if self.on_open is not None:
+                self.on_open(self)
             self._stream = camera.create_stream(None, None)
             for _ in range(N_BUFFERS):
                 self._stream.push_buffer(aravis.Buffer.new_allocate(camera.get_payload()))
@@ -235,17 +240,25 @@ class GenICamCamera:
                     "exposure_offset_ev": self.exposure_offset_ev,
                     "exposure_us": self.wanted.exposure_us * 2.0 ** self.exposure_offset_ev,
                     "bayer": {"format": fmt.name, "layout": fmt.layout, "black": black, "white": fmt.white}}
-            return Frame(linear_to_srgb8(linear), linear, meta, time.time(), mosaic=counts)
+            return Frame(srgb8(linear), linear, meta, time.time(), mosaic=counts)
 
     def _grab(self) -> tuple[np.ndarray, int]:
         stream, aravis = self._stream, self.aravis
+        asked = time.time_ns()
         while (stale := stream.try_pop_buffer()) is not None:    # frames exposed before this call
             stream.push_buffer(stale)
         try:
             self._camera.software_trigger()
         except Exception as exc:
             self._lost("TriggerSoftware", _message(exc))
-        buffer = stream.timeout_pop_buffer(int(self.wanted.timeout_s * 1e6))
+        deadline = time.monotonic() + self.wanted.timeout_s
+        while (left := deadline - time.monotonic()) > 0:
+            buffer = stream.timeout_pop_buffer(max(1, int(left * 1e6)))
+            if buffer is None or buffer.get_system_timestamp() >= asked:
+                break
+            stream.push_buffer(buffer)      # a free-running camera's frame begun before this call
+        else:
+            buffer = None
         if buffer is None:
             self._check_alive(f"no frame within {self.wanted.timeout_s:g} s of the trigger")
             raise self._fail("frame", f"no frame within {self.wanted.timeout_s:g} s of the trigger; check the "

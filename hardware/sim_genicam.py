@@ -117,7 +117,7 @@ class LabSensor:
         self.problem: str | None = None
 
     def attach(self, camera: GenICamCamera) -> None:
-        """Fill ``camera``'s frames from now on (an in-process fake camera)."""
+        """Fill ``camera``'s frames (an in-process fake camera, opened and set up)."""
         fake = camera._camera.get_device().get_fake_camera()
         self._fake = _pointer(fake)
         self._fake_object = fake
@@ -197,8 +197,7 @@ def open_lab_camera(scene: Callable[[], np.ndarray], settings: GenICamSettings =
     use_lab_genicam()
     if size is not None:
         settings = GenICamSettings(**{**settings.__dict__, "region": (0, 0, int(size[0]), int(size[1]))})
-    camera = GenICamCamera(FAKE_ID, settings)
     sensor = LabSensor(scene, response)
-    sensor.attach(camera)
+    camera = GenICamCamera(FAKE_ID, settings, on_open=sensor.attach)   # its frames are the sensor's from the first
     camera.sensor = sensor
     return camera, sensor
