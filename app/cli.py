@@ -144,6 +144,7 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_file
     from hairdigi.inference.preprocess import Roi
+    from hairdigi.inference.structure import READ_MEMBERS
     from hairdigi.render.base.records import write_record
     from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE, CameraPose
 
@@ -155,7 +156,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     exposures = [2.0 ** args.lights_ev] * len(lights) if lights and args.lights_ev is not None else None
     estimate, record, _ = estimate_file(args.image, encoder, roi, args.calibration, camera,
                                         refine_colour=not args.no_refine, rig_view=False if args.camera else None,
-                                        light_paths=lights, light_exposures=exposures)
+                                        light_paths=lights, light_exposures=exposures,
+                                        structures=READ_MEMBERS if args.structure == "read" else None)
     write_record(args.out, record)
     p = estimate.params
     refined = estimate.refinement
@@ -288,6 +290,43 @@ def evaluate_cycles_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def evaluate_structures_command(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --structures``: hidden hairs in every physical swatch structure, judged on their strands."""
+    from hairdigi.inference.training.evaluate_structures import MODES, StructureSet, evaluate_structures
+
+    if args.blender:
+        from hairdigi.render.blender_run import BlenderError, blender_command
+
+        try:
+            if blender_command() is None:
+                raise BlenderError("no Blender found: set HAIRDIGI_BLENDER to a Python that has bpy")
+        except BlenderError as exc:
+            print(f"hairdigi evaluate --structures --blender: {exc}", file=sys.stderr)
+            return 2
+    s = evaluate_structures(args.out, StructureSet(random=args.rig_random, size=min(args.size, 64),
+                                                   spp=args.spp, blender=args.blender))
+    print(f"{s['judged']} of {s['swatches']} hidden swatches judged ({s['renderer']}); mean-colour ΔE2000 against "
+          f"the truth on the hidden strands, median / p95 / worst:")
+    for mode in MODES:
+        for group, st in s[mode].items():
+            if group in ("by_structure", "layout_nuisance"):
+                continue
+            fit, away = st["fit"], st["transfer"]
+            if fit["n"]:
+                print(f"  {mode:8s} {group:14s} fit {fit['median']:.2f} / {fit['p95']:.2f} / {fit['worst']:.2f}, "
+                      f"transfer {away['median']:.2f} / {away['p95']:.2f} / {away['worst']:.2f}")
+        nuisance = s[mode]["layout_nuisance"]
+        if nuisance["n"]:
+            print(f"  {mode:8s} layout nuisance {nuisance['median']:.2f} / {nuisance['p95']:.2f} / {nuisance['worst']:.2f}")
+    for line in s["errors"]:
+        print(f"not judged: {line}")
+    if s["judged"] == 0:
+        print("hairdigi evaluate --structures: no swatch was judged; see the errors above", file=sys.stderr)
+        return 1
+    print(f"structures_evaluation.csv, .json and .png in {args.out}")
+    return 0
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.training.evaluate import evaluate, prepare_heldout
@@ -302,6 +341,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         return evaluate_appearance_command(args)
     if args.cycles:
         return evaluate_cycles_command(args)
+    if args.structures:
+        return evaluate_structures_command(args)
     from hairdigi.render.renderer import DEFAULT_SWATCH_MODEL
 
     data = Path(args.data) if args.data else _cache_dir() / "datasets" / (
@@ -503,6 +544,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-refine", action="store_true", help="the encoder alone, without refinement by synthesis")
     p.add_argument("--lights", metavar="L0,L1,L2", help="the same view lit by each rig light alone, in light order "
                    "(8/16-bit sRGB PNG or linear EXR): the shine is read from them")
+    p.add_argument("--structure", choices=("assumed", "read"), default="assumed",
+                   help="the swatch's physical structure: 'assumed', hairdigi's layered swatch; 'read' from the "
+                   "--lights frames among render.swatch_family's structures (their per-light tables render once "
+                   "per view, about 96 renders each), and the estimate refined on it")
     p.add_argument("--lights-ev", type=v.float_in(-10.0, 10.0), default=None, metavar="EV",
                    help="the --lights frames' exposure over IMAGE's, in stops (default: the rig's capture record "
                    "beside IMAGE, else the same exposure)")
@@ -530,6 +575,12 @@ def build_parser() -> argparse.ArgumentParser:
                    "in Blender Cycles (HAIRDIGI_BLENDER), estimated, and rendered back in Cycles: the fit and a "
                    "transfer judged in another renderer (--rig-random N random swatches beside the hard cases; "
                    "--spp: Cycles samples, 128 or more)")
+    p.add_argument("--structures", action="store_true", help="instead: hidden hairs in every physical swatch "
+                   "structure (render.swatch_family: deposited, tilted, loose, ...), estimated as shipped, mapped to "
+                   "the family and with the structure read, and judged on their own strands at the rig and away "
+                   "(--rig-random N random hairs beside the hard cases; --blender: hidden swatches in Cycles)")
+    p.add_argument("--blender", action="store_true", help="with --structures: render the hidden swatches and the "
+                   "judge in Blender Cycles (HAIRDIGI_BLENDER)")
     p.add_argument("--default-shine", action="store_true", help="with --cycles: every hidden swatch at the default "
                    "shine, no single-light frames (the renderer and the swatch's structure alone)")
     p.add_argument("--ship", action="store_true", help="with --rig: ship the measured colour interval "

@@ -22,6 +22,7 @@ from hairdigi.inference.domain import domain_stats, domain_warnings
 from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, read_image, swatch_crop, to_linear
 from hairdigi.inference.refine import Refinement, RefineSettings, View, fitted_pixels, mean_linear, refine
+from hairdigi.inference.structure import STRUCTURE_TABLE, with_structure
 from hairdigi.inference.uncertainty import intervals, load_table
 from hairdigi.render.base.version import version
 from hairdigi.render.base.appearance import AppearanceEstimate
@@ -106,6 +107,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     spread = max(est.view_spread.values()) if est.view_spread else None
     warnings = _warn(WarningKind.OUT_OF_DOMAIN, domain_warnings(stats, spread))
     refinement, appearance = None, None
+    swatch_read = None   # the structure read from the single-light frames (None: not read)
     params = est.params
     if light_images is not None:
         check_light_frames(light_images, image)
@@ -122,6 +124,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
                                   frame_levels=levels, structures=structures)
         warnings += reading.warnings
         appearance = reading.estimate
+        swatch_read = reading.swatch_model
         refinement = refine(est.params, mean_linear(fitted), view, settings, renderer, reading.value, reading.curve,
                             swatch_model=reading.swatch_model)
         if reading.value.varied and refinement.residual_de2000 > VARIATION_FIT_DE:
@@ -154,6 +157,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     warnings += list(extra_warnings)
     chain = load_table(CHAIN_TABLE) if isinstance(view, RigRegion) else None
     uncertainty = intervals(params, load_table(UNCERTAINTY_TABLE), chain)
+    if refinement is not None:   # a swatch's structure: read, or the default assumed (``inference.structure``)
+        uncertainty = with_structure(uncertainty, load_table(STRUCTURE_TABLE), swatch_read)
     if refinement is not None:
         warnings += interval_warnings(refinement.residual_de2000, uncertainty)
     return EstimateResult(params, est, refinement, warnings, stats.to_dict(), uncertainty,
@@ -202,7 +207,8 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
                   calibration_path: str | os.PathLike | None = None, camera: CameraPose = RIG_SWATCH_POSE,
                   refine_colour: bool = True, settings: RefineSettings = RefineSettings(),
                   rig_view: bool | None = None, light_paths: list | None = None,
-                  light_exposures: list[float] | None = None) -> tuple[EstimateResult, EstimateRecord, np.ndarray]:
+                  light_exposures: list[float] | None = None, structures: tuple[str, ...] | None = None
+                  ) -> tuple[EstimateResult, EstimateRecord, np.ndarray]:
     """Read, colour-correct (when a calibration profile is given) and estimate; returns the result,
     its record and the corrected image (linear float when corrected, else as read).
 
@@ -210,7 +216,8 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
     and rendered as the rig sees it); None decides by whether a ColorChecker is in view.
     ``light_paths``: the same view lit by each light alone (light order), 8/16-bit sRGB or linear
     EXR, corrected as the image; ``light_exposures`` each one's exposure over the image's (default:
-    the rig's capture record beside the image, if it names these frames, else 1).
+    the rig's capture record beside the image, if it names these frames, else 1). ``structures``:
+    swatch structures to read from those frames (``estimate_image``).
     """
     from hairdigi.inference.preprocess import find_swatch_roi
 
@@ -252,7 +259,8 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
             extra += _warn(WarningKind.CALIBRATION, correction_warnings(
                 profile, mean_linear(fitted_pixels(to_linear(raw), view)), mean_linear(fitted_pixels(image, view))))
     result = estimate_image(image, encoder, roi=roi, view=view, refine_colour=refine_colour, settings=settings,
-                            extra_warnings=extra, light_images=lights)
+                            extra_warnings=extra, light_images=lights,
+                            structures=structures if lights is not None else None)
     return result, record(result, encoder, image_path.read_bytes(), image_path, calibration, view), image
 
 

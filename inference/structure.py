@@ -23,6 +23,7 @@ import numpy as np
 from hairdigi.inference.refine import RefineSettings, ResponseCurve, View, response_curve
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.swatch_family import FAMILY
+from hairdigi.resources import MODELS
 
 #: Strand layouts each member's curve is averaged over (its seeds 0..LAYOUTS-1).
 LAYOUTS = 2
@@ -107,3 +108,26 @@ def read_structure(light_means: np.ndarray, view: View, settings: RefineSettings
     best = min(fits, key=lambda m: fits[m][0].residual)
     return StructureReading(best, fits[best][0], {m: round(f[0].residual, 5) for m, f in fits.items()},
                             fits[best][1])
+
+
+#: The fit's ΔE2000 on swatches of other structures (``hairdigi evaluate --structures --ship``), by
+#: whether the structure was read: what a record's colour interval carries for a structure it does not know.
+STRUCTURE_TABLE = MODELS / "structure_uncertainty.json"
+
+
+def with_structure(uncertainty: dict, table: dict | None, swatch_model: str | None) -> dict:
+    """``uncertainty`` (``inference.uncertainty.intervals``) with its colour interval widened to what
+    swatches of other structures measured (the larger of the two, per level), and a ``structure`` entry
+    naming the structure read (None: not read, the default structure assumed)."""
+    mode = "read" if swatch_model is not None else "shipped"
+    if not table or mode not in table:
+        return uncertainty
+    measured = table[mode]
+    out = dict(uncertainty)
+    for level in ("p68", "p95"):
+        key = f"mean_colour_de2000_{level}"
+        if key in out:
+            out[key] = round(max(out[key], measured[level]), 3)
+    out["structure"] = {"read": swatch_model, "mean_colour_de2000_p68": round(measured["p68"], 3),
+                        "mean_colour_de2000_p95": round(measured["p95"], 3), "source": table.get("source", "")}
+    return out

@@ -8,9 +8,10 @@ in a strand layout no estimate renders, and asks whether the ``sigma_a`` returne
 1. the hidden swatch is rendered at the rig's swatch pose, all hair in view, under all lights and each
    light alone (1.5 EV longer, as the rig takes them), through the camera model
    (``evaluate.capture``: noise, 12-bit ADC, 8-bit sRGB);
-2. ``estimate_image`` estimates it (the encoder, the shine from the single-light frames, refinement);
-   the answer as shipped (``shipped``: the default structure's ``sigma_a``) and mapped to the family
-   (``family``: ``inference.structure.to_family``) are both judged;
+2. ``estimate_image`` estimates it (the encoder, the shine from the single-light frames, refinement):
+   on the default structure (``shipped``), that answer mapped to the family's mean
+   (``family``: ``inference.structure.to_family``), and with the structure read from the single-light
+   frames and refined on it (``read``: ``inference.structure.read_structure``); all three are judged;
 3. each answer is rendered back **on the hidden swatch's own strands** with the truth's sampler seed
    and compared with the truth: at the rig's pose (**fit**) and away from it (**transfer**: another
    camera, a key light and a grey sky). Mean-colour ΔE2000; the ``sigma_a``'s relative error.
@@ -48,7 +49,7 @@ HIDDEN = ("layered", "deposited", "deposited-coarse", "spread", "wavy", "tilted"
 #: The structure the layout nuisance is measured on, and the layouts (seeds no estimate renders).
 LAYOUT_STRUCTURE, LAYOUT_SEEDS = "deposited", (601, 602)
 LIGHT_EV = 1.5
-MODES = ("shipped", "family")
+MODES = ("shipped", "family", "read")
 
 
 @dataclass(frozen=True)
@@ -127,10 +128,11 @@ def _rel(sigma, truth) -> float:
 
 
 def _estimate(render, truth, structure: str, layout: int, shine: float, encoder, family, index: int):
-    """The hidden swatch's capture and single-light frames, estimated: (result, {mode: sigma_a})."""
+    """The hidden swatch's capture and single-light frames, estimated on the default structure and with the
+    structure read: (result, read result, {mode: sigma_a})."""
     from hairdigi.inference.estimate import estimate_image
     from hairdigi.inference.preprocess import to_linear
-    from hairdigi.inference.structure import to_family
+    from hairdigi.inference.structure import READ_MEMBERS, to_family
     from hairdigi.inference.training.evaluate import capture
 
     frame = capture(render.mean(truth, structure, layout, "rig", shine, pixels=True).astype(np.float32), index)
@@ -138,10 +140,16 @@ def _estimate(render, truth, structure: str, layout: int, shine: float, encoder,
                                 .astype(np.float32) * np.float32(2.0 ** LIGHT_EV), index + 7 * (i + 1)))
               / np.float32(2.0 ** LIGHT_EV) for i in range(N_LIGHTS)]
     result = estimate_image(frame, encoder, light_images=lights)
-    if result.refinement is None:
+    read = estimate_image(frame, encoder, light_images=lights, structures=READ_MEMBERS)
+    if result.refinement is None or read.refinement is None:
         raise RuntimeError("no refinement")
     sigma = np.asarray(result.refinement.sigma_a, float)
-    return result, {"shipped": sigma, "family": to_family(sigma, family)}
+    return result, read, {"shipped": sigma, "family": to_family(sigma, family),
+                          "read": np.asarray(read.refinement.sigma_a, float)}
+
+
+def _shine(result, default: float) -> float:
+    return result.appearance.value.longitudinal_roughness if result.appearance else default
 
 
 def _one(name: str, hidden: HairParams, shine: float, structure: str, layout: int, render, encoder, family,
@@ -153,19 +161,23 @@ def _one(name: str, hidden: HairParams, shine: float, structure: str, layout: in
     row = {"hidden": name, "structure": structure, "layout": layout, "true_shine": shine,
            "true_sigma_a": [round(float(v), 5) for v in truth]}
     start = time.perf_counter()
-    result, answers = _estimate(render, truth, structure, layout, shine, encoder, family, index)
-    est_shine = result.appearance.value.longitudinal_roughness if result.appearance else shine
+    result, read, answers = _estimate(render, truth, structure, layout, shine, encoder, family, index)
+    shines = {mode: _shine(r, shine) for mode, r in (("shipped", result), ("family", result), ("read", read))}
     truth_rig = render.mean(truth, structure, layout, "rig", shine)
     truth_away = render.mean(truth, structure, layout, "transfer", shine)
-    row.update({"estimate_s": round(result.seconds, 2), "est_shine": est_shine,
+    row.update({"estimate_s": round(result.seconds, 2), "read_estimate_s": round(read.seconds, 2),
+                "est_shine": shines["shipped"], "read_shine": shines["read"],
+                "read_structure": read.refinement.region.get("swatch_model"),
                 "twin_residual": round(result.refinement.residual_de2000, 3),
+                "read_twin_residual": round(read.refinement.residual_de2000, 3),
                 "warnings": " | ".join(w.kind.value for w in result.warnings),
                 "structure_nuisance": max(nuisance(answers["family"], family).values())})
     for mode, sigma in answers.items():
         row.update({f"{mode}_sigma_a": [round(float(v), 5) for v in sigma],
                     f"{mode}_sigma_rel_error": _rel(sigma, truth),
-                    f"{mode}_fit": _de(render.mean(sigma, structure, layout, "rig", est_shine), truth_rig),
-                    f"{mode}_transfer": _de(render.mean(sigma, structure, layout, "transfer", est_shine), truth_away)})
+                    f"{mode}_fit": _de(render.mean(sigma, structure, layout, "rig", shines[mode]), truth_rig),
+                    f"{mode}_transfer": _de(render.mean(sigma, structure, layout, "transfer", shines[mode]),
+                                            truth_away)})
     row["seconds"] = round(time.perf_counter() - start, 1)
     return row
 
@@ -178,10 +190,10 @@ def _layout_row(name: str, hidden: HairParams, shine: float, render, encoder, fa
     a, b = (_estimate(render, truth, LAYOUT_STRUCTURE, s, shine, encoder, family, index + k)
             for k, s in enumerate(LAYOUT_SEEDS))
     row = {"hidden": name, "structure": LAYOUT_STRUCTURE, "layouts": list(LAYOUT_SEEDS)}
+    shine_a = _shine(a[0], shine)
     for mode in MODES:
-        shine_a = a[0].appearance.value.longitudinal_roughness if a[0].appearance else shine
-        row[f"{mode}_layout_nuisance"] = _de(render.mean(a[1][mode], LAYOUT_STRUCTURE, LAYOUT_SEEDS[0], "rig", shine_a),
-                                             render.mean(b[1][mode], LAYOUT_STRUCTURE, LAYOUT_SEEDS[0], "rig", shine_a))
+        row[f"{mode}_layout_nuisance"] = _de(render.mean(a[2][mode], LAYOUT_STRUCTURE, LAYOUT_SEEDS[0], "rig", shine_a),
+                                             render.mean(b[2][mode], LAYOUT_STRUCTURE, LAYOUT_SEEDS[0], "rig", shine_a))
     return row
 
 
@@ -236,6 +248,9 @@ def summarise(rows: list[dict], layout_rows: list[dict], config: StructureSet, f
            "errors": [f"{r['hidden']} ({r['structure']}): {r['error']}" for r in rows if r.get("error")],
            "family_curves_s": family_s, "estimate_s": error_stats(r["estimate_s"] for r in done),
            "twin_residual": error_stats(r["twin_residual"] for r in done),
+           "read_estimate_s": error_stats(r["read_estimate_s"] for r in done),
+           "structure_read": {s: {m: sum(1 for r in done if r["structure"] == s and r["read_structure"] == m)
+                                  for m in {r["read_structure"] for r in done}} for s in config.structures},
            "structure_nuisance": error_stats(r["structure_nuisance"] for r in done),
            "settings": {"size": config.size, "spp": config.spp, "structures": list(config.structures)}}
     groups = {"own (layered)": [r for r in done if r["structure"] == "layered"],
@@ -260,7 +275,7 @@ def _plot(rows: list[dict], path: Path, config: StructureSet) -> None:
         x = np.arange(len(config.structures))
         for k, mode in enumerate(MODES):
             values = [[r[f"{mode}_{key}"] for r in done if r["structure"] == s] for s in config.structures]
-            ax.boxplot([v or [np.nan] for v in values], positions=x + (k - 0.5) * 0.35, widths=0.3,
+            ax.boxplot([v or [np.nan] for v in values], positions=x + (k - 1) * 0.27, widths=0.24,
                        patch_artist=True, boxprops={"facecolor": f"C{k}"}, medianprops={"color": "k"})
             ax.plot([], [], color=f"C{k}", lw=6, label=mode)
         ax.axhline(1.0, ls="--", color="grey", lw=0.8)
