@@ -6,7 +6,8 @@ The source serialises every read under one lock and publishes each frame to its 
 window's feed). While someone subscribes, its thread reads at ``fps`` and ``next_frame`` waits for
 the next frame from that thread; with no subscriber (the command line), ``next_frame`` reads on the
 caller's thread. Either way a frame handed out by ``next_frame`` was exposed after the call began, so
-a capture taken just after switching a light sees the light.
+a capture taken just after switching a light sees the light. A camera that fails stops the feed,
+unless it can reopen itself (a GenICam camera's ``reconnect``): then the feed waits for it to come back.
 """
 from __future__ import annotations
 
@@ -126,8 +127,26 @@ class FrameSource:
                     report = list(self._error_subscribers)
                 for on_error in report:
                     on_error(self.error)
-                return
+                if not self._await_camera():
+                    return
+                continue
             self._stop.wait(max(0.0, self.period - (time.perf_counter() - start)))
+
+    def _await_camera(self, poll_s: float = 1.0) -> bool:
+        """After a failure, wait for a camera that can reopen itself (``reconnect``) to come back, while the
+        feed runs; True when it did (the feed goes on), False for any other camera (the feed stops)."""
+        reconnect = getattr(self.camera, "reconnect", None)
+        if reconnect is None:
+            return False
+        while not self._stop.is_set():
+            with self._read_lock:
+                back = reconnect(wait_s=0.0)
+            if back:
+                with self._published:
+                    self.error = None
+                return True
+            self._stop.wait(poll_s)
+        return False
 
     def _halt(self) -> None:
         self._stop.set()

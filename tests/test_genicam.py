@@ -264,6 +264,33 @@ def test_the_camera_vanishing_mid_capture(tmp_path, gv_camera):
         board.close()
 
 
+def test_the_live_feed_waits_for_a_vanished_camera(gv_camera):
+    """The window's feed (the frame source's thread): an error when the camera goes, frames when it is back."""
+    from hairdigi.hardware.frame_source import FrameSource
+
+    device, start, kill = gv_camera
+    source = FrameSource(GenICamCamera(device, GenICamSettings(timeout_s=1.0)), fps=10)
+    frames, errors = [], []
+    source.subscribe(frames.append, errors.append)
+    try:
+        deadline = time.monotonic() + 10
+        while len(frames) < 3 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        kill()
+        while not errors and time.monotonic() < deadline + 10:
+            time.sleep(0.05)
+        assert len(errors) == 1 and errors[0].startswith(f"genicam:Aravis Fake #{GV_SERIAL}: ")
+        assert source.running                           # waiting for the camera, not stopped
+        start()
+        seen = len(frames)
+        deadline = time.monotonic() + 15
+        while len(frames) <= seen and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert len(frames) > seen and source.error is None
+    finally:
+        source.close()
+
+
 def test_rig_on_the_command_line_names_a_missing_camera(capsys):
     from hairdigi.app.cli import main
 

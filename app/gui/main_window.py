@@ -485,6 +485,8 @@ class MainWindow(QMainWindow):
     # -- rig ---------------------------------------------------------------------------------
     def _on_frame(self, frame) -> None:
         self.last_frame = frame
+        if self.banner.isVisible() and self.banner.text().startswith("⚠ camera:"):
+            self.banner.hide()      # the camera came back (the frame source waited for it)
         check = self.model.frame_check
         img = overlay(frame.srgb, self.session.swatch_roi, None if check is None else check.chart_box,
                       self.zebra_box.isChecked())
