@@ -205,6 +205,8 @@ def test_a_capture_of_four_frames_through_the_session(tmp_path):
         loaded = session.load_capture(result.capture_id)
         assert loaded.linear is not None and loaded.problems == []
         assert session.calibration_status()[0] == "ok"
+        from hairdigi.inference.calibration import load_profile
+        assert staleness(load_profile(session.profile_path), session.settings()) == []   # as saved, too
         camera.wanted = GenICamSettings(exposure_us=12_000)   # the operator changes the exposure
         camera.set_exposure_offset(0.0)
         camera.readback = camera._read_settings(camera.format)
