@@ -207,21 +207,67 @@ def _detail_energy(img: np.ndarray) -> np.ndarray:
     return np.abs(gray - cv2.GaussianBlur(gray, (0, 0), 1.0))
 
 
+#: What the frame's border shows besides the holder: at a grazing view the camera sees past the holder
+#: (the world beyond it: black in a render, a bench in a lab), a band along one side of the frame. A
+#: group of border colours far from the holder's (``BACKGROUND_APART``) and holding at least
+#: ``BACKGROUND_SHARE`` of the border is a background of its own, and a region like any background is
+#: not the swatch (issue 28: at 55° the band beyond the holder was unlike the holder, merged with the
+#: swatch, and the whole frame, holder included, was taken as hair). The holder's own shading (the
+#: simulated rig's border spans about 40 codes) stays one background: a dark swatch is unlike it.
+BACKGROUND_SHARE = 0.15
+BACKGROUND_GAP = 30.0      # 8-bit codes (RGB norm): border colours this close to a group's centre join it
+BACKGROUND_APART = 90.0    # a further group's colours are this far from every earlier group's centre
+MAX_BACKGROUNDS = 3
+_SEED_SAMPLES = 1500       # border pixels tried as a group's centre
+
+
+def _densest(colours: np.ndarray) -> np.ndarray:
+    """The colour (one of a sample of ``colours``) with the most others within ``BACKGROUND_GAP``."""
+    seeds = colours[:: max(1, len(colours) // _SEED_SAMPLES)]
+    stride = max(1, len(colours) * len(seeds) // 4_000_000)
+    others = colours[::stride]
+    near = (np.linalg.norm(others[None, :, :] - seeds[:, None, :], axis=2) < BACKGROUND_GAP).sum(1)
+    return seeds[int(np.argmax(near))]
+
+
+def border_backgrounds(local: np.ndarray, energy: np.ndarray) -> list[tuple[np.ndarray, float]]:
+    """The groups of the frame's border colours (each its colour and median detail energy), largest
+    first: the holder, and what lies beyond it when the view sees past it."""
+    colours, energies = _border(local).reshape(-1, 3), _border(energy).ravel()
+    groups: list[tuple[np.ndarray, float]] = []
+    pool = np.ones(len(colours), bool)
+    while len(groups) < MAX_BACKGROUNDS:
+        if groups:
+            centres = np.array([c for c, _ in groups])
+            far = np.linalg.norm(colours[:, None, :] - centres[None, :, :], axis=2).min(1) >= BACKGROUND_APART
+            pool &= far
+            if pool.sum() < BACKGROUND_SHARE * len(colours):
+                break
+        centre = _densest(colours[pool])
+        member = pool & (np.linalg.norm(colours - centre, axis=1) < BACKGROUND_GAP)
+        groups.append((np.median(colours[member], axis=0), float(np.median(energies[member]))))
+    return groups
+
+
 def swatch_score(img: np.ndarray) -> np.ndarray:
-    """How unlike the holder each pixel's neighbourhood is; the holder is what the frame's border shows.
+    """How unlike the background each pixel's neighbourhood is; the background is what the frame's
+    border shows: the holder, and what lies beyond it at a grazing view (``border_backgrounds``).
 
     Hair differs from the holder in colour, in texture energy, or both (platinum hair on a grey
-    holder differs in texture; a smooth dark swatch in colour). Values above 1 count as swatch.
+    holder differs in texture; a smooth dark swatch in colour). A pixel's score is its least
+    unlikeness to any background group; values above 1 count as swatch.
     """
     sigma = max(1.5, min(img.shape[:2]) / 50.0)
     f = img.astype(np.float32)
     local = cv2.GaussianBlur(f, (0, 0), sigma)
-    background = np.median(_border(local), axis=0)
-    colour_distance = np.linalg.norm(local - background, axis=2)
     detail = _detail_energy(img)
     energy = np.sqrt(cv2.GaussianBlur(detail * detail, (0, 0), sigma))
-    background_energy = float(np.median(_border(energy)))
-    return np.maximum(colour_distance / 12.0, energy / (1.8 * background_energy + 1.5))
+    score = None
+    for colour, background_energy in border_backgrounds(local, energy):
+        colour_distance = np.linalg.norm(local - colour.astype(np.float32), axis=2)
+        unlike = np.maximum(colour_distance / 12.0, energy / (1.8 * background_energy + 1.5))
+        score = unlike if score is None else np.minimum(score, unlike)
+    return score
 
 
 #: Strand coherence (0 to 1) above which the frame's border counts as hair: the border of an all-hair
@@ -311,6 +357,51 @@ def holder_around(img: np.ndarray, box: tuple[int, int, int, int]) -> bool:
     return float(np.linalg.norm(colour_gap)) > HOLDER_RING_COLOUR
 
 
+def _regions(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """Connected regions of the swatch mask (count, labels and ``cv2`` stats), after a small opening. A region
+    touching the frame's edge is opened again with a disk of the score's blur width: the band where
+    the holder meets what lies beyond it is that thin, and so is its bridge to a swatch beside it."""
+    sh, sw = mask.shape
+    kernel = np.ones((max(3, min(sh, sw) // 40) | 1,) * 2, np.uint8)
+    opened = cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(opened)
+    edge = set(np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))) - {0}
+    if not edge:
+        return n, labels, stats
+    radius = int(np.ceil(3.5 * max(1.5, min(sh, sw) / 50.0)))
+    disk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1,) * 2)
+    touching = np.isin(labels, list(edge)).astype(np.uint8)
+    opened[touching > 0] = cv2.morphologyEx(touching, cv2.MORPH_OPEN, disk)[touching > 0]
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(opened)
+    return n, labels, stats
+
+
+#: A region filling less of its bounding box than this (a swatch seen obliquely is a parallelogram or a
+#: trapezium) is taken by the box inside it that it fills to ``INNER_FILL``: its bounding box holds holder.
+TRIM_BELOW_FILL, INNER_FILL = 0.9, 0.97
+
+
+def inner_box(region: np.ndarray, box: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    """``box`` (x, y, w, h) around the boolean ``region``, its emptiest edge row or column cut away in
+    turn until the region (its holes filled: a swatch's grey fibres read as holder) fills it to
+    ``INNER_FILL``; unchanged when the region fills it to ``TRIM_BELOW_FILL`` already."""
+    x, y, w, h = box
+    contours, _ = cv2.findContours(region[y:y + h, x:x + w].astype(np.uint8), cv2.RETR_EXTERNAL,
+                                   cv2.CHAIN_APPROX_SIMPLE)
+    inside = cv2.drawContours(np.zeros((h, w), np.uint8), contours, -1, 1, cv2.FILLED).astype(bool)
+    if inside.mean() >= TRIM_BELOW_FILL:
+        return box
+    top, bottom, left, right = 0, h, 0, w
+    while bottom - top > 2 and right - left > 2:
+        part = inside[top:bottom, left:right]
+        if part.mean() >= INNER_FILL:
+            break
+        edges = (part[0].mean(), part[-1].mean(), part[:, 0].mean(), part[:, -1].mean())
+        k = int(np.argmin(edges))
+        top, bottom, left, right = (top + (k == 0), bottom - (k == 1), left + (k == 2), right - (k == 3))
+    return x + left, y + top, right - left, bottom - top
+
+
 def find_swatch_roi(img: np.ndarray) -> Roi:
     """The bounding box of the largest filled region unlike the frame's border, the colour chart
     masked out; the whole image when no such region stands out, or when the border itself is hair
@@ -324,14 +415,13 @@ def find_swatch_roi(img: np.ndarray) -> Roi:
     if border_is_hair(small):
         return Roi(0, 0, w, h)
     mask = (swatch_score(small) > 1.0).astype(np.uint8)
-    kernel = np.ones((max(3, min(sh, sw) // 40) | 1,) * 2, np.uint8)
-    n, _, stats, _ = cv2.connectedComponentsWithStats(cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel))
+    n, labels, stats = _regions(mask)
     # masking only shrinks regions: when none is large enough to be a swatch, the chart does not matter
     chart = (chart_mask(small, margin=2 * max(1.5, min(sh, sw) / 50.0))
              if n > 1 and stats[1:, cv2.CC_STAT_AREA].max() >= 0.10 * sh * sw else None)
     if chart is not None:
         mask[chart > 0] = 0
-        n, _, stats, _ = cv2.connectedComponentsWithStats(cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel))
+        n, labels, stats = _regions(mask)
     # a swatch on its holder is a large, filled rectangle with holder on every side; streaks inside an
     # all-hair image are not, nor is a band across the whole frame (the lighter half of all-hair shading)
     def across(s) -> bool:
@@ -341,7 +431,8 @@ def find_swatch_roi(img: np.ndarray) -> Roi:
                   and s[4] >= 0.6 * s[2] * s[3] and s[2] * s[3] <= 0.85 * sh * sw and not across(s)]
     if not candidates:
         return Roi(0, 0, w, h)
-    x, y, bw, bh = (int(v) for v in stats[max(candidates)[1], :4])
+    best = max(candidates)[1]
+    x, y, bw, bh = inner_box(labels == best, tuple(int(v) for v in stats[best, :4]))
     if not holder_around(small, (x, y, bw, bh)):
         return Roi(0, 0, w, h)   # like its surroundings in texture and colour: a patch of an all-hair image
     x0, y0 = int(np.floor(x / scale)), int(np.floor(y / scale))
@@ -367,9 +458,13 @@ def swatch_crop(img: np.ndarray, roi: Roi | None = None) -> tuple[np.ndarray, Ro
     """
     validate_image(img)
     roi = roi or find_swatch_roi(img)
-    region = roi.clip(img)
-    full = roi.w == img.shape[1] and roi.h == img.shape[0]
-    return central_square(region, 1.0 if full else ROI_CENTRAL), roi
+    return crop_of(img, roi), roi
+
+
+def crop_of(values: np.ndarray, roi: Roi) -> np.ndarray:
+    """What :func:`swatch_crop` keeps of ``values`` (an image, or a per-pixel mask of its size) in ``roi``."""
+    full = roi.w == values.shape[1] and roi.h == values.shape[0]
+    return central_square(roi.clip(values), 1.0 if full else ROI_CENTRAL)
 
 
 #: 8-bit sRGB code to linear light (colour-science's sRGB curve), as a lookup table.
