@@ -409,14 +409,15 @@ class RigSession:
 def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | None, encoder_or_reason,
               profile: CalibrationProfile, view: RigRegion, stale: list[str],
               on_encoder_estimate: Callable[[HairParams], None] | None = None,
-              singles: list[tuple[np.ndarray, float]] = (), chart=None) -> None:
+              singles: list[tuple[np.ndarray, float]] = (), chart=None, clipped: np.ndarray | None = None) -> None:
     """Colour-correct the frame (``linear`` where the source has it, else the 8-bit ``image``) with
     ``profile``, keep it linear, estimate the swatch area ``view`` as the rig sees it, and fill ``result``.
 
     ``singles``: each light's own frame and its exposure over the frame's, corrected with the same
     profile (the rig's LEDs are one make; a profile fitted on a chart lit from one side would fold
     that light's geometry into the colour) and scaled back to the frame's exposure; ``chart``, the
-    frame's chart detection, checks that one profile holds for each light."""
+    frame's chart detection, checks that one profile holds for each light. ``clipped``: a RAW still's
+    saturated photosites (``Frame.clipped``), on which clipping is judged."""
     from hairdigi.inference.estimate import calibration_summary, estimate_image, record
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.inference.refine import fitted_pixels, mean_linear
@@ -433,7 +434,7 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
     if lights and chart is not None:
         warnings += [EstimateWarning(WarningKind.CALIBRATION, w) for w in light_colour_warnings(chart, lights)]
     estimate = estimate_image(corrected, encoder, view=view, extra_warnings=warnings,
-                              on_encoder_estimate=on_encoder_estimate, light_images=lights)
+                              on_encoder_estimate=on_encoder_estimate, light_images=lights, sensor_clipped=clipped)
     result.params = estimate.params
     result.corrected = corrected
     result.record = record(estimate, encoder, result.image_path.read_bytes(), result.image_path,
@@ -480,7 +481,7 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason) -> Cap
 
         found = find_swatch_roi(still.srgb)
         roi = (found.x, found.y, found.w, found.h)
-        swatch = check_exposure(still.srgb, roi)[0]
+        swatch = check_exposure(still.srgb, roi, clipped_mask=still.clipped)[0]   # on the sensor's counts
         if swatch.status == "over":
             result.blocked.append(swatch.message)
         # the still's own profile belongs in its capture record, as a live capture's does
@@ -488,7 +489,8 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason) -> Cap
         write_record(meta_path, capture)
     if not result.blocked:
         _estimate(result, still.srgb, still.linear, encoder_or_reason, profile,
-                  rig_region((still.srgb.shape[1], still.srgb.shape[0]), roi), profile_warnings(profile, None))
+                  rig_region((still.srgb.shape[1], still.srgb.shape[0]), roi), profile_warnings(profile, None),
+                  clipped=still.clipped)
     result.seconds = time.perf_counter() - start
     _write_result(Path(folder), result, roi)
     return result

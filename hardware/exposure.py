@@ -1,4 +1,5 @@
-"""Exposure checks on 8-bit sRGB frames: clipping, the level of a reference area, and dead lights."""
+"""Exposure checks: clipping (on 8-bit sRGB frames, or on a RAW still's sensor data against its white
+level), the level of a reference area, and dead lights."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -14,6 +15,9 @@ CLIP_LIMIT = 0.005            # white patch: more than 0.5 % of a channel at 254
 #: The swatch may clip on specular glints, which carry no dye colour; past 2 % the exposure hides colour.
 SWATCH_CLIP_LIMIT = 0.02
 SWATCH_BAND = (12.0, 235.0)   # loose: black hair is dark, platinum is bright
+#: A photosite at this share of the range from its black to its white level, or above, is saturated.
+SENSOR_SATURATION = 0.99
+_BAND_ROWS = 512              # sensor rows judged at once (a 48 MP still's mask stays tens of MB)
 
 
 def _linear(v: np.ndarray | float) -> np.ndarray:
@@ -29,7 +33,7 @@ def luminance8(img: np.ndarray) -> np.ndarray:
 @dataclass
 class ExposureReport:
     region: str
-    clipped: tuple[float, float, float]   # share of pixels at 254+ per channel
+    clipped: tuple[float, float, float]   # share of pixels at 254+ (or saturated on the sensor) per channel
     crushed: tuple[float, float, float]   # share of pixels at 1- per channel
     level: float                          # mean luminance, 8-bit
     status: str                           # "ok", "over" or "under"
@@ -37,15 +41,42 @@ class ExposureReport:
     message: str
 
 
+def sensor_clipped(raw_image: np.ndarray, colours: np.ndarray, colour_desc: str, black: float, white: float,
+                   half: bool) -> np.ndarray:
+    """Which pixels of a RAW still's developed image have a saturated photosite behind them, per
+    channel: (H, W, 3) bool, from the sensor's counts (``raw_image``, with ``colours`` each photosite's
+    index into ``colour_desc``, e.g. ``"RGBG"``) against the white level. Judged per 2 x 2 Bayer cell
+    (demosaicing spreads a photosite over its neighbours); ``half``: one pixel per cell, as a
+    half-size development gives, else each cell's verdict on its four pixels."""
+    threshold = black + SENSOR_SATURATION * (white - black)
+    rows, cols = raw_image.shape[0] // 2 * 2, raw_image.shape[1] // 2 * 2
+    channel = np.array(["RGB".find(c) if c in "RGB" else 1 for c in colour_desc], np.int8)
+    cells = np.zeros((rows // 2, cols // 2, 3), bool)
+    for r in range(0, rows, _BAND_ROWS):
+        r1 = min(rows, r + _BAND_ROWS)
+        saturated = raw_image[r:r1, :cols] >= threshold
+        which = channel[colours[r:r1, :cols]]
+        for c in range(3):
+            cells[r // 2:r1 // 2, :, c] = (saturated & (which == c)).reshape((r1 - r) // 2, 2, cols // 2, 2).any((1, 3))
+    if half:
+        return cells
+    full = np.zeros(raw_image.shape[:2] + (3,), bool)
+    full[:rows, :cols] = cells.repeat(2, 0).repeat(2, 1)
+    return full
+
+
 def check_region(img: np.ndarray, box: tuple[int, int, int, int], region: str,
                  band: tuple[float, float] = SWATCH_BAND, target_linear: float | None = None,
-                 clip_limit: float = SWATCH_CLIP_LIMIT) -> ExposureReport:
-    """Clipping and level in ``box`` (x, y, w, h); suggests an EV change toward ``target_linear``."""
+                 clip_limit: float = SWATCH_CLIP_LIMIT, clipped_mask: np.ndarray | None = None) -> ExposureReport:
+    """Clipping and level in ``box`` (x, y, w, h); suggests an EV change toward ``target_linear``.
+    ``clipped_mask``: the sensor's saturation per pixel and channel (a RAW still's, ``sensor_clipped``),
+    judged instead of the 8-bit values (an 8-bit code of 255 need not be a saturated photosite)."""
     x, y, w, h = box
     patch = img[y:y + h, x:x + w].reshape(-1, 3)
     if patch.size == 0:
         raise ValueError(f"the {region} area {box} lies outside the {img.shape[1]}x{img.shape[0]} frame")
-    clipped = tuple(float(v) for v in (patch >= 254).mean(0))
+    clipped = tuple(float(v) for v in (patch >= 254 if clipped_mask is None else
+                                       clipped_mask[y:y + h, x:x + w].reshape(-1, 3)).mean(0))
     crushed = tuple(float(v) for v in (patch <= 1).mean(0))
     level = float(luminance8(patch).mean())
     target = target_linear if target_linear is not None else float(_linear(np.mean(band)))
@@ -64,11 +95,14 @@ def check_region(img: np.ndarray, box: tuple[int, int, int, int], region: str,
 
 
 def check_exposure(img: np.ndarray, swatch_box: tuple[int, int, int, int],
-                   white_box: tuple[int, int, int, int] | None = None) -> list[ExposureReport]:
-    """The swatch (clipping, loose band) and, when the chart is in view, its white patch (tight band)."""
-    reports = [check_region(img, swatch_box, "swatch")]
+                   white_box: tuple[int, int, int, int] | None = None,
+                   clipped_mask: np.ndarray | None = None) -> list[ExposureReport]:
+    """The swatch (clipping, loose band) and, when the chart is in view, its white patch (tight band);
+    ``clipped_mask`` as in :func:`check_region`."""
+    reports = [check_region(img, swatch_box, "swatch", clipped_mask=clipped_mask)]
     if white_box is not None:
-        reports.append(check_region(img, white_box, "white patch", WHITE_BAND, WHITE_TARGET_LINEAR, CLIP_LIMIT))
+        reports.append(check_region(img, white_box, "white patch", WHITE_BAND, WHITE_TARGET_LINEAR, CLIP_LIMIT,
+                                    clipped_mask))
     return reports
 
 

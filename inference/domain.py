@@ -61,15 +61,19 @@ class DomainStats:
     clipped: float        # share of clipped pixels
     peak_share: float = 0.0    # share of the texture's power in its 4 strongest spatial frequencies
     channel_corr: float = 1.0  # the smallest correlation between two colour channels of the input
+    clipped_on: str = "8-bit"  # what ``clipped`` was judged on: the 8-bit values, or the "sensor"'s counts
 
     def to_dict(self) -> dict:
         return {"std": round(self.std, 3), "coherence": round(self.coherence, 4), "energy": round(self.energy, 2),
-                "greyscale": self.greyscale, "clipped_share": round(self.clipped, 4),
+                "greyscale": self.greyscale, "clipped_share": round(self.clipped, 4), "clipped_on": self.clipped_on,
                 "peak_share": round(self.peak_share, 4), "channel_corr": round(self.channel_corr, 4)}
 
 
-def domain_stats(crop: np.ndarray) -> DomainStats:
-    """Texture statistics of a swatch crop (8-bit sRGB or linear float), on the encoder's 48² input."""
+def domain_stats(crop: np.ndarray, sensor_clipped: np.ndarray | None = None) -> DomainStats:
+    """Texture statistics of a swatch crop (8-bit sRGB or linear float), on the encoder's 48² input.
+
+    ``sensor_clipped``: the crop's saturated photosites (a RAW still's, ``hardware.exposure.sensor_clipped``);
+    clipping is then the sensor's, not the 8-bit encode's 0 or 255 (a dark swatch's zeros are not clipping)."""
     x = encode(crop, INPUT_SIZE)
     step = max(1, int(np.ceil(np.sqrt(crop.shape[0] * crop.shape[1] / SAMPLE_PIXELS))))
     crop = to_srgb8(crop[::step, ::step])   # the pixel statistics below, on a bounded sample
@@ -79,9 +83,12 @@ def domain_stats(crop: np.ndarray) -> DomainStats:
     jxx, jyy, jxy = float((gx * gx).mean()), float((gy * gy).mean()), float((gx * gy).mean())
     coherence = np.sqrt((jxx - jyy) ** 2 + 4 * jxy**2) / (jxx + jyy + 1e-6)
     greyscale = bool(np.array_equal(crop[..., 0], crop[..., 1]) and np.array_equal(crop[..., 1], crop[..., 2]))
-    clipped = float(((crop == 0) | (crop == 255)).any(axis=2).mean())
+    if sensor_clipped is None:
+        clipped = float(((crop == 0) | (crop == 255)).any(axis=2).mean())
+    else:
+        clipped = float(np.asarray(sensor_clipped).reshape(*sensor_clipped.shape[:2], -1).any(axis=2).mean())
     return DomainStats(float(luminance.std()), float(coherence), float(np.sqrt(jxx + jyy)), greyscale, clipped,
-                       _peak_share(luminance), _channel_corr(x))
+                       _peak_share(luminance), _channel_corr(x), "8-bit" if sensor_clipped is None else "sensor")
 
 
 #: Below this share of the luminance's variance left once its smooth shading is removed, the input is
@@ -154,7 +161,10 @@ def domain_warnings(stats: DomainStats, view_spread: float | None = None,
     if stats.greyscale:
         out.append("out of domain: the image has no colour (R = G = B everywhere), perhaps a greyscale image "
                    "saved as RGB; capture in colour")
-    if stats.clipped > limits.clipped_share:
+    if stats.clipped > limits.clipped_share and stats.clipped_on == "sensor":
+        out.append(f"clipped: {100 * stats.clipped:.1f}% of the swatch area is at the sensor's white level; lower "
+                   "the exposure and capture again")
+    elif stats.clipped > limits.clipped_share:
         out.append(f"clipped: {100 * stats.clipped:.1f}% of the swatch area is at 0 or 255; lower or raise "
                    "the exposure and capture again")
     if view_spread is not None and view_spread > limits.max_view_spread:

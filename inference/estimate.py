@@ -20,7 +20,7 @@ import numpy as np
 from hairdigi.inference.appearance import check_light_frames, read_appearance, unmeasured_variation
 from hairdigi.inference.domain import domain_stats, domain_warnings
 from hairdigi.inference.encoder import Encoder, Estimate
-from hairdigi.inference.preprocess import Roi, read_image, swatch_crop, to_linear
+from hairdigi.inference.preprocess import Roi, crop_of, read_image, swatch_crop, to_linear
 from hairdigi.inference.refine import Refinement, RefineSettings, View, fitted_pixels, mean_linear, refine
 from hairdigi.inference.structure import STRUCTURE_TABLE, with_structure
 from hairdigi.inference.uncertainty import intervals, load_table
@@ -83,7 +83,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
                    settings: RefineSettings = RefineSettings(), extra_warnings: list[EstimateWarning] = (),
                    on_encoder_estimate: Callable[[HairParams], None] | None = None,
                    renderer=None, light_images: list[np.ndarray] | None = None,
-                   structures: tuple[str, ...] | None = None) -> EstimateResult:
+                   structures: tuple[str, ...] | None = None,
+                   sensor_clipped: np.ndarray | None = None) -> EstimateResult:
     """Estimate a colour-corrected image: linear float RGB (a corrected capture) or 8-bit sRGB; a rig
     frame or a crop that is all hair.
 
@@ -94,7 +95,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     each light alone (light order), corrected as ``image`` and at its exposure: the shine is read
     from them; without them the record says "shine not measured". ``structures``: swatch structures
     (``render.swatch_family``) to read from the single-light frames with the shine; the refinement
-    renders the one read (None: the default structure alone).
+    renders the one read (None: the default structure alone). ``sensor_clipped``: the image's
+    saturated photosites per pixel (a RAW still's, ``Frame.clipped``): clipping is judged on them.
     """
     start = time.perf_counter()
     if isinstance(view, RigRegion):
@@ -103,7 +105,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     est = encoder.estimate(image, roi)
     if on_encoder_estimate is not None:
         on_encoder_estimate(est.params)
-    stats = domain_stats(crop)
+    stats = domain_stats(crop, None if sensor_clipped is None else crop_of(sensor_clipped, roi))
     spread = max(est.view_spread.values()) if est.view_spread else None
     warnings = _warn(WarningKind.OUT_OF_DOMAIN, domain_warnings(stats, spread))
     refinement, appearance = None, None

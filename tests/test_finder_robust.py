@@ -61,3 +61,68 @@ def test_a_grazing_view_is_estimated_near_the_truth(renderer):
     pose = CameraPose(55.0, 0.0)
     result = estimate_image(rig_view(renderer, "brown", pose), Encoder(), view=pose, renderer=renderer)
     assert judge(HAIRS["brown"], result.params, renderer=renderer).de2000 < 1.0
+
+
+# --- 3. RAW stills: clipping on the sensor's data ----------------------------------------------
+def test_a_raw_still_knows_which_pixels_are_saturated_on_the_sensor(tmp_path):
+    """rawpy's counts against the white level, per channel: a dark area whose 8-bit encode is all 0 is
+    not clipped; photosites at the white level are, in their channel only."""
+    from media import WHITE, write_raw_still
+
+    from hairdigi.hardware.cameras import read_raw
+
+    linear = np.full((64, 64, 3), 0.3)
+    linear[:32] = 0.00005                       # dark: 8-bit sRGB 0, but 0-1 counts above black
+    linear[40:56, 8:24, 0] = 1.2                # red past the white level
+    frame = read_raw(write_raw_still(tmp_path / "s.dng", linear))
+    assert (frame.srgb[4:28] == 0).all()       # what the 8-bit check called clipping
+    assert not frame.clipped[:32].any()
+    assert frame.clipped[42:54, 10:22, 0].all() and not frame.clipped[42:54, 10:22, 1:].any()
+    assert not frame.clipped[:, 32:].any() and frame.meta["white_level"] == WHITE
+
+
+def test_clipping_is_judged_on_the_sensor_where_its_data_is_given():
+    from hairdigi.hardware.exposure import check_region
+    from hairdigi.inference.domain import domain_stats, domain_warnings
+
+    rng = np.random.default_rng(0)
+    crop = rng.integers(0, 40, (64, 64, 3)).astype(np.uint8)          # dark hair: 1 in 40 codes at 0
+    crop[:, :24] = 0                                                    # and a band the encode put at 0
+    none = np.zeros((64, 64, 3), bool)
+    assert any(w.startswith("clipped") for w in domain_warnings(domain_stats(crop)))
+    assert not any(w.startswith("clipped") for w in domain_warnings(domain_stats(crop, none)))
+    saturated = none.copy()
+    saturated[:, :20, 1] = True                                         # 31% of the pixels saturated in green
+    warnings = domain_warnings(domain_stats(crop, saturated))
+    assert any(w.startswith("clipped: 31.2% of the swatch area is at the sensor's white level") for w in warnings)
+    white = np.full((16, 16, 3), 255, np.uint8)                        # 8-bit 255: over, unless the sensor says not
+    assert check_region(white, (0, 0, 16, 16), "swatch").status == "over"
+    assert check_region(white, (0, 0, 16, 16), "swatch", clipped_mask=np.zeros((16, 16, 3), bool)).clipped == (0, 0, 0)
+
+
+@pytest.mark.slow
+def test_a_dark_raw_still_is_not_called_clipped(tmp_path):
+    """Issue 28: a 12-bit RAW still of black hair, exposed so that the chart's white patch sits at 80%,
+    was called "clipped: 17.8% of the swatch area is at 0 or 255" (the zeros of the corrected image's
+    8-bit encode). Judged on the sensor's counts, nothing there is clipped."""
+    from media import write_raw_still
+
+    from hairdigi.app.rig_session import RigSession
+    from hairdigi.render.base import rig_geometry as rg
+    from hairdigi.render.chart import WHITE_PATCH
+
+    session = RigSession.simulated_rig(tmp_path / "s", hidden=HAIRS["black"], spp=8)
+    try:
+        radiance = session.camera.radiance()
+        size = (radiance.shape[1], radiance.shape[0])
+        u, v = rg.rig_pixel(*rg.chart_patch_centres()[WHITE_PATCH], size)
+        r = rg.CHART_PATCH / 3 * rg.rig_scale(size)
+        white = radiance[int(v - r):int(v + r), int(u - r):int(u + r)].reshape(-1, 3).mean(0)
+        still = write_raw_still(tmp_path / "IMG_1.dng", (radiance * 0.8 / white.max()).repeat(2, 0).repeat(2, 1))
+        result = session.import_still(still)
+    finally:
+        session.close()
+    assert not result.blocked and result.record is not None
+    assert not [w for w in result.record.warnings if w.message.startswith("clipped")], result.record.warnings
+    assert result.record.provenance["domain"]["clipped_on"] == "sensor"
+    assert result.record.provenance["domain"]["clipped_share"] == 0.0
