@@ -41,7 +41,15 @@ class Thresholds:
     # peak share is taken on the texture less its smooth shading; dark or dyed swatches with fibre
     # spread 0.3 and 0–40% grey fibres read 0.06–0.26 (0.54–0.70 with the shading), stripes 0.93, a
     # checkerboard 0.78–0.99, a smooth gradient 1
-    min_energy: float = 12.0        # below: no strand texture (a smooth gradient, a blurred picture)
+    min_energy: float = 12.0        # below: no strand texture (a smooth gradient, a blurred picture) ...
+    # ... unless its texture is fine fibres' (issue 28). A real camera's view of fibres about a photosite
+    # wide, through its lens (Gaussian blur 1-2 px on renders of 128-384 px, then the camera model),
+    # keeps 0.57-0.76 of its texture's power above half the 48² input's Nyquist frequency, its three
+    # channels moving together there (correlation 0.55-0.80), though black hair's texture is weak
+    # (energy 8.2-11.4). Defocused by 6-16 px, the fine texture left is the sensor's noise: a share
+    # 0.12-0.69, but its channels apart (0.13-0.41) or under half the share (blurred pictures: 0.02-0.13)
+    min_fine_share: float = 0.5
+    min_fine_corr: float = 0.48
     max_peak_share: float = 0.6     # above: a few frequencies hold the texture (stripes, a checkerboard)
     min_channel_corr: float = 0.12  # below: R, G and B vary independently (colour noise); hair's shading
                                     # moves all three together
@@ -62,11 +70,14 @@ class DomainStats:
     peak_share: float = 0.0    # share of the texture's power in its 4 strongest spatial frequencies
     channel_corr: float = 1.0  # the smallest correlation between two colour channels of the input
     clipped_on: str = "8-bit"  # what ``clipped`` was judged on: the 8-bit values, or the "sensor"'s counts
+    fine_share: float = 1.0    # share of the texture's power above half the input's Nyquist frequency
+    fine_corr: float = 1.0     # the smallest correlation between two colour channels there
 
     def to_dict(self) -> dict:
         return {"std": round(self.std, 3), "coherence": round(self.coherence, 4), "energy": round(self.energy, 2),
                 "greyscale": self.greyscale, "clipped_share": round(self.clipped, 4), "clipped_on": self.clipped_on,
-                "peak_share": round(self.peak_share, 4), "channel_corr": round(self.channel_corr, 4)}
+                "peak_share": round(self.peak_share, 4), "channel_corr": round(self.channel_corr, 4),
+                "fine_share": round(self.fine_share, 4), "fine_corr": round(self.fine_corr, 4)}
 
 
 def domain_stats(crop: np.ndarray, sensor_clipped: np.ndarray | None = None) -> DomainStats:
@@ -88,7 +99,8 @@ def domain_stats(crop: np.ndarray, sensor_clipped: np.ndarray | None = None) -> 
     else:
         clipped = float(np.asarray(sensor_clipped).reshape(*sensor_clipped.shape[:2], -1).any(axis=2).mean())
     return DomainStats(float(luminance.std()), float(coherence), float(np.sqrt(jxx + jyy)), greyscale, clipped,
-                       _peak_share(luminance), _channel_corr(x), "8-bit" if sensor_clipped is None else "sensor")
+                       _peak_share(luminance), _channel_corr(x), "8-bit" if sensor_clipped is None else "sensor",
+                       _fine_share(luminance), _channel_corr(_fine(x)))
 
 
 #: Below this share of the luminance's variance left once its smooth shading is removed, the input is
@@ -103,27 +115,54 @@ def _shading(n: int, m: int) -> np.ndarray:
     return np.stack([np.ones_like(xx), xx, yy, xx * xx, xx * yy, yy * yy], -1).reshape(-1, 6)
 
 
+def _texture(luminance: np.ndarray) -> np.ndarray | None:
+    """The luminance less its smooth shading (a quadratic surface, fitted); None when that leaves
+    under ``MIN_TEXTURE_SHARE`` of its variance (the input is one smooth gradient) or it is flat."""
+    lum = np.asarray(luminance, np.float64)
+    total = float(((lum - lum.mean()) ** 2).sum())
+    if total <= 0:
+        return None
+    basis = _shading(*lum.shape)
+    coef, *_ = np.linalg.lstsq(basis, lum.ravel(), rcond=None)
+    texture = lum - (basis @ coef).reshape(lum.shape)
+    return None if float((texture**2).sum()) < MIN_TEXTURE_SHARE * total else texture - texture.mean()
+
+
 def _peak_share(luminance: np.ndarray, k: int = 4) -> float:
     """Share of the luminance's texture power in its ``k`` strongest spatial frequencies: near 1 for
     stripes, a smooth gradient or a checkerboard; hair spreads its power over many.
 
-    The texture is the luminance less its smooth shading (a quadratic surface, fitted): a swatch's
-    brightness falls off along its fibres, and on dark hair with few grey fibres that shading held
-    most of the power, so that uniform hair read as "a few frequencies" (issue 18). An input whose
-    texture holds under ``MIN_TEXTURE_SHARE`` of its variance is all shading, a gradient: 1.
+    The texture is the luminance less its smooth shading (``_texture``): a swatch's brightness falls
+    off along its fibres, and on dark hair with few grey fibres that shading held most of the power,
+    so that uniform hair read as "a few frequencies" (issue 18). All shading, a gradient: 1 (a flat
+    input: 0).
     """
-    lum = np.asarray(luminance, np.float64)
-    total = float(((lum - lum.mean()) ** 2).sum())
-    if total <= 0:
-        return 0.0
-    basis = _shading(*lum.shape)
-    coef, *_ = np.linalg.lstsq(basis, lum.ravel(), rcond=None)
-    texture = lum - (basis @ coef).reshape(lum.shape)
-    if float((texture**2).sum()) < MIN_TEXTURE_SHARE * total:
-        return 1.0
-    power = np.abs(np.fft.rfft2(texture - texture.mean())) ** 2
+    texture = _texture(luminance)
+    if texture is None:
+        return 0.0 if float(np.ptp(luminance)) == 0 else 1.0
+    power = np.abs(np.fft.rfft2(texture)) ** 2
     power[0, 0] = 0.0
     return float(np.sort(power.ravel())[-k:].sum() / power.sum())
+
+
+def _fine_share(luminance: np.ndarray) -> float:
+    """Share of the texture's power above half the Nyquist frequency (0.25 cycles a pixel): fibres'
+    glints and a camera's noise spread their power to the finest scales; a blurred picture has none
+    there. 0 when there is no texture (a flat input, a smooth gradient)."""
+    texture = _texture(luminance)
+    if texture is None:
+        return 0.0
+    power = np.abs(np.fft.fft2(texture)) ** 2
+    fy, fx = np.meshgrid(np.fft.fftfreq(texture.shape[0]), np.fft.fftfreq(texture.shape[1]), indexing="ij")
+    total = float(power.sum())
+    return float(power[np.hypot(fy, fx) > 0.25].sum() / total) if total > 0 else 0.0
+
+
+def _fine(x: np.ndarray) -> np.ndarray:
+    """The part of each channel of ``x`` (channels first) above half the Nyquist frequency."""
+    fy, fx = np.meshgrid(np.fft.fftfreq(x.shape[1]), np.fft.fftfreq(x.shape[2]), indexing="ij")
+    spectrum = np.fft.fft2(np.asarray(x, np.float64), axes=(1, 2)) * (np.hypot(fy, fx) > 0.25)
+    return np.real(np.fft.ifft2(spectrum, axes=(1, 2)))
 
 
 def _channel_corr(x: np.ndarray) -> float:
@@ -136,6 +175,12 @@ def _channel_corr(x: np.ndarray) -> float:
     return float(min(c[0, 1], c[0, 2], c[1, 2]))
 
 
+def fine_fibres(stats: DomainStats, limits: Thresholds = THRESHOLDS) -> bool:
+    """Whether a weak texture is fine fibres' (a real camera's view of them): most of its power at the
+    finest scales, the three channels moving together there (not the sensor's noise)."""
+    return stats.fine_share >= limits.min_fine_share and stats.fine_corr >= limits.min_fine_corr
+
+
 def domain_warnings(stats: DomainStats, view_spread: float | None = None,
                     limits: Thresholds = THRESHOLDS) -> list[str]:
     """Human-readable reasons why the crop is not a hair swatch the encoder knows; empty when it is."""
@@ -146,9 +191,11 @@ def domain_warnings(stats: DomainStats, view_spread: float | None = None,
     elif stats.coherence < limits.min_coherence:
         out.append(f"out of domain: no strand direction in the swatch area (coherence {stats.coherence:.3f} < "
                    f"{limits.min_coherence}): noise or a pattern, not a combed swatch")
-    elif stats.energy < limits.min_energy:
+    elif stats.energy < limits.min_energy and not fine_fibres(stats, limits):
         out.append(f"out of domain: no strand texture in the swatch area (texture {stats.energy:.1f} < "
-                   f"{limits.min_energy}): a smooth gradient or a blurred picture, not hair")
+                   f"{limits.min_energy}, and not fine fibres': {100 * stats.fine_share:.0f}% of it fine, "
+                   f"channels correlated {stats.fine_corr:.2f} there): a smooth gradient or a blurred picture, "
+                   f"not hair")
     elif stats.peak_share > limits.max_peak_share:
         out.append(f"out of domain: a few spatial frequencies hold {100 * stats.peak_share:.0f}% of the texture "
                    f"(over {100 * limits.max_peak_share:.0f}%): stripes, a gradient or a printed pattern, not hair")

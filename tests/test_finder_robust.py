@@ -126,3 +126,35 @@ def test_a_dark_raw_still_is_not_called_clipped(tmp_path):
     assert not [w for w in result.record.warnings if w.message.startswith("clipped")], result.record.warnings
     assert result.record.provenance["domain"]["clipped_on"] == "sensor"
     assert result.record.provenance["domain"]["clipped_share"] == 0.0
+
+
+# --- 4. domain checks: a real camera's view of fine fibres -------------------------------------
+@pytest.mark.slow
+def test_fine_fibres_through_a_lens_are_not_out_of_domain_but_a_defocused_swatch_is(renderer):
+    """Black hair's fibres, about a photosite wide at 192 px, through a lens blur of 1 px and the camera
+    model: its texture at the encoder's 48² is weak (energy 11.4 < 12), and it was flagged "no strand
+    texture". Its texture is fine and its channels move together there: not out of domain. The same
+    swatch defocused (8 px) is still flagged: what fine texture is left is the sensor's noise."""
+    from hairdigi.inference.domain import domain_stats, domain_warnings
+    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.camera_model import CameraModel, sensor_response
+
+    linear = renderer.render(HAIRS["black"], SceneSpec("swatch", camera=RIG_SWATCH_POSE), 192, 32, seed=1).linear
+    views = {blur: sensor_response(cv2.GaussianBlur(linear, (0, 0), blur), CameraModel(), np.random.default_rng(0))
+             for blur in (1.0, 8.0)}
+    sharp, defocused = (domain_stats(views[b]) for b in (1.0, 8.0))
+    assert sharp.energy < 12.0                                           # the case the old check flagged
+    assert not [w for w in domain_warnings(sharp) if w.startswith("out of domain")], domain_warnings(sharp)
+    assert any("no strand texture" in w for w in domain_warnings(defocused)), defocused
+
+
+def test_a_dark_smooth_gradient_through_the_camera_is_still_out_of_domain():
+    """A dark gradient card through the camera model has weak texture too, but none of it fine fibres'."""
+    from hairdigi.inference.domain import domain_stats, domain_warnings
+    from hairdigi.render.camera_model import CameraModel, sensor_response
+
+    yy = np.mgrid[:256, :256][0] / 255.0
+    for lo, hi in ((0.005, 0.03), (0.01, 0.1)):
+        card = (lo + (hi - lo) * yy)[..., None] * np.array([1.0, 0.7, 0.45])
+        stats = domain_stats(sensor_response(card, CameraModel(), np.random.default_rng(0)))
+        assert any(w.startswith("out of domain") for w in domain_warnings(stats)), (lo, hi, stats)
