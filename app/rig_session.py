@@ -129,6 +129,7 @@ class RigSession:
 
             response = np.asarray(rig.camera.cast, np.float32) * np.float32(2.0 ** rig.camera.exposure_ev)
             camera = open_lab_camera(rig.radiance, response=response, size=rig.size, device_id=genicam)[0]
+            camera.hidden, camera.appearance = rig.hidden, rig.appearance   # the truth, as SimRig tells it
         session = cls(camera, lights, folder, rig.roi, encoder, simulated=True)
         session._board = board
         for i in range(N_LIGHTS):
