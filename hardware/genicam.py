@@ -88,7 +88,9 @@ class GenICamSettings:
 
     exposure_us: float = 10_000.0
     gain: float = 0.0                   # the camera's Gain (dB on most; GainRaw where it has no Gain)
-    black_level: float | None = None    # BlackLevel, in counts of the pixel format; None: as the camera has it
+    black_level: float | None = None    # BlackLevel; None: as the camera has it. Read back, it is subtracted as
+    #                                     counts of the pixel format (Basler's and the fake's unit; a camera that
+    #                                     gives it in % of range should be set to 0)
     pixel_format: str | None = None     # a Bayer PFNC name; None: the deepest unpacked Bayer format offered
     timeout_s: float = 2.0              # how long a frame may take after its trigger
     region: tuple[int, int, int, int] | None = None   # x, y, width, height on the sensor; None: as the camera has it
@@ -171,7 +173,7 @@ class GenICamCamera:
                              "raw Bayer frames")
         self._set("PixelFormat", camera.set_pixel_format_from_string, fmt.name)
         if wanted.region is not None:
-            self._set("Width", camera.set_region, *map(int, wanted.region))
+            self._set("OffsetX, OffsetY, Width, Height", camera.set_region, *map(int, wanted.region))
         if not camera.is_exposure_time_available():
             raise self._fail("ExposureTime", "the camera has no exposure time control")
         if camera.is_gain_available():
@@ -239,7 +241,8 @@ class GenICamCamera:
             meta = {"camera": self.name, "frame": frame_id, "camera_settings": self.settings(),
                     "exposure_offset_ev": self.exposure_offset_ev,
                     "exposure_us": self.wanted.exposure_us * 2.0 ** self.exposure_offset_ev,
-                    "bayer": {"format": fmt.name, "layout": fmt.layout, "black": black, "white": fmt.white}}
+                    "bayer": {"format": fmt.name, "layout": fmt.layout, "black": black, "white": fmt.white,
+                              "model": self.name}}
             return Frame(srgb8(linear), linear, meta, time.time(), mosaic=counts)
 
     def _grab(self) -> tuple[np.ndarray, int]:
