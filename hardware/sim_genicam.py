@@ -19,7 +19,8 @@ public data pointer and allocated size before anything is written.
 from __future__ import annotations
 
 import ctypes
-import os
+import hashlib
+import tempfile
 import threading
 from pathlib import Path
 from typing import Callable
@@ -29,6 +30,7 @@ import numpy as np
 
 from hairdigi.hardware.cameras import CameraError
 from hairdigi.hardware.genicam import FAKE_ID, GenICamCamera, GenICamSettings, load_aravis
+from hairdigi.render.base.files import atomic_path
 
 #: PFNC BayerRG12 (unpacked, 16-bit words)
 BAYER_RG12 = 0x01100011
@@ -176,11 +178,13 @@ def use_lab_genicam() -> Path:
     """Make Aravis's in-process fake camera load the lab camera's GenICam file (written once per process)."""
     aravis = load_aravis()
     with _xml_lock:
-        path = Path(os.environ.get("TMPDIR", "/tmp")) / f"hairdigi-fake-lab-camera-{os.getpid()}.xml"
+        xml = aravis.FakeCamera.new("hairdigi").get_genicam_xml()
+        xml = lab_genicam_xml(xml[0] if isinstance(xml, tuple) else xml)
+        name = f"hairdigi-fake-lab-camera-{hashlib.sha256(xml.encode()).hexdigest()[:12]}.xml"
+        path = Path(tempfile.gettempdir()) / name      # one file per Aravis version, shared by processes
         if not path.exists():
-            xml = aravis.FakeCamera.new("hairdigi").get_genicam_xml()
-            xml = xml[0] if isinstance(xml, tuple) else xml
-            path.write_text(lab_genicam_xml(xml))
+            with atomic_path(path, ".xml") as tmp:
+                Path(tmp).write_text(xml)
         aravis.set_fake_camera_genicam_filename(str(path))
         aravis.enable_interface("Fake")
     return path
