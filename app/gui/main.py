@@ -36,6 +36,8 @@ class SettingsDialog(QDialog):
         for key, value in read_settings().items():
             self.fields[key] = QLineEdit(str(value))
             form.addRow(key.replace("_", " "), self.fields[key])
+        self.fields["camera"].setToolTip("an OpenCV camera index or stream URL, or genicam (the first GenICam "
+                                         "camera) or genicam:ID (arv-tool-0.8 lists the IDs); used at the next start")
         buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Save | QDialogButtonBox.StandardButton.Cancel)
         buttons.accepted.connect(self._save)
         buttons.rejected.connect(self.reject)
