@@ -84,7 +84,10 @@ def _check(args: argparse.Namespace) -> None:
         v.check_distinct({"--out": args.out, "--render": args.render})
         v.check_output_file(args.out, "--out", (".json",), "JSON", inputs)
         if args.render:
-            v.check_output_file(args.render, "--render", (".png",), "an 8-bit PNG", inputs)
+            render = v.check_output_file(args.render, "--render", (".png",), "an 8-bit PNG", inputs)
+            for scene in dict.fromkeys(args.scene):   # the hairstyles beside it: <name>-<scene>.png
+                v.check_output_file(render.with_name(f"{render.stem}-{scene}.png"), f"--scene {scene} (beside "
+                                    f"--render)", (".png",), "an 8-bit PNG", {**inputs, "--out": args.out})
         elif args.scene:
             raise v.ArgumentError("--scene renders beside --render: give --render swatch.png too")
     elif args.dye_action == "dose" and args.out:
@@ -155,7 +158,7 @@ def _render_prediction(sigma, path: Path, scenes: list[str]) -> None:
     result = renderer.render(sigma, SceneSpec("swatch", framing="rig"), 256, 32, seed=0)
     save_png(path, result.srgb)
     print(f"wrote {path} ({result.seconds:.1f} s)")
-    for scene in scenes:
+    for scene in dict.fromkeys(scenes):   # each hairstyle once, however often it was named
         out = path.with_name(f"{path.stem}-{scene}.png")
         result = renderer.render(sigma, SceneSpec(scene), HAIRSTYLE_SIZE, HAIRSTYLE_SPP, seed=0)
         save_png(out, result.srgb)

@@ -39,12 +39,13 @@ def capture_image(swatch: Swatch) -> np.ndarray | None:
         return None
     record = {}
     if swatch.record_path and Path(swatch.record_path).is_file():
-        import json
+        from hairdigi.render.base.files import read_json
 
-        try:
-            record = json.loads(Path(swatch.record_path).read_text())
-        except (OSError, ValueError):
+        try:   # a regular file of bounded size
+            record = read_json(swatch.record_path, ValueError, "missing", "unreadable ({exc})")
+        except ValueError:
             record = {}
+        record = record if isinstance(record, dict) else {}
     roi = record.get("swatch_roi")
     if roi and len(roi) == 4:
         x, y, w, h = (int(v) for v in roi)

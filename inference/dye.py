@@ -27,7 +27,6 @@ RGB off the same response curve; the shade card and the evaluation render.
 """
 from __future__ import annotations
 
-import json
 import re
 import time
 from dataclasses import dataclass, field
@@ -38,6 +37,7 @@ import numpy as np
 from hairdigi.inference.refine import ResponseCurve, params_for_sigma
 from hairdigi.render.absorption import MELANIN_REMAP, albedo_from_sigma_a, hair_sigma_a, melanin_quantity
 from hairdigi.render.base.dye_record import DyePairRecord, DyeRecord
+from hairdigi.render.base.files import read_json
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.base.records import (EstimateRecord, EstimateWarning, RecordError, RefinementRecord,
                                           WarningKind, read_record, record_sha256)
@@ -155,8 +155,8 @@ def load_sample(path: str | Path) -> HairSample:
         meta = path.with_name(path.name[: -len(".result.json")] + ".json")
         if meta.exists():
             try:
-                calibration = json.loads(meta.read_text()).get("calibration_id")
-            except (OSError, ValueError, AttributeError):
+                calibration = read_json(meta, ValueError, "missing", "unreadable ({exc})").get("calibration_id")
+            except (ValueError, AttributeError):
                 calibration = None
     return sample_of(record, str(path), record_sha256(path), calibration)
 

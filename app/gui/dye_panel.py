@@ -59,27 +59,29 @@ def select_path(combo: QComboBox, path: Path) -> bool:
 
 def session_records(folder: Path) -> list[Path]:
     """The session's captures that hold an estimate (``captures/<id>.result.json`` with ``hair``)."""
-    import json
+    from hairdigi.render.base.files import read_json
 
     found = []
     for path in sorted((folder / "captures").glob("*.result.json")):
-        try:
-            if json.loads(path.read_text()).get("hair") is not None:
-                found.append(path)
-        except (OSError, ValueError):
+        try:   # a regular file of bounded size (a FIFO among the captures never hangs the window)
+            data = read_json(path, ValueError, "missing", "unreadable ({exc})")
+        except ValueError:
             continue
+        if isinstance(data, dict) and data.get("hair") is not None:
+            found.append(path)
     return found
 
 
 def capture_crop(record_path: Path) -> np.ndarray | None:
     """The captured swatch (8-bit sRGB) of a session capture's record, cropped to its swatch area."""
-    import json
-
     import cv2
 
+    from hairdigi.render.base.files import read_json
+
     try:
-        data = json.loads(record_path.read_text())
-        image = cv2.imread(str(record_path.with_name(data["capture"])))
+        data = read_json(record_path, ValueError, "missing", "unreadable ({exc})")
+        image_path = record_path.with_name(data["capture"])
+        image = cv2.imread(str(image_path)) if image_path.is_file() else None
     except (OSError, ValueError, KeyError, TypeError):
         return None
     if image is None:

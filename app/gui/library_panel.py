@@ -14,7 +14,7 @@ from PySide6.QtWidgets import (QAbstractItemView, QComboBox, QDialog, QDockWidge
 from hairdigi.app import library_view as view
 from hairdigi.app.gui.images import to_pixmap
 from hairdigi.app.gui.workers import POOL, Task, start
-from hairdigi.app.library import Library, Swatch
+from hairdigi.app.library import Library, Swatch, redact
 from hairdigi.app.swatch_colour import ILLUMINANTS, hex_lab
 
 COLUMNS = ("colour", "ΔE2000", "captured", "where", "tags", "note", "id")
@@ -168,7 +168,7 @@ class LibraryPanel(QWidget):
             for c, item in enumerate(cells):
                 self.table.setItem(r, c, item)
         self.table.resizeColumnsToContents()
-        self.status.setText(f"library {self.library.where}: {self.library.count()} swatches; "
+        self.status.setText(f"library {redact(self.library.where)}: {self.library.count()} swatches; "
                             f"{len(self.swatches)} shown" + (" (the first ones: search to narrow)" if len(self.swatches) >= MAX_ROWS
                                                                else ""))
         self.show_comparison()
