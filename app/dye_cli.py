@@ -3,6 +3,7 @@ its shade card; and ``hairdigi evaluate --dye``. The science is ``inference/dye.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from pathlib import Path
 
@@ -131,12 +132,19 @@ def _characterise(args: argparse.Namespace) -> int:
 
 def _apply(args: argparse.Namespace) -> int:
     from hairdigi.inference.dye import apply, describe_colour, load_sample
-    from hairdigi.render.base.records import write_record
+    from hairdigi.render.base.files import atomic_paths
 
     dye, sha = _read_dye(args.dye)
     base = load_sample(args.base)
     pred = apply(dye, base, args.dose, dye_path=args.dye, dye_sha256=sha)
-    write_record(args.out, pred.record)
+    renders = _render_prediction(pred.sigma_a, Path(args.render), args.scene) if args.render else []
+    # the prediction and its renders are published together: a failed render leaves no prediction behind
+    with atomic_paths(args.out, *(path for path, _ in renders)) as (record_tmp, *image_tmps):
+        from hairdigi.render.io.images import save_png
+
+        record_tmp.write_text(json.dumps(pred.record.to_json(), indent=2) + "\n", encoding="utf-8")
+        for tmp, (_, srgb) in zip(image_tmps, renders):
+            save_png(tmp, srgb)
     p = pred.params
     colour = describe_colour(pred.linear_rgb)
     print(f"{dye.name} at dose {args.dose:g} on {args.base}: sigma_a ({', '.join(f'{x:.4f}' for x in pred.sigma_a)}), "
@@ -145,24 +153,24 @@ def _apply(args: argparse.Namespace) -> int:
           f"wrote {args.out}")
     for w in pred.record.warnings[1:]:
         print(f"warning: {w.message}", file=sys.stderr)
-    if args.render:
-        _render_prediction(pred.sigma_a, Path(args.render), args.scene)
+    for path, _ in renders:
+        print(f"wrote {path}")
     return 0
 
 
-def _render_prediction(sigma, path: Path, scenes: list[str]) -> None:
-    from hairdigi.render.io.images import save_png
+def _render_prediction(sigma, path: Path, scenes: list[str]) -> list[tuple[Path, object]]:
+    """The predicted swatch and each hairstyle, rendered (not yet written): ``[(path, srgb), ...]``."""
     from hairdigi.render.renderer import SceneSpec, default_renderer
 
     renderer = default_renderer()
     result = renderer.render(sigma, SceneSpec("swatch", framing="rig"), 256, 32, seed=0)
-    save_png(path, result.srgb)
-    print(f"wrote {path} ({result.seconds:.1f} s)")
+    print(f"rendered the swatch ({result.seconds:.1f} s)")
+    out = [(path, result.srgb)]
     for scene in dict.fromkeys(scenes):   # each hairstyle once, however often it was named
-        out = path.with_name(f"{path.stem}-{scene}.png")
         result = renderer.render(sigma, SceneSpec(scene), HAIRSTYLE_SIZE, HAIRSTYLE_SPP, seed=0)
-        save_png(out, result.srgb)
-        print(f"wrote {out} ({result.seconds:.1f} s)")
+        print(f"rendered {scene} ({result.seconds:.1f} s)")
+        out.append((path.with_name(f"{path.stem}-{scene}.png"), result.srgb))
+    return out
 
 
 def _dose(args: argparse.Namespace) -> int:

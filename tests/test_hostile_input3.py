@@ -792,6 +792,23 @@ def test_a_failing_card_leaves_no_partial_outputs(ws, monkeypatch):
     assert not any(p.name.startswith("card") or p.name.startswith(".hd-") for p in ws.iterdir())
 
 
+def test_a_failing_render_leaves_no_prediction_behind(ws, capsys, monkeypatch, curve):
+    from hairdigi.render import renderer
+
+    hair, m = _natural(6)
+    write_record(ws / "b.json", estimate_record(m, hair))
+    (ws / "copper.json").write_text(json.dumps(dye_record_json()))
+
+    def broken():
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(renderer, "default_renderer", broken)
+    before = snapshot(ws)
+    one_line(main(["dye", "apply", "copper.json", "--base", "b.json", "--out", "p.json", "--render", "p.png"]), capsys,
+             "No space left")
+    assert snapshot(ws) == before
+
+
 def test_the_window_opens_the_library_off_the_ui_thread_and_shows_why_not(ws, qtbot, monkeypatch):
     from PySide6.QtWidgets import QLabel, QMainWindow
 
