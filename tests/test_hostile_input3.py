@@ -414,6 +414,13 @@ def test_a_10_mb_dye_name_is_refused_at_once(ws, capsys):
     assert not (ws / "y.json").exists()
 
 
+def test_a_dye_record_with_a_megabyte_name_is_refused(ws, capsys):
+    (ws / "big.json").write_text(json.dumps(dye_record_json("x" * 1_000_000)))
+    start = time.perf_counter()
+    one_line(main(["dye", "card", "big.json", "--out", "card.png"]), capsys, "characters")
+    assert time.perf_counter() - start < 10 and not (ws / "card.png").exists()
+
+
 def test_an_xlsx_cell_over_excels_limit_is_refused_not_cut(ws, capsys):
     from hairdigi.app.library import Library
 

@@ -21,6 +21,8 @@ from hairdigi.render.base.records import RecordError, check_interval, check_sigm
 #: The layout written today (1: the first dye record, hairdigi 0.2).
 DYE_SCHEMA_VERSION = 1
 KIND = "dye"
+#: The longest name a dye record may hold (``hairdigi dye characterise --name`` takes 200).
+MAX_NAME = 1000
 
 
 def _real(value: Any) -> bool:
@@ -168,6 +170,9 @@ class DyeRecord:
         name = _text(data, "name", what)
         if not name.strip():
             raise RecordError(f"the {what}'s 'name' is empty")
+        if len(name) > MAX_NAME:
+            raise RecordError(f"the {what}'s 'name' is {len(name)} characters, more than a dye's name holds "
+                              f"({MAX_NAME}); the record is damaged or not a dye record")
         return cls(name=name, deposit_sigma_a=deposit, lift=lift, lift_measured=bool(data.get("lift_measured")),
                    pairs=tuple(DyePairRecord.from_json(p) for p in pairs),
                    deposit_low=_vec(data, "deposit_low", what, optional=True),
