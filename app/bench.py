@@ -82,6 +82,18 @@ def bench_refine(args: argparse.Namespace) -> int:
     return 0
 
 
+def bench_layouts(args: argparse.Namespace) -> int:
+    """The refinement's check renders averaged over strand layouts: how far a new layout moves the answer."""
+    from hairdigi.inference.training.bench_refine import bench_layouts as run
+
+    out = Path("packaging/bench/layouts") if args.out == BENCH_OUT else Path(args.out)
+    for r in run(out):
+        print(f"{r['hair']:15s} {r['check_layouts']} layouts: two layouts' answers {r['nuisance_de2000']:.2f} apart; "
+              f"error median {r['error_median_de2000']:.2f}, worst {r['error_worst_de2000']:.2f}; polish {r['polish_s']:.2f} s")
+    print(f"wrote {out / 'layouts_bench.csv'} and {out / 'layouts_bench.png'}")
+    return 0
+
+
 def bench_check_spp(args: argparse.Namespace) -> int:
     """The refinement's check renders at the rig's swatch area: their spp against the error they leave."""
     import numpy as np
@@ -228,6 +240,7 @@ BENCHES: dict[str, Bench] = {
     "encoder": bench_encoder,
     "refine": bench_refine,
     "check-spp": bench_check_spp,                                           # the refinement's check renders at the rig
+    "layouts": bench_layouts,                                               # check renders over strand layouts
     "dataset": bench_dataset,
     "previews": bench_previews,
     "library": _elsewhere("hairdigi.app.library_cli", "bench_library"),    # issue 20: find in a library of --n swatches

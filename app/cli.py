@@ -293,6 +293,7 @@ def evaluate_cycles_command(args: argparse.Namespace) -> int:
 def evaluate_structures_command(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --structures``: hidden hairs in every physical swatch structure, judged on their strands."""
     from hairdigi.inference.training.evaluate_structures import MODES, StructureSet, evaluate_structures
+    from hairdigi.render.swatch_family import STRUCTURES
 
     if args.blender:
         from hairdigi.render.blender_run import BlenderError, blender_command
@@ -303,8 +304,14 @@ def evaluate_structures_command(args: argparse.Namespace) -> int:
         except BlenderError as exc:
             print(f"hairdigi evaluate --structures --blender: {exc}", file=sys.stderr)
             return 2
-    s = evaluate_structures(args.out, StructureSet(random=args.rig_random, size=min(args.size, 64),
-                                                   spp=args.spp, blender=args.blender))
+    hidden = tuple(args.hidden_structures.split(",")) if args.hidden_structures else StructureSet.structures
+    unknown = [name for name in hidden if name not in STRUCTURES]
+    if unknown:
+        print(f"hairdigi evaluate --structures: unknown structure {unknown[0]!r}; choose among "
+              f"{', '.join(STRUCTURES)}", file=sys.stderr)
+        return 2
+    s = evaluate_structures(args.out, StructureSet(random=args.rig_random, size=min(args.size, 64), spp=args.spp,
+                                                   blender=args.blender, structures=hidden))
     print(f"{s['judged']} of {s['swatches']} hidden swatches judged ({s['renderer']}); mean-colour ΔE2000 against "
           f"the truth on the hidden strands, median / p95 / worst:")
     for mode in MODES:
@@ -323,6 +330,10 @@ def evaluate_structures_command(args: argparse.Namespace) -> int:
     if s["judged"] == 0:
         print("hairdigi evaluate --structures: no swatch was judged; see the errors above", file=sys.stderr)
         return 1
+    if args.ship:
+        from hairdigi.inference.structure import STRUCTURE_TABLE
+
+        _ship(STRUCTURE_TABLE, s["table"], "the colour interval of a swatch of unknown structure")
     print(f"structures_evaluation.csv, .json and .png in {args.out}")
     return 0
 
@@ -581,10 +592,13 @@ def build_parser() -> argparse.ArgumentParser:
                    "(--rig-random N random hairs beside the hard cases; --blender: hidden swatches in Cycles)")
     p.add_argument("--blender", action="store_true", help="with --structures: render the hidden swatches and the "
                    "judge in Blender Cycles (HAIRDIGI_BLENDER)")
+    p.add_argument("--hidden-structures", metavar="NAME,NAME,...", help="with --structures: the structures to hide "
+                   "hairs in (default: layered and the physical family)")
     p.add_argument("--default-shine", action="store_true", help="with --cycles: every hidden swatch at the default "
                    "shine, no single-light frames (the renderer and the swatch's structure alone)")
     p.add_argument("--ship", action="store_true", help="with --rig: ship the measured colour interval "
-                   "(resources/models/chain_uncertainty.json); with --appearance, the appearance's intervals")
+                   "(resources/models/chain_uncertainty.json); with --appearance, the appearance's intervals; with "
+                   "--structures, the colour interval of a swatch of unknown structure (structure_uncertainty.json)")
     p.add_argument("--no-variation", action="store_true", help="with --appearance: read the shine only, not the "
                    "fibre spread and greys (what the texture reading adds)")
     p.add_argument("--dye", action="store_true", help="instead: dyes characterised on two natural bases, predicted "

@@ -74,6 +74,9 @@ class RefineSettings:
     #: glints), 4 hairs at the bench camera's swatch area against a 384-spp judge, 32 spp left median
     #: 0.49 ΔE2000, 64 spp 0.17, 128 spp 0.15 (``hairdigi bench check-spp``; ``resources/models/encoder.md``).
     check_spp: int = 64
+    #: Strand layouts the check renders average over, ``check_spp / check_layouts`` samples each (the same
+    #: cost): the answer then belongs to the swatch, not to one layout of it (``hairdigi bench layouts``).
+    check_layouts: int = 1
     tolerance_de: float = 0.05      # stop polishing once the residual ΔE2000 is below this
     framing: str = "crop"
     strand_seed: int = 0
@@ -176,6 +179,7 @@ def curve_settings(settings: RefineSettings) -> dict:
     check renders' samples."""
     data = asdict(settings)
     data.pop("check_spp")
+    data.pop("check_layouts")
     return data
 
 
@@ -304,6 +308,22 @@ def mean_linear(image: np.ndarray, band_pixels: int = 1 << 18) -> np.ndarray:
     return total / max(1, h * w)
 
 
+def check_render(sigma: np.ndarray, spec, size, settings: RefineSettings, renderer) -> tuple[np.ndarray, int]:
+    """The check render's mean linear colour of ``sigma`` and its NaN/Inf count: ``settings.check_layouts``
+    strand layouts (from ``spec.strand_seed`` on; one for varied fibres), ``check_spp`` samples in all."""
+    from dataclasses import replace as replaced
+
+    # varied fibres (greys, a spread) split the strands into groups: a new layout is a new scene there, so one
+    layouts = 1 if spec.groups else max(1, int(settings.check_layouts))
+    spp = max(1, settings.check_spp // layouts)
+    means, nonfinite = [], 0
+    for k in range(layouts):
+        result = renderer.render(sigma, replaced(spec, strand_seed=spec.strand_seed + k), size, spp, settings.seed)
+        means.append(result.linear.reshape(-1, 3).mean(0))
+        nonfinite += result.nonfinite
+    return np.mean(means, axis=0), nonfinite
+
+
 def refine(prior: HairParams, target: np.ndarray, view: View = CameraPose(),
            settings: RefineSettings = RefineSettings(), renderer=None,
            appearance: Appearance = DEFAULT_APPEARANCE, curve: ResponseCurve | None = None,
@@ -333,9 +353,8 @@ def refine(prior: HairParams, target: np.ndarray, view: View = CameraPose(),
     # the check renders may need two more corrections
     iterations = settings.iterations + (VARIED_EXTRA_ITERATIONS if appearance.varied else 0)
     for k in range(iterations):
-        result = renderer.render(sigma, spec, size, settings.check_spp, settings.seed)
-        nonfinite += result.nonfinite
-        rendered = result.linear.reshape(-1, 3).mean(0)
+        rendered, bad = check_render(sigma, spec, size, settings, renderer)
+        nonfinite += bad
         history.append(float(delta_e2000(rendered, target)))
         if history[-1] < settings.tolerance_de or k == iterations - 1:
             break   # the returned sigma is always the last one rendered, with its measured residual

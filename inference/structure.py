@@ -60,10 +60,18 @@ def family_curves(view: View, settings: RefineSettings = RefineSettings(), rende
     return FamilyCurves(default, curves, seconds)
 
 
-def to_family(sigma: np.ndarray, family: FamilyCurves) -> np.ndarray:
-    """The ``sigma_a`` whose family-mean colour is the default structure's colour of ``sigma``."""
+#: The most ``to_family`` moves a channel's sigma_a (a factor): where a channel's curve is flat (dark
+#: hair, whose colour is the fibres' surface reflection) the structures' offsets are not absorption, and
+#: unclamped the map sent black hair's sigma_a to a fifth (1.1-1.5 ΔE2000 off, ``evaluate --structures``).
+MAX_FAMILY_FACTOR = 1.3
+
+
+def to_family(sigma: np.ndarray, family: FamilyCurves, most: float = MAX_FAMILY_FACTOR) -> np.ndarray:
+    """The ``sigma_a`` whose family-mean colour is the default structure's colour of ``sigma``, moved by
+    at most a factor ``most`` per channel."""
     sigma = np.asarray(sigma, float)
-    return family.mean.inverse(family.default(sigma))[0]
+    mapped = family.mean.inverse(family.default(sigma))[0]
+    return np.clip(mapped, sigma / most, sigma * most)
 
 
 def nuisance(sigma: np.ndarray, family: FamilyCurves) -> dict[str, float]:

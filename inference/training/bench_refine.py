@@ -128,3 +128,80 @@ def bench_check_spp(out_dir: str | os.PathLike, progress: bool = True) -> list[d
     out.mkdir(parents=True, exist_ok=True)
     write_csv_atomic(out / "check_spp_bench.csv", rows)
     return rows
+
+
+#: The layouts bench: hidden layouts of one swatch (seeds no refinement renders) and the settings tried.
+LAYOUT_SEEDS = (101, 102, 103, 104)
+LAYOUT_SETTINGS = (1, 4)
+LAYOUT_JUDGE_SPP = 192
+LAYOUT_HAIRS = {**CHECK_HAIRS, "saturated red": HairParams((230, 20, 30), 1.0, 0.08, 0.3)}
+
+
+def bench_layouts(out_dir: str | os.PathLike, progress: bool = True) -> list[dict]:
+    """How far a new strand layout of one swatch moves the refinement's answer, against the check renders'
+    layouts (``RefineSettings.check_layouts``, same samples in all). Each hair is hidden in
+    ``LAYOUT_SEEDS`` layouts of the default swatch at the rig's swatch area (the capture: its mean at
+    ``LAYOUT_JUDGE_SPP``); every answer is rendered on one judge layout (seed 900, ``LAYOUT_JUDGE_SPP``):
+    the **nuisance** is the largest ΔE2000 between two layouts' answers there, the **error** each answer
+    against the truth on its own layout. Writes ``layouts_bench.csv`` and ``layouts_bench.png``."""
+    import time
+
+    from tqdm import tqdm
+
+    from hairdigi.inference.refine import response_curve, scene_for
+    from hairdigi.render.absorption import hair_sigma_a
+    from hairdigi.render.base.files import write_csv_atomic
+    from hairdigi.render.base.rig_geometry import RigRegion, swatch_roi
+    from hairdigi.render.renderer import default_renderer
+
+    renderer = default_renderer()
+    frame = (400, 300)
+    view = RigRegion(frame, swatch_roi(frame))
+    spec, film = scene_for(view, RefineSettings())
+    curve = response_curve(view, RefineSettings(), renderer)
+
+    def mean(sigma, layout: int) -> np.ndarray:
+        return renderer.render(np.asarray(sigma, float), replace(spec, strand_seed=layout), film, LAYOUT_JUDGE_SPP,
+                               CHECK_JUDGE_SEED).linear.reshape(-1, 3).mean(0)
+
+    rows = []
+    for name, hair in tqdm(LAYOUT_HAIRS.items(), desc="layouts", unit="hair", disable=not progress):
+        truth = hair_sigma_a(hair)
+        captures = {s: mean(truth, s) for s in LAYOUT_SEEDS}
+        for layouts in LAYOUT_SETTINGS:
+            settings = replace(RefineSettings(), check_layouts=layouts)
+            answers, errors, seconds = [], [], []
+            for s in LAYOUT_SEEDS:
+                start = time.perf_counter()
+                r = refine(hair, captures[s], view, settings, renderer, curve=curve)
+                seconds.append(time.perf_counter() - start)
+                answers.append(mean(r.sigma_a, 900))
+                errors.append(float(delta_e2000(mean(r.sigma_a, s), captures[s])))
+            spread = max(float(delta_e2000(a, b)) for i, a in enumerate(answers) for b in answers[i + 1:])
+            rows.append({"hair": name, "check_layouts": layouts, "nuisance_de2000": round(spread, 3),
+                         "error_median_de2000": round(float(np.median(errors)), 3),
+                         "error_worst_de2000": round(float(np.max(errors)), 3),
+                         "polish_s": round(float(np.median(seconds)), 2)})
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv_atomic(out / "layouts_bench.csv", rows)
+    _plot_layouts(rows, out / "layouts_bench.png")
+    return rows
+
+
+def _plot_layouts(rows: list[dict], path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    from hairdigi.render.io.figures import save_figure
+
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    for name in dict.fromkeys(r["hair"] for r in rows):
+        sel = [r for r in rows if r["hair"] == name]
+        ax.plot([r["check_layouts"] for r in sel], [r["nuisance_de2000"] for r in sel], "o-", label=name)
+    ax.axhline(0.3, ls="--", color="grey", lw=0.8)
+    ax.set_xscale("log", base=2)
+    ax.set_xlabel("layouts the check renders average over (same samples)")
+    ax.set_ylabel("ΔE2000 between two layouts' answers")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path)

@@ -132,7 +132,8 @@ def _estimate(render, truth, structure: str, layout: int, shine: float, encoder,
     structure read: (result, read result, {mode: sigma_a})."""
     from hairdigi.inference.estimate import estimate_image
     from hairdigi.inference.preprocess import to_linear
-    from hairdigi.inference.structure import READ_MEMBERS, to_family
+    from hairdigi.inference.refine import mean_linear
+    from hairdigi.inference.structure import READ_MEMBERS, read_structure, to_family
     from hairdigi.inference.training.evaluate import capture
 
     frame = capture(render.mean(truth, structure, layout, "rig", shine, pixels=True).astype(np.float32), index)
@@ -144,8 +145,9 @@ def _estimate(render, truth, structure: str, layout: int, shine: float, encoder,
     if result.refinement is None or read.refinement is None:
         raise RuntimeError("no refinement")
     sigma = np.asarray(result.refinement.sigma_a, float)
+    misfits = read_structure(np.array([mean_linear(im) for im in lights]), RIG_SWATCH_POSE).misfits
     return result, read, {"shipped": sigma, "family": to_family(sigma, family),
-                          "read": np.asarray(read.refinement.sigma_a, float)}
+                          "read": np.asarray(read.refinement.sigma_a, float)}, misfits
 
 
 def _shine(result, default: float) -> float:
@@ -161,13 +163,13 @@ def _one(name: str, hidden: HairParams, shine: float, structure: str, layout: in
     row = {"hidden": name, "structure": structure, "layout": layout, "true_shine": shine,
            "true_sigma_a": [round(float(v), 5) for v in truth]}
     start = time.perf_counter()
-    result, read, answers = _estimate(render, truth, structure, layout, shine, encoder, family, index)
+    result, read, answers, misfits = _estimate(render, truth, structure, layout, shine, encoder, family, index)
     shines = {mode: _shine(r, shine) for mode, r in (("shipped", result), ("family", result), ("read", read))}
     truth_rig = render.mean(truth, structure, layout, "rig", shine)
     truth_away = render.mean(truth, structure, layout, "transfer", shine)
     row.update({"estimate_s": round(result.seconds, 2), "read_estimate_s": round(read.seconds, 2),
                 "est_shine": shines["shipped"], "read_shine": shines["read"],
-                "read_structure": read.refinement.region.get("swatch_model"),
+                "read_structure": read.refinement.region.get("swatch_model"), "misfits": misfits,
                 "twin_residual": round(result.refinement.residual_de2000, 3),
                 "read_twin_residual": round(read.refinement.residual_de2000, 3),
                 "warnings": " | ".join(w.kind.value for w in result.warnings),
@@ -213,7 +215,8 @@ def evaluate_structures(out_dir: str | os.PathLike, config: StructureSet = Struc
     family = family_curves(RIG_SWATCH_POSE, RefineSettings())
     family_s = round(time.perf_counter() - start, 1)
     hairs = hidden_hairs(config)
-    jobs = [(h, s, 501 + k) for k, s in enumerate(config.structures) for h in hairs]
+    # hair by hair, every structure in turn: a run cut short has judged every structure alike
+    jobs = [(h, s, 501 + k) for h in hairs for k, s in enumerate(config.structures)]
     rows: list[dict] = []
     layout_rows: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="hairdigi-structures-") as tmp:
@@ -261,7 +264,23 @@ def summarise(rows: list[dict], layout_rows: list[dict], config: StructureSet, f
         out[mode]["by_structure"] = {s: {k: error_stats(r[f"{mode}_{k}"] for r in done if r["structure"] == s)
                                          for k in ("fit", "transfer")} for s in config.structures}
         out[mode]["layout_nuisance"] = error_stats(r.get(f"{mode}_layout_nuisance") for r in layout_rows)
+    out["table"] = interval_table(done, config)
     return out
+
+
+def interval_table(done: list[dict], config: StructureSet) -> dict:
+    """The fit's 68% and 95% quantiles over every judged swatch, per mode: what a record's colour interval
+    carries when the swatch's structure is unknown (``inference.structure.STRUCTURE_TABLE``)."""
+    table = {"source": f"hairdigi evaluate --structures: {len(done)} hidden swatches of "
+                       f"{len({r['structure'] for r in done})} physical structures "
+                       f"({'Blender Cycles' if config.blender else 'Mitsuba'}), judged on their own strands",
+             "swatches": len(done)}
+    for mode in MODES:
+        fits = [r[f"{mode}_fit"] for r in done]
+        if fits:
+            table[mode] = {"p68": round(float(np.quantile(fits, 0.68)), 3),
+                           "p95": round(float(np.quantile(fits, 0.95)), 3)}
+    return table
 
 
 def _plot(rows: list[dict], path: Path, config: StructureSet) -> None:
