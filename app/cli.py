@@ -150,8 +150,9 @@ def cmd_estimate(args: argparse.Namespace) -> int:
 
     encoder = Encoder(args.model)
     roi = Roi.parse(args.roi) if args.roi else None
-    camera = CameraPose.parse(args.camera, RIG_SWATCH_POSE.distance) if args.camera else RIG_SWATCH_POSE
-    # a pose given means an all-hair view from there; else a frame with the chart in view is the rig's
+    camera = CameraPose.parse(args.camera, RIG_SWATCH_POSE.distance) if args.camera else None
+    # a pose given means an all-hair view from there; else a frame with the chart in view is the rig's, and
+    # an image of the swatch on its holder without the chart is warned of (its camera is unknown)
     lights = args.lights.split(",") if args.lights else None
     exposures = [2.0 ** args.lights_ev] * len(lights) if lights and args.lights_ev is not None else None
     estimate, record, _ = estimate_file(args.image, encoder, roi, args.calibration, camera,

@@ -206,7 +206,7 @@ def calibration_summary(profile: CalibrationProfile, path: str | os.PathLike | N
 
 
 def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | None = None,
-                  calibration_path: str | os.PathLike | None = None, camera: CameraPose = RIG_SWATCH_POSE,
+                  calibration_path: str | os.PathLike | None = None, camera: CameraPose | None = None,
                   refine_colour: bool = True, settings: RefineSettings = RefineSettings(),
                   rig_view: bool | None = None, light_paths: list | None = None,
                   light_exposures: list[float] | None = None, structures: tuple[str, ...] | None = None
@@ -215,13 +215,16 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
     its record and the corrected image (linear float when corrected, else as read).
 
     ``rig_view``: the image is a whole frame of the bench camera (the swatch's region is then fitted
-    and rendered as the rig sees it); None decides by whether a ColorChecker is in view.
+    and rendered as the rig sees it); None decides by whether a ColorChecker is in view. ``camera``:
+    the pose of an all-hair view (None: not known, the rig's assumed, and checked against the swatch's
+    outline where one is in view: ``inference.view_check``).
     ``light_paths``: the same view lit by each light alone (light order), 8/16-bit sRGB or linear
     EXR, corrected as the image; ``light_exposures`` each one's exposure over the image's (default:
     the rig's capture record beside the image, if it names these frames, else 1). ``structures``:
     swatch structures to read from those frames (``estimate_image``).
     """
-    from hairdigi.inference.preprocess import find_swatch_roi
+    from hairdigi.inference.preprocess import find_swatch
+    from hairdigi.inference.view_check import view_warning, widened
 
     image_path = Path(image_path)
     image = read_image(image_path)
@@ -241,10 +244,15 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
             rig_view = True
         except CalibrationError:
             rig_view = False
-    view: View = camera
+    view: View = camera or RIG_SWATCH_POSE
+    outline = None
+    if roi is None and (rig_view or camera is None):
+        roi, outline = find_swatch(image)
     if rig_view:
-        found = roi or find_swatch_roi(image)
-        view = RigRegion((image.shape[1], image.shape[0]), (found.x, found.y, found.w, found.h))
+        view = RigRegion((image.shape[1], image.shape[0]), (roi.x, roi.y, roi.w, roi.h))
+    # without --camera, the swatch's outline (when one is in view) must agree with the assumed camera
+    assumed = view.pose.polar_deg if isinstance(view, RigRegion) else view.polar_deg
+    unknown_view = view_warning(outline, assumed, bool(rig_view)) if camera is None else None
     calibration, extra = None, []
     if calibration_path is not None:
         from hairdigi.inference.calibration import (apply_profile, calibration_warnings, correction_warnings,
@@ -260,9 +268,13 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
         if rig_view:
             extra += _warn(WarningKind.CALIBRATION, correction_warnings(
                 profile, mean_linear(fitted_pixels(to_linear(raw), view)), mean_linear(fitted_pixels(image, view))))
+    if unknown_view is not None:
+        extra += _warn(WarningKind.OTHER, [unknown_view])
     result = estimate_image(image, encoder, roi=roi, view=view, refine_colour=refine_colour, settings=settings,
                             extra_warnings=extra, light_images=lights,
                             structures=structures if lights is not None else None)
+    if unknown_view is not None:
+        result.uncertainty = widened(result.uncertainty)
     return result, record(result, encoder, image_path.read_bytes(), image_path, calibration, view), image
 
 

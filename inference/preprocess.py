@@ -409,12 +409,35 @@ def find_swatch_roi(img: np.ndarray) -> Roi:
 
     Large frames are searched scaled down to ``SEARCH_SIDE``; the ROI is in the frame's pixels.
     """
+    return find_swatch(img)[0]
+
+
+def region_outline(region: np.ndarray) -> np.ndarray | None:
+    """The four corners (4, 2; x, y in pixels, in order around it) of a boolean region's outline, or
+    None when its convex hull is not near a quadrilateral."""
+    contours, _ = cv2.findContours(region.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    if not contours:
+        return None
+    hull = cv2.convexHull(max(contours, key=cv2.contourArea))
+    perimeter = cv2.arcLength(hull, True)
+    for tolerance in np.linspace(0.01, 0.1, 19):
+        corners = cv2.approxPolyDP(hull, tolerance * perimeter, True)
+        if len(corners) <= 4:
+            return corners.reshape(-1, 2).astype(float) if len(corners) == 4 else None
+    return None
+
+
+def find_swatch(img: np.ndarray) -> tuple[Roi, np.ndarray | None]:
+    """:func:`find_swatch_roi`'s ROI, and the outline of the swatch found (its four corners in the
+    frame's pixels: ``region_outline``), or None when the image is taken whole or has no such outline."""
     h, w = img.shape[:2]
     small, scale = _search_image(img)
     sh, sw = small.shape[:2]
+    whole = Roi(0, 0, w, h), None
     if border_is_hair(small):
-        return Roi(0, 0, w, h)
-    mask = (swatch_score(small) > 1.0).astype(np.uint8)
+        return whole
+    score = swatch_score(small)
+    mask = (score > 1.0).astype(np.uint8)
     n, labels, stats = _regions(mask)
     # masking only shrinks regions: when none is large enough to be a swatch, the chart does not matter
     chart = (chart_mask(small, margin=2 * max(1.5, min(sh, sw) / 50.0))
@@ -430,17 +453,21 @@ def find_swatch_roi(img: np.ndarray) -> Roi:
     candidates = [(int(s[4]), i) for i, s in enumerate(stats) if i > 0 and s[4] >= 0.10 * sh * sw
                   and s[4] >= 0.6 * s[2] * s[3] and s[2] * s[3] <= 0.85 * sh * sw and not across(s)]
     if not candidates:
-        return Roi(0, 0, w, h)
+        return whole
     best = max(candidates)[1]
     x, y, bw, bh = inner_box(labels == best, tuple(int(v) for v in stats[best, :4]))
     if not holder_around(small, (x, y, bw, bh)):
-        return Roi(0, 0, w, h)   # like its surroundings in texture and colour: a patch of an all-hair image
+        return whole   # like its surroundings in texture and colour: a patch of an all-hair image
     x0, y0 = int(np.floor(x / scale)), int(np.floor(y / scale))
     x1, y1 = min(w, int(np.ceil((x + bw) / scale))), min(h, int(np.ceil((y + bh) / scale)))
     if min(x1 - x0, y1 - y0) < MIN_SIDE:
         raise ImageError(f"the swatch area found is only {x1 - x0}x{y1 - y0} px (at least {MIN_SIDE} px a "
                          f"side is needed): move the camera closer, or pass its area with --roi x,y,w,h")
-    return Roi(x0, y0, x1 - x0, y1 - y0)
+    # the outline at half the region's typical score: the blurred score's halo around a swatch of high
+    # contrast (platinum's glints) would round it out
+    region = labels == best
+    outline = region_outline(region & (score > 0.5 * float(np.median(score[region]))))
+    return Roi(x0, y0, x1 - x0, y1 - y0), None if outline is None else (outline + 0.5) / scale - 0.5
 
 
 def central_square(img: np.ndarray, share: float = ROI_CENTRAL) -> np.ndarray:

@@ -63,6 +63,49 @@ def test_a_grazing_view_is_estimated_near_the_truth(renderer):
     assert judge(HAIRS["brown"], result.params, renderer=renderer).de2000 < 1.0
 
 
+# --- 2. the unknown camera ------------------------------------------------------------------------
+@pytest.mark.slow
+def test_an_estimate_without_camera_of_a_swatch_on_its_holder_is_warned_and_widened(renderer, tmp_path):
+    """Brown hair on its holder seen from 30° along its fibres, estimated as ``hairdigi estimate`` does
+    without ``--camera``: the rig's swatch pose is assumed, and the estimate lands 4.9 ΔE2000 from the
+    truth. It said nothing. Now the record says the camera is unknown and widens its colour interval to
+    what unknown cameras measured."""
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.inference.estimate import estimate_file
+    from hairdigi.inference.view_check import UNKNOWN_VIEW_DE
+    from hairdigi.render.io.images import save_png
+
+    path = tmp_path / "tilted.png"
+    save_png(path, rig_view(renderer, "brown", CameraPose(30.0, 90.0)))
+    result, record, _ = estimate_file(path, Encoder(), refine_colour=False)
+    camera = [w.message for w in record.warnings if w.message.startswith("camera:")]
+    assert len(camera) == 1 and "--camera" in camera[0] and "\n" not in camera[0], record.warnings
+    assert record.uncertainty["mean_colour_de2000_p68"] >= UNKNOWN_VIEW_DE[0]
+    assert record.uncertainty["mean_colour_de2000_p95"] >= UNKNOWN_VIEW_DE[1]
+    assert "widened" in record.uncertainty["mean_colour_source"]
+
+
+@pytest.mark.slow
+def test_the_bench_cameras_frame_is_not_warned_but_a_tilted_one_is(renderer):
+    """The outline of a rig frame (the chart in view) from the bench camera reads a small tilt and is
+    not warned of; the same rig seen from 40° is; an all-hair crop has no outline to read."""
+    from hairdigi.inference.preprocess import find_swatch
+    from hairdigi.inference.view_check import view_warning
+    from hairdigi.render.base import rig_geometry as rg
+    from hairdigi.render.chart import colorchecker_reflectances
+
+    chart = tuple(map(tuple, colorchecker_reflectances()))
+    for pose, warned in ((rg.CameraPose(), False), (rg.CameraPose(40.0, 180.0), True)):
+        spec = SceneSpec("swatch", framing="rig", chart=chart, target=rg.RIG_TARGET, half_width=rg.RIG_HALF_WIDTH,
+                         camera=pose)
+        frame = renderer.render(HAIRS["brown"], spec, (200, 150), 16, seed=1).srgb
+        _, outline = find_swatch(frame)
+        assert outline is not None
+        assert (view_warning(outline, 0.0, rig_view=True) is not None) == warned, pose
+    crop = renderer.render(HAIRS["brown"], SceneSpec("swatch", camera=rg.RIG_SWATCH_POSE), 64, 16, seed=1).srgb
+    assert find_swatch(crop)[1] is None and view_warning(None, 10.3, rig_view=False) is None
+
+
 # --- 3. RAW stills: clipping on the sensor's data ----------------------------------------------
 def test_a_raw_still_knows_which_pixels_are_saturated_on_the_sensor(tmp_path):
     """rawpy's counts against the white level, per channel: a dark area whose 8-bit encode is all 0 is

@@ -55,22 +55,34 @@ def crop_box(roi, size: int = SIZE) -> tuple[int, int, int, int]:
     return roi.x + (roi.w - side) // 2, roi.y + (roi.h - side) // 2, side, side
 
 
+def view_image(name: str, pose: CameraPose, renderer) -> np.ndarray:
+    """The hidden hair ``name`` on its holder seen from ``pose`` (rig framing, no chart), 8-bit sRGB."""
+    from hairdigi.render.renderer import SceneSpec
+
+    return renderer.render(HAIRS[name], SceneSpec("swatch", camera=pose, framing="rig"), SIZE, SPP, seed=SEED).srgb
+
+
 def view_row(name: str, hair: HairParams, pose: CameraPose, encoder, renderer, camera_given: bool) -> dict:
     """One hidden hair from one pose: the render, the estimate (with or without the pose) and the verdict."""
     from hairdigi.inference.estimate import estimate_image
-    from hairdigi.inference.preprocess import ImageError, find_swatch_roi
+    from hairdigi.inference.preprocess import ImageError, find_swatch
+    from hairdigi.inference.view_check import outline_tilt, view_warning
+    from hairdigi.render.base.records import EstimateWarning, WarningKind
     from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.judge import judge
-    from hairdigi.render.renderer import SceneSpec
 
-    image = renderer.render(hair, SceneSpec("swatch", camera=pose, framing="rig"), SIZE, SPP, seed=SEED).srgb
+    image = view_image(name, pose, renderer)
     row = {"hair": name, "polar_deg": pose.polar_deg, "azimuth_deg": pose.azimuth_deg, "camera_given": camera_given}
     try:
-        roi = find_swatch_roi(image)
+        roi, outline = find_swatch(image)
+        # without the pose, as hairdigi estimate does: the rig's assumed, checked against the outline
+        warned = None if camera_given else view_warning(outline, RIG_SWATCH_POSE.polar_deg, rig_view=False)
         result = estimate_image(image, encoder, roi=roi, view=pose if camera_given else RIG_SWATCH_POSE,
-                                renderer=renderer)
+                                renderer=renderer,
+                                extra_warnings=[EstimateWarning(WarningKind.OTHER, warned)] if warned else [])
     except ImageError as exc:
         return row | {"refused": str(exc)}
+    row["tilt_read"] = None if outline is None else outline_tilt(outline)[0]
     row |= {"roi": [roi.x, roi.y, roi.w, roi.h], "on_swatch": share_on_swatch(crop_box(roi), swatch_outline(pose)),
             "de2000": judge(hair, result.params, renderer=renderer).de2000,
             "residual_de2000": result.refinement.residual_de2000,
