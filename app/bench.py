@@ -220,6 +220,18 @@ def bench_structure(args: argparse.Namespace) -> int:
     return 0
 
 
+def bench_family(args: argparse.Namespace) -> int:
+    """Every physical swatch structure at equal sigma_a, against the layered swatch (issue 28)."""
+    from hairdigi.inference.training.bench_structure import FAMILY_HAIRS, family
+
+    out = Path("packaging/bench/family") if args.out == BENCH_OUT else Path(args.out)
+    for r in family(out):
+        print(f"{r['structure']:17s} layout {r['layout']}: " + ", ".join(
+            f"{h} {r[f'{h}_de2000']:.2f}" for h in FAMILY_HAIRS))
+    print(f"wrote {out / 'family.csv'} and {out / 'family.png'}")
+    return 0
+
+
 def bench_fibres(args: argparse.Namespace) -> int:
     """Fibre groups of a varied swatch: render time and colour against the finest split."""
     from hairdigi.render.bench_fibres import run
@@ -248,6 +260,7 @@ BENCHES: dict[str, Bench] = {
     "shine": bench_shine,                                                   # issue 18: shine from the three lights
     "spread": bench_spread,                                                 # issue 18: can the lights read a spread?
     "fibres": bench_fibres,                                                 # issue 18: how many fibre groups
+    "family": bench_family,                                                 # issue 28: the family of swatch structures
     "structure": bench_structure,                                           # issue 18: the swatch's fibre structure
     "genicam": _elsewhere("hairdigi.app.bench_genicam", "bench_genicam"),   # issue 32: frame rate, capture latency
 }

@@ -228,3 +228,52 @@ def plot_structure(rows: list[dict], path: Path) -> Path:
     fig.suptitle("Swatch structure: rig colour of the layered (non-intersecting) swatch against today's")
     fig.tight_layout()
     return save_figure(fig, path)
+
+
+#: ``hairdigi bench family``: the hairs (sigma_a per fibre radius) and the strand layouts.
+FAMILY_HAIRS = {**HAIRS, "red": (0.05, 2.5, 3.0), "blue": (2.5, 1.0, 0.1)}
+FAMILY_LAYOUTS = (0, 1)
+
+
+def family(out_dir: str | os.PathLike) -> list[dict]:
+    """Every structure of ``render.swatch_family`` at equal sigma_a: its response curve at the rig's swatch
+    area (the refinement's default settings: 48², 32 spp, 12 levels; cached), per layout, and each hair's
+    ΔE2000 against the layered swatch's layout 0. Writes ``family.csv`` and ``family.png``."""
+    from hairdigi.inference.refine import RefineSettings, response_curve
+    from hairdigi.render.swatch_family import STRUCTURES
+
+    view = RigRegion(FRAME, swatch_roi(FRAME))
+    settings = RefineSettings()
+    curves = {(m, s): response_curve(view, dataclasses.replace(settings, strand_seed=s), swatch_model=m)
+              for m in STRUCTURES for s in FAMILY_LAYOUTS}
+    ref = curves[("layered", 0)]
+    rows = []
+    for (model, layout), curve in curves.items():
+        row = {"structure": model, "layout": layout, "curve_s": round(curve.seconds, 2)}
+        for hair, sigma in FAMILY_HAIRS.items():
+            s = np.asarray(sigma, float)
+            row[f"{hair}_de2000"] = round(float(delta_e2000(curve(s), ref(s))), 3)
+            row[f"{hair}_dL"] = round(float(_lab(curve(s))[0] - _lab(ref(s))[0]), 3)
+        rows.append(row)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv_atomic(out / "family.csv", rows)
+    _plot_family(rows, out / "family.png")
+    return rows
+
+
+def _plot_family(rows: list[dict], path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 3.5))
+    models = list(dict.fromkeys(r["structure"] for r in rows))
+    x = np.arange(len(models))
+    for k, hair in enumerate(FAMILY_HAIRS):
+        values = [np.mean([r[f"{hair}_de2000"] for r in rows if r["structure"] == m]) for m in models]
+        ax.bar(x + (k - 2) * 0.16, values, 0.16, label=hair)
+    ax.set_xticks(x, models, rotation=20, ha="right", fontsize=8)
+    ax.set_ylabel("ΔE2000 vs layered, equal σa")
+    ax.set_title("the swatch's structure at equal σa, rig's swatch area (mean of 2 layouts)")
+    ax.legend(fontsize=7, ncol=5)
+    fig.tight_layout()
+    save_figure(fig, path)
