@@ -144,7 +144,6 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_file
     from hairdigi.inference.preprocess import Roi
-    from hairdigi.inference.structure import READ_MEMBERS
     from hairdigi.render.base.records import write_record
     from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE, CameraPose
 
@@ -158,7 +157,7 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     estimate, record, _ = estimate_file(args.image, encoder, roi, args.calibration, camera,
                                         refine_colour=not args.no_refine, rig_view=False if args.camera else None,
                                         light_paths=lights, light_exposures=exposures,
-                                        structures=READ_MEMBERS if args.structure == "read" else None)
+                                        structure=args.structure)
     write_record(args.out, record)
     p = estimate.params
     refined = estimate.refinement
@@ -459,7 +458,7 @@ def build_parser() -> argparse.ArgumentParser:
     from hairdigi.app import validation as v
     from hairdigi.render.base.bounds import (ENVIRONMENTS, MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH,
                                              MIN_SIZE, SCENE_NAMES)
-    from hairdigi.render.base.bounds import VARIANT_CHOICES as VARIANTS
+    from hairdigi.render.base.bounds import STRUCTURE_MODES, VARIANT_CHOICES as VARIANTS
     from hairdigi.render.base.rig_geometry import N_LIGHTS
 
     size, spp = v.int_in(MIN_SIZE, MAX_SIZE), v.int_in(1, MAX_SPP)
@@ -556,10 +555,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-refine", action="store_true", help="the encoder alone, without refinement by synthesis")
     p.add_argument("--lights", metavar="L0,L1,L2", help="the same view lit by each rig light alone, in light order "
                    "(8/16-bit sRGB PNG or linear EXR): the shine is read from them")
-    p.add_argument("--structure", choices=("assumed", "read"), default="assumed",
-                   help="the swatch's physical structure: 'assumed', hairdigi's layered swatch; 'read' from the "
-                   "--lights frames among render.swatch_family's structures (their per-light tables render once "
-                   "per view, about 96 renders each), and the estimate refined on it")
+    p.add_argument("--structure", choices=STRUCTURE_MODES, default="assumed",
+                   help="the swatch's physical structure: 'assumed', hairdigi's layered swatch; 'family', the answer "
+                   "mapped to the mean of render.swatch_family's physical structures (their curves render once per "
+                   "view, 56 small renders); 'read' from the --lights frames among them (their per-light tables, "
+                   "96 renders each), refined on it. hairdigi evaluate --structures measures each")
     p.add_argument("--lights-ev", type=v.float_in(-10.0, 10.0), default=None, metavar="EV",
                    help="the --lights frames' exposure over IMAGE's, in stops (default: the rig's capture record "
                    "beside IMAGE, else the same exposure)")

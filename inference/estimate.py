@@ -22,7 +22,7 @@ from hairdigi.inference.domain import domain_stats, domain_warnings
 from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, crop_of, read_image, swatch_crop, to_linear
 from hairdigi.inference.refine import Refinement, RefineSettings, View, fitted_pixels, mean_linear, refine
-from hairdigi.inference.structure import STRUCTURE_TABLE, with_structure
+from hairdigi.inference.structure import READ_MEMBERS, STRUCTURE_TABLE, toward_family, with_structure
 from hairdigi.inference.uncertainty import intervals, load_table
 from hairdigi.render.base.version import version
 from hairdigi.render.base.appearance import AppearanceEstimate
@@ -83,7 +83,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
                    settings: RefineSettings = RefineSettings(), extra_warnings: list[EstimateWarning] = (),
                    on_encoder_estimate: Callable[[HairParams], None] | None = None,
                    renderer=None, light_images: list[np.ndarray] | None = None,
-                   structures: tuple[str, ...] | None = None,
+                   structure: str = "assumed",
                    sensor_clipped: np.ndarray | None = None) -> EstimateResult:
     """Estimate a colour-corrected image: linear float RGB (a corrected capture) or 8-bit sRGB; a rig
     frame or a crop that is all hair.
@@ -93,9 +93,10 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     crop (the rig's swatch pose by default). ``on_encoder_estimate`` is told the encoder's parameters
     before refinement starts (the app shows them at once). ``light_images``: the same view lit by
     each light alone (light order), corrected as ``image`` and at its exposure: the shine is read
-    from them; without them the record says "shine not measured". ``structures``: swatch structures
-    (``render.swatch_family``) to read from the single-light frames with the shine; the refinement
-    renders the one read (None: the default structure alone). ``sensor_clipped``: the image's
+    from them; without them the record says "shine not measured". ``structure``: how the swatch's
+    structure is treated (``inference.structure.STRUCTURE_MODES``): "assumed", hairdigi's layered swatch;
+    "family", the answer mapped to the mean of ``render.swatch_family``'s physical structures; "read",
+    read from the single-light frames among them and refined on it. ``sensor_clipped``: the image's
     saturated photosites per pixel (a RAW still's, ``Frame.clipped``): clipping is judged on them.
     """
     start = time.perf_counter()
@@ -109,7 +110,6 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     spread = max(est.view_spread.values()) if est.view_spread else None
     warnings = _warn(WarningKind.OUT_OF_DOMAIN, domain_warnings(stats, spread))
     refinement, appearance = None, None
-    swatch_read = None   # the structure read from the single-light frames (None: not read)
     params = est.params
     if light_images is not None:
         check_light_frames(light_images, image)
@@ -123,10 +123,10 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
             [mean_linear(im) for im in light_images])
         reading = read_appearance(singles, view, settings, renderer,
                                   texture_pixels=to_linear(fitted) if isinstance(view, RigRegion) else None,
-                                  frame_levels=levels, structures=structures)
+                                  frame_levels=levels,
+                                  structures=READ_MEMBERS if structure == "read" else None)
         warnings += reading.warnings
         appearance = reading.estimate
-        swatch_read = reading.swatch_model
         refinement = refine(est.params, mean_linear(fitted), view, settings, renderer, reading.value, reading.curve,
                             swatch_model=reading.swatch_model)
         if reading.value.varied and refinement.residual_de2000 > VARIATION_FIT_DE:
@@ -143,6 +143,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
                     f"{refinement.residual_de2000:.2f}; uniform fibres {uniform.residual_de2000:.2f}): it is not "
                     f"reported as measured"])
                 refinement, appearance = uniform, unmeasured_variation(reading.estimate)
+        if structure == "family":
+            refinement = toward_family(refinement, est.params, view, settings, renderer)
         params = refinement.params
         if not refinement.reachable:
             warnings += _warn(WarningKind.UNREACHABLE, [
@@ -160,7 +162,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     chain = load_table(CHAIN_TABLE) if isinstance(view, RigRegion) else None
     uncertainty = intervals(params, load_table(UNCERTAINTY_TABLE), chain)
     if refinement is not None:   # a swatch's structure: read, or the default assumed (``inference.structure``)
-        uncertainty = with_structure(uncertainty, load_table(STRUCTURE_TABLE), swatch_read)
+        uncertainty = with_structure(uncertainty, load_table(STRUCTURE_TABLE), structure,
+                                     refinement.region.get("swatch_model"))
     if refinement is not None:
         warnings += interval_warnings(refinement.residual_de2000, uncertainty)
     return EstimateResult(params, est, refinement, warnings, stats.to_dict(), uncertainty,
@@ -209,7 +212,7 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
                   calibration_path: str | os.PathLike | None = None, camera: CameraPose | None = None,
                   refine_colour: bool = True, settings: RefineSettings = RefineSettings(),
                   rig_view: bool | None = None, light_paths: list | None = None,
-                  light_exposures: list[float] | None = None, structures: tuple[str, ...] | None = None
+                  light_exposures: list[float] | None = None, structure: str = "assumed"
                   ) -> tuple[EstimateResult, EstimateRecord, np.ndarray]:
     """Read, colour-correct (when a calibration profile is given) and estimate; returns the result,
     its record and the corrected image (linear float when corrected, else as read).
@@ -220,8 +223,8 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
     outline where one is in view: ``inference.view_check``).
     ``light_paths``: the same view lit by each light alone (light order), 8/16-bit sRGB or linear
     EXR, corrected as the image; ``light_exposures`` each one's exposure over the image's (default:
-    the rig's capture record beside the image, if it names these frames, else 1). ``structures``:
-    swatch structures to read from those frames (``estimate_image``).
+    the rig's capture record beside the image, if it names these frames, else 1). ``structure``:
+    how the swatch's structure is treated (``estimate_image``; "read" needs the light frames).
     """
     from hairdigi.inference.preprocess import find_swatch
     from hairdigi.inference.view_check import view_warning, widened
@@ -272,7 +275,7 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
         extra += _warn(WarningKind.OTHER, [unknown_view])
     result = estimate_image(image, encoder, roi=roi, view=view, refine_colour=refine_colour, settings=settings,
                             extra_warnings=extra, light_images=lights,
-                            structures=structures if lights is not None else None)
+                            structure=structure if lights is not None or structure != "read" else "assumed")
     if unknown_view is not None:
         result.uncertainty = widened(result.uncertainty)
     return result, record(result, encoder, image_path.read_bytes(), image_path, calibration, view), image

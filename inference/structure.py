@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hairdigi.inference.refine import RefineSettings, ResponseCurve, View, response_curve
+from hairdigi.render.base.bounds import STRUCTURE_MODES  # noqa: F401  (re-exported: the modes' one home)
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.swatch_family import FAMILY
 from hairdigi.resources import MODELS
@@ -123,19 +124,42 @@ def read_structure(light_means: np.ndarray, view: View, settings: RefineSettings
 STRUCTURE_TABLE = MODELS / "structure_uncertainty.json"
 
 
-def with_structure(uncertainty: dict, table: dict | None, swatch_model: str | None) -> dict:
+#: The evaluation's name of each mode's figures in ``STRUCTURE_TABLE``.
+_TABLE_KEYS = {"assumed": "shipped", "family": "family", "read": "read"}
+
+
+def with_structure(uncertainty: dict, table: dict | None, mode: str = "assumed",
+                   swatch_model: str | None = None) -> dict:
     """``uncertainty`` (``inference.uncertainty.intervals``) with its colour interval widened to what
-    swatches of other structures measured (the larger of the two, per level), and a ``structure`` entry
-    naming the structure read (None: not read, the default structure assumed)."""
-    mode = "read" if swatch_model is not None else "shipped"
-    if not table or mode not in table:
+    swatches of other structures measured for ``mode`` (the larger of the two, per level), and a
+    ``structure`` entry naming the mode and the structure rendered."""
+    key = _TABLE_KEYS[mode]
+    if not table or key not in table:
         return uncertainty
-    measured = table[mode]
+    measured = table[key]
     out = dict(uncertainty)
     for level in ("p68", "p95"):
-        key = f"mean_colour_de2000_{level}"
-        if key in out:
-            out[key] = round(max(out[key], measured[level]), 3)
-    out["structure"] = {"read": swatch_model, "mean_colour_de2000_p68": round(measured["p68"], 3),
+        name = f"mean_colour_de2000_{level}"
+        if name in out:
+            out[name] = round(max(out[name], measured[level]), 3)
+    out["structure"] = {"mode": mode, "rendered": swatch_model, "mean_colour_de2000_p68": round(measured["p68"], 3),
                         "mean_colour_de2000_p95": round(measured["p95"], 3), "source": table.get("source", "")}
     return out
+
+
+def toward_family(refinement, prior, view: View, settings: RefineSettings = RefineSettings(), renderer=None):
+    """``refinement`` (``inference.refine.Refinement``) with its sigma_a mapped to the family's mean
+    (``to_family``) and the Table 1 parameters nearest ``prior`` that make it; the residual stays the one
+    measured on the default structure. The family's curves render once per view (cached)."""
+    import time
+    from dataclasses import replace as replaced
+
+    from hairdigi.inference.refine import params_for_sigma
+    from hairdigi.render.absorption import hair_sigma_a
+
+    start = time.perf_counter()
+    family = family_curves(view, settings, renderer)
+    params, _ = params_for_sigma(to_family(refinement.sigma_a, family), prior)
+    return replaced(refinement, params=params, sigma_a=hair_sigma_a(params),
+                    seconds=refinement.seconds + time.perf_counter() - start,
+                    region={**refinement.region, "structure": "mapped to the family's mean: " + ", ".join(family.members)})

@@ -118,13 +118,13 @@ def test_a_deposited_swatch_is_estimated_within_the_goal_when_its_structure_is_r
                / np.float32(2.8) for i in range(3)]
     goal = shot(truth, spp=128).reshape(-1, 3).mean(0)
     errors = {}
-    for name, structures in (("read", ("layered", "deposited")), ("assumed", None)):
-        result = estimate_image(frame, Encoder(), light_images=singles, settings=settings, structures=structures)
+    for name in ("read", "assumed"):
+        result = estimate_image(frame, Encoder(), light_images=singles, settings=settings, structure=name)
         back = shot(result.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0)
         errors[name] = float(delta_e2000(back, goal))
         if name == "read":
             assert result.refinement.region["swatch_model"] == "deposited"
-            assert result.uncertainty.get("structure", {}).get("read", "deposited") == "deposited"
+            assert result.uncertainty.get("structure", {}).get("rendered", "deposited") == "deposited"
     assert errors["read"] < 1.0, errors
     assert errors["read"] < errors["assumed"], errors
 

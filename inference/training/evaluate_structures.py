@@ -133,7 +133,7 @@ def _estimate(render, truth, structure: str, layout: int, shine: float, encoder,
     from hairdigi.inference.estimate import estimate_image
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.inference.refine import mean_linear
-    from hairdigi.inference.structure import READ_MEMBERS, read_structure, to_family
+    from hairdigi.inference.structure import read_structure, to_family
     from hairdigi.inference.training.evaluate import capture
 
     frame = capture(render.mean(truth, structure, layout, "rig", shine, pixels=True).astype(np.float32), index)
@@ -141,7 +141,7 @@ def _estimate(render, truth, structure: str, layout: int, shine: float, encoder,
                                 .astype(np.float32) * np.float32(2.0 ** LIGHT_EV), index + 7 * (i + 1)))
               / np.float32(2.0 ** LIGHT_EV) for i in range(N_LIGHTS)]
     result = estimate_image(frame, encoder, light_images=lights)
-    read = estimate_image(frame, encoder, light_images=lights, structures=READ_MEMBERS)
+    read = estimate_image(frame, encoder, light_images=lights, structure="read")
     if result.refinement is None or read.refinement is None:
         raise RuntimeError("no refinement")
     sigma = np.asarray(result.refinement.sigma_a, float)

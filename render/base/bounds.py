@@ -25,6 +25,10 @@ MAX_CAMERA_DISTANCE = 100.0
 
 #: The built-in hairstyles (``render.strands``) and the scenes: the swatch rig, then the hairstyles.
 HAIRSTYLES = ("straight", "wavy", "curly", "bob", "ponytail", "afro")
+#: How an estimate treats the swatch's structure (``inference.structure``): "assumed" (hairdigi's layered
+#: swatch), "family" (mapped to the mean of ``render.swatch_family``'s structures), "read" (from the
+#: single-light frames).
+STRUCTURE_MODES = ("assumed", "family", "read")
 SCENE_NAMES = ("swatch",) + HAIRSTYLES
 #: The hairstyles' lighting (``render.scenes``).
 ENVIRONMENTS = ("studio", "soft")
