@@ -96,6 +96,7 @@ def widened(uncertainty: dict, de: tuple[float, float] | None = None) -> dict:
     out = dict(uncertainty)
     out["mean_colour_de2000_p68"] = round(max(float(out.get("mean_colour_de2000_p68") or 0.0), p68), 3)
     out["mean_colour_de2000_p95"] = round(max(float(out.get("mean_colour_de2000_p95") or 0.0), p95), 3)
-    out["mean_colour_source"] = (f"{out.get('mean_colour_source', '')}; widened: the swatch's outline is not the "
-                                 f"assumed camera's (estimates without --camera, evaluate_views --no-camera)")
+    out["mean_colour_source"] = (f"{out.get('mean_colour_source', '')}; widened: the camera is not known to be the "
+                                 f"assumed one (rig-framed swatches from 20-30° estimated without --camera, "
+                                 f"evaluate_views --no-camera)")
     return out
