@@ -427,6 +427,17 @@ def region_outline(region: np.ndarray) -> np.ndarray | None:
     return None
 
 
+#: A region filling this share of its convex hull is a filled shape: a swatch seen obliquely is a
+#: parallelogram filling half its bounding box (at 60° a rhombus: issue 28), but all of its hull.
+SOLIDITY = 0.9
+
+
+def _hull_area(region: np.ndarray) -> float:
+    """The area of a boolean region's convex hull, in pixels."""
+    points = cv2.findNonZero(region.astype(np.uint8))
+    return float(cv2.contourArea(cv2.convexHull(points))) + 1.0 if points is not None else 1.0
+
+
 def find_swatch(img: np.ndarray) -> tuple[Roi, np.ndarray | None]:
     """:func:`find_swatch_roi`'s ROI, and the outline of the swatch found (its four corners in the
     frame's pixels: ``region_outline``), or None when the image is taken whole or has no such outline."""
@@ -450,8 +461,11 @@ def find_swatch(img: np.ndarray) -> tuple[Roi, np.ndarray | None]:
     def across(s) -> bool:
         return (s[0] <= 1 and s[0] + s[2] >= sw - 1) or (s[1] <= 1 and s[1] + s[3] >= sh - 1)
 
+    def filled(i: int, s) -> bool:   # a filled rectangle, or a filled quadrilateral seen obliquely
+        return s[4] >= 0.6 * s[2] * s[3] or s[4] >= SOLIDITY * _hull_area(labels == i)
+
     candidates = [(int(s[4]), i) for i, s in enumerate(stats) if i > 0 and s[4] >= 0.10 * sh * sw
-                  and s[4] >= 0.6 * s[2] * s[3] and s[2] * s[3] <= 0.85 * sh * sw and not across(s)]
+                  and s[2] * s[3] <= 0.85 * sh * sw and not across(s) and filled(i, s)]
     if not candidates:
         return whole
     best = max(candidates)[1]
