@@ -61,18 +61,21 @@ def family_curves(view: View, settings: RefineSettings = RefineSettings(), rende
     return FamilyCurves(default, curves, seconds)
 
 
-#: The most ``to_family`` moves a channel's sigma_a (a factor): where a channel's curve is flat (dark
-#: hair, whose colour is the fibres' surface reflection) the structures' offsets are not absorption, and
-#: unclamped the map sent black hair's sigma_a to a fifth (1.1-1.5 ΔE2000 off, ``evaluate --structures``).
-MAX_FAMILY_FACTOR = 1.3
+#: A hair whose every channel's sigma_a (per fibre radius) is at least this is dark: its colour is the
+#: fibres' surface reflection, the curves are flat there, and the structures' offsets are not absorption.
+#: Its answer is kept. Mapped anyway, black hair's sigma_a went to a fifth (1.1-1.5 ΔE2000 off); a clamp
+#: of the factor instead (1.3) cut light hair's real corrections (platinum needs 0.5-0.8), and keeping
+#: only the channels above it changed black's hue (1.85). ``hairdigi evaluate --structures``, 35 swatches.
+DARK_SIGMA = 3.2
 
 
-def to_family(sigma: np.ndarray, family: FamilyCurves, most: float = MAX_FAMILY_FACTOR) -> np.ndarray:
-    """The ``sigma_a`` whose family-mean colour is the default structure's colour of ``sigma``, moved by
-    at most a factor ``most`` per channel."""
+def to_family(sigma: np.ndarray, family: FamilyCurves, dark: float = DARK_SIGMA) -> np.ndarray:
+    """The ``sigma_a`` whose family-mean colour is the default structure's colour of ``sigma``; a dark
+    hair's (every channel at or above ``dark``) is kept."""
     sigma = np.asarray(sigma, float)
-    mapped = family.mean.inverse(family.default(sigma))[0]
-    return np.clip(mapped, sigma / most, sigma * most)
+    if np.all(sigma >= dark):
+        return sigma.copy()
+    return family.mean.inverse(family.default(sigma))[0]
 
 
 def nuisance(sigma: np.ndarray, family: FamilyCurves) -> dict[str, float]:

@@ -131,9 +131,9 @@ def test_a_deposited_swatch_is_estimated_within_the_goal_when_its_structure_is_r
 
 @pytest.mark.slow
 def test_two_layouts_of_one_swatch_give_one_answer() -> None:
-    """A copper hair hidden in two strand layouts of the default swatch, at the rig's swatch area: with the
-    check renders averaged over layouts (``check_layouts``) the two answers, rendered on a third layout,
-    are within the layout nuisance the bench states (0.3 ΔE2000)."""
+    """A copper hair hidden in two strand layouts of the default swatch, at the rig's swatch area: the two
+    answers, rendered on a third layout, are within the layout nuisance ``hairdigi bench layouts`` states
+    (0.25-0.55 ΔE2000 at the bench's 400x300 frame; 0.6 here), and each fits its own capture."""
     from dataclasses import replace
 
     from hairdigi.inference.refine import RefineSettings, refine, scene_for
@@ -144,14 +144,41 @@ def test_two_layouts_of_one_swatch_give_one_answer() -> None:
     from hairdigi.render.renderer import default_renderer
 
     renderer, hair = default_renderer(), HairParams((190, 80, 40), 0.5, 0.5, 0.6)
-    view = RigRegion((200, 150), swatch_roi((200, 150)))
-    settings = RefineSettings(size=32, spp=16, check_spp=64, check_layouts=4)
+    view = RigRegion((400, 300), swatch_roi((400, 300)))
+    settings = RefineSettings(size=32, spp=16, check_spp=64)
     spec, film = scene_for(view, settings)
 
     def mean(sigma, layout: int) -> np.ndarray:
         return renderer.render(np.asarray(sigma, float), replace(spec, strand_seed=layout), film, 128, 5
                                ).linear.reshape(-1, 3).mean(0)
 
-    answers = [mean(refine(hair, mean(hair_sigma_a(hair), s), view, settings, renderer).sigma_a, 300)
-               for s in (201, 202)]
-    assert delta_e2000(*answers) < 0.3
+    answers = []
+    for layout in (201, 202):
+        capture = mean(hair_sigma_a(hair), layout)
+        sigma = refine(hair, capture, view, settings, renderer).sigma_a
+        assert delta_e2000(mean(sigma, layout), capture) < 0.6
+        answers.append(mean(sigma, 300))
+    assert delta_e2000(*answers) < 0.6
+
+
+def test_to_family_maps_the_answer_to_the_family_mean_and_keeps_flat_channels() -> None:
+    """Pure arithmetic on response curves: a family that renders darker at equal sigma_a takes less
+    sigma_a for the same colour; a family equal to the default changes nothing; a dark hair, on the
+    curves' flat, surface-reflection end, is kept."""
+    from hairdigi.inference.refine import SIGMA_LEVELS, ResponseCurve
+    from hairdigi.inference.structure import DARK_SIGMA, FamilyCurves, nuisance, to_family
+
+    sigma = np.array(SIGMA_LEVELS)
+    default = ResponseCurve(sigma, 0.02 + 0.5 * np.exp(-sigma))
+    darker = ResponseCurve(sigma, 0.9 * default.mean)
+    same = FamilyCurves(default, {"a": default, "b": default})
+    family = FamilyCurves(default, {"a": default, "b": darker})
+    answer = np.array([0.1, 0.5, 1.3])
+    assert np.allclose(to_family(answer, same), answer, rtol=1e-2)   # the curves interpolate: 0.3% round trip
+    mapped = to_family(answer, family)
+    assert np.all(mapped < answer)
+    assert np.allclose(family.mean(mapped), default(answer), rtol=1e-2)   # the same colour on the family's mean
+    black = np.full(3, DARK_SIGMA + 1.0)
+    assert np.array_equal(to_family(black, family), black)   # the same colour on the mean
+    spread = nuisance(mapped, family)
+    assert spread["a"] > 0 and spread["b"] > 0           # the family's members lie either side of its mean
