@@ -50,7 +50,10 @@ def sensor_clipped(raw_image: np.ndarray, colours: np.ndarray, colour_desc: str,
     half-size development gives, else each cell's verdict on its four pixels."""
     threshold = black + SENSOR_SATURATION * (white - black)
     rows, cols = raw_image.shape[0] // 2 * 2, raw_image.shape[1] // 2 * 2
-    channel = np.array(["RGB".find(c) if c in "RGB" else 1 for c in colour_desc], np.int8)
+    # each photosite's channel; an index past ``colour_desc`` (LibRaw gives 0-3, but a DNG may say more
+    # than its description: a 48 MP test still's CFA read 6) counts as green, the Bayer's most common
+    channel = np.ones(256, np.int8)
+    channel[:len(colour_desc)] = ["RGB".find(c) if c in "RGB" else 1 for c in colour_desc]
     cells = np.zeros((rows // 2, cols // 2, 3), bool)
     for r in range(0, rows, _BAND_ROWS):
         r1 = min(rows, r + _BAND_ROWS)
