@@ -64,9 +64,11 @@ def test_structures_render_apart_at_equal_sigma_a() -> None:
 
 
 @pytest.mark.slow
-def test_structure_is_read_from_the_single_light_frames() -> None:
-    """The single-light frames of a hidden swatch (a layout no table renders) tell a deposited swatch
-    from a layered one, and the sigma_a read on the structure read is nearer the truth."""
+def test_the_structure_read_is_the_one_whose_tables_fit_best() -> None:
+    """``read_structure`` fits the shine on every member's per-light tables and keeps the best: frames of a
+    member in its tables' own layout are read as that member, with their shine and sigma_a. (Another
+    layout of the same swatch moves the lights' shares as much as another structure does: read right in 6
+    of 35 hidden swatches, ``evaluate --structures``; the mode is measured, not the default.)"""
     from hairdigi.inference.refine import RefineSettings
     from hairdigi.inference.structure import read_structure
     from hairdigi.render.base.appearance import Appearance
@@ -78,21 +80,23 @@ def test_structure_is_read_from_the_single_light_frames() -> None:
     members = ("layered", "deposited")
     for hidden in members:
         means = np.array([renderer.render(truth, SceneSpec(
-            "swatch", camera=RIG_SWATCH_POSE, swatch_model=hidden, strand_seed=77,
+            "swatch", camera=RIG_SWATCH_POSE, swatch_model=hidden, strand_seed=settings.strand_seed,
             lights=tuple(float(j == i) for j in range(3)), appearance=Appearance(0.3)), 24, 64, 9)
             .linear.reshape(-1, 3).mean(0) for i in range(3)])
         reading = read_structure(means, RIG_SWATCH_POSE, settings, renderer, members)
         assert reading.swatch_model == hidden, reading.misfits
+        assert set(reading.misfits) == set(members) and reading.misfits[hidden] == min(reading.misfits.values())
         assert abs(reading.shine.longitudinal_roughness - 0.3) < 0.06
-        error = np.median(np.abs(np.array(reading.shine.sigma_a) / truth - 1))
-        assert error < 0.1, (hidden, reading.shine.sigma_a)
+        assert np.median(np.abs(np.array(reading.shine.sigma_a) / truth - 1)) < 0.1, (hidden, reading.shine.sigma_a)
 
 
 @pytest.mark.slow
-def test_a_deposited_swatch_is_estimated_within_the_goal_when_its_structure_is_read() -> None:
-    """A copper hair hidden in a deposited swatch (a layout no table renders), shot through the camera
-    model with its single-light frames: read with the structure, its sigma_a rendered back on the hidden
-    strands is within the goal (1.0 ΔE2000); assumed layered, it is estimated darker (sigma_a high)."""
+def test_a_deposited_swatch_is_estimated_within_the_goal_mapped_to_the_family() -> None:
+    """A rough saturated red hidden in a deposited swatch (a layout no curve renders), shot through the
+    camera model with its single-light frames at the evaluation's settings: mapped to the family's mean,
+    its sigma_a rendered back on the hidden strands is within the goal (1.0 ΔE2000) and nearer than
+    assumed layered (``evaluate --structures``: 0.37 against 1.75); the record's colour interval and
+    its structure entry say which."""
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_image
     from hairdigi.inference.preprocess import to_linear
@@ -105,35 +109,35 @@ def test_a_deposited_swatch_is_estimated_within_the_goal_when_its_structure_is_r
     from hairdigi.render.metrics import delta_e2000
     from hairdigi.render.renderer import SceneSpec, default_renderer
 
-    renderer, truth = default_renderer(), hair_sigma_a(HairParams((190, 80, 40), 0.5, 0.5, 0.6))
-    settings = RefineSettings(size=24, spp=16, check_spp=32)
+    renderer, truth = default_renderer(), hair_sigma_a(HairParams((230, 20, 30), 1.0, 0.08, 0.3))
+    settings = RefineSettings()
 
     def shot(sigma, lights=(1.0, 1.0, 1.0), spp=64):
         spec = SceneSpec("swatch", camera=RIG_SWATCH_POSE, swatch_model="deposited", strand_seed=91,
-                         lights=lights, appearance=Appearance(0.3))
-        return renderer.render(np.asarray(sigma, float), spec, 32, spp, 13).linear
+                         lights=lights, appearance=Appearance(0.45))
+        return renderer.render(np.asarray(sigma, float), spec, 48, spp, 13).linear
 
     frame = capture(shot(truth).astype(np.float32), 1)
     singles = [to_linear(capture(shot(truth, tuple(float(j == i) for j in range(3))).astype(np.float32) * 2.8, 2 + i))
                / np.float32(2.8) for i in range(3)]
     goal = shot(truth, spp=128).reshape(-1, 3).mean(0)
-    errors = {}
-    for name in ("read", "assumed"):
-        result = estimate_image(frame, Encoder(), light_images=singles, settings=settings, structure=name)
+    errors, intervals = {}, {}
+    for mode in ("family", "assumed"):
+        result = estimate_image(frame, Encoder(), light_images=singles, settings=settings, structure=mode)
         back = shot(result.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0)
-        errors[name] = float(delta_e2000(back, goal))
-        if name == "read":
-            assert result.refinement.region["swatch_model"] == "deposited"
-            assert result.uncertainty.get("structure", {}).get("rendered", "deposited") == "deposited"
-    assert errors["read"] < 1.0, errors
-    assert errors["read"] < errors["assumed"], errors
+        errors[mode] = float(delta_e2000(back, goal))
+        intervals[mode] = result.uncertainty
+    assert errors["family"] < 1.0, errors
+    assert errors["family"] < errors["assumed"], errors
+    assert intervals["family"]["structure"]["mode"] == "family"
+    assert intervals["assumed"]["mean_colour_de2000_p68"] > intervals["family"]["mean_colour_de2000_p68"]
 
 
 @pytest.mark.slow
 def test_two_layouts_of_one_swatch_give_one_answer() -> None:
     """A copper hair hidden in two strand layouts of the default swatch, at the rig's swatch area: the two
     answers, rendered on a third layout, are within the layout nuisance ``hairdigi bench layouts`` states
-    (0.25-0.55 ΔE2000 at the bench's 400x300 frame; 0.6 here), and each fits its own capture."""
+    (0.25-0.55 ΔE2000 at this 400x300 frame and these settings; 0.6 here), and each fits its own capture."""
     from dataclasses import replace
 
     from hairdigi.inference.refine import RefineSettings, refine, scene_for
@@ -145,7 +149,7 @@ def test_two_layouts_of_one_swatch_give_one_answer() -> None:
 
     renderer, hair = default_renderer(), HairParams((190, 80, 40), 0.5, 0.5, 0.6)
     view = RigRegion((400, 300), swatch_roi((400, 300)))
-    settings = RefineSettings(size=32, spp=16, check_spp=64)
+    settings = RefineSettings()
     spec, film = scene_for(view, settings)
 
     def mean(sigma, layout: int) -> np.ndarray:
