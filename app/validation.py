@@ -305,6 +305,12 @@ def check_estimate(args: argparse.Namespace) -> None:
     for i, light in enumerate((getattr(args, "lights", None) or "").split(",") if getattr(args, "lights", None) else ()):
         check_input_file(light, f"--lights (light {i})")   # a device or FIFO is refused before it is read
         inputs[f"--lights (light {i})"] = light
+    if getattr(args, "structure", "assumed") == "read" and not getattr(args, "lights", None):
+        raise ArgumentError("--structure read reads the swatch's structure from its single-light frames: pass "
+                            "--lights L0,L1,L2, or use --structure family")
+    if getattr(args, "structure", "assumed") != "assumed" and getattr(args, "no_refine", False):
+        raise ArgumentError(f"--structure {args.structure} acts on the refinement, which --no-refine skips; "
+                            f"leave one of them out")
     check_distinct({"--out": args.out, "--render": args.render})
     check_output_file(args.out, "--out", (".json",), "JSON", inputs)
     if not getattr(args, "no_refine", False):
@@ -459,9 +465,10 @@ def check_export(args: argparse.Namespace) -> None:
 
 
 #: ``evaluate``'s modes: at most one runs (``--dye --rig`` is the dye protocol on the simulated rig).
-EVALUATE_MODES = ("dye", "rig", "appearance", "cycles", "convergence", "prepare_only")
+EVALUATE_MODES = ("dye", "rig", "appearance", "cycles", "structures", "convergence", "prepare_only")
 #: Flags that go with one mode only.
-EVALUATE_MODE_FLAGS = {"ship": ("rig", "appearance"), "no_variation": ("appearance",), "default_shine": ("cycles",)}
+EVALUATE_MODE_FLAGS = {"ship": ("rig", "appearance", "structures"), "no_variation": ("appearance",),
+                       "default_shine": ("cycles",), "blender": ("structures",), "hidden_structures": ("structures",)}
 
 
 def _flag(name: str) -> str:

@@ -719,7 +719,8 @@ def test_a_stale_wayland_display_is_one_line(monkeypatch, tmp_path):
 
 # --- 17. small things (continued) ----------------------------------------------------------------------------
 @pytest.mark.parametrize("args", [["--rig", "--cycles"], ["--appearance", "--rig"], ["--convergence", "4,16", "--rig"],
-                                  ["--ship"], ["--no-variation", "--rig"], ["--default-shine"], ["--dye", "--ship"]])
+                                  ["--ship"], ["--no-variation", "--rig"], ["--default-shine"], ["--dye", "--ship"],
+                                  ["--structures", "--rig"], ["--blender"], ["--hidden-structures", "loose"]])
 def test_contradictory_evaluation_flags_are_refused(ws, capsys, args):
     one_line(main(["evaluate", *args, "--out", "ev"]), capsys, "--")
     assert not (ws / "ev").exists()

@@ -29,6 +29,23 @@ def test_unknown_structure_is_refused_in_one_line() -> None:
     assert SceneSpec("swatch", swatch_model="deposited").swatch_model == "deposited"
 
 
+def test_a_structure_mode_without_what_it_needs_is_refused_in_one_line(tmp_path, capsys) -> None:
+    """``estimate --structure read`` without single-light frames, or any structure mode with --no-refine,
+    is one line naming the fix; nothing is written."""
+    from hairdigi.app.cli import main
+
+    image = tmp_path / "swatch.png"
+    import cv2
+
+    cv2.imwrite(str(image), np.full((64, 64, 3), 90, np.uint8))
+    for extra, words in ((["--structure", "read"], "pass --lights"),
+                         (["--structure", "family", "--no-refine"], "--no-refine skips")):
+        assert main(["estimate", str(image), "--out", str(tmp_path / "p.json"), *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert words in err and len(err.splitlines()) == 1, err
+        assert not (tmp_path / "p.json").exists()
+
+
 def test_deposited_fibres_rest_on_one_another_and_settle() -> None:
     """Dropped fibres pile up (the stack grows with the count) but settle into hollows: a swatch of
     2000 fibres of radius 0.004 stands about as high as 8-16 close-packed layers, not a loose heap."""
