@@ -30,7 +30,7 @@ import hashlib
 import json
 import threading
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -320,7 +320,7 @@ def check_render(sigma: np.ndarray, spec, size, settings: RefineSettings, render
     spp = max(1, settings.check_spp // layouts)
     means, nonfinite = [], 0
     for k in range(layouts):
-        result = renderer.render(sigma, replaced(spec, strand_seed=spec.strand_seed + k), size, spp, settings.seed)
+        result = renderer.render(sigma, replace(spec, strand_seed=spec.strand_seed + k), size, spp, settings.seed)
         means.append(result.linear.reshape(-1, 3).mean(0))
         nonfinite += result.nonfinite
     return np.mean(means, axis=0), nonfinite

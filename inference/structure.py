@@ -41,11 +41,11 @@ class FamilyCurves:
     @property
     def mean(self) -> ResponseCurve:
         """The family's response: the geometric mean of its members' curves."""
-        logs = np.mean([np.log(np.clip(c.mean, 1e-12, None)) for c in self.members.values()], axis=0)
-        return ResponseCurve(self.default.sigma.copy(), np.exp(logs))
+        return _averaged(list(self.members.values()))
 
 
 def _averaged(curves: list[ResponseCurve]) -> ResponseCurve:
+    """The geometric mean of curves on one sigma ladder (a member's layouts, or the family's members)."""
     logs = np.mean([np.log(np.clip(c.mean, 1e-12, None)) for c in curves], axis=0)
     return ResponseCurve(curves[0].sigma.copy(), np.exp(logs), sum(c.seconds for c in curves),
                          all(c.cached for c in curves))
