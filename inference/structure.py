@@ -141,6 +141,8 @@ def with_structure(uncertainty: dict, table: dict | None, mode: str = "assumed",
         return uncertainty
     measured = table[key]
     out = dict(uncertainty)
+    if out.get("mean_colour_de2000_p68", np.inf) < measured["p68"]:
+        out["mean_colour_source"] = f"{table.get('source', 'hairdigi evaluate --structures')} (--structure {mode})"
     for level in ("p68", "p95"):
         name = f"mean_colour_de2000_{level}"
         if name in out:

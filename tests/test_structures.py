@@ -46,6 +46,22 @@ def test_a_structure_mode_without_what_it_needs_is_refused_in_one_line(tmp_path,
         assert not (tmp_path / "p.json").exists()
 
 
+def test_a_records_colour_interval_carries_the_unknown_structure() -> None:
+    """The colour interval is widened to the structure mode's measured one where that is wider, its source
+    says so, and a narrower one (family) leaves a wider chain interval as it was."""
+    from hairdigi.inference.structure import with_structure
+
+    table = {"source": "evaluate --structures", "shipped": {"p68": 2.0, "p95": 2.9}, "family": {"p68": 1.0, "p95": 1.4}}
+    chain = {"mean_colour_de2000_p68": 0.49, "mean_colour_de2000_p95": 0.71, "mean_colour_source": "the chain"}
+    assumed = with_structure(chain, table, "assumed", "layered")
+    assert (assumed["mean_colour_de2000_p68"], assumed["mean_colour_de2000_p95"]) == (2.0, 2.9)
+    assert "--structure assumed" in assumed["mean_colour_source"] and assumed["structure"]["mode"] == "assumed"
+    wide = {**chain, "mean_colour_de2000_p68": 3.38, "mean_colour_de2000_p95": 5.11}   # an unknown camera's
+    family = with_structure(wide, table, "family")
+    assert (family["mean_colour_de2000_p68"], family["mean_colour_source"]) == (3.38, "the chain")
+    assert with_structure(chain, None, "assumed") == chain                 # no table shipped: unchanged
+
+
 def test_deposited_fibres_rest_on_one_another_and_settle() -> None:
     """Dropped fibres pile up (the stack grows with the count) but settle into hollows: a swatch of
     2000 fibres of radius 0.004 stands about as high as 8-16 close-packed layers, not a loose heap."""
