@@ -130,6 +130,7 @@ def mitsuba_mean(look: HairLook, strands: Strands, pose: rg.CameraPose = rg.RIG_
     import mitsuba as mi
 
     from hairdigi.render import scenes
+    from hairdigi.render.base.interrupt import sigint_held
     from hairdigi.render.renderer import RENDER_LOCK
     from hairdigi.render.variant import select_variant
 
@@ -143,7 +144,8 @@ def mitsuba_mean(look: HairLook, strands: Strands, pose: rg.CameraPose = rg.RIG_
         scene = mi.load_dict(scenes.swatch_scene(str(curve_file), bsdf, pose, size, framing=framing,
                                                  max_depth=max_depth))
         start = time.perf_counter()
-        image = np.array(mi.render(scene, spp=spp, seed=0))
+        with sigint_held():   # render.base.interrupt
+            image = np.array(mi.render(scene, spp=spp, seed=0))
     return image.reshape(-1, 3).mean(0), time.perf_counter() - start
 
 

@@ -26,6 +26,7 @@ from hairdigi.render import scenes
 from hairdigi.render.absorption import hair_bsdf, hair_sigma_a
 from hairdigi.render.hairfile import hair_model_strands
 from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
+from hairdigi.render.base.interrupt import sigint_held
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.fibres import FIBRE_GROUPS, group_keys, group_sigma_a, split_strands
 from hairdigi.render.srgb import linear_to_srgb8
@@ -323,7 +324,9 @@ class Renderer:
             start, cpu = time.perf_counter(), time.process_time()
             scene = self._scene_for(spec, size, params)
             integrator = mi.load_dict({"type": "aov", "aovs": aovs})
-            linear, nonfinite = finite_image(mi.render(scene, integrator=integrator, spp=spp, seed=int(seed)))
+            with sigint_held():
+                image = mi.render(scene, integrator=integrator, spp=spp, seed=int(seed))
+            linear, nonfinite = finite_image(image)
             seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
         return RenderResult(linear, linear_to_srgb8(linear[..., :3]), seconds, spp, cpu, nonfinite)
 
@@ -374,12 +377,14 @@ def render_in_passes(scene, size: int | tuple[int, int], spp: int, seed: int):
     weighted by their spp (deterministic: the split depends on the size and spp alone)."""
     width, height = (size, size) if isinstance(size, int) else size
     if width * height * spp <= SPLIT_ABOVE:
-        return mi.render(scene, spp=spp, seed=seed)   # as before: one call
+        with sigint_held():   # Ctrl-C waits for the call, then is a KeyboardInterrupt (render.base.interrupt)
+            return mi.render(scene, spp=spp, seed=seed)   # as before: one call
     per_pass = max(1, PASS_SAMPLES // (width * height))
     total, done, k = None, 0, 0
     while done < spp:
         n = min(per_pass, spp - done)
-        image = np.asarray(mi.render(scene, spp=n, seed=(seed * 1_000_003 + 7_919 * k) % (1 << 32)), np.float64)
+        with sigint_held():
+            image = np.asarray(mi.render(scene, spp=n, seed=(seed * 1_000_003 + 7_919 * k) % (1 << 32)), np.float64)
         total = image * n if total is None else total + image * n
         done, k = done + n, k + 1
     return (total / spp).astype(np.float32)

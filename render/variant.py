@@ -16,7 +16,10 @@ from __future__ import annotations
 import os
 import warnings
 
-import mitsuba as mi
+from hairdigi.render.base.interrupt import sigint_held
+
+with sigint_held():   # threads started while Mitsuba loads inherit the block (render.base.interrupt)
+    import mitsuba as mi
 
 from hairdigi.render.base.bounds import AUTO_VARIANTS as AUTO  # noqa: E402  (tried by "auto", in order)
 from hairdigi.render.base.bounds import PREFERRED_VARIANTS as PREFERRED  # noqa: E402
@@ -50,11 +53,12 @@ def select_variant(preferred: str | None = None) -> str:
     errors = []
     for name in candidates:
         try:
-            mi.set_variant(name)
-            if name.startswith(("llvm", "cuda")):
-                import drjit as dr
-                # raises when the backend is inactive (no libLLVM; no GPU or CUDA driver)
-                dr.zeros((dr.cuda if name.startswith("cuda") else dr.llvm).Float, 1)
+            with sigint_held():   # the backend's pool starts here: its threads never take Ctrl-C
+                mi.set_variant(name)
+                if name.startswith(("llvm", "cuda")):
+                    import drjit as dr
+                    # raises when the backend is inactive (no libLLVM; no GPU or CUDA driver)
+                    dr.zeros((dr.cuda if name.startswith("cuda") else dr.llvm).Float, 1)
             break
         except Exception as exc:  # ImportError, or "LLVM backend is inactive"
             errors.append(f"{name}: {_why_not(name, exc)}")
@@ -65,7 +69,8 @@ def select_variant(preferred: str | None = None) -> str:
         import drjit as dr
 
         from hairdigi.render.base.threads import plan
-        dr.set_thread_count(plan()["drjit"])
+        with sigint_held():
+            dr.set_thread_count(plan()["drjit"])
     if mi.variant() == "scalar_rgb" and not wanted:
         warnings.warn("llvm_ad_rgb is unavailable (install Debian's libllvm19); rendering with "
                       "scalar_rgb, about 2x slower. " + "; ".join(errors), RuntimeWarning, stacklevel=2)

@@ -197,7 +197,10 @@ def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
     """
     if threads:
         import drjit as dr
-        dr.set_thread_count(threads)
+
+        from hairdigi.render.base.interrupt import sigint_held
+        with sigint_held():   # new pool threads never take Ctrl-C (render.base.interrupt)
+            dr.set_thread_count(threads)
     from hairdigi.render.variant import select_variant
 
     if variant is not None:
