@@ -245,6 +245,21 @@ def bench_fibres(args: argparse.Namespace) -> int:
     return 0
 
 
+def bench_spectral(args: argparse.Namespace) -> int:
+    """The RGB fast path against the spectral render, under daylight, tungsten and shop lights."""
+    from hairdigi.render.bench_spectral import run
+
+    out = Path("packaging/bench/spectral") if args.out == BENCH_OUT else Path(args.out)
+    rows = run(out, quick=args.quick)
+    for r in rows:
+        table1 = "  -  " if r["table1_de2000"] is None else f"{r['table1_de2000']:5.2f}"
+        print(f"{r['hair']:10s} {r['light']:8s}: ΔE2000 against spectral, Table 1 RGB {table1}, matched RGB "
+              f"{r['matched_de2000']:5.2f} (spectral noise {r['spectral_noise_de2000']:.2f}); spectral "
+              f"{r['spectral_seconds']:.2f} s, RGB {r['rgb_seconds']:.2f} s")
+    print(f"wrote {out / 'spectral_bench.csv'} and {out / 'spectral_bench.png'}")
+    return 0
+
+
 #: Every benchmark of ``hairdigi bench``, by name.
 BENCHES: dict[str, Bench] = {
     "render": bench_render,
@@ -262,5 +277,6 @@ BENCHES: dict[str, Bench] = {
     "fibres": bench_fibres,                                                 # issue 18: how many fibre groups
     "family": bench_family,                                                 # issue 28: the family of swatch structures
     "structure": bench_structure,                                           # issue 18: the swatch's fibre structure
+    "spectral": bench_spectral,                                             # the RGB fast path against spectral renders
     "genicam": _elsewhere("hairdigi.app.bench_genicam", "bench_genicam"),   # issue 32: frame rate, capture latency
 }

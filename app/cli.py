@@ -60,8 +60,14 @@ def cmd_render(args: argparse.Namespace) -> int:
     distance = CAMERA_DISTANCE if args.scene == "swatch" else PORTRAIT_CAMERA.distance
     camera = CameraPose.parse(args.camera, distance) if args.camera else None
     spec = SceneSpec(name=args.scene, camera=camera, env=args.env, framing=args.framing,
-                     strands=args.strands, max_depth=args.depth, strand_seed=args.seed)
+                     strands=args.strands, max_depth=args.depth, strand_seed=args.seed, illuminant=args.illuminant)
     result = render(params, spec, args.size, args.spp, args.seed)
+    if args.illuminant is not None and args.balance == "light":
+        from hairdigi.render.spectra import balanced
+        from hairdigi.render.srgb import linear_to_srgb8
+
+        result.linear = balanced(result.linear, args.illuminant)
+        result.srgb = linear_to_srgb8(result.linear)
     if spec.hair_file is not None:
         from hairdigi.render.hairfile import model_summary
 
@@ -458,6 +464,7 @@ def build_parser() -> argparse.ArgumentParser:
     from hairdigi.app import validation as v
     from hairdigi.render.base.bounds import (ENVIRONMENTS, MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH,
                                              MIN_SIZE, SCENE_NAMES)
+    from hairdigi.render.base.bounds import ILLUMINANTS as ILLUMINANT_NAMES
     from hairdigi.render.base.bounds import STRUCTURE_MODES, VARIANT_CHOICES as VARIANTS
     from hairdigi.render.base.rig_geometry import N_LIGHTS
 
@@ -486,6 +493,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--depth", type=depth, default=None, help="maximum path depth (default: the scene's)")
     p.add_argument("--out", required=True, help="output PNG (sRGB 8-bit)")
     p.add_argument("--exr", help="also write linear RGB as OpenEXR")
+    p.add_argument("--illuminant", type=v.illuminant,
+                   help="render spectrally under this light: " + ", ".join(ILLUMINANT_NAMES)
+                   + ", or a CSV of wavelength (nm), power")
+    p.add_argument("--balance", choices=("light", "daylight"), default="light",
+                   help="with --illuminant: as an eye adapted to the light sees it (light: a white is white), "
+                        "or as a daylight-balanced photograph shows it (daylight: tungsten is orange)")
     p.add_argument("--variant", choices=VARIANTS, default="auto", help=variant_help)
     p.set_defaults(func=cmd_render)
 

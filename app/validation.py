@@ -255,6 +255,16 @@ def scene_name(names) -> Callable[[str], str]:
     return parse
 
 
+def illuminant(text: str) -> str:
+    """An argparse type: a named light (``render.base.bounds.ILLUMINANTS``) or a CSV's path (read later)."""
+    from hairdigi.render.base.bounds import ILLUMINANTS
+
+    if text in ILLUMINANTS or text.lower().endswith((".csv", ".txt")):
+        return text
+    raise argparse.ArgumentTypeError(f"{text!r} is not a light: choose one of {', '.join(ILLUMINANTS)}, "
+                                     f"or give a CSV file of wavelength (nm), power")
+
+
 def check_render(args: argparse.Namespace) -> None:
     """``hairdigi render``: the parameter file, the outputs, and size x spp, depth and camera together."""
     from hairdigi.render.base.bounds import check_camera, check_size_spp, defaults_for

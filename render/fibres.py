@@ -41,7 +41,7 @@ def group_sigma_a(sigma_median: np.ndarray, groups: int, spread: float) -> list[
     """sigma_a of each group in ``group_keys`` order: the pigmented groups, then the grey group."""
     sigma_median = np.asarray(sigma_median, float)
     out = [sigma_median * np.exp(spread * z) for z in group_z(groups)]
-    return out + [np.full(3, GREY_SIGMA_A)]
+    return out + [np.full(sigma_median.shape, GREY_SIGMA_A)]   # RGB, or a spectrum (render.spectra)
 
 
 def split_strands(strands: Strands, groups: int, grey_fraction: float, seed: int = 0) -> list[Strands]:

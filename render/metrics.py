@@ -12,15 +12,17 @@ from scipy.ndimage import gaussian_filter
 _SRGB = colour.RGB_COLOURSPACES["sRGB"]
 
 
-def linear_rgb_to_lab(rgb: np.ndarray) -> np.ndarray:
-    """Linear sRGB (white = 1) to CIE L*a*b* under D65, through colour-science."""
+def linear_rgb_to_lab(rgb: np.ndarray, whitepoint: np.ndarray | None = None) -> np.ndarray:
+    """Linear sRGB (white = 1) to CIE L*a*b*, through colour-science: against D65, or against the
+    ``whitepoint`` (xy) of the light the scene was lit by (an observer adapted to it)."""
     xyz = colour.RGB_to_XYZ(np.asarray(rgb, dtype=float), _SRGB, apply_cctf_decoding=False)
-    return colour.XYZ_to_Lab(xyz, _SRGB.whitepoint)
+    return colour.XYZ_to_Lab(xyz, _SRGB.whitepoint if whitepoint is None else np.asarray(whitepoint, float))
 
 
-def delta_e2000(rgb_a: np.ndarray, rgb_b: np.ndarray) -> np.ndarray:
-    """ΔE2000 between linear-RGB colours (any shape ending in 3)."""
-    return colour.delta_E(linear_rgb_to_lab(rgb_a), linear_rgb_to_lab(rgb_b), method="CIE 2000")
+def delta_e2000(rgb_a: np.ndarray, rgb_b: np.ndarray, whitepoint: np.ndarray | None = None) -> np.ndarray:
+    """ΔE2000 between linear-RGB colours (any shape ending in 3), against D65 or ``whitepoint`` (xy)."""
+    return colour.delta_E(linear_rgb_to_lab(rgb_a, whitepoint), linear_rgb_to_lab(rgb_b, whitepoint),
+                          method="CIE 2000")
 
 
 def error_stats(values) -> dict:

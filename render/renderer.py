@@ -33,7 +33,7 @@ from hairdigi.render.srgb import linear_to_srgb8
 from hairdigi.render.strands import (STYLES, Strands, hairstyle_strands, layered_radius,
                                      layered_swatch_strands, swatch_strands)
 from hairdigi.render.swatch_family import STRUCTURES, structure_strands
-from hairdigi.render.variant import is_jit, load_scene, mi, select_variant
+from hairdigi.render.variant import is_jit, load_scene, mi, select_variant, spectral_variant
 
 #: The scene of a ``.hair`` model (``SceneSpec.hair_file``).
 HAIR_FILE_SCENE = "hairfile"
@@ -63,6 +63,9 @@ class SceneSpec:
     (``render.base.appearance.Appearance``) is the hair's shine, fibre spread and grey share; a varied
     one is drawn as ``fibre_groups`` pigment groups and a grey group (``render.fibres``). A swatch's
     ``env`` ``"key-sky"`` adds a key light and a grey sky (the rig's lights set to 0: away from the rig).
+    ``illuminant`` None renders in RGB with white lights; a name of ``render.spectra.ILLUMINANTS`` or a
+    CSV of wavelength, power renders the scene spectrally, every light emitting that SPD, seen by the
+    CIE 1931 observer as linear sRGB (D65 white: under tungsten a white holder is orange).
     """
 
     name: str = "swatch"
@@ -82,6 +85,7 @@ class SceneSpec:
     appearance: Appearance | None = None            # shine, fibre spread, greys; None: the default (uniform)
     fibre_groups: int | None = None                  # pigment groups of a varied appearance; None: FIBRE_GROUPS
     swatch_model: str | None = None                  # swatch strands: one of SWATCH_MODELS; None: the default
+    illuminant: str | None = None                    # None: RGB; a light (render.spectra): rendered spectrally
 
     def __post_init__(self) -> None:
         if isinstance(self.name, str) and self.name.lower().endswith(".hair") and self.hair_file is None:
@@ -125,6 +129,10 @@ class SceneSpec:
                              f"(it applies to the swatch scene only)")
         if self.camera is not None:
             check_camera(self.camera, self.name)
+        if self.illuminant is not None:
+            from hairdigi.render.spectra import illuminant_spd
+
+            illuminant_spd(self.illuminant)   # an unknown name or a bad CSV fails here, in one line
 
     @property
     def n_strands(self) -> int:
@@ -169,6 +177,20 @@ def absorption_of(hair: HairParams | np.ndarray) -> np.ndarray:
     sigma = np.asarray(hair, dtype=float).ravel()
     if sigma.shape != (3,) or not np.all(np.isfinite(sigma)) or np.any(sigma < 0):
         raise ValueError(f"sigma_a must be 3 finite values >= 0, got {hair!r}")
+    return sigma
+
+
+def spectral_absorption_of(hair: HairParams | np.ndarray) -> np.ndarray:
+    """The ``sigma_a(λ)`` to render spectrally: mapped from Table 1 parameters (``render.spectra``), or
+    given directly (finite values >= 0 on ``render.spectra.WAVELENGTHS``)."""
+    from hairdigi.render.spectra import WAVELENGTHS, hair_sigma_a_spectrum
+
+    if isinstance(hair, HairParams):
+        return hair_sigma_a_spectrum(hair)
+    sigma = np.asarray(hair, dtype=float).ravel()
+    if sigma.shape != WAVELENGTHS.shape or not np.all(np.isfinite(sigma)) or np.any(sigma < 0):
+        raise ValueError(f"a spectral render takes Table 1 parameters or sigma_a as {len(WAVELENGTHS)} finite "
+                         f"values >= 0 on render.spectra.WAVELENGTHS (360-830 nm every 5 nm), got shape {sigma.shape}")
     return sigma
 
 
@@ -228,11 +250,10 @@ class Renderer:
             key += (spec.strand_seed,)
         return key
 
-    def _build(self, spec: SceneSpec, size: int, params: HairParams) -> _Loaded:
-        self.builds += 1
+    def _scene_dict(self, spec: SceneSpec, size: int, bsdf: dict) -> tuple[dict, list[Path]]:
+        """The scene dict of ``spec`` and the curve files it reads (delete them once it is loaded)."""
         curve_file = Path(self._tmp.name) / f"curves-{len(self._cache)}-{time.monotonic_ns()}.txt"
         curve_file.write_text(strands_for(spec).with_dummy().to_curve_text())
-        bsdf = hair_bsdf(params if isinstance(params, HairParams) else HairParams())  # sigma_a set on update
         if spec.name == "swatch":
             chart = None if spec.chart is None else np.asarray(spec.chart)
             moved = chart is not None and spec.chart_center is not None
@@ -253,6 +274,12 @@ class Renderer:
                 path.write_text(part.with_dummy().to_curve_text())
                 scene_dict[key] = scenes.hair_shape(str(path), dict(bsdf))
                 files.append(path)
+        return scene_dict, files
+
+    def _build(self, spec: SceneSpec, size: int, params: HairParams) -> _Loaded:
+        self.builds += 1
+        bsdf = hair_bsdf(params if isinstance(params, HairParams) else HairParams())  # sigma_a set on update
+        scene_dict, files = self._scene_dict(spec, size, bsdf)
         scene = load_scene(scene_dict)
         for path in files:
             path.unlink(missing_ok=True)
@@ -310,10 +337,35 @@ class Renderer:
         spec, size, spp = self._request(spec, size, spp)
         with RENDER_LOCK:
             start, cpu = time.perf_counter(), time.process_time()
-            scene = self._scene_for(spec, size, params)
-            linear, nonfinite = finite_image(render_in_passes(scene, size, spp, int(seed)))
+            if spec.illuminant is None:
+                scene = self._scene_for(spec, size, params)
+                linear, nonfinite = finite_image(render_in_passes(scene, size, spp, int(seed)))
+            else:
+                linear, nonfinite = self._render_spectral(params, spec, size, spp, int(seed))
             seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
         return RenderResult(linear, linear_to_srgb8(linear), seconds, spp, cpu, nonfinite)
+
+    def _render_spectral(self, params: HairParams | np.ndarray, spec: SceneSpec, size, spp: int,
+                         seed: int) -> tuple[np.ndarray, int]:
+        """``spec`` rendered by the spectral twin of the variant under ``spec.illuminant``, seen by the CIE
+        1931 observer (linear sRGB). Built for each call: a spectral scene is not cached."""
+        from hairdigi.render.spectra import illuminant_spd, rgb_projection
+
+        sigma = spectral_absorption_of(params)
+        keys = group_keys(spec.groups) if spec.groups else ("hair",)
+        values = group_sigma_a(sigma, spec.groups, spec.look.fibre_spread) if spec.groups else [sigma]
+        bsdf = hair_bsdf(HairParams(), spec.look.longitudinal_roughness)
+        with mi.variant_context(spectral_variant()):
+            scene_dict, files = self._scene_dict(spec, size, bsdf)
+            if "scalp" in scene_dict:   # portraits: the scalp under the hair takes its colour
+                scene_dict["scalp"]["bsdf"]["reflectance"]["value"] = scenes.scalp_albedo(rgb_projection(sigma))
+            scenes.spectralise(scene_dict, dict(zip(keys, values)), illuminant_spd(spec.illuminant))
+            try:
+                scene = load_scene(scene_dict)
+            finally:
+                for path in files:
+                    path.unlink(missing_ok=True)
+            return finite_image(render_in_passes(scene, size, spp, seed))
 
     def render_aov(self, params: HairParams, spec: SceneSpec | str, aovs: str,
                    size: int | tuple[int, int] | None = None, spp: int = 1, seed: int = 3) -> RenderResult:

@@ -210,3 +210,31 @@ def portrait_scene(curve_file: str, bsdf: dict, size: int, env: str = "studio",
         "hair": hair_shape(curve_file, bsdf),
         **portrait_lights(env),
     }
+
+
+def spectralise(scene: dict, sigma_a: dict[str, np.ndarray], spd: np.ndarray) -> dict:
+    """The RGB scene ``scene`` for a spectral variant, in place: each hair shape ``key`` of ``sigma_a``
+    absorbs its spectrum, and every light emits ``spd`` (``render.spectra``: luminance 1) at its RGB
+    radiance's luminance (a tint, such as a portrait sky's blue, gives way to the light's own colour).
+    Diffuse RGB albedos are left to Mitsuba's spectral upsampling."""
+    from hairdigi.render.spectra import mitsuba_spectrum
+
+    def light(radiance: dict) -> dict:
+        if radiance.get("type") != "rgb":
+            raise ValueError(f"a light of the RGB scene is not an RGB radiance: {radiance}")
+        luminance = float(np.dot(radiance["value"], (0.2126, 0.7152, 0.0722)))   # linear sRGB's Y
+        return mitsuba_spectrum(np.asarray(spd, float) * luminance)
+
+    for key, item in scene.items():
+        if not isinstance(item, dict):
+            continue
+        if key in sigma_a:
+            item["bsdf"]["sigma_a"] = mitsuba_spectrum(sigma_a[key])
+        elif "emitter" in item:
+            item["emitter"]["radiance"] = light(item["emitter"]["radiance"])
+        elif item.get("type") == "constant":
+            item["radiance"] = light(item["radiance"])
+    missing = set(sigma_a) - set(scene)
+    if missing:
+        raise ValueError(f"no hair shape {sorted(missing)} in the scene")
+    return scene

@@ -77,6 +77,16 @@ def select_variant(preferred: str | None = None) -> str:
     return mi.variant()
 
 
+def spectral_variant() -> str:
+    """The spectral twin of the variant set (``llvm_ad_rgb`` -> ``llvm_ad_spectral``): spectral scenes
+    load and render inside ``mi.variant_context(spectral_variant())``, beside the RGB ones."""
+    name = select_variant()
+    twin = name.replace("_rgb", "_spectral")
+    if twin not in mi.variants():
+        raise VariantError(f"Mitsuba has no spectral twin of {name} ({twin}); install the mitsuba wheel from PyPI")
+    return twin
+
+
 def is_jit() -> bool:
     return select_variant().startswith(("llvm", "cuda"))
 

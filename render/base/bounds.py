@@ -29,6 +29,12 @@ HAIRSTYLES = ("straight", "wavy", "curly", "bob", "ponytail", "afro")
 #: swatch), "family" (mapped to the mean of ``render.swatch_family``'s structures), "read" (from the
 #: single-light frames).
 STRUCTURE_MODES = ("assumed", "family", "read")
+#: Named lights of the spectral world (``render.spectra``): name -> colour-science's ``SDS_ILLUMINANTS`` key.
+ILLUMINANTS = {
+    "D65": "D65", "daylight": "D65", "D50": "D50", "A": "A", "tungsten": "A",
+    "FL2": "FL2", "FL11": "FL11", "shop-led": "LED-B3",
+    **{f"LED-{k}": f"LED-{k}" for k in ("B1", "B2", "B3", "B4", "B5", "BH1", "RGB1", "V1", "V2")},
+}
 SCENE_NAMES = ("swatch",) + HAIRSTYLES
 #: The hairstyles' lighting (``render.scenes``).
 ENVIRONMENTS = ("studio", "soft")

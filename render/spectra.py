@@ -1,0 +1,296 @@
+"""Hair absorption as a spectrum, and the lights and cameras of a spectral world.
+
+Table 1 stays; each parameter maps to an absorption spectrum ``sigma_a(λ)`` per fibre radius, on
+``WAVELENGTHS`` (Mitsuba's spectral range, 360–830 nm, every 5 nm):
+
+1. **Melanins.** Donner & Jensen 2006 ("A spectral BSSRDF for shading human skin") give eumelanin's
+   absorption as ∝ λ^-3.33 and pheomelanin's as ∝ λ^-4.75; d'Eon et al. 2011 ("An energy-conserving
+   hair reflectance model") use them for hair, and their RGB coefficients are the ones
+   ``render.absorption`` renders with. Each power law is scaled here so that its projection on
+   linear sRGB under D65 (:func:`rgb_projection`: the channel's colour matching function times D65,
+   normalised, so that a flat spectrum projects to itself) fits those coefficients in the
+   least-squares sense of their logarithms. Measured (``tests/test_spectra.py``): eumelanin
+   (0.392, 0.716, 1.429) against (0.419, 0.697, 1.37), pheomelanin (0.172, 0.411, 1.113) against
+   (0.187, 0.4, 1.05): within 6.5% and 8.2% per channel. The melanin quantity ``q`` and the ratio
+   split them exactly as in RGB (``render.absorption.melanin_quantity``).
+2. **The dye.** Its colour ``c = dye_rgb / 255`` (a linear albedo, as in RGB) is read as a smooth
+   spectral albedo by Jakob & Hanika 2019 ("A low-dimensional function space for efficient spectral
+   upsampling", colour-science's ``XYZ_to_sd_Jakob2019``): the same model Mitsuba's spectral variants
+   use to upsample RGB albedos, it reproduces the colour under D65 and stays in (0, 1). Chiang 2016's
+   eq. 9 then turns each wavelength's albedo into an absorption, times the concentration. A dye
+   whose real absorption is a narrow band cannot be told from Table 1's RGB: :func:`band_dye` makes
+   one, for the evaluations' hidden hairs.
+
+Lights are colour-science's CIE SPDs (``ILLUMINANTS``: daylight, tungsten, fluorescent and the CIE
+LED series), or a two-column CSV. Cameras are colour-science's measured sensitivities (``CAMERAS``),
+or a four-column CSV. Both are read on ``WAVELENGTHS``, zero (cameras) or held constant (lights)
+outside their own range. A spectrum enters Mitsuba as a ``regular`` spectrum (:func:`mitsuba_spectrum`).
+"""
+from __future__ import annotations
+
+import csv
+import functools
+import io
+from pathlib import Path
+
+import numpy as np
+
+from hairdigi.render.absorption import (AZIMUTHAL_ROUGHNESS, EUMELANIN_SIGMA_A, MIN_DYE_ALBEDO,
+                                        PHEOMELANIN_SIGMA_A, melanin_quantity, sigma_a_from_albedo)
+from hairdigi.render.base.bounds import ILLUMINANTS  # noqa: F401  (named lights, with the names a lab uses)
+from hairdigi.render.base.params import HairParams
+
+#: nm: Mitsuba's spectral range (``MI_CIE_MIN``..``MI_CIE_MAX``) every 5 nm.
+WAVELENGTHS = np.arange(360.0, 830.0 + 1e-9, 5.0)
+#: Power-law exponents of the melanins' absorption (Donner & Jensen 2006).
+EUMELANIN_EXPONENT = 3.33
+PHEOMELANIN_EXPONENT = 4.75
+#: The reference wavelength of the power laws, nm.
+REFERENCE_NM = 600.0
+
+#: Named cameras: colour-science's ``MSDS_CAMERA_SENSITIVITIES`` (measured by NPL).
+CAMERAS = {"nikon-5100": "Nikon 5100 (NPL)", "sigma-sdmerill": "Sigma SDMerill (NPL)"}
+#: A spectrum read from a file must cover at least this much of 400–700 nm, and have this many rows.
+MIN_COVERAGE_NM = (400.0, 700.0)
+MIN_ROWS = 4
+MAX_CSV_BYTES = 1 << 20
+
+
+class SpectrumError(ValueError):
+    """A light or camera is unknown, or its CSV file cannot be used; the message names the fix."""
+
+
+# -- colour-science's data on this grid -------------------------------------------------------
+def _shape():
+    import colour
+
+    return colour.SpectralShape(float(WAVELENGTHS[0]), float(WAVELENGTHS[-1]), 5.0)
+
+
+@functools.lru_cache(maxsize=None)
+def cmfs() -> np.ndarray:
+    """(n, 3) CIE 1931 2° colour matching functions on ``WAVELENGTHS``."""
+    import colour
+
+    return colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(_shape()).values
+
+
+@functools.lru_cache(maxsize=None)
+def _srgb_weights() -> np.ndarray:
+    import colour
+
+    d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(_shape()).values
+    rgb_bar = cmfs() @ np.asarray(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB).T
+    weights = rgb_bar * d65[:, None]
+    return weights / weights.sum(0)
+
+
+def rgb_projection(spectrum: np.ndarray) -> np.ndarray:
+    """A spectrum's linear-sRGB value under D65 (each channel's CMF times D65, normalised): a flat
+    spectrum projects to itself. How an absorption spectrum is compared with RGB coefficients."""
+    return np.asarray(spectrum, float) @ _srgb_weights()
+
+
+# -- melanins ----------------------------------------------------------------------------------
+def _fitted_power_law(exponent: float, rgb: np.ndarray) -> np.ndarray:
+    """``a (λ / REFERENCE_NM)^-exponent``, with ``a`` fitting the RGB coefficients (log least squares)."""
+    shape = (WAVELENGTHS / REFERENCE_NM) ** -exponent
+    a = float(np.exp(np.mean(np.log(np.asarray(rgb) / rgb_projection(shape)))))
+    return a * shape
+
+
+@functools.lru_cache(maxsize=None)
+def _melanins() -> tuple[np.ndarray, np.ndarray]:
+    return (_fitted_power_law(EUMELANIN_EXPONENT, EUMELANIN_SIGMA_A),
+            _fitted_power_law(PHEOMELANIN_EXPONENT, PHEOMELANIN_SIGMA_A))
+
+
+def eumelanin_spectrum() -> np.ndarray:
+    """Eumelanin's absorption per unit quantity per fibre radius on ``WAVELENGTHS``."""
+    return _melanins()[0].copy()
+
+
+def pheomelanin_spectrum() -> np.ndarray:
+    """Pheomelanin's absorption per unit quantity per fibre radius on ``WAVELENGTHS``."""
+    return _melanins()[1].copy()
+
+
+def melanin_sigma_a_spectrum(concentration: float, ratio: float) -> np.ndarray:
+    """Melanin's absorption spectrum: the RGB mapping's quantity and split, the spectral melanins."""
+    q = melanin_quantity(concentration)
+    eu, pheo = _melanins()
+    return q * ratio * eu + q * (1.0 - ratio) * pheo
+
+
+# -- dyes ----------------------------------------------------------------------------------------
+@functools.lru_cache(maxsize=512)
+def _albedo_spectrum(rgb: tuple[float, float, float]) -> np.ndarray:
+    import colour
+
+    c = np.clip(np.asarray(rgb, float), MIN_DYE_ALBEDO, 1.0)
+    if np.all(c >= 0.999):   # white: no absorption (the recovery's sigmoid never reaches 1)
+        return np.ones_like(WAVELENGTHS)
+    srgb = colour.RGB_COLOURSPACES["sRGB"]
+    xyz = colour.RGB_to_XYZ(c, srgb, apply_cctf_decoding=False)
+    observer = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(observer.shape)
+    sd = colour.XYZ_to_sd(xyz, method="Jakob 2019", cmfs=observer, illuminant=d65)
+    values = np.interp(WAVELENGTHS, sd.wavelengths, sd.values)   # held constant past 780 nm
+    return np.clip(values, MIN_DYE_ALBEDO, 1.0)
+
+
+def albedo_spectrum(rgb: np.ndarray) -> np.ndarray:
+    """A linear-sRGB albedo (each in [0, 1]) read as a smooth spectral albedo (Jakob & Hanika 2019)."""
+    return _albedo_spectrum(tuple(round(float(v), 4) for v in np.ravel(rgb)[:3])).copy()
+
+
+def dye_sigma_a_spectrum(dye_rgb: tuple[float, float, float], concentration: float,
+                         azimuthal_roughness: float = AZIMUTHAL_ROUGHNESS) -> np.ndarray:
+    """The dye's absorption spectrum: its colour as a spectral albedo, Chiang 2016 eq. 9 per wavelength."""
+    if float(concentration) == 0.0:
+        return np.zeros_like(WAVELENGTHS)
+    albedo = albedo_spectrum(np.asarray(dye_rgb, float) / 255.0)
+    return float(concentration) * sigma_a_from_albedo(albedo, azimuthal_roughness)
+
+
+def band_dye(centre_nm: float, width_nm: float, peak: float) -> np.ndarray:
+    """A dye absorbing in one Gaussian band (sd ``width_nm``), ``peak`` per fibre radius at its centre."""
+    return float(peak) * np.exp(-0.5 * ((WAVELENGTHS - float(centre_nm)) / float(width_nm)) ** 2)
+
+
+def hair_sigma_a_spectrum(params: HairParams, azimuthal_roughness: float = AZIMUTHAL_ROUGHNESS) -> np.ndarray:
+    """Total absorption spectrum (per fibre radius) of melanin plus dye; finite and non-negative."""
+    return (melanin_sigma_a_spectrum(params.melanin_concentration, params.melanin_ratio)
+            + dye_sigma_a_spectrum(params.dye_rgb, params.dye_concentration, azimuthal_roughness))
+
+
+# -- lights and cameras ------------------------------------------------------------------------
+def _read_table(path: Path, columns: int, what: str, form: str) -> np.ndarray:
+    """The numeric rows of a CSV (a header line is allowed), checked; ``SpectrumError`` names the fix."""
+    from hairdigi.render.base.files import read_bytes
+
+    fix = f"give a CSV of {form}, one row per wavelength in nm, rising"
+    data = read_bytes(path, SpectrumError, "a CSV file", MAX_CSV_BYTES, f"a spectrum needs far less; {fix}")
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise SpectrumError(f"{what} {path}: not a text CSV file; {fix}") from None
+    rows = []
+    for n, row in enumerate(csv.reader(io.StringIO(text)), 1):
+        cells = [c.strip() for c in row if c.strip()]
+        if not cells or cells[0].startswith("#"):
+            continue
+        try:
+            values = [float(c) for c in cells]
+        except ValueError:
+            if not rows and n == 1:   # a header
+                continue
+            raise SpectrumError(f"{what} {path}, line {n}: {','.join(cells)[:60]!r} is not {columns} numbers; "
+                                f"{fix}") from None
+        if len(values) != columns:
+            raise SpectrumError(f"{what} {path}, line {n}: {len(values)} columns, expected {columns}; {fix}")
+        rows.append(values)
+    table = np.asarray(rows, float).reshape(-1, columns)
+    if len(table) < MIN_ROWS:
+        raise SpectrumError(f"{what} {path}: {len(table)} rows of numbers, need at least {MIN_ROWS}; {fix}")
+    if not np.all(np.isfinite(table)):
+        raise SpectrumError(f"{what} {path}: holds NaN or infinite values; {fix}")
+    wl = table[:, 0]
+    if np.any(np.diff(wl) <= 0):
+        raise SpectrumError(f"{what} {path}: the wavelengths do not rise; {fix}")
+    if wl[0] > MIN_COVERAGE_NM[0] or wl[-1] < MIN_COVERAGE_NM[1]:
+        hint = " (wavelengths in µm? give nm)" if wl[-1] < 10 else ""
+        raise SpectrumError(f"{what} {path}: covers {wl[0]:g}–{wl[-1]:g} nm, not all of "
+                            f"{MIN_COVERAGE_NM[0]:g}–{MIN_COVERAGE_NM[1]:g} nm{hint}; {fix}")
+    if np.any(table[:, 1:] < 0):
+        raise SpectrumError(f"{what} {path}: holds negative values; a spectrum is >= 0; {fix}")
+    if not np.any(table[:, 1:] > 0, axis=0).all():
+        raise SpectrumError(f"{what} {path}: a column is all zero; {fix}")
+    return table
+
+
+def illuminant_spd(name: str) -> np.ndarray:
+    """A light's relative SPD on ``WAVELENGTHS``, normalised to luminance Y = 1 (as an RGB white of 1
+    is in Mitsuba's spectral variants): a name of
+    ``ILLUMINANTS`` or a CSV of wavelength, power."""
+    import colour
+
+    key = ILLUMINANTS.get(name) or ILLUMINANTS.get(str(name).upper())
+    if key is not None:
+        sd = colour.SDS_ILLUMINANTS[key]
+        values = np.interp(WAVELENGTHS, sd.wavelengths, sd.values)
+    elif Path(name).suffix.lower() in (".csv", ".txt"):
+        table = _read_table(Path(name), 2, "illuminant", "wavelength, power")
+        values = np.interp(WAVELENGTHS, table[:, 0], table[:, 1])
+    else:
+        raise SpectrumError(f"unknown illuminant {name!r}; choose one of {', '.join(ILLUMINANTS)} "
+                            f"or give a CSV file of wavelength (nm), power")
+    y = float(spectrum_to_xyz(values)[1])
+    if y <= 0:
+        raise SpectrumError(f"illuminant {name}: no power where the eye sees (380–780 nm); check the file")
+    return values / y
+
+
+def camera_sensitivities(name: str) -> np.ndarray:
+    """(n, 3) a camera's R, G, B sensitivities on ``WAVELENGTHS`` (0 outside their range), each channel
+    scaled to a peak of 1: a name of ``CAMERAS`` or a CSV of wavelength, r, g, b."""
+    import colour
+
+    key = CAMERAS.get(name) or (name if name in colour.MSDS_CAMERA_SENSITIVITIES else None)
+    if key is not None:
+        msd = colour.MSDS_CAMERA_SENSITIVITIES[key]
+        wl, values = msd.wavelengths, msd.values
+    elif Path(name).suffix.lower() in (".csv", ".txt"):
+        table = _read_table(Path(name), 4, "camera sensitivities", "wavelength, r, g, b")
+        wl, values = table[:, 0], table[:, 1:]
+    else:
+        raise SpectrumError(f"unknown camera {name!r}; choose one of {', '.join(CAMERAS)} "
+                            f"or give a CSV file of wavelength (nm), r, g, b")
+    out = np.stack([np.interp(WAVELENGTHS, wl, values[:, k], left=0.0, right=0.0) for k in range(3)], axis=1)
+    return out / out.max(0)
+
+
+def illuminant_whitepoint(name: str) -> np.ndarray:
+    """The xy chromaticity of a light (``illuminant_spd``): the white an observer adapted to it sees."""
+    x, y, z = spectrum_to_xyz(illuminant_spd(name))
+    return np.array([x, y]) / (x + y + z)
+
+
+def light_rgb(name: str) -> np.ndarray:
+    """A light as an RGB renderer sees it: its colour in linear sRGB at luminance 1. An RGB render under
+    it is the white-light render times this, per channel (every path's weight is a per-channel product)."""
+    import colour
+
+    xyz = spectrum_to_xyz(illuminant_spd(name))
+    return colour.XYZ_to_RGB(xyz, colour.RGB_COLOURSPACES["sRGB"], apply_cctf_encoding=False)
+
+
+def balanced(linear: np.ndarray, name: str) -> np.ndarray:
+    """Linear sRGB rendered under a light, as an eye adapted to that light sees it: a von Kries
+    adaptation (Bradford) from the light's white to D65's, so that a white under the light is white."""
+    import colour
+
+    srgb = colour.RGB_COLOURSPACES["sRGB"]
+    xyz = colour.RGB_to_XYZ(np.asarray(linear, float), srgb, apply_cctf_decoding=False)
+    white = spectrum_to_xyz(illuminant_spd(name))
+    d65 = colour.xy_to_XYZ(srgb.whitepoint)
+    adapted = colour.adaptation.chromatic_adaptation_VonKries(xyz, white, d65, transform="Bradford")
+    return colour.XYZ_to_RGB(adapted, srgb, apply_cctf_encoding=False).astype(np.float32)
+
+
+def spectrum_to_xyz(radiance: np.ndarray) -> np.ndarray:
+    """CIE XYZ of spectra (any shape ending in ``len(WAVELENGTHS)``) as Mitsuba's film weighs them: an
+    equal-energy spectrum of 1 has Y = 1."""
+    return np.asarray(radiance, float) @ cmfs() / cmfs()[:, 1].sum()
+
+
+def mitsuba_spectrum(values: np.ndarray) -> dict:
+    """A Mitsuba ``regular`` spectrum on ``WAVELENGTHS`` (``uniform`` where it is flat: Mitsuba refuses a
+    ``regular`` spectrum of zeros)."""
+    values = np.asarray(values, float)
+    if values.shape != WAVELENGTHS.shape or not np.all(np.isfinite(values)) or np.any(values < 0):
+        raise ValueError(f"a spectrum must be {len(WAVELENGTHS)} finite values >= 0 on WAVELENGTHS")
+    if np.ptp(values) == 0:
+        return {"type": "uniform", "value": float(values[0])}
+    return {"type": "regular", "wavelength_min": float(WAVELENGTHS[0]), "wavelength_max": float(WAVELENGTHS[-1]),
+            "values": ", ".join(f"{v:.6g}" for v in values)}
