@@ -66,6 +66,9 @@ class SceneSpec:
     ``illuminant`` None renders in RGB with white lights; a name of ``render.spectra.ILLUMINANTS`` or a
     CSV of wavelength, power renders the scene spectrally, every light emitting that SPD, seen by the
     CIE 1931 observer as linear sRGB (D65 white: under tungsten a white holder is orange).
+    ``sensitivities`` (spectral renders only) sees it through a camera's R, G, B sensitivities instead
+    (``render.spectra.CAMERAS`` or a CSV; Mitsuba's ``specfilm``): the camera's raw linear RGB, each
+    band's peak 1, neither white-balanced nor colour-corrected.
     """
 
     name: str = "swatch"
@@ -86,6 +89,7 @@ class SceneSpec:
     fibre_groups: int | None = None                  # pigment groups of a varied appearance; None: FIBRE_GROUPS
     swatch_model: str | None = None                  # swatch strands: one of SWATCH_MODELS; None: the default
     illuminant: str | None = None                    # None: RGB; a light (render.spectra): rendered spectrally
+    sensitivities: str | None = None                 # spectral: None, the CIE observer; a camera (render.spectra)
 
     def __post_init__(self) -> None:
         if isinstance(self.name, str) and self.name.lower().endswith(".hair") and self.hair_file is None:
@@ -133,6 +137,12 @@ class SceneSpec:
             from hairdigi.render.spectra import illuminant_spd
 
             illuminant_spd(self.illuminant)   # an unknown name or a bad CSV fails here, in one line
+        if self.sensitivities is not None:
+            if self.illuminant is None:
+                raise ValueError("a camera's sensitivities need a spectral render: give an illuminant too")
+            from hairdigi.render.spectra import camera_sensitivities
+
+            camera_sensitivities(self.sensitivities)
 
     @property
     def n_strands(self) -> int:
@@ -349,7 +359,7 @@ class Renderer:
                          seed: int) -> tuple[np.ndarray, int]:
         """``spec`` rendered by the spectral twin of the variant under ``spec.illuminant``, seen by the CIE
         1931 observer (linear sRGB). Built for each call: a spectral scene is not cached."""
-        from hairdigi.render.spectra import illuminant_spd, rgb_projection
+        from hairdigi.render.spectra import camera_sensitivities, illuminant_spd, rgb_projection
 
         sigma = spectral_absorption_of(params)
         keys = group_keys(spec.groups) if spec.groups else ("hair",)
@@ -360,6 +370,8 @@ class Renderer:
             if "scalp" in scene_dict:   # portraits: the scalp under the hair takes its colour
                 scene_dict["scalp"]["bsdf"]["reflectance"]["value"] = scenes.scalp_albedo(rgb_projection(sigma))
             scenes.spectralise(scene_dict, dict(zip(keys, values)), illuminant_spd(spec.illuminant))
+            if spec.sensitivities is not None:
+                scenes.camera_film(scene_dict["sensor"], camera_sensitivities(spec.sensitivities))
             try:
                 scene = load_scene(scene_dict)
             finally:

@@ -176,3 +176,24 @@ def test_the_render_command_renders_under_a_light_and_refuses_a_bad_one_in_one_l
         done = run(*extra, "--out", "x.png")
         assert done.returncode == 2 and says in done.stderr and len(done.stderr.strip().splitlines()) == 1, done.stderr
         assert not (tmp_path / "x.png").exists()
+
+
+def test_a_camera_sees_a_spectrally_flat_grey_under_an_equal_energy_light_as_equal_channels(tmp_path):
+    (tmp_path / "flat.csv").write_text("wavelength,power\n360,1\n500,1\n700,1\n830,1\n")
+    flat_light, grey = str(tmp_path / "flat.csv"), np.full(N, 0.2)
+    for camera in spectra.CAMERAS:
+        from hairdigi.render.renderer import SceneSpec, default_renderer
+
+        spec = SceneSpec("swatch", camera=RIG_SWATCH_POSE, illuminant=flat_light, sensitivities=camera)
+        raw = default_renderer().render(grey, spec, 24, 32, seed=3).linear.reshape(-1, 3).mean(0)
+        assert np.ptp(raw) / raw.mean() < 0.02, (camera, raw)      # each band has unit area (scenes.camera_film)
+        tungsten = default_renderer().render(grey, SceneSpec("swatch", camera=RIG_SWATCH_POSE, illuminant="A",
+                                                             sensitivities=camera), 24, 32, seed=3)
+        r, _, b = tungsten.linear.reshape(-1, 3).mean(0)
+        assert r > 1.4 * b                                           # raw: no white balance
+    observer = _mean(grey, flat_light, size=24, spp=32)
+    assert observer[0] > 1.2 * observer[2]                           # equal energy is pink in sRGB (D65 white)
+    from hairdigi.render.renderer import SceneSpec
+
+    with pytest.raises(ValueError, match="need a spectral render"):
+        SceneSpec("swatch", sensitivities="nikon-5100")
