@@ -344,6 +344,24 @@ def evaluate_structures_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def evaluate_spectral_command(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --spectral``: hidden spectral hairs through a spectral rig, judged under three lights."""
+    from hairdigi.app.evaluate_spectral import LIGHTS, VIEWS, evaluate_spectral
+
+    s = evaluate_spectral(args.out)
+    print(f"{s['estimated']} of {s['captures']} spectral-rig captures estimated; mean-colour ΔE2000 against the "
+          f"spectral truth (median / p95 / worst), an observer adapted to each light:")
+    for answer in ("rgb", "spectral"):
+        for view in VIEWS:
+            cells = [f"{light} {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}"
+                     for light in LIGHTS for st in [s[answer][f"{view} {light}"]] if st["n"]]
+            print(f"  {answer:8s} answer, {view:4s}: " + "; ".join(cells))
+    for line in s["errors"]:
+        print(f"not estimated: {line}")
+    print(f"spectral_evaluation.csv, .json and .png in {args.out}")
+    return 0
+
+
 def cmd_evaluate(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.training.evaluate import evaluate, prepare_heldout
@@ -360,6 +378,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
         return evaluate_cycles_command(args)
     if args.structures:
         return evaluate_structures_command(args)
+    if args.spectral:
+        return evaluate_spectral_command(args)
     from hairdigi.render.renderer import DEFAULT_SWATCH_MODEL
 
     data = Path(args.data) if args.data else _cache_dir() / "datasets" / (
@@ -604,6 +624,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "structure (render.swatch_family: deposited, tilted, loose, ...), estimated as shipped, mapped to "
                    "the family and with the structure read, and judged on their own strands at the rig and away "
                    "(--rig-random N random hairs beside the hard cases; --blender: hidden swatches in Cycles)")
+    p.add_argument("--spectral", action="store_true", help="instead: hidden spectral hairs (melanins, Table 1 "
+                   "dyes and banded dyes) through a spectral simulated rig (real cameras' sensitivities, white LEDs, "
+                   "the chart's measured spectra), judged by the CIE observer under daylight, tungsten and a shop "
+                   "LED, at the rig and away")
     p.add_argument("--blender", action="store_true", help="with --structures: render the hidden swatches and the "
                    "judge in Blender Cycles (HAIRDIGI_BLENDER)")
     p.add_argument("--hidden-structures", metavar="NAME,NAME,...", help="with --structures: the structures to hide "
@@ -646,6 +670,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "the chain's estimate is then judged against them, at the rig and away from it")
     p.add_argument("--still", help="import a RAW still of the rig (DNG, CR2, NEF, ...; the chart in view) into "
                                    "the session and estimate it; needs no camera or light board")
+    p.add_argument("--spectral", action="store_true", help="with --sim: a spectral rig: white LEDs of an SPD "
+                   "(--led), the ColorChecker's measured spectra, spectral hair, seen through a camera's "
+                   "sensitivities (--sensor)")
+    p.add_argument("--led", type=v.illuminant, default=None, help="with --spectral: the rig's LEDs, a named "
+                   "light or a CSV of wavelength (nm), power (default LED-B4, a 5109 K phosphor LED)")
+    p.add_argument("--sensor", type=v.camera_sensitivities, default=None, help="with --spectral: the camera's sensitivities: "
+                   "nikon-5100 (default), sigma-sdmerill, cie (the CIE observer, an ideal camera), or a CSV of "
+                   "wavelength (nm), r, g, b")
     p.set_defaults(func=cmd_rig)
 
     p = sub.add_parser("app", help="the desktop app")

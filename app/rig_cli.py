@@ -36,6 +36,10 @@ def open_session(args) -> RigSession:
 
             simulated["hidden"] = load_params(args.hidden)
             simulated["appearance"] = hidden_appearance(args.hidden)
+        if getattr(args, "spectral", False):   # LEDs of an SPD, the chart's spectra, a real camera's sensitivities
+            simulated["illuminant"] = args.led or "LED-B4"
+            sensor = args.sensor or "nikon-5100"
+            simulated["sensitivities"] = None if sensor == "cie" else sensor
     roi = tuple(int(v) for v in args.roi.split(",")) if args.roi else None
     camera = args.camera if getattr(args, "genicam", None) is None else f"genicam:{args.genicam}"
     return open_rig(args.session, args.sim, camera, args.port, roi, require_lights=False, **simulated)[0]
@@ -100,6 +104,21 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
         out["params"] = p.to_dict()
         say_record(result.record, say)
         hidden = getattr(session.camera, "hidden", None)
+        if hidden is not None and getattr(session.camera, "illuminant", None) is not None:
+            from hairdigi.app.evaluate_spectral import LIGHTS, judge_record
+
+            where = judge_record(hidden, result.record, session.profile, session.camera.illuminant,
+                                 session.camera.sensitivities)
+            out["truth_de2000_spectral"] = where
+            for answer, what in (("rgb", "the RGB answer (its colour times each light's)"),
+                                 ("spectral", "the spectral answer (refitted, rendered spectrally)"),
+                                 ("camera", "the camera answer (read in the camera's RGB, rendered spectrally)")):
+                if f"{answer}_rig_D65" not in where:
+                    continue
+                say(f"spectral rig, against the hidden hair seen by the CIE observer adapted to each light, "
+                    f"{what}: " + "; ".join(f"{view} " + ", ".join(f"{light} {where[f'{answer}_{view}_{light}']:.2f}"
+                                                                for light in LIGHTS) for view in ("rig", "away")))
+            return out
         if hidden is not None:
             say(f"hidden truth of the simulated swatch:  dye rgb {tuple(round(v) for v in hidden.dye_rgb)} at "
                 f"{hidden.dye_concentration:.2f}, melanin {hidden.melanin_concentration:.2f}, "

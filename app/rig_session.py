@@ -109,10 +109,13 @@ class RigSession:
     def simulated_rig(cls, folder: str | Path, hidden: HairParams | None = None, camera_model=None,
                       dead: set[int] | None = None, spp: int = 32, encoder=None,
                       pose: CameraPose = CameraPose(), half_width: float = RIG_HALF_WIDTH,
-                      appearance=None, strand_seed: int = 0, genicam: str | None = None) -> "RigSession":
+                      appearance=None, strand_seed: int = 0, genicam: str | None = None,
+                      illuminant: str | None = None, sensitivities: str | None = None) -> "RigSession":
         """The bench in software: a pty light board, the rendered rig, and a camera model; the hidden
         swatch is ``hidden`` with ``appearance`` (shine and fibre variation; default uniform). With
-        ``genicam`` (Aravis's fake camera ID) the frames come through the GenICam path as 12-bit Bayer."""
+        ``genicam`` (Aravis's fake camera ID) the frames come through the GenICam path as 12-bit Bayer.
+        ``illuminant`` makes it a spectral rig: LEDs of that SPD, the chart's measured spectra, seen by
+        a camera's ``sensitivities`` (or the CIE observer); ``hidden`` may then be an absorption spectrum."""
         from hairdigi.render.base.appearance import DEFAULT_APPEARANCE
         from hairdigi.hardware.sim_lights import SimulatedLightBoard
         from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SimRig
@@ -120,9 +123,10 @@ class RigSession:
 
         board = SimulatedLightBoard()
         lights = LightController(board.port)
-        rig = SimRig(hidden or DEFAULT_HIDDEN, camera_model or CameraModel(), spp=spp,
+        rig = SimRig(DEFAULT_HIDDEN if hidden is None else hidden, camera_model or CameraModel(), spp=spp,
                      dead_lights=set(dead or ()), board=board, pose=pose, half_width=half_width,
-                     appearance=appearance or DEFAULT_APPEARANCE, strand_seed=strand_seed)
+                     appearance=appearance or DEFAULT_APPEARANCE, strand_seed=strand_seed,
+                     illuminant=illuminant, sensitivities=sensitivities)
         camera = rig
         if genicam is not None:    # the same rig seen through Aravis's fake camera, as a 12-bit lab camera
             from hairdigi.hardware.sim_genicam import open_lab_camera

@@ -349,9 +349,33 @@ def check_dataset(args: argparse.Namespace) -> None:
         check_dataset_folder(args.out)
 
 
+def camera_sensitivities(text: str) -> str:
+    """An argparse type: a named camera (``render.base.bounds.CAMERAS``), ``cie``, or a CSV's path (read later)."""
+    from hairdigi.render.base.bounds import CAMERAS
+
+    if text in CAMERAS or text == "cie" or text.lower().endswith((".csv", ".txt")):
+        return text
+    raise argparse.ArgumentTypeError(f"{text!r} is not a camera: choose one of {', '.join(CAMERAS)}, cie, "
+                                     f"or give a CSV file of wavelength (nm), r, g, b")
+
+
 def check_rig(args: argparse.Namespace) -> None:
-    """``hairdigi rig``: the session folder, the swatch area, and a RAW still to import."""
+    """``hairdigi rig``: the session folder, the swatch area, a RAW still to import, a spectral rig's parts."""
     check_session_folder(args.session, "--session")
+    if getattr(args, "spectral", False) and not args.sim:
+        raise ArgumentError("--spectral is the simulated rig's: add --sim (a real rig is spectral already)")
+    for flag in ("led", "sensor"):
+        if getattr(args, flag, None) is not None and not getattr(args, "spectral", False):
+            raise ArgumentError(f"--{flag} goes with --spectral; add --spectral or leave --{flag} out")
+    for flag, read in (("led", "illuminant_spd"), ("sensor", "camera_sensitivities")):
+        value = getattr(args, flag, None)
+        if value is not None and value != "cie":
+            from hairdigi.render import spectra
+
+            try:
+                getattr(spectra, read)(value)
+            except spectra.SpectrumError as exc:
+                raise ArgumentError(f"--{flag}: {exc}") from None
     if args.roi:
         _parse_roi(args.roi, "--roi")
     if getattr(args, "still", None):
@@ -475,7 +499,7 @@ def check_export(args: argparse.Namespace) -> None:
 
 
 #: ``evaluate``'s modes: at most one runs (``--dye --rig`` is the dye protocol on the simulated rig).
-EVALUATE_MODES = ("dye", "rig", "appearance", "cycles", "structures", "convergence", "prepare_only")
+EVALUATE_MODES = ("dye", "rig", "appearance", "cycles", "structures", "spectral", "convergence", "prepare_only")
 #: Flags that go with one mode only.
 EVALUATE_MODE_FLAGS = {"ship": ("rig", "appearance", "structures"), "no_variation": ("appearance",),
                        "default_shine": ("cycles",), "blender": ("structures",), "hidden_structures": ("structures",)}

@@ -36,13 +36,19 @@ CACHE_VERSION = 5  # bumped when the absorption mapping or the light images chan
 def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int = 32, strand_seed: int = 0,
                         cache: bool = True, pose: rig_geometry.CameraPose = rig_geometry.CameraPose(),
                         half_width: float = rig_geometry.RIG_HALF_WIDTH,
-                        appearance: Appearance = DEFAULT_APPEARANCE) -> np.ndarray:
+                        appearance: Appearance = DEFAULT_APPEARANCE, illuminant: str | None = None,
+                        sensitivities: str | None = None) -> np.ndarray:
     """(3, H, W, 3) linear images of the rig lit by each light alone, seen by a camera at ``pose``
     around the rig's target (default: the bench camera), cached by their settings. ``hidden`` is
-    Table 1 parameters or a median fibre's sigma_a; ``appearance`` its shine and fibre variation."""
+    Table 1 parameters or a median fibre's sigma_a (an absorption spectrum in a spectral rig);
+    ``appearance`` its shine and fibre variation. ``illuminant`` (the LEDs' SPD) renders the rig
+    spectrally, the chart with its measured spectra, seen by the CIE observer or by a camera's
+    ``sensitivities`` (its raw RGB): ``render.renderer.SceneSpec``."""
     view = [] if pose == rig_geometry.CameraPose() and half_width == rig_geometry.RIG_HALF_WIDTH else \
         [pose.polar_deg, pose.azimuth_deg, pose.distance, half_width]
     look = [] if appearance == DEFAULT_APPEARANCE else [appearance.to_dict()]
+    if illuminant is not None:   # a CSV is keyed by its content, so an edited file renders again
+        look += [{"illuminant": _content_key(illuminant), "sensitivities": _content_key(sensitivities)}]
     hair = hidden.to_dict() if isinstance(hidden, HairParams) else [round(float(v), 6) for v in np.ravel(hidden)]
     key = hashlib.sha256(json.dumps([CACHE_VERSION, hair, list(size), spp, strand_seed, *view, *look],
                                     sort_keys=True).encode()).hexdigest()[:16]
@@ -56,13 +62,23 @@ def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int
         lights = tuple(1.0 if j == i else 0.0 for j in range(rig_geometry.N_LIGHTS))
         spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET, camera=pose,
                          half_width=half_width, lights=lights, strand_seed=strand_seed,
-                         appearance=None if appearance == DEFAULT_APPEARANCE else appearance)
+                         appearance=None if appearance == DEFAULT_APPEARANCE else appearance,
+                         illuminant=illuminant, sensitivities=sensitivities)
         images.append(renderer.render(hidden, spec, size, spp, seed=17 + i).linear)
     stack = np.stack([spread_glints(im) for im in images]).astype(np.float32)
     if cache:
         with atomic_path(path, ".npy") as tmp:
             np.save(tmp, stack)
     return stack
+
+
+def _content_key(name: str | None) -> str | None:
+    """A light's or camera's name, or a CSV's name and content hash."""
+    from pathlib import Path
+
+    if name is None or not Path(name).is_file():
+        return name
+    return f"{Path(name).name}:{hashlib.sha256(Path(name).read_bytes()).hexdigest()[:16]}"
 
 
 @dataclass
@@ -80,10 +96,13 @@ class SimRig:
     half_width: float = rig_geometry.RIG_HALF_WIDTH                # what its view shows at the target
     appearance: Appearance = DEFAULT_APPEARANCE                    # the hidden swatch's shine and fibres
     strand_seed: int = 0                                           # its strand layout
+    illuminant: str | None = None        # the LEDs' SPD (render.spectra): a spectral rig; None: RGB, white
+    sensitivities: str | None = None     # a spectral rig's camera (render.spectra.CAMERAS or a CSV)
 
     def __post_init__(self) -> None:
         self.light_images = render_light_images(self.hidden, self.size, self.spp, self.strand_seed, pose=self.pose,
-                                                half_width=self.half_width, appearance=self.appearance)
+                                                half_width=self.half_width, appearance=self.appearance,
+                                                illuminant=self.illuminant, sensitivities=self.sensitivities)
         self.exposure_offset_ev = 0.0
         self._rng = np.random.default_rng(self.seed)
         self.name = "sim-rig"

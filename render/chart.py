@@ -34,6 +34,27 @@ def colorchecker_reflectances() -> np.ndarray:
     return np.clip(rgb, 0.0, 1.0)
 
 
+#: colour-science's measured spectral reflectances of the chart (same patch order as ``CHART_NAME``).
+SPECTRA_NAME = "BabelColor Average"
+
+
+@lru_cache(maxsize=1)
+def colorchecker_spectra() -> np.ndarray:
+    """(24, n) measured spectral reflectances of the ColorChecker on ``render.spectra.WAVELENGTHS`` (held
+    constant past 380-730 nm): what a spectral rig puts in view instead of :func:`colorchecker_reflectances`."""
+    from hairdigi.render.spectra import WAVELENGTHS
+
+    sds = colour.SDS_COLOURCHECKERS[SPECTRA_NAME]
+    if list(sds) != list(colour.CCS_COLOURCHECKERS[CHART_NAME].data):
+        raise ValueError(f"{SPECTRA_NAME}'s patches are not in {CHART_NAME}'s order")
+    return np.array([np.interp(WAVELENGTHS, sd.wavelengths, sd.values) for sd in sds.values()])
+
+
+def is_colorchecker(chart) -> bool:
+    """Whether a scene's (24, 3) chart is the ColorChecker (:func:`colorchecker_reflectances`)."""
+    return chart is not None and np.allclose(np.asarray(chart, float), colorchecker_reflectances(), atol=1e-9)
+
+
 def patch_boxes(size: tuple[int, int], inset: float = 0.6) -> list[tuple[int, int, int, int]]:
     """Pixel boxes (x0, y0, x1, y1) of the central ``inset`` of each patch in the rig view."""
     half = rig_geometry.CHART_PATCH * inset / 2

@@ -65,7 +65,8 @@ class SceneSpec:
     ``env`` ``"key-sky"`` adds a key light and a grey sky (the rig's lights set to 0: away from the rig).
     ``illuminant`` None renders in RGB with white lights; a name of ``render.spectra.ILLUMINANTS`` or a
     CSV of wavelength, power renders the scene spectrally, every light emitting that SPD, seen by the
-    CIE 1931 observer as linear sRGB (D65 white: under tungsten a white holder is orange).
+    CIE 1931 observer as linear sRGB (D65 white: under tungsten a white holder is orange); a ColorChecker
+    ``chart`` is drawn with its measured spectral reflectances (``render.chart.colorchecker_spectra``).
     ``sensitivities`` (spectral renders only) sees it through a camera's R, G, B sensitivities instead
     (``render.spectra.CAMERAS`` or a CSV; Mitsuba's ``specfilm``): the camera's raw linear RGB, each
     band's peak 1, neither white-balanced nor colour-corrected.
@@ -369,7 +370,10 @@ class Renderer:
             scene_dict, files = self._scene_dict(spec, size, bsdf)
             if "scalp" in scene_dict:   # portraits: the scalp under the hair takes its colour
                 scene_dict["scalp"]["bsdf"]["reflectance"]["value"] = scenes.scalp_albedo(rgb_projection(sigma))
-            scenes.spectralise(scene_dict, dict(zip(keys, values)), illuminant_spd(spec.illuminant))
+            from hairdigi.render.chart import colorchecker_spectra, is_colorchecker
+
+            chart = colorchecker_spectra() if is_colorchecker(spec.chart) else None   # its measured spectra
+            scenes.spectralise(scene_dict, dict(zip(keys, values)), illuminant_spd(spec.illuminant), chart)
             if spec.sensitivities is not None:
                 scenes.camera_film(scene_dict["sensor"], camera_sensitivities(spec.sensitivities))
             try:

@@ -212,11 +212,13 @@ def portrait_scene(curve_file: str, bsdf: dict, size: int, env: str = "studio",
     }
 
 
-def spectralise(scene: dict, sigma_a: dict[str, np.ndarray], spd: np.ndarray) -> dict:
+def spectralise(scene: dict, sigma_a: dict[str, np.ndarray], spd: np.ndarray,
+                chart: np.ndarray | None = None) -> dict:
     """The RGB scene ``scene`` for a spectral variant, in place: each hair shape ``key`` of ``sigma_a``
     absorbs its spectrum, and every light emits ``spd`` (``render.spectra``: luminance 1) at its RGB
     radiance's luminance (a tint, such as a portrait sky's blue, gives way to the light's own colour).
-    Diffuse RGB albedos are left to Mitsuba's spectral upsampling."""
+    ``chart``: (24, n) spectral reflectances of the chart's patches. Other diffuse RGB albedos are left
+    to Mitsuba's spectral upsampling."""
     from hairdigi.render.spectra import mitsuba_spectrum
 
     def light(radiance: dict) -> dict:
@@ -237,6 +239,9 @@ def spectralise(scene: dict, sigma_a: dict[str, np.ndarray], spd: np.ndarray) ->
     missing = set(sigma_a) - set(scene)
     if missing:
         raise ValueError(f"no hair shape {sorted(missing)} in the scene")
+    if chart is not None:
+        for i, reflectance in enumerate(np.asarray(chart, float)):
+            scene[f"chart{i:02d}"]["bsdf"]["reflectance"] = mitsuba_spectrum(np.clip(reflectance, 0.0, 1.0))
     return scene
 
 

@@ -37,7 +37,7 @@ import numpy as np
 
 from hairdigi.render.absorption import (AZIMUTHAL_ROUGHNESS, EUMELANIN_SIGMA_A, MIN_DYE_ALBEDO,
                                         PHEOMELANIN_SIGMA_A, melanin_quantity, sigma_a_from_albedo)
-from hairdigi.render.base.bounds import ILLUMINANTS  # noqa: F401  (named lights, with the names a lab uses)
+from hairdigi.render.base.bounds import CAMERAS, ILLUMINANTS  # noqa: F401  (named cameras and lights)
 from hairdigi.render.base.params import HairParams
 
 #: nm: Mitsuba's spectral range (``MI_CIE_MIN``..``MI_CIE_MAX``) every 5 nm.
@@ -48,8 +48,6 @@ PHEOMELANIN_EXPONENT = 4.75
 #: The reference wavelength of the power laws, nm.
 REFERENCE_NM = 600.0
 
-#: Named cameras: colour-science's ``MSDS_CAMERA_SENSITIVITIES`` (measured by NPL).
-CAMERAS = {"nikon-5100": "Nikon 5100 (NPL)", "sigma-sdmerill": "Sigma SDMerill (NPL)"}
 #: A spectrum read from a file must cover at least this much of 400–700 nm, and have this many rows.
 MIN_COVERAGE_NM = (400.0, 700.0)
 MIN_ROWS = 4
@@ -276,6 +274,21 @@ def balanced(linear: np.ndarray, name: str) -> np.ndarray:
     d65 = colour.xy_to_XYZ(srgb.whitepoint)
     adapted = colour.adaptation.chromatic_adaptation_VonKries(xyz, white, d65, transform="Bradford")
     return colour.XYZ_to_RGB(adapted, srgb, apply_cctf_encoding=False).astype(np.float32)
+
+
+def swatch_colour(reflectance: np.ndarray, light: str, sensitivities: str | None = None) -> np.ndarray:
+    """The mean colour of a swatch that reflects ``reflectance`` (any shape ending in n: its mean
+    radiance per unit light, wavelength by wavelength) lit by ``light``: linear sRGB as the CIE observer
+    sees it (D65 white), or a camera's raw RGB through its ``sensitivities`` (bands of unit area, as
+    ``render.scenes.camera_film``). With a rig's response curve read per wavelength as ``reflectance``,
+    this is a spectral render's mean colour without the render (``inference.spectral``)."""
+    import colour
+
+    radiance = np.asarray(reflectance, float) * illuminant_spd(light)
+    if sensitivities is not None:
+        bands = camera_sensitivities(sensitivities)
+        return radiance @ (bands / bands.sum(0))
+    return colour.XYZ_to_RGB(spectrum_to_xyz(radiance), colour.RGB_COLOURSPACES["sRGB"], apply_cctf_encoding=False)
 
 
 def spectrum_to_xyz(radiance: np.ndarray) -> np.ndarray:

@@ -29,6 +29,8 @@ HAIRSTYLES = ("straight", "wavy", "curly", "bob", "ponytail", "afro")
 #: swatch), "family" (mapped to the mean of ``render.swatch_family``'s structures), "read" (from the
 #: single-light frames).
 STRUCTURE_MODES = ("assumed", "family", "read")
+#: Named cameras of the spectral world (``render.spectra``): name -> colour-science's ``MSDS_CAMERA_SENSITIVITIES`` key.
+CAMERAS = {"nikon-5100": "Nikon 5100 (NPL)", "sigma-sdmerill": "Sigma SDMerill (NPL)"}
 #: Named lights of the spectral world (``render.spectra``): name -> colour-science's ``SDS_ILLUMINANTS`` key.
 ILLUMINANTS = {
     "D65": "D65", "daylight": "D65", "D50": "D50", "A": "A", "tungsten": "A",

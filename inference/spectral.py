@@ -1,0 +1,89 @@
+"""The estimate in a spectral world: colour under any light from the rig's response curve, and Table 1
+read so that its spectral hair has the measured colour.
+
+A swatch's mean colour in the rig depends on each wavelength's absorption alone, through the same
+response curve at every wavelength: the rig's holder is grey, its lights white, and a path's weight
+at one wavelength involves that wavelength only. The curve the refinement renders in RGB
+(``inference.refine.response_curve``, a flat ``sigma_a``) is therefore the swatch's reflectance as a
+function of ``sigma_a(λ)``; read per wavelength and weighed by a light and an observer or a camera
+(``render.spectra.swatch_colour``), it gives a spectral render's mean colour without the render.
+Measured (``hairdigi bench spectral``'s hairs, rig swatch, 48² at 128 spp): within 0.10–0.67 ΔE2000
+of the spectral render under D65 and tungsten, the spectral render's own noise.
+
+The chain reads an RGB ``sigma_a`` whose RGB render matches the capture. Table 1's RGB mapping and its
+spectral mapping (``render.spectra``) are not the same hair (brown 1.0, a saturated red 2.2 ΔE2000
+apart at D65), so the record's parameters are refitted (:func:`spectral_answer`): the Table 1 hair,
+nearest the RGB answer, whose spectral colour under D65 is the colour the chain measured. Its colour
+under another light is then :func:`colour_under`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from hairdigi.render.base.params import HairParams
+
+#: How much a refit may move the parameters (normalised to [0, 1]) for one unit of CIELAB distance.
+STAY = 1.0
+
+
+def colour_under(curve, hair: HairParams | np.ndarray, light: str, sensitivities: str | None = None) -> np.ndarray:
+    """Mean linear colour of a swatch of ``hair`` (Table 1, or ``sigma_a(λ)``) under ``light``, from the
+    response ``curve`` read per wavelength: the CIE observer's linear sRGB, or a camera's raw RGB."""
+    from hairdigi.render.spectra import hair_sigma_a_spectrum, swatch_colour
+
+    sigma = hair_sigma_a_spectrum(hair) if isinstance(hair, HairParams) else np.asarray(hair, float)
+    return swatch_colour(curve(sigma), light, sensitivities)
+
+
+def spectral_answer(rgb_answer: HairParams, target_linear: np.ndarray, curve) -> tuple[HairParams, float]:
+    """The Table 1 hair nearest ``rgb_answer`` whose spectral mean colour under D65 is ``target_linear``
+    (the chain's measured colour, linear sRGB); returns it and its colour residual (CIELAB ΔE76)."""
+    return fit_table1(rgb_answer, target_linear, lambda hair: colour_under(curve, hair, "D65"))
+
+
+def camera_answer(rgb_answer: HairParams, target_linear: np.ndarray, curve, ccm: np.ndarray, led: str,
+                  sensitivities: str, chart_targets: np.ndarray) -> tuple[HairParams, float]:
+    """The Table 1 hair nearest ``rgb_answer`` read in the camera's own RGB, where the rig's LEDs and the
+    camera's sensitivities are known: its raw RGB under the LEDs (the curve read per wavelength), through
+    the chart's linear correction ``ccm`` (a 3 x 3, as ``colour.apply_matrix_colour_correction`` applies
+    it), matches the corrected capture ``target_linear``. So no colour-correction matrix stands between the
+    hair and its model: the chart fixes exposure and white balance only. The camera's channel gains come
+    from the chart's neutral patches (their measured spectra, ``render.chart``), seen through the same
+    correction. Returns the hair and its residual (CIELAB ΔE76 in the corrected space)."""
+    from hairdigi.render.chart import colorchecker_spectra
+    from hairdigi.render.spectra import rgb_projection, swatch_colour
+
+    ccm = np.asarray(ccm, float)
+    if ccm.shape != (3, 3):
+        raise ValueError(f"a camera answer needs a linear 3 x 3 correction, got a {ccm.shape} matrix")
+    spectra = colorchecker_spectra()[list(NEUTRALS)]
+    targets = np.asarray(chart_targets, float)[list(NEUTRALS)]
+    raw_measured = np.linalg.solve(ccm, targets.T).T                       # what the camera read
+    irradiance = (targets / np.array([rgb_projection(r) for r in spectra])).mean(1, keepdims=True)
+    raw_model = irradiance * swatch_colour(spectra, led, sensitivities)
+    gains = np.median(raw_measured / raw_model, axis=0)
+    return fit_table1(rgb_answer, target_linear,
+                      lambda hair: ccm @ (gains * colour_under(curve, hair, led, sensitivities)))
+
+
+#: The chart's neutral patches used for the camera's gains: neutral 8 to neutral 3.5 (the white may
+#: clip, the black is mostly noise).
+NEUTRALS = (19, 20, 21, 22)
+
+
+def fit_table1(start_hair: HairParams, target_linear: np.ndarray, forward) -> tuple[HairParams, float]:
+    """The Table 1 hair nearest ``start_hair`` whose ``forward(hair)`` (linear sRGB) is ``target_linear``:
+    least squares of CIELAB differences and ``STAY`` times the move in normalised parameters."""
+    from scipy.optimize import least_squares
+
+    from hairdigi.render.metrics import linear_rgb_to_lab
+
+    target = linear_rgb_to_lab(np.maximum(np.asarray(target_linear, float), 1e-6))
+    start = start_hair.to_vector().astype(float)
+
+    def residuals(v: np.ndarray) -> np.ndarray:
+        colour = forward(HairParams.from_vector(v))
+        return np.concatenate([linear_rgb_to_lab(np.maximum(colour, 1e-6)) - target, STAY * (v - start)])
+
+    fit = least_squares(residuals, start, bounds=(0.0, 1.0), diff_step=1e-3, max_nfev=200)
+    return HairParams.from_vector(fit.x), float(np.linalg.norm(fit.fun[:3]))
