@@ -244,8 +244,13 @@ def hairstyle_passes(renderer: Renderer, params: HairParams, spec: SceneSpec, la
     passes = renderer.render_progressive(params, spec, settings.hairstyle_size, list(schedule),
                                          cancelled=cancelled, gate=gate)
     for i, result in enumerate(passes, 1):
+        linear = result.linear
+        if spec.illuminant is not None:   # rendered under another light: shown as an eye adapted to it sees it
+            from hairdigi.render.spectra import balanced
+
+            linear = balanced(linear, spec.illuminant)
         # OIDN's "fast" on the first pass: 0.22 s instead of 0.47 s at 512², per-pixel ΔE 1.50 for 1.48
-        yield HairstylePass(tag.generation, result.linear,
-                            denoised(result.linear, denoise_on, "fast" if i == 1 else "high"), result.spp, i,
+        yield HairstylePass(tag.generation, linear,
+                            denoised(linear, denoise_on, "fast" if i == 1 else "high"), result.spp, i,
                             len(schedule), result.spp >= settings.hairstyle_clean_spp, label, tag.stage,
                             result.seconds, tag.key, result.nonfinite)

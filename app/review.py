@@ -42,11 +42,18 @@ from hairdigi.app.previews import (HairstylePass, PassTag, PreviewSettings, Stag
                                    twin_passes, twin_view)
 from hairdigi.render import denoise as dn
 from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance, AppearanceEstimate
+from hairdigi.render.base.bounds import ILLUMINANTS
 from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
 from hairdigi.render.base.records import CalibrationProfile, EstimateRecord, EstimateWarning, WarningKind
 from hairdigi.render.base.rig_geometry import N_LIGHTS
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.srgb import linear_to_srgb8
+
+#: ``set_view``'s "leave this as it is" (None is a value of its ``illuminant``).
+KEEP: object = object()
+#: The lights a hairstyle can be seen under: (label, ``SceneSpec.illuminant``); None is the RGB world's white.
+HAIRSTYLE_LIGHTS = (("rig lights (RGB)", None), ("daylight (D65)", "D65"), ("tungsten (A)", "A"),
+                    ("shop LED (LED-B3)", "shop-led"), ("fluorescent (FL11)", "FL11"))
 
 __all__ = ["Events", "ReviewModel", "Work", "run_now", "Shown", "Stage", "PreviewSettings", "TwinPreview",
            "HairstylePass", "ParameterView", "Entry", "hair_colour_rgb8", "appearance_lines", "light_name"]
@@ -401,6 +408,7 @@ class ReviewModel:
         self.frame_check: FrameCheck | None = None
         self.preview_warnings: tuple[EstimateWarning, ...] = ()
         self.style, self.env = HAIRSTYLES[0], ENVIRONMENTS[0]
+        self.illuminant: str | None = None   # the hairstyles' light: None, the RGB world's white; else spectral
         self.hair_file: Path | None = None           # a .hair model shown instead of the built-in style
         self.orbit = (0.0, 0.0)                      # azimuth, elevation (degrees)
         self.light: int | None = None                # the capture and twin are compared under this light alone (None: all)
@@ -589,10 +597,15 @@ class ReviewModel:
 
     # -- state set by the window ---------------------------------------------------------------
     def set_view(self, style: str | None = None, env: str | None = None, orbit: tuple[float, float] | None = None,
-                 hair_file: str | Path | None = None) -> None:
-        """Change the hairstyle (a built-in style closes the hair file), environment, camera orbit or
-        hair file; emits ``view``."""
+                 hair_file: str | Path | None = None, illuminant: str | None = KEEP) -> None:
+        """Change the hairstyle (a built-in style closes the hair file), environment, camera orbit, hair
+        file or light (``illuminant``: a name of ``render.spectra.ILLUMINANTS``, rendered spectrally and
+        shown as an eye adapted to it sees it; None, the RGB world's white lights); emits ``view``."""
         self._owner()
+        if illuminant is not KEEP:
+            if illuminant is not None and illuminant not in ILLUMINANTS:
+                raise ValueError(f"unknown light {illuminant!r}; choose one of {', '.join(ILLUMINANTS)} or None")
+            self.illuminant = illuminant
         if style is not None:
             self.style, self.hair_file = style, None
         if hair_file is not None:
@@ -627,7 +640,8 @@ class ReviewModel:
         return twin_view(shown.roi, shown.frame_size, shown.simulated, scale, shown.appearance, self.light)
 
     def view_label(self) -> str:
-        return f"{self.hair_file.name if self.hair_file else self.style}, {self.env}"
+        light = "" if self.illuminant is None else f", under {self.illuminant}"
+        return f"{self.hair_file.name if self.hair_file else self.style}, {self.env}{light}"
 
     def set_denoised(self, on: bool) -> None:
         """Show the denoised passes (True) or the raw path-traced ones; no re-render."""
@@ -648,8 +662,9 @@ class ReviewModel:
             from hairdigi.render.renderer import HAIR_FILE_SCENE
 
             return SceneSpec(HAIR_FILE_SCENE, hair_file=str(self.hair_file), env=self.env, strands=strands,
-                             camera=pose, appearance=look)
-        return SceneSpec(self.style, env=self.env, strands=strands, camera=pose, appearance=look)
+                             camera=pose, appearance=look, illuminant=self.illuminant)
+        return SceneSpec(self.style, env=self.env, strands=strands, camera=pose, appearance=look,
+                         illuminant=self.illuminant)
 
     # -- work: made here, run by a worker ------------------------------------------------------
     def warm_work(self) -> Work:

@@ -173,3 +173,22 @@ def test_model_state_changes_on_its_own_thread_only():
     thread.start()
     thread.join(30)
     assert errors and "own thread" in errors[0] and model.style != "bob"
+
+
+def test_a_hairstyle_under_another_light_renders_spectrally_and_is_shown_adapted(calibrated):
+    model = review.ReviewModel(calibrated, dataclasses.replace(SMALL, warm=False))
+    review.run_now(model.capture_work(), model.apply)
+    looks = {}
+    for light in (None, "A", "D65"):
+        model.set_view(illuminant=light)
+        assert model.hairstyle_spec().illuminant == light and (light is None or light in model.view_label())
+        review.run_now(model.hairstyle_work(), model.apply)
+        looks[light] = model.hairstyle.raw.reshape(-1, 3).mean(0)
+    # the adapted eye: tungsten is not orange (the scalp and hair keep their hue), and D65 is the RGB world's
+    assert looks["A"][0] / looks["A"][2] < 1.3 * looks[None][0] / looks[None][2]
+    assert np.allclose(looks["D65"], looks[None], rtol=0.25)
+    assert "under A" not in model.view_label()                      # D65 chosen last
+    model.set_view(style="bob")                                      # other changes keep the light
+    assert model.illuminant == "D65"
+    with pytest.raises(ValueError, match="unknown light 'candle'"):
+        model.set_view(illuminant="candle")

@@ -21,6 +21,7 @@ from hairdigi.app import rig_session as rs
 from hairdigi.app.gui.images import DELTA_E_MAX, colour_scale, delta_e_colours, overlay, to_pixmap
 from hairdigi.app.gui.workers import POOL, FrameFeed, Task, start
 from hairdigi.app.previews import Stage
+from hairdigi.app.review import HAIRSTYLE_LIGHTS
 from hairdigi.render.base.params import VECTOR_FIELDS
 from hairdigi.render.scenes import ENVIRONMENTS
 from hairdigi.render.strands import HAIRSTYLES
@@ -261,8 +262,17 @@ class MainWindow(QMainWindow):
         self.env_box.addItems(ENVIRONMENTS)
         self.style_box.currentTextChanged.connect(self._on_style)
         self.env_box.currentTextChanged.connect(lambda e: self.model.set_view(env=e))
+        self.light_box = QComboBox()
+        for label, name in HAIRSTYLE_LIGHTS:
+            self.light_box.addItem(label, name)
+        self.light_box.setToolTip("the light the hairstyle is seen under: the rig's white lights (RGB), or a "
+                                  "real light rendered spectrally and shown as an eye adapted to it sees it")
+        self.light_box.currentIndexChanged.connect(
+            lambda i: self.model.set_view(illuminant=self.light_box.itemData(i)))
         row.addWidget(self.style_box)
         row.addWidget(self.env_box)
+        row.addWidget(QLabel("under"))
+        row.addWidget(self.light_box)
         self.cancel_button = QPushButton("Cancel")
         self.cancel_button.clicked.connect(self.cancel_render)
         row.addWidget(self.cancel_button)

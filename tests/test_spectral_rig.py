@@ -1,0 +1,73 @@
+"""The estimate in a spectral world (inference.spectral): colour under any light from the rig's response
+curve, and a spectral rig's capture read in the camera's own RGB."""
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hairdigi.render.base.params import HairParams
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_the_response_curve_read_per_wavelength_is_a_spectral_render_without_the_render():
+    from hairdigi.inference.refine import RefineSettings, response_curve, scene_for
+    from hairdigi.inference.spectral import colour_under
+    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.metrics import delta_e2000
+    from hairdigi.render.renderer import default_renderer
+    from hairdigi.render.spectra import band_dye, hair_sigma_a_spectrum, illuminant_whitepoint
+
+    settings = RefineSettings()
+    curve = response_curve(RIG_SWATCH_POSE, settings)
+    spec, size = scene_for(RIG_SWATCH_POSE, settings)
+    banded = hair_sigma_a_spectrum(HairParams(melanin_concentration=0.15, dye_concentration=0.0)) \
+        + band_dye(590.0, 25.0, 0.25)
+    for hair in (HairParams(melanin_concentration=0.5, melanin_ratio=0.8, dye_concentration=0.0), banded):
+        for light in ("D65", "A"):
+            rendered = default_renderer().render(hair, replace(spec, illuminant=light), size, 64, seed=5)
+            predicted = colour_under(curve, hair, light)
+            de = float(delta_e2000(predicted, rendered.linear.reshape(-1, 3).mean(0), illuminant_whitepoint(light)))
+            assert de < 1.0, (light, de)    # the spectral render's own noise at 64 spp: ~0.2-0.7
+
+
+def test_a_spectral_rig_capture_is_read_in_the_camera_and_carries_to_tungsten(tmp_path):
+    from hairdigi.app.evaluate_spectral import SpectralSet, answers, _judge
+    from hairdigi.app.rig_session import RigSession
+
+    hidden = HairParams((230, 20, 30), 1.0, 0.08, 0.3)            # a saturated red: far from the chart's colours
+    session = RigSession.simulated_rig(tmp_path / "session", hidden=hidden, spp=8,
+                                       illuminant="LED-B4", sensitivities="nikon-5100")
+    try:
+        profile = session.calibrate()
+        result = session.capture()
+    finally:
+        session.close()
+    assert result.record is not None, result.blocked
+    found = answers(result.record, profile, "LED-B4", "nikon-5100")
+    verdict = _judge(hidden, found, replace(SpectralSet(), judge_size=32, judge_spp=64))
+    # measured (rig at 8 spp, judge 32² at 64 spp): camera 1.1-1.3 at the rig under every light; the RGB
+    # answer 2.4 at D65 and 4.9 under tungsten (its colour times the light's)
+    for light in ("D65", "A", "shop-led"):
+        assert verdict[f"camera_rig_{light}"] < 1.8, verdict
+    assert verdict["camera_rig_A"] < 0.5 * verdict["rgb_rig_A"], verdict
+    assert found["camera_residual"] < 0.5
+
+
+def test_a_spectral_rig_is_the_simulated_rigs_and_its_parts_are_checked_in_one_line(tmp_path):
+    def run(*args):
+        return subprocess.run([sys.executable, "-m", "hairdigi.app.cli", "rig", "--session", str(tmp_path / "s"), *args],
+                              capture_output=True, text=True, timeout=120,
+                              env={**__import__("os").environ, "PYTHONPATH": str(ROOT)})
+
+    (tmp_path / "cam.csv").write_text("400,1,0,0\n")
+    for args, says in ((("--spectral",), "add --sim"), (("--sim", "--led", "A"), "--led goes with --spectral"),
+                       (("--sim", "--spectral", "--sensor", "canon"), "is not a camera"),
+                       (("--sim", "--spectral", "--sensor", str(tmp_path / "cam.csv")), "need at least 4")):
+        done = run(*args)
+        assert done.returncode == 2 and says in done.stderr and len(done.stderr.strip().splitlines()) == 1, \
+            (args, done.stderr)
+    assert not (tmp_path / "s").exists()
