@@ -1,10 +1,12 @@
 """A full simulated session through the window (pytest-qt, offscreen): lights, calibrate, capture,
 estimate, twin preview, hairstyle render, export, unplug banner, restart, screenshot."""
 import json
+import threading
 
 import numpy as np
 import pytest
 
+from hairdigi.app import review
 from hairdigi.app.gui.main_window import MainWindow
 from hairdigi.app.rig_session import RigSession
 from hairdigi.inference.encoder import Encoder
@@ -25,12 +27,13 @@ def open_window(qtbot, folder, onnx_path):
 
 
 def pixmap_array(pixmap):
+    """A pixmap's pixels, (h, w, 3) uint8: a copy, made while the QImage that holds them is alive."""
     img = pixmap.toImage().convertToFormat(pixmap.toImage().Format.Format_RGB888)
-    ptr = img.constBits()
-    return np.frombuffer(ptr, np.uint8, img.sizeInBytes()).reshape(img.height(), img.bytesPerLine())[:, :3 * img.width()]
+    rows = np.frombuffer(img.constBits(), np.uint8, img.sizeInBytes()).reshape(img.height(), img.bytesPerLine())
+    return rows[:, :3 * img.width()].reshape(img.height(), img.width(), 3).copy()
 
 
-def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output):
+def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output, monkeypatch):
     _, onnx_path, _ = tiny_model
     folder = tmp_path / "session"
     win, session = open_window(qtbot, folder, onnx_path)
@@ -124,12 +127,19 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output):
     session.close()
 
     # restart: the session, its calibration and its capture come back
+    on_ui_thread = []                 # per thumbnail read from disk: was it the UI thread that read it?
+    read = review.read_thumbnail
+    monkeypatch.setattr(review, "read_thumbnail", lambda *a, **k: on_ui_thread.append(
+        threading.current_thread() is threading.main_thread()) or read(*a, **k))
     win2, session2 = open_window(qtbot, folder, onnx_path)
     assert win2.session_list.count() == 1 and session2.profile.id == cal.args[0].id
     assert "blocked" not in win2.session_list.item(0).text()
-    # its thumbnail comes from a worker, not from a disk read on the UI thread
+    # its thumbnail comes from a worker, not from a disk read on the UI thread, and the icon shows it
     qtbot.waitUntil(lambda: not win2.session_list.item(0).icon().isNull(), timeout=20000)
-    assert win2.model.thumbnails[win2.model.records[0].id].shape == (48, 64, 3)
+    assert on_ui_thread and not any(on_ui_thread), on_ui_thread
+    thumb = win2.model.thumbnails[win2.model.records[0].id]
+    assert thumb.shape == (48, 64, 3)
+    np.testing.assert_array_equal(pixmap_array(win2.session_list.item(0).icon().pixmap(64, 48)), thumb)
     win2.close()
     session2.close()
 

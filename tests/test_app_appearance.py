@@ -150,6 +150,16 @@ def test_the_window_shows_the_shine_with_its_interval_and_the_light_selector(qtb
     assert win.real_label.text() == "no frame for light 1 in this capture"
     assert "not measured" in win.appearance_labels["longitudinal_roughness"].text()
     assert "shine not measured" in win.result_info.text()
-    win.light_view_buttons[None].click()
-    assert win.model.light is None and win.real_label.pixmap() is not None
+    win.light_view_buttons[None].click()                       # all lights: the old capture's own frame again
+    assert win.model.light is None and win.light_view_buttons[None].isChecked()
+    shown = win.real_label.pixmap()
+    assert win.real_label.text() == "" and not shown.isNull()
+    np.testing.assert_allclose(mean_rgb(shown), win.model.shown.real.reshape(-1, 3).mean(0), atol=2)
     win.close()
+
+
+def mean_rgb(pixmap) -> np.ndarray:
+    """The mean 8-bit R, G, B of what a label shows."""
+    img = pixmap.toImage().convertToFormat(pixmap.toImage().Format.Format_RGB888)
+    rows = np.frombuffer(img.constBits(), np.uint8, img.sizeInBytes()).reshape(img.height(), img.bytesPerLine())
+    return rows[:, :3 * img.width()].reshape(-1, 3).mean(0)

@@ -237,11 +237,17 @@ def test_convergence_sweep_reports_each_input_spp(tiny_model, tmp_path):
     _, onnx_path, _ = tiny_model
     judge = Judge(**SMALL_JUDGE)
     root = prepare_heldout(tmp_path / "h", n=3, size=32, spp=4, workers=1, judge=judge, progress=False)
-    rows = convergence_sweep(Encoder(onnx_path), root, tmp_path / "sweep", spps=(2, 16), count=3,
+    rows = convergence_sweep(Encoder(onnx_path), root, tmp_path / "sweep", spps=(2, 16, 2), count=3,
                              settings=RefineSettings(size=16, spp=2, check_spp=2, iterations=1), judge=judge, progress=False)
-    assert [r["spp"] for r in rows] == [2, 16] and rows[0]["swatches"] == 3
-    assert all(r["encoder_de_max"] >= r["encoder_de_median"] >= 0 for r in rows)
-    assert (tmp_path / "sweep" / "convergence.csv").exists() and (tmp_path / "sweep" / "convergence.png").exists()
+    assert [(r["spp"], r["swatches"]) for r in rows] == [(2, 3), (16, 3), (2, 3)]
+    # each row is its own input spp: the inputs are rendered again at it, so the same spp again reads the
+    # same errors and another spp other ones (a sweep that ignored the spp would give three equal rows)
+    errors = [{k: v for k, v in r.items() if k.startswith(("encoder_de", "refined_de"))} for r in rows]
+    assert errors[0] == errors[2], rows
+    assert errors[1]["encoder_de_median"] != errors[0]["encoder_de_median"], rows
+    assert errors[1]["refined_de_median"] != errors[0]["refined_de_median"], rows
+    assert read_table(tmp_path / "sweep" / "convergence.csv") == rows
+    assert (tmp_path / "sweep" / "convergence.png").stat().st_size > 0
 
 
 def test_refine_bench_writes_speed_against_error(tiny_model, tmp_path):
@@ -253,8 +259,21 @@ def test_refine_bench_writes_speed_against_error(tiny_model, tmp_path):
     root = prepare_heldout(tmp_path / "h", n=2, size=32, spp=4, workers=1, judge=judge, progress=False)
     rows = bench_refine(Encoder(onnx_path), root, tmp_path / "b", sizes=(16,), spps=(2,), iterations=(0, 2),
                         count=2, judge=judge, progress=False)
-    assert [r["iterations"] for r in rows] == [0, 2] and all(r["curve_s"] > 0 and r["de_median"] >= 0 for r in rows)
-    assert (tmp_path / "b" / "refine_bench.csv").exists() and (tmp_path / "b" / "refine_bench.png").exists()
+    assert [(r["size"], r["spp"], r["iterations"], r["swatches"]) for r in rows] == [(16, 2, 0, 2), (16, 2, 2, 2)]
+    # speed: two check renders cost time that no iterations do not
+    assert rows[1]["polish_s"] > rows[0]["polish_s"], rows
+    # error: the check renders moved the answer, which is judged against the truth (never exactly 0)
+    assert rows[1]["de_median"] != rows[0]["de_median"] and all(r["de_median"] > 0 for r in rows), rows
+    assert read_table(tmp_path / "b" / "refine_bench.csv") == rows
+    assert (tmp_path / "b" / "refine_bench.png").stat().st_size > 0
+
+
+def read_table(path: Path) -> list[dict]:
+    """A bench's CSV, each value back to the int or float it was written from."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8") as f:
+        return [{k: int(v) if v.lstrip("-").isdigit() else float(v) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
 def test_evaluate_judges_clean_inputs_and_measures_interval_coverage(tiny_model, tmp_path):
