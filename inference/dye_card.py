@@ -3,7 +3,11 @@
 Each level (``inference.levels``) and the dye's prediction on it are rendered as small all-hair
 swatches (Mitsuba, one sampler seed for both: their difference is the dye's, not the sampler's).
 The labels come from the renders: the result's mean colour as sRGB and CIE L*a*b* (D65), and the
-ΔE2000 from base to result. Written as PNG and PDF (matplotlib; the PDF prints) and a JSON table.
+ΔE2000 from base to result. Each result is also shown under ``CARD_LIGHTS`` (daylight, tungsten, a
+shop LED), as an eye adapted to each light sees it, with the ΔE2000 between daylight and each: the
+predicted absorption as a spectrum (``render.spectra.rgb_sigma_spectrum``) and the rig's response
+curve read per wavelength (``inference.spectral.colour_under``), so no render is added. Written as
+PNG and PDF (matplotlib; the PDF prints) and a JSON table.
 """
 from __future__ import annotations
 
@@ -21,6 +25,22 @@ from hairdigi.render.base.records import EstimateRecord
 from hairdigi.render.metrics import delta_e2000
 
 CARD_SIZE, CARD_SPP, CARD_SEED = 64, 16, 3
+#: The lights each result is shown under (``render.base.bounds.ILLUMINANTS``), daylight first.
+CARD_LIGHTS = ("D65", "A", "shop-led")
+
+
+def under_lights(sigma_rgb, curve) -> dict[str, dict]:
+    """A predicted hair under each of ``CARD_LIGHTS``, adapted: its description, and ΔE2000 from daylight."""
+    import numpy as np
+
+    from hairdigi.inference.spectral import colour_under
+    from hairdigi.render.spectra import balanced, rgb_sigma_spectrum
+
+    spectrum = rgb_sigma_spectrum(np.asarray(sigma_rgb, float))
+    seen = {light: balanced(colour_under(curve, spectrum, light), light) for light in CARD_LIGHTS}
+    day = seen[CARD_LIGHTS[0]]
+    return {light: {**describe_colour(colour), "de2000_from_daylight": round(float(delta_e2000(day, colour)), 2)}
+            for light, colour in seen.items()}
 
 
 def card_rows(dye: DyeRecord, size: int = CARD_SIZE, spp: int = CARD_SPP, seed: int = CARD_SEED,
@@ -28,8 +48,11 @@ def card_rows(dye: DyeRecord, size: int = CARD_SIZE, spp: int = CARD_SPP, seed: 
     """Render each natural level and the dye on it; the measured colours and ΔE2000 per level."""
     from hairdigi.render.renderer import SceneSpec, default_renderer
 
+    from hairdigi.inference.dye import rig_curve
+
     renderer = default_renderer()
     spec = SceneSpec("swatch", framing="crop")
+    curve = curve or rig_curve()
     rows = []
     for level in LEVELS:
         hair = natural_base(level)
@@ -44,18 +67,20 @@ def card_rows(dye: DyeRecord, size: int = CARD_SIZE, spp: int = CARD_SPP, seed: 
                      "result": describe_colour(mean_after), "hair": pred.params.to_dict(),
                      "sigma_a": [round(float(v), 6) for v in pred.sigma_a],
                      "de2000": round(float(delta_e2000(mean_before, mean_after)), 2),
+                     "under": under_lights(pred.sigma_a, curve),
                      "render_s": round(time.perf_counter() - start, 3),
                      "_images": (before.srgb, after.srgb)})
     return rows
 
 
-def _chips(base_hex: str, result_hex: str):
-    """A flat chip of two colours side by side (base | result), as an 8-bit image."""
+def _chips(*colours_hex: str):
+    """Flat chips of colours side by side (base | result; or one hair under several lights), 8-bit."""
     import numpy as np
 
-    rgb = [[int(h[i:i + 2], 16) for i in (1, 3, 5)] for h in (base_hex, result_hex)]
-    chip = np.zeros((20, 40, 3), np.uint8)
-    chip[:, :20], chip[:, 20:] = rgb
+    rgb = [[int(h[i:i + 2], 16) for i in (1, 3, 5)] for h in colours_hex]
+    chip = np.zeros((20, 20 * len(rgb), 3), np.uint8)
+    for k, value in enumerate(rgb):
+        chip[:, 20 * k:20 * (k + 1)] = value
     return chip
 
 
@@ -64,17 +89,21 @@ def draw_card(dye: DyeRecord, rows: list[dict], dose: float = 1.0):
     import matplotlib.pyplot as plt
 
     # 11 x 4.8 in: the PDF prints on A4 or Letter, landscape, without scaling
-    fig, axes = plt.subplots(3, len(rows), figsize=(11.0, 5.6), gridspec_kw={"height_ratios": [1, 1, 0.45]})
+    fig, axes = plt.subplots(4, len(rows), figsize=(11.0, 6.6), gridspec_kw={"height_ratios": [1, 1, 0.45, 0.45]})
     lift = (f"lift {dye.lift:.2f}" + ("" if dye.lift_measured else " (assumed: one base)"))
     dep = ", ".join(f"{v:.3f}" for v in dye.deposit_sigma_a)
     fig.suptitle(f"{dye.name}{'' if dose == 1 else f' at dose {dose:g}'}: deposit sigma_a ({dep}), {lift}",
                  fontsize=10)
     for col, row in enumerate(rows):
-        top, bottom, chips = axes[0, col], axes[1, col], axes[2, col]
+        top, bottom, chips, lights = axes[0, col], axes[1, col], axes[2, col], axes[3, col]
         top.imshow(row["_images"][0], interpolation="nearest")
         bottom.imshow(row["_images"][1], interpolation="nearest")
         chips.imshow(_chips(row["base"]["srgb"], row["result"]["srgb"]), interpolation="nearest")
-        for ax in (top, bottom, chips):
+        under = row["under"]
+        lights.imshow(_chips(*[under[light]["srgb"] for light in CARD_LIGHTS]), interpolation="nearest")
+        lights.set_xlabel(" ".join(f"{under[light]['de2000_from_daylight']:.1f}" for light in CARD_LIGHTS[1:]),
+                          fontsize=7)
+        for ax in (top, bottom, chips, lights):
             ax.set_xticks([])
             ax.set_yticks([])
         top.set_title(f"level {row['level']}\n{row['base']['srgb']}", fontsize=7)
@@ -84,9 +113,12 @@ def draw_card(dye: DyeRecord, rows: list[dict], dose: float = 1.0):
     axes[0, 0].set_ylabel("natural", fontsize=8)
     axes[1, 0].set_ylabel("dyed", fontsize=8)
     axes[2, 0].set_ylabel("mean:\nbase | dyed", fontsize=7)
+    axes[3, 0].set_ylabel("dyed under\nD65 | A | LED", fontsize=7)
     fig.text(0.01, 0.01, "predicted by hairdigi (Kips et al. 2022 Table 1 absorption; deposit + lift); "
-                         "colours are the rendered swatches' means, sRGB D65", fontsize=6)
-    fig.tight_layout(rect=(0, 0.03, 1, 0.95))
+                         "colours are the rendered swatches' means, sRGB D65;\nbottom row: the dyed hair under "
+                         "daylight, tungsten (A) and a shop LED (LED-B3) as an eye adapted to each sees it, "
+                         "ΔE00 from daylight below (tungsten, LED)", fontsize=6)
+    fig.tight_layout(rect=(0, 0.04, 1, 0.95))
     return fig
 
 

@@ -151,6 +151,19 @@ def dye_sigma_a_spectrum(dye_rgb: tuple[float, float, float], concentration: flo
     return float(concentration) * sigma_a_from_albedo(albedo, azimuthal_roughness)
 
 
+def rgb_sigma_spectrum(sigma_rgb: np.ndarray, azimuthal_roughness: float = AZIMUTHAL_ROUGHNESS) -> np.ndarray:
+    """An RGB absorption (a dye's deposit, a prediction) as a spectrum, the way a dye's colour becomes one:
+    its fibre albedo (Chiang 2016 eq. 9 inverted) read as a smooth spectral albedo (Jakob & Hanika 2019),
+    then eq. 9 per wavelength. A flat absorption stays flat."""
+    from hairdigi.render.absorption import albedo_from_sigma_a
+
+    sigma_rgb = np.asarray(sigma_rgb, float)
+    if np.ptp(sigma_rgb) < 1e-9:
+        return np.full_like(WAVELENGTHS, float(sigma_rgb[0]))
+    albedo = albedo_spectrum(albedo_from_sigma_a(sigma_rgb, azimuthal_roughness))
+    return sigma_a_from_albedo(albedo, azimuthal_roughness)
+
+
 def band_dye(centre_nm: float, width_nm: float, peak: float) -> np.ndarray:
     """A dye absorbing in one Gaussian band (sd ``width_nm``), ``peak`` per fibre radius at its centre."""
     return float(peak) * np.exp(-0.5 * ((WAVELENGTHS - float(centre_nm)) / float(width_nm)) ** 2)

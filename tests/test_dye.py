@@ -190,6 +190,18 @@ def test_shade_card_renders_ten_levels(curve, tmp_path):
     # a deposit shows less on black hair than on blonde
     assert rows[0]["de2000"] < rows[8]["de2000"]
     assert all(r["result"]["srgb"].startswith("#") and len(r["result"]["lab"]) == 3 for r in rows)
+    # each result under daylight, tungsten and a shop LED, adapted: a copper deposit moves under tungsten
+    assert all(list(r["under"]) == ["D65", "A", "shop-led"] and r["under"]["D65"]["de2000_from_daylight"] == 0
+               for r in rows)
+    assert max(r["under"]["A"]["de2000_from_daylight"] for r in rows) > 1.0
+    assert json.loads(table.read_text())["levels"][5]["under"]["A"]["srgb"] == rows[5]["under"]["A"]["srgb"]
+
+
+def test_a_grey_absorption_looks_the_same_under_every_light_on_the_card(curve):
+    from hairdigi.inference.dye_card import under_lights
+
+    grey = under_lights(np.full(3, 0.4), curve)
+    assert all(v["de2000_from_daylight"] < 0.5 for v in grey.values())
 
 
 def test_dye_panel_characterises_session_captures(curve, tmp_path):
