@@ -29,7 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.render.base.appearance import APPEARANCE_DRAW, DEFAULT_APPEARANCE, FIELDS, Appearance
-from hairdigi.render.base.files import write_csv_atomic, write_json_atomic
+from hairdigi.render.base.files import write_json_atomic
+from hairdigi.render.io.figures import save_table
 from hairdigi.render.base.params import HairParams, sample_params
 from hairdigi.render.base.rig_geometry import N_LIGHTS, TRANSFER_POSE
 from hairdigi.render.metrics import error_stats
@@ -168,9 +169,7 @@ def evaluate_appearance(out_dir: str | os.PathLike, config: AppearanceSet = Appe
             write_json_atomic(done, got)
             rows += got
     summary = summarise(rows)
-    write_csv_atomic(out / "appearance_evaluation.csv", rows)
-    write_json_atomic(out / "appearance_evaluation.json", {"summary": summary, "rows": rows})
-    _plot(rows, out / "appearance_evaluation.png")
+    save_table(out, "appearance_evaluation", rows, _plot, summary)
     return summary
 
 

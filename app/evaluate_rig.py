@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.render.base.appearance import DEFAULT_APPEARANCE
-from hairdigi.render.base.files import write_csv_atomic, write_json_atomic
+from hairdigi.render.io.figures import save_table
 from hairdigi.render.base.params import HairParams, sample_params
 from hairdigi.render.metrics import error_stats
 
@@ -148,11 +148,7 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
                 bar.update()
     bar.close()
     summary = summarise(rows, hidden)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    write_csv_atomic(out / "rig_evaluation.csv", rows)
-    write_json_atomic(out / "rig_evaluation.json", {"summary": summary, "rows": rows})
-    _plot(rows, out / "rig_evaluation.png")
+    save_table(out_dir, "rig_evaluation", rows, _plot, summary)
     return summary
 
 

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.files import write_csv_atomic, write_json_atomic
+from hairdigi.render.io.figures import save_table
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.metrics import error_stats
 
@@ -184,11 +184,7 @@ def evaluate_spectral(out_dir: str | os.PathLike, config: SpectralSet = Spectral
                 bar.update()
     bar.close()
     summary = summarise(rows)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    write_csv_atomic(out / "spectral_evaluation.csv", rows)
-    write_json_atomic(out / "spectral_evaluation.json", {"summary": summary, "rows": rows})
-    _plot(rows, out / "spectral_evaluation.png")
+    save_table(out_dir, "spectral_evaluation", rows, _plot, summary)
     return summary
 
 

@@ -23,10 +23,15 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> Path:
     return Path(path)
 
 
-def save_table(out_dir: str | os.PathLike, stem: str, rows: list[dict], plot) -> Path:
-    """A benchmark's results: ``stem.csv`` and ``stem.png`` drawn by ``plot(rows, path)``."""
+def save_table(out_dir: str | os.PathLike, stem: str, rows: list[dict], plot, summary: dict | None = None) -> Path:
+    """A benchmark's or an evaluation's results: ``stem.csv``, ``stem.png`` drawn by ``plot(rows, path)``
+    and, with a ``summary``, ``stem.json`` holding it and the rows."""
+    from hairdigi.render.base.files import write_json_atomic
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     write_csv_atomic(out / f"{stem}.csv", rows)
+    if summary is not None:
+        write_json_atomic(out / f"{stem}.json", {"summary": summary, "rows": rows})
     plot(rows, out / f"{stem}.png")
     return out
