@@ -5,6 +5,7 @@ traceback; warnings for the cases that succeed); and that every file in the work
 inputs first, is byte for byte as it was (nothing overwritten, no half-written or temporary file
 left). Renders are tiny; most cases stop in the argument checks, before anything is rendered.
 """
+import codecs
 import hashlib
 import json
 import re
@@ -13,6 +14,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -35,6 +37,59 @@ def hairdigi(*args: str, cwd: Path, prelude: str | None = None, timeout: float =
                *args]
     return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=timeout,
                           env={**os.environ, **FRESH})
+
+
+class Reader:
+    """A child's pipe (opened in bytes), read in a thread as it comes, so that a test waits for what the
+    child says rather than for a fixed time."""
+
+    def __init__(self, pipe) -> None:
+        self.text, self._ended = "", False
+        self._changed = threading.Condition()
+        self._thread = threading.Thread(target=self._read, args=(pipe,), daemon=True)
+        self._thread.start()
+
+    def _read(self, pipe) -> None:
+        decoder = codecs.getincrementaldecoder("utf-8")("replace")
+        while chunk := os.read(pipe.fileno(), 4096):
+            with self._changed:
+                self.text += decoder.decode(chunk)
+                self._changed.notify_all()
+        with self._changed:
+            self._ended = True
+            self._changed.notify_all()
+
+    def wait_for(self, piece: str, timeout: float) -> bool:
+        """Whether ``piece`` comes within ``timeout`` s; False at once if the pipe ends without it."""
+        with self._changed:
+            self._changed.wait_for(lambda: piece in self.text or self._ended, timeout)
+            return piece in self.text
+
+    def all(self, timeout: float = 60) -> str:
+        """Everything the child wrote, once it has closed the pipe (at most ``timeout`` s from now)."""
+        self._thread.join(timeout)
+        return self.text
+
+
+_children: list[subprocess.Popen] = []
+
+
+def started(cmd: list[str], cwd: Path) -> subprocess.Popen:
+    """``cmd`` started in ``cwd`` with its stdout and stderr piped (bytes: read them with ``Reader``);
+    killed at the end of the test if it is still running then."""
+    proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ, **FRESH})
+    _children.append(proc)
+    return proc
+
+
+@pytest.fixture(autouse=True)
+def _no_child_left():
+    yield
+    while _children:
+        proc = _children.pop()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
 
 
 def snapshot(folder: Path) -> dict[str, str]:
@@ -253,29 +308,64 @@ def test_a_disk_that_fills_during_the_render_is_one_line_and_leaves_nothing(ws):
                      "--strands", "100", cwd=ws, prelude=fills), "No space left on device", "free some space")
 
 
+def as_program(prelude: str) -> str:
+    """Code for ``python -c``: ``prelude``, then ``python -m hairdigi.app.cli ARGS`` as ``-m`` runs it."""
+    return f"{prelude}\nimport runpy\nrunpy.run_module('hairdigi.app.cli', run_name='__main__', alter_sys=True)\n"
+
+
+#: Prints "loading mitsuba" when the program starts to import Mitsuba: a Ctrl-C sent on that line lands
+#: after Python is up, while Mitsuba loads (render.variant holds it until the import returns).
+SAYS_WHEN_LOADING_MITSUBA = """\
+import importlib.abc, sys
+
+class Says(importlib.abc.MetaPathFinder):
+    said = False
+
+    def find_spec(self, name, path=None, target=None):
+        if name == "mitsuba" and not self.said:
+            self.said = True
+            print("loading mitsuba", flush=True)
+        return None   # the import goes on as usual
+
+sys.meta_path.insert(0, Says())"""
+
+#: Prints "rendering" as each ``mitsuba.render`` call starts, inside the renderer's held block: a Ctrl-C
+#: sent on that line is delivered when the call returns (render.base.interrupt). Mitsuba is loaded as
+#: the program loads it (render.variant), after the start-up's thread budget.
+SAYS_WHEN_RENDERING = """\
+from hairdigi.render.base.threads import start_up
+start_up()
+from hairdigi.render.variant import mi
+_render = mi.render
+
+def render(*a, **k):
+    print("rendering", flush=True)
+    return _render(*a, **k)
+
+mi.render = render"""
+
+
 def test_ctrl_c_while_starting_or_working_is_one_line_and_130(ws, expect):
     # while the libraries load
-    proc = subprocess.Popen([sys.executable, "-m", "hairdigi.app.cli", "render", "--params", "p.json", "--out", "o.png"],
-                            cwd=ws, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, **FRESH})
-    time.sleep(1.0)      # Python is up; Mitsuba, drjit and colour-science take about 2 s more to load
+    proc = started([sys.executable, "-c", as_program(SAYS_WHEN_LOADING_MITSUBA), "render", "--params", "p.json",
+                    "--out", "o.png"], cwd=ws)
+    out, err = Reader(proc.stdout), Reader(proc.stderr)
+    assert out.wait_for("loading mitsuba", 120), err.all()[-2000:]
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 130 and err.strip() == "hairdigi render: interrupted", err
-    # while the command works: a dataset, once its manifest is written
-    proc = subprocess.Popen([sys.executable, "-m", "hairdigi.app.cli", "dataset", "--n", "400", "--size", "16", "--spp", "1",
-                             "--strands", "50", "--shard-size", "400", "--workers", "1", "--out", "ds"],
-                            cwd=ws, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, **FRESH})
-    deadline = time.monotonic() + 60
-    while not (ws / "ds" / "manifest.json").exists() and time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.05)
-    time.sleep(0.3)
+    proc.wait(timeout=60)
+    assert proc.returncode == 130 and err.all().strip() == "hairdigi render: interrupted", err.text[-2000:]
+    # while the command works: a dataset, its manifest written, rendering its first swatch
+    proc = started([sys.executable, "-c", as_program(SAYS_WHEN_RENDERING), "dataset", "--n", "400", "--size", "16",
+                    "--spp", "1", "--strands", "50", "--shard-size", "400", "--workers", "1", "--out", "ds"], cwd=ws)
+    out, err = Reader(proc.stdout), Reader(proc.stderr)
+    assert out.wait_for("rendering", 120), err.all()[-2000:]
+    assert (ws / "ds" / "manifest.json").exists()
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
+    proc.wait(timeout=60)
     expect |= {"ds/manifest.json"}
-    assert proc.returncode == 130, err[-2000:]
-    assert "Traceback" not in err and err.strip().splitlines()[-1] == "hairdigi dataset: interrupted", err[-2000:]
+    text = err.all()
+    assert proc.returncode == 130, text[-2000:]
+    assert "Traceback" not in text and text.strip().splitlines()[-1] == "hairdigi dataset: interrupted", text[-2000:]
 
 
 # --- 7. stale calibration is flagged --------------------------------------------------------
