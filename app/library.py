@@ -282,7 +282,6 @@ _redact = redact
 
 def _first_line(exc: BaseException, where: str) -> str:
     """A driver's message, first line, with the location's password masked wherever it appears."""
-    import re
     from urllib.parse import unquote, urlsplit
 
     text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
@@ -472,10 +471,6 @@ class Library:
 
     def get(self, key: str) -> Swatch:
         return self._swatches("WHERE id = ?", (self.resolve(key),))[0]
-
-    def record_of(self, key: str) -> dict:
-        """The record as imported."""
-        return json.loads(self.db.query("SELECT record FROM swatches WHERE id = ?", (self.resolve(key),))[0][0])
 
     def all(self, text: str = "", order: str = "captured", limit: int | None = None) -> list[Swatch]:
         """Swatches whose id, capture, session, note or a tag contains ``text``, newest first or by colour

@@ -223,10 +223,6 @@ def load_profile(path: str | os.PathLike) -> CalibrationProfile:
     return profile
 
 
-def _is_real(value) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and bool(np.isfinite(value))
-
-
 def check_profile(profile: CalibrationProfile) -> None:
     """Raise CalibrationError when the profile's method is unknown or its matrix does not fit it."""
     def bad(field: str, what: str) -> CalibrationError:

@@ -34,7 +34,5 @@ def natural_base(level: int) -> HairParams:
                       melanin_concentration=round(1.0 - 0.9 * t, 6), melanin_ratio=round(0.9 - 0.4 * t, 6))
 
 
-NATURAL_LEVELS: dict[int, HairParams] = {level: natural_base(level) for level in LEVELS}
-
 #: The held-out bases of ``hairdigi evaluate --dye``: light, medium, dark.
 EVALUATION_LEVELS = {"light": 8, "medium": 5, "dark": 3}

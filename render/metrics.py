@@ -74,8 +74,6 @@ def l1_255(srgb_a: np.ndarray, srgb_b: np.ndarray) -> float:
 # --- MS-SSIM (Wang, Simoncelli & Bovik 2003) --------------------------------------------------
 MS_SSIM_WEIGHTS = np.array([0.0448, 0.2856, 0.3001, 0.2363, 0.1333])
 _K1, _K2, _SIGMA = 0.01, 0.03, 1.5
-#: 5 scales with an 11-tap window need the smallest scale (size / 16) to be >= 11 px.
-MS_SSIM_MIN_SIZE = 161
 
 
 def _ssim_parts(x: np.ndarray, y: np.ndarray, data_range: float) -> tuple[float, float]:

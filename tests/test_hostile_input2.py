@@ -5,7 +5,6 @@ one stderr line naming the problem (never a traceback), and every file of the wo
 session, a dataset and the package byte for byte as it was. Memory cases run under a watchdog that
 kills the command above ``WATCHDOG_GB``, so a regression cannot take the machine's memory.
 """
-import hashlib
 import json
 import os
 import shutil

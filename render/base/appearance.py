@@ -17,7 +17,7 @@ keeps the default shine, and says so).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 #: The shine the project rendered before issue 18, and every default scene still renders.
 DEFAULT_SHINE = 0.3
@@ -125,9 +125,6 @@ class AppearanceEstimate:
         if p95 is not None and not p68[0] <= value <= p68[1]:
             return f" (not told from none; 95%: {fmt.format(p95[0])}{dash}{fmt.format(p95[1])})"
         return f" (68%: {fmt.format(p68[0])}{dash}{fmt.format(p68[1])})"
-
-    def with_value(self, **changes) -> "AppearanceEstimate":
-        return replace(self, value=replace(self.value, **changes))
 
     def to_json(self) -> dict:
         return {**self.value.to_dict(), "intervals": self.intervals, "measured": list(self.measured),

@@ -20,7 +20,7 @@ import hashlib
 import json
 import math
 import os
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -360,9 +360,6 @@ class EstimateRecord:
     def warning_messages(self) -> list[str]:
         return [w.message for w in self.warnings]
 
-    def with_warnings(self, *more: EstimateWarning) -> "EstimateRecord":
-        return replace(self, warnings=self.warnings + tuple(more))
-
     def to_json(self) -> dict:
         out = {"kind": self.KIND, "schema_version": SCHEMA_VERSION}
         if self.capture is not None:
@@ -447,9 +444,6 @@ def _appearance(data, what: str) -> AppearanceEstimate | None:
 
 
 # --- files ---------------------------------------------------------------------------------------
-RECORD_TYPES = {cls.KIND: cls for cls in (CalibrationProfile, CaptureRecord, EstimateRecord)}
-
-
 def read_record(path: str | os.PathLike, cls, **kwargs):
     """Read and upgrade one record file; ``RecordError`` names the file and its problem."""
     path = Path(path)

@@ -107,15 +107,6 @@ def project(points: np.ndarray, pose: CameraPose, target, half_width: float, siz
     return np.column_stack([width / 2 - focal * x / z, height / 2 - focal * y / z])
 
 
-def seen_from(point, pose: CameraPose, target) -> CameraPose:
-    """The pose of the camera at ``pose`` around ``target`` as ``point`` sees it (polar from +z)."""
-    rel = pose.position(target) - np.asarray(point, float)
-    distance = float(np.linalg.norm(rel))
-    polar = float(np.degrees(np.arccos(np.clip(rel[2] / distance, -1, 1))))
-    azimuth = float(np.degrees(np.arctan2(rel[1], rel[0]))) % 360.0
-    return CameraPose(polar, azimuth if polar > 1e-9 else 0.0, distance)
-
-
 # --- lights as obstacles ---------------------------------------------------------------------
 def light_position(index: int) -> np.ndarray:
     """Centre of rig light ``index`` (it faces the holder's centre)."""
@@ -206,14 +197,6 @@ def rig_pixel(x, y, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
     scale = rig_scale(size)
     return ((np.asarray(x) - RIG_TARGET[0]) * scale + width / 2,
             (RIG_TARGET[1] - np.asarray(y)) * scale + height / 2)
-
-
-def holder_point(u, v, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """The holder-plane point (x, y) that rig-view pixel (u, v) shows: the inverse of ``rig_pixel``."""
-    width, height = size
-    scale = rig_scale(size)
-    return ((np.asarray(u) - width / 2) / scale + RIG_TARGET[0],
-            RIG_TARGET[1] - (np.asarray(v) - height / 2) / scale)
 
 
 # --- a region of a rig-view frame --------------------------------------------------------------
