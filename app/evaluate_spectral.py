@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 import tempfile
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -31,9 +31,8 @@ from hairdigi.render.io.figures import save_table
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.metrics import error_stats
 
-#: The rig's white LEDs: CIE LED series phosphor LEDs (LED-B4 5109 K, LED-B5 6598 K).
-RIG_LEDS = ("LED-B4", "LED-B5")
-#: The worlds: (camera sensitivities, the rig's LEDs); None is the CIE observer (an ideal camera).
+#: The worlds: (camera sensitivities, the rig's LEDs: CIE LED series phosphor LEDs, LED-B4 5109 K and
+#: LED-B5 6598 K); None is the CIE observer (an ideal camera).
 WORLDS = (("nikon-5100", "LED-B4"), ("sigma-sdmerill", "LED-B5"), (None, "LED-B4"))
 #: Where the customer sees the hair.
 LIGHTS = ("D65", "A", "shop-led")
@@ -238,8 +237,3 @@ def _plot(rows: list[dict], path: Path) -> None:
     fig.suptitle("spectral rig: real cameras' sensitivities under white LEDs, judged by the CIE observer", fontsize=9)
     fig.tight_layout()
     save_figure(fig, path)
-
-
-def quick_set() -> SpectralSet:
-    """A small run for tests: one world, small judge renders."""
-    return replace(SpectralSet(), spp=8, worlds=(("nikon-5100", "LED-B4"),), judge_size=16, judge_spp=16)

@@ -39,6 +39,18 @@ def _why_not(name: str, exc: Exception) -> str:
     return ". ".join(plain) or "its backend does not start (for llvm variants: install Debian's libllvm19)"
 
 
+def _stopped_by(exc: BaseException) -> BaseException | None:
+    """The SystemExit or KeyboardInterrupt among an exception's causes (the import machinery wraps what a
+    signal handler raises inside an extension's import), or None."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, (SystemExit, KeyboardInterrupt)):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
 def select_variant(preferred: str | None = None) -> str:
     """Set and return the first variant that works, warning when it falls back to ``scalar_rgb``.
 
@@ -61,6 +73,9 @@ def select_variant(preferred: str | None = None) -> str:
                     dr.zeros((dr.cuda if name.startswith("cuda") else dr.llvm).Float, 1)
             break
         except Exception as exc:  # ImportError, or "LLVM backend is inactive"
+            stop = _stopped_by(exc)
+            if stop is not None:   # a SIGTERM or Ctrl-C during the import, wrapped as an import error
+                raise stop from None
             errors.append(f"{name}: {_why_not(name, exc)}")
     else:
         raise VariantError("no Mitsuba variant works: " + "; ".join(errors)

@@ -96,3 +96,25 @@ def test_a_signal_held_is_delivered_when_the_block_ends():
             reached.append("after the signal")           # not interrupted inside the block
     assert reached == ["after the signal"]
     assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, set())   # the block is lifted
+
+
+@pytest.mark.parametrize("stop", [SystemExit(143), KeyboardInterrupt()])
+def test_a_stop_during_a_variants_import_stops_and_is_not_taken_for_a_missing_variant(monkeypatch, stop):
+    """A SIGTERM (SystemExit) or Ctrl-C raised inside an extension's import reaches the caller wrapped as
+    an import error; taken as "variant unavailable", the process fell back to scalar_rgb and kept running."""
+    import hairdigi.render.variant as V
+
+    tried = []
+
+    def set_variant(name):
+        tried.append(name)
+        try:
+            raise stop
+        except BaseException as exc:
+            raise ImportError(f"the {name} extension could not be loaded") from exc
+
+    monkeypatch.setattr(V.mi, "variant", lambda: None)
+    monkeypatch.setattr(V.mi, "set_variant", set_variant)
+    with pytest.raises(type(stop)):
+        V.select_variant("auto")
+    assert len(tried) == 1                                      # no fallback tried after the stop
