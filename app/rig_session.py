@@ -391,10 +391,6 @@ class RigSession:
         except ModelError as exc:
             return str(exc)
 
-    def blockers(self, image: np.ndarray) -> list[str]:
-        """Reasons not to estimate from this frame; empty when it is fit."""
-        return self._check(image)[0]
-
     def _check(self, image: np.ndarray):
         """The reasons not to estimate from this frame, and its chart detection (None if not found)."""
         reasons, chart = [], None
