@@ -346,13 +346,15 @@ def evaluate_structures_command(args: argparse.Namespace) -> int:
 
 def evaluate_spectral_command(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --spectral``: hidden spectral hairs through a spectral rig, judged under three lights."""
-    from hairdigi.app.evaluate_spectral import LIGHTS, VIEWS, evaluate_spectral
+    from hairdigi.app.evaluate_spectral import ANSWERS, LIGHTS, VIEWS, evaluate_spectral
 
     s = evaluate_spectral(args.out)
     print(f"{s['estimated']} of {s['captures']} spectral-rig captures estimated; mean-colour ΔE2000 against the "
           f"spectral truth (median / p95 / worst), an observer adapted to each light:")
-    for answer in ("rgb", "spectral"):
+    for answer in ANSWERS:
         for view in VIEWS:
+            if answer not in s:
+                continue
             cells = [f"{light} {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}"
                      for light in LIGHTS for st in [s[answer][f"{view} {light}"]] if st["n"]]
             print(f"  {answer:8s} answer, {view:4s}: " + "; ".join(cells))

@@ -48,7 +48,8 @@ def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int
         [pose.polar_deg, pose.azimuth_deg, pose.distance, half_width]
     look = [] if appearance == DEFAULT_APPEARANCE else [appearance.to_dict()]
     if illuminant is not None:   # a CSV is keyed by its content, so an edited file renders again
-        look += [{"illuminant": _content_key(illuminant), "sensitivities": _content_key(sensitivities)}]
+        look += [{"illuminant": _content_key(illuminant), "sensitivities": _content_key(sensitivities),
+                  "chart": 2}]   # 2: the chart's spectra bent to its reference colours (render.chart)
     hair = hidden.to_dict() if isinstance(hidden, HairParams) else [round(float(v), 6) for v in np.ravel(hidden)]
     key = hashlib.sha256(json.dumps([CACHE_VERSION, hair, list(size), spp, strand_seed, *view, *look],
                                     sort_keys=True).encode()).hexdigest()[:16]
