@@ -38,8 +38,10 @@ print("interrupts", interrupts, "renders", renders, flush=True)
 
 
 def _child(code: str) -> subprocess.Popen:
+    # a test session run in the background ignores SIGINT, and an ignored signal stays ignored in a child
     return subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env={**os.environ, "PYTHONPATH": str(ROOT), "OMP_WAIT_POLICY": "PASSIVE"})
+                            text=True, env={**os.environ, "PYTHONPATH": str(ROOT), "OMP_WAIT_POLICY": "PASSIVE"},
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
 
 @pytest.mark.skipif(not LINUX, reason="signal masks per thread: Linux's /proc")
@@ -89,11 +91,15 @@ def test_a_signal_held_is_delivered_when_the_block_ends():
     if not hasattr(signal, "pthread_sigmask"):
         pytest.skip("no signal masks on this OS")
     reached = []
-    with pytest.raises(KeyboardInterrupt):
-        with sigint_held():
-            signal.pthread_kill(threading.get_ident(), signal.SIGINT)   # to this thread, held here
-            time.sleep(0.05)
-            reached.append("after the signal")           # not interrupted inside the block
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)   # a background session ignores it
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with sigint_held():
+                signal.pthread_kill(threading.get_ident(), signal.SIGINT)   # to this thread, held here
+                time.sleep(0.05)
+                reached.append("after the signal")           # not interrupted inside the block
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert reached == ["after the signal"]
     assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, set())   # the block is lifted
 
