@@ -759,13 +759,9 @@ def _missing_extra(exc: BaseException) -> str | None:
 
 def _caused_by_interrupt(exc: BaseException) -> bool:
     """Whether a KeyboardInterrupt is among the causes of ``exc``."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
-            return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return False
+    from hairdigi.render.base.interrupt import stop_among
+
+    return stop_among(exc, (KeyboardInterrupt,)) is not None
 
 
 def main(argv: list[str] | None = None) -> int:

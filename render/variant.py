@@ -16,7 +16,7 @@ from __future__ import annotations
 import os
 import warnings
 
-from hairdigi.render.base.interrupt import sigint_held
+from hairdigi.render.base.interrupt import sigint_held, stop_among
 
 with sigint_held():   # threads started while Mitsuba loads inherit the block (render.base.interrupt)
     import mitsuba as mi
@@ -37,18 +37,6 @@ def _why_not(name: str, exc: Exception) -> str:
     text = " ".join(str(exc).split())
     plain = [s for s in text.split(". ") if "jit_" not in s and "JitBackend" not in s]
     return ". ".join(plain) or "its backend does not start (for llvm variants: install Debian's libllvm19)"
-
-
-def _stopped_by(exc: BaseException) -> BaseException | None:
-    """The SystemExit or KeyboardInterrupt among an exception's causes (the import machinery wraps what a
-    signal handler raises inside an extension's import), or None."""
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, (SystemExit, KeyboardInterrupt)):
-            return exc
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__
-    return None
 
 
 def select_variant(preferred: str | None = None) -> str:
@@ -73,7 +61,7 @@ def select_variant(preferred: str | None = None) -> str:
                     dr.zeros((dr.cuda if name.startswith("cuda") else dr.llvm).Float, 1)
             break
         except Exception as exc:  # ImportError, or "LLVM backend is inactive"
-            stop = _stopped_by(exc)
+            stop = stop_among(exc)
             if stop is not None:   # a SIGTERM or Ctrl-C during the import, wrapped as an import error
                 raise stop from None
             errors.append(f"{name}: {_why_not(name, exc)}")

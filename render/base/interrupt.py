@@ -32,3 +32,15 @@ def sigint_held() -> Iterator[None]:
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+def stop_among(exc: BaseException | None, kinds: tuple = (SystemExit, KeyboardInterrupt)) -> BaseException | None:
+    """The first exception of ``kinds`` among ``exc`` and its causes, or None: native code (Mitsuba, Dr.Jit)
+    and the import machinery wrap a Ctrl-C or a SIGTERM's SystemExit in errors of their own."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, kinds):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
