@@ -59,7 +59,7 @@ def camera_answer(rgb_answer: HairParams, target_linear: np.ndarray, curve, ccm:
     spectra = colorchecker_spectra()[list(NEUTRALS)]
     targets = np.asarray(chart_targets, float)[list(NEUTRALS)]
     raw_measured = np.linalg.solve(ccm, targets.T).T                       # what the camera read
-    irradiance = (targets / np.array([rgb_projection(r) for r in spectra])).mean(1, keepdims=True)
+    irradiance = (targets / rgb_projection(spectra)).mean(1, keepdims=True)
     raw_model = irradiance * swatch_colour(spectra, led, sensitivities)
     gains = np.median(raw_measured / raw_model, axis=0)
     return fit_table1(rgb_answer, target_linear,

@@ -69,7 +69,7 @@ class SceneSpec:
     ``chart`` is drawn with its measured spectral reflectances (``render.chart.colorchecker_spectra``).
     ``sensitivities`` (spectral renders only) sees it through a camera's R, G, B sensitivities instead
     (``render.spectra.CAMERAS`` or a CSV; Mitsuba's ``specfilm``): the camera's raw linear RGB, each
-    band's peak 1, neither white-balanced nor colour-corrected.
+    band of unit area (``render.spectra.camera_bands``), neither white-balanced nor colour-corrected.
     """
 
     name: str = "swatch"
@@ -360,7 +360,7 @@ class Renderer:
                          seed: int) -> tuple[np.ndarray, int]:
         """``spec`` rendered by the spectral twin of the variant under ``spec.illuminant``, seen by the CIE
         1931 observer (linear sRGB). Built for each call: a spectral scene is not cached."""
-        from hairdigi.render.spectra import camera_sensitivities, illuminant_spd, rgb_projection
+        from hairdigi.render.spectra import camera_bands, illuminant_spd, rgb_projection
 
         sigma = spectral_absorption_of(params)
         keys = group_keys(spec.groups) if spec.groups else ("hair",)
@@ -375,7 +375,7 @@ class Renderer:
             chart = colorchecker_spectra() if is_colorchecker(spec.chart) else None   # its measured spectra
             scenes.spectralise(scene_dict, dict(zip(keys, values)), illuminant_spd(spec.illuminant), chart)
             if spec.sensitivities is not None:
-                scenes.camera_film(scene_dict["sensor"], camera_sensitivities(spec.sensitivities))
+                scenes.camera_film(scene_dict["sensor"], camera_bands(spec.sensitivities))
             try:
                 scene = load_scene(scene_dict)
             finally:

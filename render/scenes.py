@@ -245,18 +245,17 @@ def spectralise(scene: dict, sigma_a: dict[str, np.ndarray], spd: np.ndarray,
     return scene
 
 
-def camera_film(sensor: dict, sensitivities: np.ndarray) -> dict:
-    """A sensor dict's film, in place, made Mitsuba's ``specfilm`` with a camera's (n, 3) R, G, B
-    sensitivities on ``render.spectra.WAVELENGTHS`` (its size, crop and filter kept): raw camera RGB,
-    each band scaled to unit area, so that an equal-energy radiance of 1 reads 1 in every channel."""
-    from hairdigi.render.spectra import WAVELENGTHS, mitsuba_spectrum
+def camera_film(sensor: dict, bands: np.ndarray) -> dict:
+    """A sensor dict's film, in place, made Mitsuba's ``specfilm`` with a camera's (n, 3) R, G, B bands on
+    ``render.spectra.WAVELENGTHS`` (``render.spectra.camera_bands``: unit area, so an equal-energy
+    radiance of 1 reads 1 in every channel), its size, crop and filter kept: raw camera RGB."""
+    from hairdigi.render.spectra import mitsuba_spectrum
 
-    sensitivities = np.asarray(sensitivities, float)
-    sensitivities = sensitivities / (sensitivities.sum(0) * float(WAVELENGTHS[1] - WAVELENGTHS[0]))
+    bands = np.asarray(bands, float)
     film = sensor["film"]
     film["type"] = "specfilm"
     film.pop("pixel_format", None)
     film["component_format"] = "float32"
     for k, band in enumerate(("band1_r", "band2_g", "band3_b")):   # specfilm orders channels by name
-        film[band] = mitsuba_spectrum(sensitivities[:, k])
+        film[band] = mitsuba_spectrum(bands[:, k])
     return sensor

@@ -42,6 +42,7 @@ from hairdigi.render.base.params import HairParams
 
 #: nm: Mitsuba's spectral range (``MI_CIE_MIN``..``MI_CIE_MAX``) every 5 nm.
 WAVELENGTHS = np.arange(360.0, 830.0 + 1e-9, 5.0)
+STEP_NM = 5.0
 #: Power-law exponents of the melanins' absorption (Donner & Jensen 2006).
 EUMELANIN_EXPONENT = 3.33
 PHEOMELANIN_EXPONENT = 4.75
@@ -299,9 +300,15 @@ def swatch_colour(reflectance: np.ndarray, light: str, sensitivities: str | None
 
     radiance = np.asarray(reflectance, float) * illuminant_spd(light)
     if sensitivities is not None:
-        bands = camera_sensitivities(sensitivities)
-        return radiance @ (bands / bands.sum(0))
+        return radiance @ camera_bands(sensitivities) * STEP_NM   # the film's integral, sample by sample
     return colour.XYZ_to_RGB(spectrum_to_xyz(radiance), colour.RGB_COLOURSPACES["sRGB"], apply_cctf_encoding=False)
+
+
+def camera_bands(name: str) -> np.ndarray:
+    """A camera's sensitivities (:func:`camera_sensitivities`) as its film weighs radiance: each band of
+    unit area over wavelength (per nm), so that an equal-energy radiance of 1 reads 1 in every channel."""
+    bands = camera_sensitivities(name)
+    return bands / (bands.sum(0) * STEP_NM)
 
 
 def spectrum_to_xyz(radiance: np.ndarray) -> np.ndarray:
