@@ -317,7 +317,7 @@ def evaluate_structures_command(args: argparse.Namespace) -> int:
               f"{', '.join(STRUCTURES)}", file=sys.stderr)
         return 2
     s = evaluate_structures(args.out, StructureSet(random=args.rig_random, size=min(args.size, 64), spp=args.spp,
-                                                   blender=args.blender, structures=hidden))
+                                                   blender=args.blender, structures=hidden, seed=args.held_out))
     print(f"{s['judged']} of {s['swatches']} hidden swatches judged ({s['renderer']}); mean-colour ΔE2000 against "
           f"the truth on the hidden strands, median / p95 / worst:")
     for mode in MODES:
@@ -634,6 +634,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "judge in Blender Cycles (HAIRDIGI_BLENDER)")
     p.add_argument("--hidden-structures", metavar="NAME,NAME,...", help="with --structures: the structures to hide "
                    "hairs in (default: layered and the physical family)")
+    p.add_argument("--held-out", type=int, metavar="SEED", help="with --structures: in place of the named cases, "
+                   "--rig-random N uniform Table 1 hairs and N dark ones (melanin 0.95-1.0) drawn with this seed "
+                   "(>= 1), no layouts: a check of rules chosen on the named cases; a run cut short resumes "
+                   "from --out")
     p.add_argument("--default-shine", action="store_true", help="with --cycles: every hidden swatch at the default "
                    "shine, no single-light frames (the renderer and the swatch's structure alone)")
     p.add_argument("--ship", action="store_true", help="with --rig: ship the measured colour interval "

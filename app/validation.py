@@ -502,7 +502,8 @@ def check_export(args: argparse.Namespace) -> None:
 EVALUATE_MODES = ("dye", "rig", "appearance", "cycles", "structures", "spectral", "convergence", "prepare_only")
 #: Flags that go with one mode only.
 EVALUATE_MODE_FLAGS = {"ship": ("rig", "appearance", "structures"), "no_variation": ("appearance",),
-                       "default_shine": ("cycles",), "blender": ("structures",), "hidden_structures": ("structures",)}
+                       "default_shine": ("cycles",), "blender": ("structures",), "hidden_structures": ("structures",),
+                       "held_out": ("structures",)}
 
 
 def _flag(name: str) -> str:
@@ -526,6 +527,8 @@ def check_evaluate_modes(args: argparse.Namespace) -> None:
 def check_evaluate(args: argparse.Namespace) -> None:
     """``hairdigi evaluate``: its modes, the model and the output folder."""
     check_evaluate_modes(args)
+    if getattr(args, "held_out", None) is not None and args.held_out < 1:
+        raise ArgumentError(f"--held-out {args.held_out}: a seed is a whole number >= 1 (the named cases use their own)")
     if args.model and not args.prepare_only:
         check_input_file(args.model, "--model")
     check_output_dir(args.out, "--out", {"--model": args.model})

@@ -1,6 +1,8 @@
 """The family of physical swatches, and the estimate on a swatch of a structure it did not assume."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -219,3 +221,32 @@ def test_to_family_maps_the_answer_to_the_family_mean_and_keeps_flat_channels() 
     assert np.array_equal(to_family(black, family), black)   # the same colour on the mean
     spread = nuisance(mapped, family)
     assert spread["a"] > 0 and spread["b"] > 0           # the family's members lie either side of its mean
+
+
+def test_a_held_out_set_has_no_named_case_and_spans_the_dark_rule(tmp_path) -> None:
+    """``--held-out SEED``: other hairs than the ones the rules were chosen on, dark ones across DARK_SIGMA;
+    a run cut short keeps its judged rows only for the same settings."""
+    from hairdigi.inference.structure import DARK_SIGMA
+    from hairdigi.inference.training.evaluate_structures import CASES, StructureSet, _resumed, hidden_hairs
+    from hairdigi.render.absorption import hair_sigma_a
+
+    named = hidden_hairs(StructureSet(random=3))
+    assert [n for n, _, _ in named[:len(CASES)]] == list(CASES)
+    held = hidden_hairs(StructureSet(random=6, seed=11))
+    assert len(held) == 12 and not {n for n, _, _ in held} & set(CASES)
+    assert {h for _, h, _ in held}.isdisjoint({h for _, h, _ in named})
+    dark = [hair_sigma_a(h) for n, h, _ in held if n.startswith("dark")]
+    light = [hair_sigma_a(h) for n, h, _ in held if n.startswith("random")]
+    assert len(dark) == 6 and min(s.min() for s in dark) > 0.7    # dark brown to black ...
+    assert max(s.max() for s in dark) > DARK_SIGMA                # ... reaching the rule's level
+    assert min(s.min() for s in dark) > np.median([s.min() for s in light])
+    assert hidden_hairs(StructureSet(random=6, seed=11)) == held
+    assert hidden_hairs(StructureSet(random=6, seed=12)) != held
+
+    path = tmp_path / "structures_evaluation.json"
+    settings = {"size": 48, "spp": 64, "seed": 11}
+    path.write_text(json.dumps({"settings": settings, "rows": [{"hidden": "dark 0", "structure": "loose"}]}))
+    assert _resumed(path, settings) == [{"hidden": "dark 0", "structure": "loose"}]
+    assert _resumed(path, {**settings, "spp": 128}) == []
+    path.write_text("{not json")
+    assert _resumed(path, settings) == []

@@ -55,16 +55,32 @@ class StructureSet:
     structures: tuple[str, ...] = HIDDEN
     layouts: bool = True     # measure the layout nuisance
     blender: bool = False    # hidden swatches and judge in Blender Cycles (HAIRDIGI_BLENDER)
+    seed: int | None = None  # held out: draws of this seed in place of the named cases, half of them dark
+
+
+#: A held-out dark hair's melanin concentration: from dark brown (its least sigma_a near 1) to
+#: black (near 2; the estimate of black reads 3.9-8), either side of ``inference.structure.DARK_SIGMA``, the rule chosen on the named cases.
+DARK_MELANIN = (0.95, 1.0)
 
 
 def hidden_hairs(config: StructureSet) -> list[tuple[str, HairParams, float]]:
-    """(name, Table 1, shine) of each hidden hair."""
+    """(name, Table 1, shine) of each hidden hair: the named cases and ``random`` uniform Table 1 draws or,
+    held out (``seed``), ``random`` uniform draws and as many dark ones."""
     from hairdigi.render.base.appearance import APPEARANCE_DRAW
 
-    rng = np.random.default_rng(SEED)
-    drawn = [(f"random {i}", sample_params(rng), round(float(rng.uniform(*APPEARANCE_DRAW["longitudinal_roughness"])), 3))
-             for i in range(config.random)]
-    return [(n, h, b) for n, (h, b) in CASES.items()] + drawn
+    rng = np.random.default_rng(SEED if config.seed is None else config.seed)
+
+    def shine() -> float:
+        return round(float(rng.uniform(*APPEARANCE_DRAW["longitudinal_roughness"])), 3)
+
+    drawn = [(f"random {i}", sample_params(rng), shine()) for i in range(config.random)]
+    if config.seed is None:
+        return [(n, h, b) for n, (h, b) in CASES.items()] + drawn
+    dark = []
+    for i in range(config.random):
+        hair = replace(sample_params(rng), melanin_concentration=float(rng.uniform(*DARK_MELANIN)))
+        dark.append((f"dark {i}", hair, shine()))
+    return [h for pair in zip(drawn, dark) for h in pair]
 
 
 class _Mitsuba:
@@ -212,29 +228,45 @@ def evaluate_structures(out_dir: str | os.PathLike, config: StructureSet = Struc
     hairs = hidden_hairs(config)
     # hair by hair, every structure in turn: a run cut short has judged every structure alike
     jobs = [(h, s, 501 + k) for h in hairs for k, s in enumerate(config.structures)]
-    rows: list[dict] = []
+    settings = {"size": config.size, "spp": config.spp, "blender": config.blender, "seed": config.seed,
+                "random": config.random}
+    rows = _resumed(out / "structures_evaluation.json", settings)
+    done = {(r["hidden"], r["structure"]) for r in rows if "error" not in r}
+    rows = [r for r in rows if (r["hidden"], r["structure"]) in done]
     layout_rows: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="hairdigi-structures-") as tmp:
         render = _Cycles(config, Path(tmp)) if config.blender else _Mitsuba(config)
         for i, ((name, params, shine), structure, layout) in enumerate(
                 tqdm(jobs, desc="hidden swatches", unit="swatch", disable=not progress)):
+            if (name, structure) in done:
+                continue
             try:
                 rows.append(_one(name, params, shine, structure, layout, render, encoder, family, 100 * i))
             except Exception as exc:   # noqa: BLE001 - a failure is reported in the table, the run goes on
                 rows.append({"hidden": name, "structure": structure, "error": f"{type(exc).__name__}: {exc}"})
-            write_json_atomic(out / "structures_evaluation.json", {"rows": rows})
-        if config.layouts:
+            write_json_atomic(out / "structures_evaluation.json", {"settings": settings, "rows": rows})
+        if config.layouts and config.seed is None:
             for i, (name, params, shine) in enumerate(tqdm(hairs[:len(CASES)], desc="layouts", disable=not progress)):
                 try:
                     layout_rows.append(_layout_row(name, params, shine, render, encoder, family, 90_000 + 10 * i))
                 except Exception as exc:   # noqa: BLE001
                     layout_rows.append({"hidden": name, "error": f"{type(exc).__name__}: {exc}"})
     summary = summarise(rows, layout_rows, config, family_s)
-    write_json_atomic(out / "structures_evaluation.json", {"summary": summary, "rows": rows, "layouts": layout_rows})
+    write_json_atomic(out / "structures_evaluation.json",
+                      {"settings": settings, "summary": summary, "rows": rows, "layouts": layout_rows})
     write_csv_atomic(out / "structures_evaluation.csv", [{k: (json.dumps(v) if isinstance(v, list) else v)
                                                          for k, v in r.items()} for r in rows])
     _plot(rows, out / "structures_evaluation.png", config)
     return summary
+
+
+def _resumed(path: Path, settings: dict) -> list[dict]:
+    """The rows a cut-short run of the same settings left in ``path`` (none if the settings differ)."""
+    try:
+        old = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return []
+    return list(old.get("rows", [])) if old.get("settings") == settings else []
 
 
 def summarise(rows: list[dict], layout_rows: list[dict], config: StructureSet, family_s: float = 0.0) -> dict:
