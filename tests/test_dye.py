@@ -204,15 +204,13 @@ def test_a_grey_absorption_looks_the_same_under_every_light_on_the_card(curve):
     assert all(v["de2000_from_daylight"] < 0.5 for v in grey.values())
 
 
-def test_dye_panel_characterises_session_captures(curve, tmp_path):
-    """The app's Dye panel: captures of the session listed, two pairs characterised and saved."""
+def test_dye_panel_characterises_session_captures(curve, tmp_path, qtbot):
+    """The app's Dye panel: captures of the session listed, two pairs characterised and saved (its model's
+    works run in workers: the panel shows what they found when they are done)."""
     from dataclasses import replace
-
-    from PySide6.QtWidgets import QApplication
 
     from hairdigi.app.gui.dye_panel import DyePanel, select_path
 
-    app = QApplication.instance() or QApplication([])
     captures = tmp_path / "captures"
     paths = {}
     for level in (8, 5):
@@ -223,16 +221,18 @@ def test_dye_panel_characterises_session_captures(curve, tmp_path):
             write_record(paths[name], replace(_record(sigma, level), capture=f"{name}.png"))
     (captures / "blocked.result.json").write_text(json.dumps({"capture": "b.png", "blocked": ["no chart"]}))
     panel = DyePanel(tmp_path)
-    assert panel.base_combo.count() == 4          # the blocked capture is not offered
+    qtbot.addWidget(panel)
+    qtbot.waitUntil(lambda: panel.base_combo.count() == 4, timeout=20_000)   # the blocked capture is not offered
     for level in (8, 5):
         assert select_path(panel.base_combo, paths[f"base{level}"]) and select_path(panel.dyed_combo, paths[f"dyed{level}"])
         panel.add_pair()
+    assert panel.pair_list.count() == 2
     panel.name_edit.setText("Copper 7/4")
     panel.characterise()
+    qtbot.waitUntil(lambda: panel.dye_combo.currentText() == "Copper-7-4", timeout=60_000)
     saved = read_record(tmp_path / "dyes" / "Copper-7-4.json", DyeRecord)
     assert saved.lift == pytest.approx(LIFT, abs=1e-4) and saved.lift_measured
-    assert "lift 0.35" in panel.dye_info.text() and panel.dye_combo.currentText() == "Copper-7-4"
-    app.processEvents()
+    assert "lift 0.35" in panel.dye_info.text()
 
 
 def test_evaluation_dyes_are_table1_hair_with_the_model_sigma():

@@ -140,7 +140,7 @@ def test_dye_apply_checks_the_hairstyles_it_writes_beside_the_render(ws, capsys)
 
 
 def test_dye_panel_never_saves_one_dye_over_another(tmp_path):
-    from hairdigi.app.gui.dye_panel import dye_path
+    from hairdigi.app.dye_model import dye_path
 
     saved = []
     for name in ["Copper 7.4", "Copper/7.4", "Copper-7.4", "染料", "色", "dye", ".json"]:

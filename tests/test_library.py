@@ -355,19 +355,23 @@ def test_library_panel_search_sort_find_compare_review(tmp_path, lib_env, qtbot,
         import_paths(lib, [tmp_path / "march", tmp_path / "april"], progress=lambda line: None)
         lib.tag("20260021-000001", ["copper"])
     library = Library()
-    panel = LibraryPanel(library)
+    panel = LibraryPanel(library)           # queries run in workers: the table fills when they are done
     qtbot.addWidget(panel)
     panel.resize(900, 700)
     panel.show()
-    assert panel.table.rowCount() == 10
-    panel.search.setText("copper")
-    assert panel.table.rowCount() == 1 and "copper" in panel.table.item(0, 4).text()
+    qtbot.waitUntil(lambda: panel.table.rowCount() == 10, timeout=20_000)
+    panel.search.setText("copper")          # run once typing pauses
+    qtbot.waitUntil(lambda: panel.table.rowCount() == 1, timeout=20_000)
+    assert "copper" in panel.table.item(0, 4).text()
     panel.search.setText("")
+    qtbot.waitUntil(lambda: panel.table.rowCount() == 10, timeout=20_000)
     panel.sort.setCurrentIndex(1)           # by colour, light to dark
+    qtbot.waitUntil(lambda: panel.model.rows.query.order == "colour", timeout=20_000)
     lightness = [s.labs["daylight"][0] for s in panel.swatches]
     assert lightness == sorted(lightness, reverse=True)
     panel.near.setText("#8a4a30")
     panel.refresh()
+    qtbot.waitUntil(lambda: panel.table.item(0, 1) is not None and panel.table.item(0, 1).text() != "", timeout=20_000)
     des = [float(panel.table.item(r, 1).text()) for r in range(panel.table.rowCount())]
     assert des == sorted(des) and len(des) == 10
     panel.table.selectRow(0)
@@ -379,10 +383,12 @@ def test_library_panel_search_sort_find_compare_review(tmp_path, lib_env, qtbot,
     assert panel.delta.text() == expected and "daylight: ΔE2000" in expected
     assert panel.left.chip.text().startswith("#") and panel.right.caption.text().startswith("march") or \
         panel.right.caption.text().startswith("april")
+    qtbot.waitUntil(lambda: not panel.left.image.pixmap().isNull() and not panel.right.image.pixmap().isNull(),
+                    timeout=20_000)         # the captures, read in a worker
     panel.open_review()                     # not the window's session: a dialog with the capture
-    assert panel.review_dialog.isVisible()
-    panel.export_to(chosen[0], str(tmp_path / "chosen.mtlx"), "materialx")    # Export → MaterialX
-    assert "chiang_hair_bsdf" in (tmp_path / "chosen.mtlx").read_text()
-    assert panel.status.text().startswith("wrote")
+    assert panel.review_dialog.isVisible() and not panel.review_dialog.side.image.pixmap().isNull()
+    task = panel.export_to(chosen[0], str(tmp_path / "chosen.mtlx"), "materialx")    # Export → MaterialX
+    qtbot.waitUntil(lambda: panel.status.text().startswith("wrote"), timeout=20_000)
+    assert task is not None and "chiang_hair_bsdf" in (tmp_path / "chosen.mtlx").read_text()
     panel.grab().save(str(test_output / "library-panel.png"))
     library.close()

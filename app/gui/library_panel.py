@@ -1,25 +1,39 @@
 """The Library panel (a dock of the main window): search the swatch library, sort by colour, find near a
 colour, open a capture's review, and compare two swatches side by side with their ΔE2000.
 
-The library is ``app/library.py`` (Qt-free); this file holds widgets only."""
+A view of ``app/library_model.py``'s :class:`LibraryModel` (free of Qt), which owns the query, the rows,
+the chosen swatches and their images, and the work behind them: the panel runs the model's works in
+the window's worker pool and shows what the model's events carry; it queries nothing and reads no file
+on the UI thread. The search runs once typing pauses (``SEARCH_DELAY_MS``), and a newer query
+supersedes an older one."""
 from __future__ import annotations
 
 from pathlib import Path
 
-from PySide6.QtCore import Qt
+from PySide6.QtCore import QItemSelectionModel, Qt, QTimer
 from PySide6.QtGui import QColor
 from PySide6.QtWidgets import (QAbstractItemView, QComboBox, QDialog, QDockWidget, QFileDialog, QGridLayout, QHBoxLayout,
                                QLabel, QLineEdit, QPushButton, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
+from hairdigi.app import library_model
 from hairdigi.app import library_view as view
 from hairdigi.app.gui.images import to_pixmap
-from hairdigi.app.gui.workers import POOL, Task, start
-from hairdigi.app.library import Library, Swatch, redact
-from hairdigi.app.swatch_colour import ILLUMINANTS, hex_lab
+from hairdigi.app.gui.workers import POOL, Jobs, Task, start
+from hairdigi.app.library import Library, Swatch
+from hairdigi.app.library_model import MAX_ROWS, LibraryModel
+from hairdigi.app.swatch_colour import ILLUMINANTS
 
 COLUMNS = ("colour", "ΔE2000", "captured", "where", "tags", "note", "id")
 SORTS = {"newest first": "captured", "by colour (light to dark)": "colour"}
-MAX_ROWS = 500    # rows the table shows; search or find near a colour to reach the rest
+SEARCH_DELAY_MS = 250     # the search runs once typing pauses this long
+SELECT_ROW = QItemSelectionModel.SelectionFlag.Select | QItemSelectionModel.SelectionFlag.Rows
+
+__all__ = ["LibraryPanel", "SwatchView", "add_library_dock", "MAX_ROWS", "SEARCH_DELAY_MS"]
+
+
+def _ink(hex_colour: str) -> str:
+    c = QColor(hex_colour)
+    return "#000" if 0.3 * c.red() + 0.6 * c.green() + 0.1 * c.blue() > 128 else "#fff"
 
 
 def _chip(label: QLabel, hex_colour: str | None, text: str = "") -> None:
@@ -27,9 +41,7 @@ def _chip(label: QLabel, hex_colour: str | None, text: str = "") -> None:
         label.setStyleSheet("background:#1e1e22; color:#aaa; border:1px solid #444")
         label.setText(text or "no colour")
         return
-    c = QColor(hex_colour)
-    ink = "#000" if 0.3 * c.red() + 0.6 * c.green() + 0.1 * c.blue() > 128 else "#fff"
-    label.setStyleSheet(f"background:{hex_colour}; color:{ink}; border:1px solid #888")
+    label.setStyleSheet(f"background:{hex_colour}; color:{_ink(hex_colour)}; border:1px solid #888")
     label.setText(text or hex_colour)
 
 
@@ -39,6 +51,7 @@ class SwatchView(QWidget):
     def __init__(self, parent=None) -> None:
         super().__init__(parent)
         v = QVBoxLayout(self)
+        self.swatch: Swatch | None = None
         self.image = QLabel("–")
         self.image.setAlignment(Qt.AlignmentFlag.AlignCenter)
         self.image.setMinimumSize(150, 100)
@@ -54,22 +67,29 @@ class SwatchView(QWidget):
             v.addWidget(w)
         _chip(self.chip, None, "–")
 
-    def show_swatch(self, swatch: Swatch | None, under: str) -> None:
+    def show_swatch(self, swatch: Swatch | None, under: str, image: tuple[bool, object] = (False, None)) -> None:
+        """Show ``swatch`` under the light ``under``; ``image``: (read yet, the captured image or None)."""
+        self.swatch = swatch
         if swatch is None:
             self.image.clear()
             self.image.setText("–")
             _chip(self.chip, None, "–")
             self.caption.setText("select a swatch")
             return
-        image = view.capture_image(swatch)
-        if image is None:
-            self.image.clear()
+        self.show_image(*image)
+        hex_colour = view.chip_hex(swatch, under)
+        _chip(self.chip, hex_colour, f"{hex_colour or 'no colour'} ({under})")
+        self.caption.setText(view.describe(swatch))
+
+    def show_image(self, read: bool, rgb) -> None:
+        self.image.clear()
+        if not read:
+            self.image.setText("reading…")
+        elif rgb is None:
             self.image.setText("image not on this machine")
         else:
-            self.image.setPixmap(to_pixmap(image).scaled(150, 110, Qt.AspectRatioMode.KeepAspectRatio,
-                                                         Qt.TransformationMode.SmoothTransformation))
-        _chip(self.chip, view.chip_hex(swatch, under), f"{view.chip_hex(swatch, under) or 'no colour'} ({under})")
-        self.caption.setText(view.describe(swatch))
+            self.image.setPixmap(to_pixmap(rgb).scaled(150, 110, Qt.AspectRatioMode.KeepAspectRatio,
+                                                       Qt.TransformationMode.SmoothTransformation))
 
 
 class LibraryPanel(QWidget):
@@ -77,28 +97,16 @@ class LibraryPanel(QWidget):
 
     def __init__(self, library: Library, window=None, parent=None) -> None:
         super().__init__(parent)
+        self.model = LibraryModel(library)
         self.library = library
         self.window_ = window
-        self.swatches: list[Swatch] = []
-        self.distances: dict[str, float] = {}
+        self.jobs = Jobs(self.model.apply, lambda text: self.status.setText(f"library: {text}"), owner=self)
+        self.search_timer = QTimer(self)
+        self.search_timer.setSingleShot(True)
+        self.search_timer.setInterval(SEARCH_DELAY_MS)
+        self.search_timer.timeout.connect(self.refresh)
         v = QVBoxLayout(self)
-        row = QHBoxLayout()
-        self.search = QLineEdit()
-        self.search.setPlaceholderText("search id, capture, session, tag, note")
-        self.search.textChanged.connect(lambda _: self.refresh())
-        self.near = QLineEdit()
-        self.near.setPlaceholderText("near #RRGGBB")
-        self.near.setMaximumWidth(110)
-        self.near.returnPressed.connect(self.refresh)
-        self.sort = QComboBox()
-        self.sort.addItems(list(SORTS))
-        self.sort.currentIndexChanged.connect(lambda _: self.refresh())
-        self.light = QComboBox()
-        self.light.addItems(list(ILLUMINANTS))
-        self.light.currentIndexChanged.connect(lambda _: self.refresh())
-        for w in (self.search, self.near, self.sort, self.light):
-            row.addWidget(w)
-        v.addLayout(row)
+        v.addLayout(self._query_row())
         self.table = QTableWidget(0, len(COLUMNS))
         self.table.setHorizontalHeaderLabels(list(COLUMNS))
         self.table.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
@@ -112,7 +120,7 @@ class LibraryPanel(QWidget):
         for text, slot in (("Open review", self.open_review), ("Export…", self.export_dialog),
                            ("Import session…", self.import_dialog), ("Refresh", self.refresh)):
             b = QPushButton(text)
-            b.clicked.connect(slot)
+            b.clicked.connect(lambda _=False, slot=slot: slot())
             row.addWidget(b)
         v.addLayout(row)
         compare = QGridLayout()
@@ -124,67 +132,107 @@ class LibraryPanel(QWidget):
         self.delta.setStyleSheet("font-weight:bold")
         compare.addWidget(self.delta, 1, 0, 1, 2)
         v.addLayout(compare)
-        self.status = QLabel()
+        self.status = QLabel("reading the library…")
         self.status.setWordWrap(True)
         self.status.setStyleSheet("font-size:10px; color:#666")
         v.addWidget(self.status)
+        ev = self.model.events
+        for event, callback in ((ev.rows, self._show_rows), (ev.selection, self._show_selection),
+                                (ev.image, self._show_image), (ev.changed, lambda _: self.refresh()),
+                                (ev.status, self.status.setText)):
+            event.connect(callback)
         self.refresh()
+
+    def _query_row(self) -> QHBoxLayout:
+        row = QHBoxLayout()
+        self.search = QLineEdit()
+        self.search.setPlaceholderText("search id, capture, session, tag, note")
+        self.search.textChanged.connect(self._typed)
+        self.near = QLineEdit()
+        self.near.setPlaceholderText("near #RRGGBB")
+        self.near.setMaximumWidth(110)
+        self.near.returnPressed.connect(self.refresh)
+        self.sort = QComboBox()
+        self.sort.addItems(list(SORTS))
+        self.sort.currentIndexChanged.connect(lambda _: self.refresh())
+        self.light = QComboBox()
+        self.light.addItems(list(ILLUMINANTS))
+        self.light.currentIndexChanged.connect(lambda _: self.refresh())
+        for w in (self.search, self.near, self.sort, self.light):
+            row.addWidget(w)
+        return row
 
     @property
     def under(self) -> str:
-        return self.light.currentText()
+        return self.model.query.under
 
-    def refresh(self) -> None:
-        """Read the library again with the search, the colour and the order chosen."""
-        near = self.near.text().strip()
-        self.distances = {}
-        try:
-            if near:
-                matches = self.library.find(hex_lab(near), self.under, k=200)
-                text = self.search.text().strip().lower()
-                matches = [(s, d) for s, d in matches if not text or text in
-                           " ".join([s.id, s.capture_id or "", s.session or "", s.note, *s.tags]).lower()]
-                self.swatches = [s for s, _ in matches]
-                self.distances = {s.id: d for s, d in matches}
-            else:
-                self.swatches = self.library.all(self.search.text().strip(), SORTS[self.sort.currentText()],
-                                                 limit=MAX_ROWS)
-        except ValueError as exc:
-            self.status.setText(str(exc))
-            return
-        self.table.setRowCount(len(self.swatches))
-        for r, s in enumerate(self.swatches):
-            hex_colour = view.chip_hex(s, self.under)
+    @property
+    def swatches(self) -> tuple[Swatch, ...]:
+        return self.model.rows.swatches
+
+    @property
+    def distances(self) -> dict[str, float]:
+        return self.model.rows.distances
+
+    # -- the query ------------------------------------------------------------------------------
+    def _typed(self, _text: str) -> None:
+        """A key in the search: the query runs once typing pauses (each key restarts the wait)."""
+        self.search_timer.start()
+
+    def refresh(self) -> Task | None:
+        """Query the library again (in a worker) with the search, the colour, the order and the light chosen."""
+        self.search_timer.stop()
+        self.model.set_query(text=self.search.text(), near=self.near.text(), order=SORTS[self.sort.currentText()],
+                             under=self.light.currentText())
+        return self.jobs.run("query", self.model.query_work())
+
+    def _show_rows(self, rows: library_model.Rows) -> None:
+        under, chosen = rows.query.under, {s.id for s in self.model.selection.swatches}
+        self.table.blockSignals(True)
+        self.table.clearSelection()
+        self.table.setRowCount(len(rows.swatches))
+        for r, s in enumerate(rows.swatches):
+            hex_colour = view.chip_hex(s, under)
             chip = QTableWidgetItem(hex_colour or "–")
             if hex_colour:
                 chip.setBackground(QColor(hex_colour))
-                c = QColor(hex_colour)
-                chip.setForeground(QColor("#000" if 0.3 * c.red() + 0.6 * c.green() + 0.1 * c.blue() > 128 else "#fff"))
-            de = self.distances.get(s.id)
+                chip.setForeground(QColor(_ink(hex_colour)))
+            de = rows.distances.get(s.id)
             where = f"{Path(s.session).name}/{s.capture_id}" if s.session else Path(s.record_path or "").name
             cells = [chip, QTableWidgetItem("" if de is None else f"{de:.2f}"), QTableWidgetItem(s.captured or ""),
                      QTableWidgetItem(where), QTableWidgetItem(", ".join(s.tags)), QTableWidgetItem(s.note),
                      QTableWidgetItem(s.id)]
             for c, item in enumerate(cells):
                 self.table.setItem(r, c, item)
+            if s.id in chosen:             # the swatches chosen stay chosen where the new rows hold them
+                self.table.selectionModel().select(self.table.model().index(r, 0), SELECT_ROW)
+        self.table.blockSignals(False)
         self.table.resizeColumnsToContents()
-        self.status.setText(f"library {redact(self.library.where)}: {self.library.count()} swatches; "
-                            f"{len(self.swatches)} shown" + (" (the first ones: search to narrow)" if len(self.swatches) >= MAX_ROWS
-                                                               else ""))
         self.show_comparison()
 
+    # -- the chosen swatches ------------------------------------------------------------------------
     def selected(self) -> list[Swatch]:
         rows = sorted({i.row() for i in self.table.selectedIndexes()})
         return [self.swatches[r] for r in rows if r < len(self.swatches)]
 
     def show_comparison(self) -> None:
-        chosen = self.selected()[:2]
-        self.left.show_swatch(chosen[0] if chosen else None, self.under)
-        self.right.show_swatch(chosen[1] if len(chosen) > 1 else None, self.under)
-        if len(chosen) == 2:
-            self.delta.setText(view.compare(*chosen).text())
-        else:
-            self.delta.setText("select two swatches to compare them")
+        self.model.select(self.selected())
+        self.jobs.run("images", self.model.image_work())
+
+    def _show_selection(self, selection: library_model.Selection) -> None:
+        chosen = selection.swatches
+        for side, swatch in ((self.left, chosen[0] if chosen else None),
+                             (self.right, chosen[1] if len(chosen) > 1 else None)):
+            side.show_swatch(swatch, self.under, self.model.image(swatch) if swatch is not None else (False, None))
+        self.delta.setText(selection.comparison.text() if selection.comparison is not None
+                           else "select two swatches to compare them")
+
+    def _show_image(self, image: library_model.SwatchImage) -> None:
+        dialog = getattr(self, "review_dialog", None)
+        sides = [self.left, self.right] + ([dialog.side] if dialog is not None else [])
+        for side in sides:
+            if side.swatch is not None and side.swatch.id == image.swatch_id:
+                side.show_image(True, image.rgb)
 
     def open_review(self) -> None:
         """The capture's review: in the window when it is of the window's session, else in a dialog."""
@@ -199,12 +247,14 @@ class LibraryPanel(QWidget):
         dialog = QDialog(self)
         dialog.setWindowTitle(f"hairdigi — {s.capture_id or s.id}")
         layout = QVBoxLayout(dialog)
-        side = SwatchView()
-        side.show_swatch(s, self.under)
-        layout.addWidget(side)
+        dialog.side = SwatchView()
+        dialog.side.show_swatch(s, self.under, self.model.image(s))
+        layout.addWidget(dialog.side)
         dialog.show()
         self.review_dialog = dialog
+        self.jobs.run("review image", self.model.image_work([s]))
 
+    # -- export and import --------------------------------------------------------------------------
     def export_dialog(self) -> None:
         """Export → MaterialX (.mtlx) or Blender (.py) of the selected swatch's estimate."""
         chosen = self.selected()
@@ -218,48 +268,21 @@ class LibraryPanel(QWidget):
         if path:
             self.export_to(s, path, "blender" if path.endswith(".py") or "Blender" in kind else "materialx")
 
-    def export_to(self, swatch: Swatch, path: str, fmt: str) -> None:
-        from hairdigi.app.export_cli import export_record
-
-        try:
-            written = export_record(swatch.record_path, fmt, path, name=swatch.capture_id or swatch.id)
-        except (ValueError, OSError) as exc:
-            self.status.setText(f"export: {exc}")
-            return
-        self.status.setText(f"wrote {written[0]}")
+    def export_to(self, swatch: Swatch, path: str, fmt: str) -> Task | None:
+        """Write the export in a worker; the status says where when it is done."""
+        return self.jobs.run("export", self.model.export_work(swatch, path, fmt))
 
     def import_dialog(self) -> None:
         folder = QFileDialog.getExistingDirectory(self, "Import a session folder into the library")
         if folder:
             self.import_sessions([folder])
 
-    def import_sessions(self, folders: list[str]) -> Task:
+    def import_sessions(self, folders: list[str]) -> Task | None:
         """Import in a worker, on its own connection; the table refreshes when it is done."""
-        where = self.library.where
+        return self.jobs.run(None, self.model.import_work(folders))      # never cancelled by the next one
 
-        def work():
-            from hairdigi.app.library_import import import_paths
-
-            with Library(where) as lib:
-                return import_paths(lib, folders, progress=lambda line: None)
-        return self._run(work, f"imported {', '.join(folders)}")
-
-    def first_run(self) -> Task:
-        where = self.library.where
-
-        def work():
-            from hairdigi.app.library_import import first_run
-
-            with Library(where) as lib:
-                return first_run(lib, progress=lambda line: None)
-        return self._run(work, "sessions written before the library imported")
-
-    def _run(self, fn, done_text: str) -> Task:
-        task = Task(fn, "library")
-        task.signals.done.connect(lambda n: (self.refresh(), self.status.setText(f"{done_text}: {n} swatches")))
-        task.signals.failed.connect(lambda message: self.status.setText(f"library: {message}"))
-        self._task = task
-        return start(task, POOL)
+    def first_run(self) -> Task | None:
+        return self.jobs.run(None, self.model.first_run_work())
 
 
 def _open_or_reason():
@@ -302,7 +325,8 @@ def add_library_dock(window) -> QDockWidget:
             if not isinstance(result, str):
                 result.close()
             return
-        dock.destroyed.connect(lambda *_: result.close())
+        model = panel.model
+        dock.destroyed.connect(lambda *_: model.close())
         panel.first_run()
         captured = getattr(window, "captured", None)
         session = getattr(getattr(window, "session", None), "folder", None)

@@ -77,6 +77,63 @@ def start(task: Task, pool: QThreadPool | None = None) -> Task:
     return task
 
 
+class Jobs:
+    """A view's running model works (``review.Work``), at most one per name: a new one cancels the one it
+    replaces. What a work yields and returns goes to ``apply`` (the model's) on the UI thread, a failure's
+    one line to ``failed``, and its ``ended`` runs there when it is over. Each task is kept until it
+    finishes (a :class:`Task` does not delete itself); once ``owner`` is destroyed, every task is
+    cancelled and what is still in flight is dropped."""
+
+    def __init__(self, apply: Callable[[object], None], failed: Callable[[str], None], owner: QObject | None = None,
+                 pool: QThreadPool | None = None) -> None:
+        self.apply, self.failed, self.pool = apply, failed, pool or POOL
+        self.named: dict[str, Task] = {}
+        self.running: set[Task] = set()
+        self.alive = True
+        if owner is not None:
+            owner.destroyed.connect(lambda *_: self.close())
+
+    def run(self, name: str | None, work) -> Task | None:
+        """Run ``work`` as the job ``name``, or as one no other replaces (``name`` None); ``work`` None:
+        only cancel the job ``name``."""
+        old = self.named.pop(name, None) if name is not None else None
+        if old is not None:
+            old.cancel()
+        if work is None or not self.alive:
+            return None
+        task = Task(work.run, work.name)
+        task.signals.progress.connect(self._apply)
+        task.signals.done.connect(self._apply)
+        task.signals.failed.connect(lambda text: self.alive and self.failed(text))
+        if work.ended is not None:
+            task.signals.finished.connect(lambda: self.alive and work.ended())
+        task.signals.finished.connect(lambda: self._finished(name, task))
+        if name is not None:
+            self.named[name] = task
+        self.running.add(task)
+        return start(task, self.pool)
+
+    def _apply(self, value) -> None:
+        if self.alive:
+            self.apply(value)
+
+    def _finished(self, name: str, task: Task) -> None:
+        self.running.discard(task)
+        if self.named.get(name) is task:
+            del self.named[name]
+
+    def busy(self, name: str | None = None) -> bool:
+        return bool(self.running) if name is None else name in self.named
+
+    def cancel(self) -> None:
+        for task in list(self.running):
+            task.cancel()
+
+    def close(self) -> None:
+        self.alive = False
+        self.cancel()
+
+
 class FrameFeed(QObject):
     """The live feed: relays the session's frame source (the camera's one owner) onto the UI thread."""
 
