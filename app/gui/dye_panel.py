@@ -211,6 +211,9 @@ class DyePanel(QWidget):
         return self.jobs.run("preview", work)
 
     def card(self):
+        import matplotlib
+
+        matplotlib.use("Agg")    # the card is drawn in a worker: on no Qt canvas (widgets belong to the UI thread)
         work = self.model.card_work(self.dye_combo.currentData())
         if work is not None:
             self.card_label.clear()
