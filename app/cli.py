@@ -346,9 +346,10 @@ def evaluate_structures_command(args: argparse.Namespace) -> int:
 
 def evaluate_spectral_command(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --spectral``: hidden spectral hairs through a spectral rig, judged under three lights."""
-    from hairdigi.app.evaluate_spectral import ANSWERS, LIGHTS, VIEWS, evaluate_spectral
+    from hairdigi.app.evaluate_spectral import ANSWERS, LIGHTS, VIEWS, SpectralSet, evaluate_spectral
 
-    s = evaluate_spectral(args.out)
+    config = SpectralSet() if args.held_out is None else SpectralSet(seed=args.held_out, random=args.rig_random)
+    s = evaluate_spectral(args.out, config)
     print(f"{s['estimated']} of {s['captures']} spectral-rig captures estimated; mean-colour ΔE2000 against the "
           f"spectral truth (median / p95 / worst), an observer adapted to each light:")
     for answer in ANSWERS:
@@ -358,8 +359,14 @@ def evaluate_spectral_command(args: argparse.Namespace) -> int:
             cells = [f"{light} {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}"
                      for light in LIGHTS for st in [s[answer][f"{view} {light}"]] if st["n"]]
             print(f"  {answer:8s} answer, {view:4s}: " + "; ".join(cells))
+    for answer, held in s.get("stated_p95_held", {}).items():
+        print(f"  the record's stated 95% interval held for the {answer} answer in {100 * held:.0f}% of its cases")
     for line in s["errors"]:
         print(f"not estimated: {line}")
+    if args.ship and s.get("table", {}).get("cameras"):
+        from hairdigi.inference.spectral import SPECTRAL_TABLE
+
+        _ship(SPECTRAL_TABLE, s["table"], "the spectral world's colour intervals")
     print(f"spectral_evaluation.csv, .json and .png in {args.out}")
     return 0
 
@@ -637,12 +644,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--held-out", type=int, metavar="SEED", help="with --structures: in place of the named cases, "
                    "--rig-random N uniform Table 1 hairs and N dark ones (melanin 0.95-1.0) drawn with this seed "
                    "(>= 1), no layouts: a check of rules chosen on the named cases; a run cut short resumes "
-                   "from --out")
+                   "from --out. With --spectral: --rig-random N hairs of this seed (Table 1, natural, and band "
+                   "dyes on natural bases) in place of the named ones")
     p.add_argument("--default-shine", action="store_true", help="with --cycles: every hidden swatch at the default "
                    "shine, no single-light frames (the renderer and the swatch's structure alone)")
     p.add_argument("--ship", action="store_true", help="with --rig: ship the measured colour interval "
                    "(resources/models/chain_uncertainty.json); with --appearance, the appearance's intervals; with "
-                   "--structures, the colour interval of a swatch of unknown structure (structure_uncertainty.json)")
+                   "--structures, the colour interval of a swatch of unknown structure (structure_uncertainty.json); with "
+                   "--spectral, the spectral world's intervals by camera (spectral_uncertainty.json)")
     p.add_argument("--no-variation", action="store_true", help="with --appearance: read the shine only, not the "
                    "fibre spread and greys (what the texture reading adds)")
     p.add_argument("--dye", action="store_true", help="instead: dyes characterised on two natural bases, predicted "
@@ -679,11 +688,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spectral", action="store_true", help="with --sim: a spectral rig: white LEDs of an SPD "
                    "(--led), the ColorChecker's measured spectra, spectral hair, seen through a camera's "
                    "sensitivities (--sensor)")
-    p.add_argument("--led", type=v.illuminant, default=None, help="with --spectral: the rig's LEDs, a named "
-                   "light or a CSV of wavelength (nm), power (default LED-B4, a 5109 K phosphor LED)")
-    p.add_argument("--sensor", type=v.camera_sensitivities, default=None, help="with --spectral: the camera's sensitivities: "
-                   "nikon-5100 (default), sigma-sdmerill, cie (the CIE observer, an ideal camera), or a CSV of "
-                   "wavelength (nm), r, g, b")
+    p.add_argument("--led", type=v.illuminant, default=None, help="the rig's LEDs, a named light or a CSV of "
+                   "wavelength (nm), power: with --sim --spectral, the simulated LEDs (default LED-B4, a 5109 K "
+                   "phosphor LED); on a real rig, with --sensor, its declared LEDs (each record then carries the "
+                   "estimate read in the camera's RGB and its colour under daylight, tungsten and a shop LED)")
+    p.add_argument("--sensor", type=v.camera_sensitivities, default=None, help="the camera's sensitivities: "
+                   "nikon-5100, sigma-sdmerill, cie (the CIE observer, an ideal camera), or a CSV of wavelength (nm), "
+                   "r, g, b: with --sim --spectral, the simulated camera (default nikon-5100); on a real rig, with "
+                   "--led, its declared camera")
     p.set_defaults(func=cmd_rig)
 
     p = sub.add_parser("app", help="the desktop app")

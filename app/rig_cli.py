@@ -40,9 +40,15 @@ def open_session(args) -> RigSession:
             simulated["illuminant"] = args.led or "LED-B4"
             sensor = args.sensor or "nikon-5100"
             simulated["sensitivities"] = None if sensor == "cie" else sensor
+    spectra = None
+    if not args.sim and getattr(args, "led", None):   # a real rig's declared LEDs and camera
+        from hairdigi.inference.spectral import RigSpectra
+
+        spectra = RigSpectra(args.led, None if args.sensor == "cie" else args.sensor)
     roi = tuple(int(v) for v in args.roi.split(",")) if args.roi else None
     camera = args.camera if getattr(args, "genicam", None) is None else f"genicam:{args.genicam}"
-    return open_rig(args.session, args.sim, camera, args.port, roi, require_lights=False, **simulated)[0]
+    return open_rig(args.session, args.sim, camera, args.port, roi, require_lights=False, spectra=spectra,
+                    **simulated)[0]
 
 
 def hidden_appearance(path):
@@ -98,9 +104,7 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
         say("estimate blocked: " + "; ".join(result.blocked))
     elif result.params is not None:
         p = result.params
-        say(f"estimate in {1000 * result.seconds:.0f} ms from capture: dye rgb "
-            f"{tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
-            f"{p.melanin_concentration:.2f}, ratio {p.melanin_ratio:.2f}")
+        say(f"estimate in {1000 * result.seconds:.0f} ms from capture: {hair_line(p)}")
         out["params"] = p.to_dict()
         say_record(result.record, say)
         hidden = getattr(session.camera, "hidden", None)
@@ -120,9 +124,7 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
                                                                 for light in LIGHTS) for view in ("rig", "away")))
             return out
         if hidden is not None:
-            say(f"hidden truth of the simulated swatch:  dye rgb {tuple(round(v) for v in hidden.dye_rgb)} at "
-                f"{hidden.dye_concentration:.2f}, melanin {hidden.melanin_concentration:.2f}, "
-                f"ratio {hidden.melanin_ratio:.2f}")
+            say(f"hidden truth of the simulated swatch:  {hair_line(hidden)}")
             from hairdigi.render.judge import judge
 
             look = session.camera.appearance
@@ -148,6 +150,12 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
     return out
 
 
+def hair_line(p) -> str:
+    """Table 1 parameters in one line."""
+    return (f"dye rgb {tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
+            f"{p.melanin_concentration:.2f}, ratio {p.melanin_ratio:.2f}")
+
+
 def say_record(record, say=print) -> None:
     """The refinement's residual, the chain's stated colour interval, and the warnings of a record."""
     refinement = record.refinement
@@ -159,6 +167,15 @@ def say_record(record, say=print) -> None:
     if "mean_colour_de2000_p68" in u:
         say(f"stated colour interval: within ΔE2000 {u['mean_colour_de2000_p68']:.2f} of the truth in 68% and "
             f"{u['mean_colour_de2000_p95']:.2f} in 95% of held-out captures ({u.get('mean_colour_source', '')})")
+    spectral = u.get("spectral")
+    if spectral:
+        say(f"in the spectral world ({spectral['camera']} camera): within ΔE2000 {spectral['mean_colour_de2000_p68']:.2f} "
+            f"in 68% and {spectral['mean_colour_de2000_p95']:.2f} in 95%, for {spectral['holds_for']}")
+    if record.spectral is not None:
+        r = record.spectral
+        say(f"read in the camera's RGB ({r.camera} under {r.led}, residual {r.residual:.2f}, {r.seconds:.1f} s): "
+            f"{hair_line(r.hair)}; seen under "
+            + ", ".join(f"{light} L*a*b* {lab[0]:.1f} {lab[1]:.1f} {lab[2]:.1f}" for light, lab in r.under.items()))
     if record.appearance is not None:
         say("appearance: " + "; ".join(appearance_lines(record.appearance)))
     for warning in record.warnings:
@@ -188,8 +205,7 @@ def report_still(session_folder: str | Path, still: str | Path, say=print) -> in
         say("estimate blocked: " + "; ".join(result.blocked))
         return 2    # an input the still cannot serve (no chart, clipped), not a bug
     p = result.params
-    say(f"estimate in {result.seconds:.1f} s: dye rgb {tuple(round(v) for v in p.dye_rgb)} at "
-        f"{p.dye_concentration:.2f}, melanin {p.melanin_concentration:.2f}, ratio {p.melanin_ratio:.2f}")
+    say(f"estimate in {result.seconds:.1f} s: {hair_line(p)}")
     say_record(result.record, say)
     return 0
 

@@ -87,8 +87,12 @@ class RigSession:
     calibration profile."""
 
     def __init__(self, camera, lights: LightController | None, folder: str | Path, swatch_roi=None,
-                 encoder=None, simulated: bool = False) -> None:
+                 encoder=None, simulated: bool = False, spectra=None) -> None:
         self.camera = camera
+        #: the rig's LEDs and camera sensitivities (``inference.spectral.RigSpectra``): declared, a capture's
+        #: record carries its reading in the camera's RGB and colour under other lights; None on a real rig,
+        #: its colour interval carries the metamerism of an undeclared camera
+        self.spectra = spectra
         self.frames = FrameSource(camera)   # every read of the camera goes through here
         self.lights = lights
         self.folder = Path(folder)
@@ -134,7 +138,12 @@ class RigSession:
             response = np.asarray(rig.camera.cast, np.float32) * np.float32(2.0 ** rig.camera.exposure_ev)
             camera = open_lab_camera(rig.radiance, response=response, size=rig.size, device_id=genicam)[0]
             camera.hidden, camera.appearance = rig.hidden, rig.appearance   # the truth, as SimRig tells it
-        session = cls(camera, lights, folder, rig.roi, encoder, simulated=True)
+        spectra = None
+        if illuminant is not None:
+            from hairdigi.inference.spectral import RigSpectra
+
+            spectra = RigSpectra(illuminant, sensitivities)
+        session = cls(camera, lights, folder, rig.roi, encoder, simulated=True, spectra=spectra)
         session._board = board
         for i in range(N_LIGHTS):
             lights.set_light(i, True, 255)
@@ -316,9 +325,20 @@ class RigSession:
             _estimate(result, frame.srgb, frame.linear, self.encoder_or_reason, self.profile, self.region(frame.srgb),
                       profile_warnings(self.profile, self.settings()), on_encoder_estimate,
                       [(f.srgb if f.linear is None else f.linear, k) for f, k in zip(singles, factors)], chart)
-        result.seconds = time.perf_counter() - start
+        result.seconds = time.perf_counter() - start    # capture to parameters; the spectral reading follows
+        if result.record is not None:
+            result.record = self.in_spectral_world(result.record)
         _write_result(self.folder, result, roi)
         return result
+
+    def in_spectral_world(self, record: EstimateRecord) -> EstimateRecord:
+        """``record`` with its spectral reading (the rig's spectra declared) or the metamerism of an
+        undeclared camera in its colour interval (a real rig); the simulated RGB rig's is left as it is."""
+        if self.simulated and self.spectra is None:
+            return record
+        from hairdigi.inference.spectral import spectral_record
+
+        return spectral_record(record, self.spectra, None if self.profile is None else self.profile.matrix)
 
     def load_capture(self, capture_id: str) -> "LoadedCapture":
         """A saved capture with what reviewing it needs: the frame, its swatch area, its result record,
@@ -511,7 +531,8 @@ def frame_linear(frame) -> np.ndarray:
 
 
 def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", port: str | None = None, roi=None,
-             fallback: bool = False, require_lights: bool = True, **simulated) -> tuple[RigSession, str | None]:
+             fallback: bool = False, require_lights: bool = True, spectra=None,
+             **simulated) -> tuple[RigSession, str | None]:
     """The rig for the command line and the window alike, and why it is the simulated one (or None).
 
     ``camera`` is an OpenCV index or URL, or ``genicam[:ID]`` (a GenICam camera; with ``sim``, the simulated
@@ -519,7 +540,8 @@ def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", por
     :meth:`RigSession.simulated_rig`). Otherwise
     the camera and the light board on ``port``, found on the serial ports when empty; without a board
     the session has no lights unless ``require_lights``. When they do not answer, ``fallback`` gives
-    the simulated rig and the reason; without it the CameraError or LightError is raised.
+    the simulated rig and the reason; without it the CameraError or LightError is raised. ``spectra``
+    (``inference.spectral.RigSpectra``): what the real rig declares of its LEDs and camera.
     """
     genicam = genicam_id(camera)
     if sim and genicam is not None:
@@ -541,7 +563,7 @@ def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", por
             port = port or next((p for p, _ in discover()), None)
             if port is None and require_lights:
                 raise LightError("no light board answered on any serial port; plug it in, or name it with --port")
-            return RigSession(opened, LightController(port) if port else None, folder, roi), None
+            return RigSession(opened, LightController(port) if port else None, folder, roi, spectra=spectra), None
         except (CameraError, LightError) as exc:
             if opened is not None:
                 opened.close()

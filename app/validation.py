@@ -365,8 +365,12 @@ def check_rig(args: argparse.Namespace) -> None:
     if getattr(args, "spectral", False) and not args.sim:
         raise ArgumentError("--spectral is the simulated rig's: add --sim (a real rig is spectral already)")
     for flag in ("led", "sensor"):
-        if getattr(args, flag, None) is not None and not getattr(args, "spectral", False):
-            raise ArgumentError(f"--{flag} goes with --spectral; add --spectral or leave --{flag} out")
+        if getattr(args, flag, None) is not None and args.sim and not getattr(args, "spectral", False):
+            raise ArgumentError(f"--{flag} goes with --spectral on the simulated rig; add --spectral or leave "
+                                f"--{flag} out")
+    if not args.sim and (getattr(args, "led", None) is None) != (getattr(args, "sensor", None) is None):
+        raise ArgumentError("a real rig declares its spectra with --led and --sensor together (its LEDs' SPD and "
+                            "its camera's sensitivities, each a name or a CSV); give both, or neither")
     for flag, read in (("led", "illuminant_spd"), ("sensor", "camera_sensitivities")):
         value = getattr(args, flag, None)
         if value is not None and value != "cie":
@@ -501,9 +505,9 @@ def check_export(args: argparse.Namespace) -> None:
 #: ``evaluate``'s modes: at most one runs (``--dye --rig`` is the dye protocol on the simulated rig).
 EVALUATE_MODES = ("dye", "rig", "appearance", "cycles", "structures", "spectral", "convergence", "prepare_only")
 #: Flags that go with one mode only.
-EVALUATE_MODE_FLAGS = {"ship": ("rig", "appearance", "structures"), "no_variation": ("appearance",),
+EVALUATE_MODE_FLAGS = {"ship": ("rig", "appearance", "structures", "spectral"), "no_variation": ("appearance",),
                        "default_shine": ("cycles",), "blender": ("structures",), "hidden_structures": ("structures",),
-                       "held_out": ("structures",)}
+                       "held_out": ("structures", "spectral")}
 
 
 def _flag(name: str) -> str:

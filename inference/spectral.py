@@ -18,12 +18,24 @@ under another light is then :func:`colour_under`.
 """
 from __future__ import annotations
 
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
 import numpy as np
 
 from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.records import SpectralReading
+from hairdigi.resources import MODELS
 
 #: How much a refit may move the parameters (normalised to [0, 1]) for one unit of CIELAB distance.
 STAY = 1.0
+#: The lights a customer sees hair under: daylight, tungsten, a shop's white LED.
+UNDER = ("D65", "A", "shop-led")
+#: The spectral world's colour intervals (``hairdigi evaluate --spectral --ship``): per camera, the
+#: camera answer's ΔE2000 at the rig and away, under each of ``UNDER``; ``unknown``: the RGB answer under
+#: daylight through a camera the rig does not declare (the chart's correction cannot undo metamerism).
+SPECTRAL_TABLE = MODELS / "spectral_uncertainty.json"
 
 
 def colour_under(curve, hair: HairParams | np.ndarray, light: str, sensitivities: str | None = None) -> np.ndarray:
@@ -64,6 +76,87 @@ def camera_answer(rgb_answer: HairParams, target_linear: np.ndarray, curve, ccm:
     gains = np.median(raw_measured / raw_model, axis=0)
     return fit_table1(rgb_answer, target_linear,
                       lambda hair: ccm @ (gains * colour_under(curve, hair, led, sensitivities)))
+
+
+@dataclass(frozen=True)
+class RigSpectra:
+    """What a rig declares of its spectra: its LEDs' SPD (a light's name or a CSV) and its camera's
+    sensitivities (a name or a CSV; None: a colorimetric camera, the CIE observer)."""
+
+    led: str
+    sensitivities: str | None = None
+
+
+def spectral_record(record, spectra: RigSpectra | None, ccm, curve=None, table: dict | None = None):
+    """``record`` (an ``EstimateRecord``) in the spectral world: with the rig's ``spectra`` declared and a
+    linear chart correction ``ccm``, its :class:`SpectralReading` and that camera's colour interval; with
+    none declared, its colour interval widened by the metamerism an undeclared camera leaves."""
+    from hairdigi.inference.uncertainty import load_table
+
+    table = load_table(SPECTRAL_TABLE) if table is None else table
+    if record.hair is None:
+        return record
+    if spectra is None or ccm is None or np.shape(ccm) != (3, 3):
+        return replace(record, uncertainty=with_spectral(record.uncertainty, table, "unknown"))
+    from hairdigi.inference.refine import RefineSettings, response_curve
+    from hairdigi.render.absorption import hair_sigma_a
+    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.chart import rig_chart_targets
+
+    curve = curve or response_curve(RIG_SWATCH_POSE, RefineSettings())
+    sigma = np.asarray(record.sigma_a if record.sigma_a is not None else hair_sigma_a(record.hair), float)
+    reading = read_spectral(record.hair, curve(sigma), curve, np.asarray(ccm, float), spectra.led,
+                            spectra.sensitivities, rig_chart_targets()[0])
+    return replace(record, spectral=reading,
+                   uncertainty=with_spectral(record.uncertainty, table, reading.camera))
+
+
+def read_spectral(rgb_answer: HairParams, target_linear: np.ndarray, curve, ccm: np.ndarray, led: str,
+                  sensitivities: str | None, chart_targets: np.ndarray) -> SpectralReading:
+    """The record's spectral reading: :func:`camera_answer` (the CIE observer where ``sensitivities`` is
+    None) and its colour under each of ``UNDER``, as an observer adapted to that light sees it."""
+    from hairdigi.render.metrics import linear_rgb_to_lab
+    from hairdigi.render.spectra import balanced
+
+    start = time.perf_counter()
+    hair, residual = camera_answer(rgb_answer, target_linear, curve, ccm, led, sensitivities, chart_targets)
+    under = {light: tuple(float(v) for v in linear_rgb_to_lab(np.maximum(
+        balanced(colour_under(curve, hair, light), light), 1e-9))) for light in UNDER}
+    return SpectralReading(hair, led=spectrum_name(led), camera=spectrum_name(sensitivities), residual=residual,
+                           under=under, seconds=time.perf_counter() - start)
+
+
+def spectrum_name(name: str | None) -> str:
+    """How a record names a light or a camera: its name, a CSV's file name, or "cie" for the observer."""
+    if name is None:
+        return "cie"
+    return Path(name).name if str(name).lower().endswith(".csv") else str(name)
+
+
+def with_spectral(uncertainty: dict, table: dict | None, camera: str) -> dict:
+    """``uncertainty`` with the spectral world's colour interval for ``camera`` (a declared camera's
+    ``spectrum_name``, or "unknown" where the rig declares none): the camera answer's where the table
+    measured that camera, the widest camera's for a camera it did not, and for "unknown" the metamerism
+    of the RGB answer through the chart's correction. The colour interval is widened to it (the larger,
+    per level); a ``spectral`` entry names what it holds for."""
+    cameras = (table or {}).get("cameras", {})
+    measured = cameras.get(camera)
+    if measured is None and camera != "unknown":
+        read = [c for c in cameras.values() if c.get("answer") == "camera"]
+        measured = max(read, key=lambda c: c["p95"]) if read else None
+    if measured is None:
+        return uncertainty
+    out = dict(uncertainty)
+    if out.get("mean_colour_de2000_p68", np.inf) < measured["p68"]:
+        out["mean_colour_source"] = f"{table.get('source', 'hairdigi evaluate --spectral')} ({camera} camera)"
+    for level in ("p68", "p95"):
+        name = f"mean_colour_de2000_{level}"
+        if name in out:
+            out[name] = round(max(out[name], measured[level]), 3)
+    out["spectral"] = {"camera": camera, "answer": measured["answer"], "holds_for": measured["holds_for"],
+                       "mean_colour_de2000_p68": measured["p68"], "mean_colour_de2000_p95": measured["p95"],
+                       "source": table.get("source", "")}
+    return out
 
 
 #: The chart's neutral patches used for the camera's gains: neutral 8 to neutral 3.5 (the white may

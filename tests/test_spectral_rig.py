@@ -1,12 +1,16 @@
 """The estimate in a spectral world (inference.spectral): colour under any light from the rig's response
 curve, and a spectral rig's capture read in the camera's own RGB."""
+import json
 import subprocess
 import sys
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+import pytest
 
 from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.records import EstimateRecord, read_record
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -45,6 +49,11 @@ def test_a_spectral_rig_capture_is_read_in_the_camera_and_carries_to_tungsten(tm
     finally:
         session.close()
     assert result.record is not None, result.blocked
+    reading = result.record.spectral                 # the record carries the camera answer, read at capture
+    assert reading is not None and (reading.camera, reading.led) == ("nikon-5100", "LED-B4")
+    assert set(reading.under) == {"D65", "A", "shop-led"}
+    saved = read_record(session.folder / "captures" / f"{result.capture_id}.result.json", EstimateRecord)
+    assert saved.spectral.to_json() == reading.to_json() and saved.uncertainty["spectral"]["camera"] == "nikon-5100"
     found = answers(result.record, profile, "LED-B4", "nikon-5100")
     verdict = _judge(hidden, found, replace(SpectralSet(), judge_size=32, judge_spp=64))
     # measured (rig at 8 spp, judge 32² at 64 spp): camera 1.1-1.3 at the rig under every light; the RGB
@@ -53,6 +62,46 @@ def test_a_spectral_rig_capture_is_read_in_the_camera_and_carries_to_tungsten(tm
         assert verdict[f"camera_rig_{light}"] < 1.8, verdict
     assert verdict["camera_rig_A"] < 0.5 * verdict["rgb_rig_A"], verdict
     assert found["camera_residual"] < 0.5
+    # what the record states holds for this capture, under every light
+    stated = saved.uncertainty["mean_colour_de2000_p95"]
+    assert stated >= saved.uncertainty["spectral"]["mean_colour_de2000_p95"]
+    assert all(verdict[f"camera_rig_{light}"] <= stated for light in ("D65", "A", "shop-led")), (verdict, stated)
+
+
+def test_a_record_is_widened_by_metamerism_unless_its_rig_declares_its_camera():
+    from hairdigi.inference.spectral import RigSpectra, spectral_record, with_spectral
+
+    table = {"source": "test", "cameras": {
+        "nikon-5100": {"answer": "camera", "holds_for": "every light", "p68": 1.2, "p95": 5.3},
+        "sigma-sdmerill": {"answer": "camera", "holds_for": "every light", "p68": 4.8, "p95": 9.1},
+        "unknown": {"answer": "rgb", "holds_for": "daylight", "p68": 2.7, "p95": 7.2}}}
+    base = {"mean_colour_de2000_p68": 0.5, "mean_colour_de2000_p95": 6.0}
+    nikon = with_spectral(base, table, "nikon-5100")
+    assert (nikon["mean_colour_de2000_p68"], nikon["mean_colour_de2000_p95"]) == (1.2, 6.0)   # the larger, per level
+    assert nikon["spectral"]["answer"] == "camera"
+    assert with_spectral(base, table, "lab-camera.csv")["spectral"]["mean_colour_de2000_p95"] == 9.1   # the widest
+    assert with_spectral(base, table, "unknown")["spectral"]["answer"] == "rgb"
+    assert with_spectral(base, None, "nikon-5100") == base
+    record = EstimateRecord(hair=HairParams(), uncertainty=base)
+    undeclared = spectral_record(record, None, np.eye(3), table=table)
+    assert undeclared.spectral is None and undeclared.uncertainty["mean_colour_de2000_p95"] == 7.2
+    polynomial = spectral_record(record, RigSpectra("LED-B4", "nikon-5100"), np.eye(3, 9), table=table)
+    assert polynomial.spectral is None and polynomial.uncertainty["spectral"]["camera"] == "unknown"
+
+
+def test_a_spectral_reading_survives_its_file_and_a_damaged_one_is_named():
+    from hairdigi.render.base.records import RecordError, SpectralReading
+
+    reading = SpectralReading(HairParams((200, 40, 40), 0.8, 0.2, 0.4), "LED-B4", "nikon-5100", 0.013,
+                              {"D65": (36.6, 7.7, 21.7), "A": (37.5, 9.9, 22.4)}, 1.9)
+    record = EstimateRecord(hair=HairParams(), spectral=reading)
+    back = EstimateRecord.from_json(json.loads(json.dumps(record.to_json())))
+    assert back.spectral.hair == reading.hair and back.spectral.under["A"] == (37.5, 9.9, 22.4)
+    assert EstimateRecord.from_json(EstimateRecord(hair=HairParams()).to_json()).spectral is None
+    damaged = record.to_json()
+    damaged["spectral"]["under"]["A"] = [37.5, "warm"]
+    with pytest.raises(RecordError, match="'spectral'.*under A"):
+        EstimateRecord.from_json(damaged)
 
 
 def test_a_spectral_rig_is_the_simulated_rigs_and_its_parts_are_checked_in_one_line(tmp_path):
@@ -63,6 +112,7 @@ def test_a_spectral_rig_is_the_simulated_rigs_and_its_parts_are_checked_in_one_l
 
     (tmp_path / "cam.csv").write_text("400,1,0,0\n")
     for args, says in ((("--spectral",), "add --sim"), (("--sim", "--led", "A"), "--led goes with --spectral"),
+                       (("--led", "A"), "--led and --sensor together"),
                        (("--sim", "--spectral", "--sensor", "canon"), "is not a camera"),
                        (("--sim", "--spectral", "--sensor", str(tmp_path / "cam.csv")), "need at least 4")):
         done = run(*args)

@@ -324,6 +324,44 @@ class RefinementRecord:
 
 
 @dataclass(frozen=True)
+class SpectralReading:
+    """The estimate in the spectral world, where the rig's LEDs and camera are known
+    (``inference.spectral.read_spectral``): the Table 1 hair whose spectral colour, seen by the rig's
+    camera under its LEDs, is the capture's, and that hair's colour under other lights.
+
+    ``EstimateRecord.hair`` stays the RGB world's answer (what the RGB renders, the library and the
+    exports use); this is the answer for colour under any light."""
+
+    hair: HairParams
+    led: str                       # the rig's LEDs: a light's name, or an SPD CSV's file name
+    camera: str                    # the camera's sensitivities: a name, a CSV's file name, or "cie"
+    residual: float                # the read's colour residual (CIELAB ΔE76, in the corrected space)
+    under: dict = field(default_factory=dict)   # light -> CIELAB of the swatch, an observer adapted to it
+    seconds: float = 0.0
+
+    def to_json(self) -> dict:
+        return {"hair": self.hair.to_dict(), "led": self.led, "camera": self.camera,
+                "residual": round(self.residual, 4), "under": {k: [round(v, 3) for v in lab] for k, lab in
+                                                              self.under.items()},
+                "seconds": round(self.seconds, 3)}
+
+    @classmethod
+    def from_json(cls, data) -> "SpectralReading":
+        what = "spectral reading"
+        if not isinstance(data, dict):
+            raise RecordError(f"a {what} is an object, not {type(data).__name__}")
+        try:
+            hair = HairParams.from_dict(_need(data, "hair", dict, what))
+        except (HairParamsError, TypeError, AttributeError) as exc:
+            raise RecordError(f"the {what}'s 'hair' is not Table 1 parameters: {exc}") from None
+        under = _need(data, "under", dict, what, {}, required=False)
+        return cls(hair=hair, led=_need(data, "led", str, what), camera=_need(data, "camera", str, what),
+                   residual=_need(data, "residual", float, what),
+                   under={str(k): _floats(v, 3, f"under {k}", what) for k, v in under.items()},
+                   seconds=_need(data, "seconds", float, what, 0.0, required=False))
+
+
+@dataclass(frozen=True)
 class EstimateRecord:
     """An estimate and where it came from: parameters, warnings, intervals, refinement, provenance.
 
@@ -341,6 +379,7 @@ class EstimateRecord:
     blocked: tuple[str, ...] = ()
     swatch_roi: tuple[int, int, int, int] | None = None
     appearance: AppearanceEstimate | None = None   # shine and fibre variation (issue 18); None: not read
+    spectral: SpectralReading | None = None        # read in the camera's RGB; None: the rig's spectra unknown
     schema_version: int = SCHEMA_VERSION
 
     KIND = "estimate"
@@ -372,6 +411,8 @@ class EstimateRecord:
                         "provenance": self.provenance})
             if self.appearance is not None:
                 out["appearance"] = self.appearance.to_json()
+            if self.spectral is not None:
+                out["spectral"] = self.spectral.to_json()
         return out
 
     @classmethod
@@ -395,7 +436,8 @@ class EstimateRecord:
                    capture=_need(data, "capture", str, what, None, required=False),
                    blocked=tuple(str(b) for b in blocked),
                    swatch_roi=None if roi is None else _roi(roi, what),
-                   appearance=_appearance(data.get("appearance"), what))
+                   appearance=_appearance(data.get("appearance"), what),
+                   spectral=None if data.get("spectral") is None else _spectral(data["spectral"], what))
 
 
 def check_sigma_a(sigma, what: str) -> None:
@@ -432,6 +474,13 @@ def _check_kind(data: dict, kind: str, what: str) -> None:
     if other is None and not any(k in data for k in ("hair", "capture", "blocked")):
         raise RecordError(f"this JSON holds no 'hair', 'capture' or 'blocked': not an {what}; give the record "
                           f"that hairdigi estimate (or a capture) wrote")
+
+
+def _spectral(data, what: str) -> SpectralReading:
+    try:
+        return SpectralReading.from_json(data)
+    except RecordError as exc:
+        raise RecordError(f"the {what}'s 'spectral': {exc}") from None
 
 
 def _appearance(data, what: str) -> AppearanceEstimate | None:
