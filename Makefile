@@ -9,7 +9,7 @@ APT_PACKAGES := libllvm19 xvfb xauth libgl1 libegl1 libglx-mesa0 libgl1-mesa-dri
 	postgresql libaravis-0.8-0 gir1.2-aravis-0.8 aravis-tools aravis-tools-cli libgirepository1.0-dev libcairo2-dev
 export OMP_WAIT_POLICY := PASSIVE
 
-.PHONY: setup system-deps demo app test bench clean
+.PHONY: setup system-deps demo app test bench docs clean
 
 system-deps:  ## Debian packages: libLLVM 19 for Mitsuba's llvm variant, Xvfb and xcb for Qt/VTK, Aravis 0.8 (GenICam cameras, its fake camera) and what PyGObject builds against
 	@if dpkg -s $(APT_PACKAGES) >/dev/null 2>&1; then echo "system packages present"; \
@@ -18,7 +18,7 @@ system-deps:  ## Debian packages: libLLVM 19 for Mitsuba's llvm variant, Xvfb an
 $(VENV)/.installed: pyproject.toml
 	test -x $(PY) || python3 -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e ".[test,train,cluster,genicam]"
+	$(PY) -m pip install -q -e ".[test,train,cluster,genicam,docs]"
 	touch $@
 
 setup: system-deps $(VENV)/.installed
@@ -30,6 +30,9 @@ demo: setup  ## the main job: the app on the simulated rig, or the headless demo
 test: setup  ## pytest's exit 5 (no tests collected) is turned into a failure
 	@set -o pipefail; mkdir -p test-output; QT_QPA_PLATFORM=offscreen $(PY) -m pytest -q tests 2>&1 | tee test-output/pytest.log; rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "no tests were collected: that is a failure" >&2; exit 1; fi; exit $$rc
+
+docs: setup  ## the manual, warnings as errors, into out/manual (open out/manual/index.html)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict -f packaging/manual/mkdocs.yml -d $(CURDIR)/out/manual
 
 bench: setup
 	$(VENV)/bin/hairdigi bench render --out packaging/bench/render
