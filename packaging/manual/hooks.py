@@ -6,10 +6,12 @@
   build lays a ``hairdigi/`` folder of links to them in a temporary directory and searches there.
 - The pictures and a few pages live with what they describe, not in ``docs/``: the app's own
   screenshots, the benchmark and evaluation plots, the model card. They are added to the build
-  from where they are (``INCLUDED``), never copied into the source tree.
+  from where they are (``INCLUDED_PICTURES``, ``INCLUDED_PAGES``), never copied into the source tree.
+- The docstrings write Sphinx roles (":func:`name`"); the pages show the name as code, without the role.
 """
 from __future__ import annotations
 
+import re
 import shutil
 import tempfile
 import tomllib
@@ -37,6 +39,9 @@ INCLUDED_PAGES = (
 )
 
 _api_tree: Path | None = None
+
+#: Sphinx roles in docstrings (":func:`name`"): the name is shown as code, the role dropped.
+_ROLE = re.compile(r":(?:py:)?(?:func|meth|class|data|attr|mod|exc|obj|const):(?=<code>)")
 
 
 def package_dirs() -> dict[str, Path]:
@@ -79,6 +84,10 @@ def on_files(files: Files, config) -> Files:
     for path, uri in included_files():
         files.append(File.generated(config, uri, abs_src_path=str(path)))
     return files
+
+
+def on_page_content(html: str, page, config, files) -> str:
+    return _ROLE.sub("", html)
 
 
 def on_shutdown():
