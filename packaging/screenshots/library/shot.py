@@ -22,10 +22,13 @@ dock.show(); dock.raise_()
 panel = dock.widget()
 def shoot():
     panel.near.setText("#b06a3a"); panel.refresh()
+    while panel.model.rows.query.near != "#b06a3a":   # the query runs in a worker
+        app.processEvents(); time.sleep(0.02)
     ids = [s.capture_id for s in panel.swatches]
     panel.table.setSelectionMode(panel.table.SelectionMode.MultiSelection)
     panel.table.selectRow(ids.index("20260315-100200-000")); panel.table.selectRow(ids.index("20260315-101000-000"))
-    app.processEvents()
+    while panel.left.image.pixmap().isNull() or panel.right.image.pixmap().isNull():   # the captures, read in a worker
+        app.processEvents(); time.sleep(0.02)
     window.grab().save(str(out / "app-library-xvfb.png"))
     panel.grab().save(str(out / "library-panel.png"))
     print("delta:", panel.delta.text())
