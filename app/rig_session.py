@@ -331,14 +331,16 @@ class RigSession:
         _write_result(self.folder, result, roi)
         return result
 
-    def in_spectral_world(self, record: EstimateRecord) -> EstimateRecord:
+    def in_spectral_world(self, record: EstimateRecord, profile: CalibrationProfile | None = None) -> EstimateRecord:
         """``record`` with its spectral reading (the rig's spectra declared) or the metamerism of an
-        undeclared camera in its colour interval (a real rig); the simulated RGB rig's is left as it is."""
+        undeclared camera in its colour interval (a real rig); the simulated RGB rig's is left as it is.
+        ``profile``: the chart correction the capture was made with (default: the session's)."""
         if self.simulated and self.spectra is None:
             return record
         from hairdigi.inference.spectral import spectral_record
 
-        return spectral_record(record, self.spectra, None if self.profile is None else self.profile.matrix)
+        profile = profile or self.profile
+        return spectral_record(record, self.spectra, None if profile is None else profile.matrix)
 
     def load_capture(self, capture_id: str) -> "LoadedCapture":
         """A saved capture with what reviewing it needs: the frame, its swatch area, its result record,
@@ -400,7 +402,7 @@ class RigSession:
 
     def import_still(self, path: str | Path) -> CaptureResult:
         """A RAW still of the rig as a capture, in this session (see :func:`import_still`)."""
-        return import_still(self.folder, path, self.encoder_or_reason)
+        return import_still(self.folder, path, self.encoder_or_reason, self.in_spectral_world)
 
     def encoder_or_reason(self):
         """The encoder, or the one-line reason it cannot be loaded (a missing or broken model file)."""
@@ -471,13 +473,16 @@ def _write_result(folder: Path, result: CaptureResult, roi) -> None:
     write_record(Path(folder) / "captures" / f"{result.capture_id}.result.json", done)
 
 
-def import_still(folder: str | Path, path: str | Path, encoder_or_reason) -> CaptureResult:
+def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
+                 in_spectral_world: Callable[..., EstimateRecord] | None = None) -> CaptureResult:
     """A RAW still (DNG, CR2, NEF, ...) of the rig, taken with the chart in view, as a capture.
 
     The file is copied into the session first, untouched. Then rawpy decodes it (linear, the
     camera's own colour space); the still is calibrated on its own chart, since a still camera's
     processing is not the live feed's; the swatch is found, corrected and estimated. The still's
     profile is kept in its result record, so reviewing it later corrects it the same way.
+    ``in_spectral_world`` (``RigSession.in_spectral_world``) finishes the record as the session's captures
+    are (a session's declared camera is its stills' too).
     """
     start = time.perf_counter()
     path = Path(path)
@@ -513,6 +518,8 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason) -> Cap
                   rig_region((still.srgb.shape[1], still.srgb.shape[0]), roi), profile_warnings(profile, None),
                   clipped=still.clipped)
     result.seconds = time.perf_counter() - start
+    if result.record is not None and in_spectral_world is not None:
+        result.record = in_spectral_world(result.record, profile)
     _write_result(Path(folder), result, roi)
     return result
 

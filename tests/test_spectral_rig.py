@@ -119,3 +119,37 @@ def test_a_spectral_rig_is_the_simulated_rigs_and_its_parts_are_checked_in_one_l
         assert done.returncode == 2 and says in done.stderr and len(done.stderr.strip().splitlines()) == 1, \
             (args, done.stderr)
     assert not (tmp_path / "s").exists()
+
+
+def test_a_real_rigs_record_carries_metamerism_unless_the_rig_declares_its_spectra(tmp_path):
+    """A real camera is not the CIE observer: its records state the metamerism the chart's correction
+    leaves, or, with its LEDs and camera declared (``rig --led --sensor``), the reading in its RGB."""
+    from media import write_video
+
+    from hairdigi.app.rig_session import RigSession
+    from hairdigi.hardware.cameras import OpenCVCamera
+    from hairdigi.inference.spectral import SPECTRAL_TABLE, RigSpectra
+    from hairdigi.inference.uncertainty import load_table
+
+    record = EstimateRecord(hair=HairParams((120, 60, 40), 0.4, 0.5, 0.6),
+                            uncertainty={"mean_colour_de2000_p68": 0.49, "mean_colour_de2000_p95": 0.71})
+    table = load_table(SPECTRAL_TABLE)["cameras"]
+    camera = OpenCVCamera(str(write_video(tmp_path / "feed.avi", size=(96, 64))))
+    try:
+        undeclared = RigSession(camera, None, tmp_path / "a").in_spectral_world(record)
+        declared = RigSession(camera, None, tmp_path / "b", spectra=RigSpectra("LED-B4", "nikon-5100"))
+        declared.profile = _identity_profile()
+        read = declared.in_spectral_world(record)
+    finally:
+        camera.close()
+    assert undeclared.spectral is None
+    assert undeclared.uncertainty["spectral"]["camera"] == "unknown"
+    assert undeclared.uncertainty["mean_colour_de2000_p95"] == table["unknown"]["p95"] > 0.71
+    assert read.spectral is not None and read.spectral.camera == "nikon-5100"
+    assert read.uncertainty["mean_colour_de2000_p95"] == max(0.71, table["nikon-5100"]["p95"])
+
+
+def _identity_profile():
+    from hairdigi.render.base.records import CalibrationProfile
+
+    return CalibrationProfile(id="test", method="identity", matrix=((1.0, 0, 0), (0, 1.0, 0), (0, 0, 1.0)), time=0.0)
