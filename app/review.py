@@ -343,9 +343,34 @@ def parameter_view(shown: Shown, extra: tuple[EstimateWarning, ...] = ()) -> Par
     if colour is not None:
         info.append(f"colour within ΔE2000 {colour:.2f} of the truth in 68% of held-out captures "
                     f"({rec.uncertainty.get('mean_colour_source', 'held-out clean crop renders')})")
+    info += spectral_lines(rec)
     info += [f"⚠ {w.message}" for w in (*rec.warnings, *extra)]
     return ParameterView(lines, tuple(int(v) for v in p.dye_rgb), tooltip, "\n".join(info),
                          appearance_lines(rec.appearance))
+
+
+#: How the window names the lights a spectral reading gives the colour under.
+UNDER_NAMES = {"D65": "daylight", "A": "tungsten", "shop-led": "shop LED"}
+
+
+def spectral_lines(rec: EstimateRecord) -> list[str]:
+    """A record's spectral world, for the window: the colour under each light (read in the declared
+    camera's RGB) and how far it moves from daylight, or the metamerism an undeclared camera leaves."""
+    import colour
+
+    stated = rec.uncertainty.get("spectral")
+    lines = []
+    if rec.spectral is not None:
+        under = rec.spectral.under
+        day = under.get("D65")
+        cells = [f"{UNDER_NAMES.get(light, light)} L* {lab[0]:.0f}" + (
+                 f" (ΔE2000 {float(colour.delta_E(day, lab, method='CIE 2000')):.1f} from daylight)" if day is not None and light != "D65" else "")
+                 for light, lab in under.items()]
+        lines.append(f"read in the camera's RGB ({rec.spectral.camera} under {rec.spectral.led}): " + "; ".join(cells))
+    if stated:
+        lines.append(f"spectral world ({stated['camera']} camera): within ΔE2000 {stated['mean_colour_de2000_p68']:.2f} "
+                     f"in 68% for {stated['holds_for']}")
+    return lines
 
 
 def light_name(light: int | None) -> str:

@@ -193,3 +193,22 @@ def test_a_hairstyle_under_another_light_renders_spectrally_and_is_shown_adapted
     assert model.illuminant == "D65"
     with pytest.raises(ValueError, match="unknown light 'candle'"):
         model.set_view(illuminant="candle")
+
+
+def test_the_window_says_a_records_colour_under_other_lights_and_its_spectral_interval():
+    from hairdigi.app.review import spectral_lines
+    from hairdigi.render.base.params import HairParams
+    from hairdigi.render.base.records import EstimateRecord, SpectralReading
+
+    assert spectral_lines(EstimateRecord(hair=HairParams())) == []
+    reading = SpectralReading(HairParams(), "LED-B4", "nikon-5100", 0.01,
+                              {"D65": (40.0, 20.0, 20.0), "A": (40.0, 26.0, 24.0)})
+    stated = {"camera": "nikon-5100", "answer": "camera", "holds_for": "every light",
+              "mean_colour_de2000_p68": 1.21, "mean_colour_de2000_p95": 5.3}
+    lines = spectral_lines(EstimateRecord(hair=HairParams(), spectral=reading, uncertainty={"spectral": stated}))
+    assert lines[0].startswith("read in the camera's RGB (nikon-5100 under LED-B4)")
+    assert "daylight L* 40" in lines[0] and "tungsten L* 40 (ΔE2000 3.1 from daylight)" in lines[0]
+    assert "within ΔE2000 1.21 in 68%" in lines[1]
+    undeclared = {**stated, "camera": "unknown"}
+    assert spectral_lines(EstimateRecord(hair=HairParams(), uncertainty={"spectral": undeclared})) == [
+        "spectral world (unknown camera): within ΔE2000 1.21 in 68% for every light"]
