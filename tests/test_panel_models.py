@@ -205,6 +205,25 @@ def test_the_dye_panel_previews_and_cards_off_the_ui_thread(curve, tmp_path, qtb
     assert [path for thread, path in opened if thread == ui] == []
 
 
+def test_the_dye_dock_offers_a_new_capture_once_the_window_has_saved_it(tmp_path, qtbot):
+    from PySide6.QtCore import Signal
+    from PySide6.QtWidgets import QMainWindow
+
+    from hairdigi.app.gui.dye_panel import add_dye_dock
+
+    class Window(QMainWindow):
+        captured = Signal(object)
+
+    dye_session(tmp_path)
+    window = Window()
+    qtbot.addWidget(window)
+    panel = add_dye_dock(window, tmp_path).widget()
+    qtbot.waitUntil(lambda: panel.base_combo.count() == 4, timeout=20_000)
+    write_record(tmp_path / "captures" / "new.result.json", _estimate(hair_sigma_a(natural_base(6)), 6, "new.png"))
+    window.captured.emit(None)
+    qtbot.waitUntil(lambda: panel.base_combo.count() == 5, timeout=20_000)
+
+
 # --- the models without Qt -----------------------------------------------------------------------------
 from hairdigi.app import dye_model as dm  # noqa: E402
 from hairdigi.app import library_model as lm  # noqa: E402

@@ -231,6 +231,10 @@ def add_dye_dock(window, folder: Path) -> QDockWidget:
     """Give ``window`` (a QMainWindow) the Dye panel as a dock on its right, tabbable and closable."""
     dock = QDockWidget("Dye", window)
     dock.setObjectName("dye-dock")
-    dock.setWidget(DyePanel(folder, dock))
+    panel = DyePanel(folder, dock)
+    dock.setWidget(panel)
+    captured = getattr(window, "captured", None)
+    if captured is not None:       # a new capture is offered as soon as its record is saved
+        captured.connect(lambda *_: panel.reload())
     window.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock)
     return dock
