@@ -201,6 +201,10 @@ def test_the_dye_panel_previews_and_cards_off_the_ui_thread(curve, tmp_path, qtb
     panel.card()
     qtbot.waitUntil(lambda: not panel.card_label.pixmap().isNull(), timeout=120_000)
     assert (tmp_path / "dyes" / "copper-card.pdf").is_file() and "shade card" in panel.status.text()
+    panel.preview()
+    panel.cancel()                                          # stopped at its next pass: the labels say so
+    qtbot.waitUntil(lambda: panel.pred_label.text() == "–" and panel.style_label.text() == "–", timeout=60_000)
+    assert panel.pred_label.pixmap().isNull() and not panel.jobs.busy()
     assert any(path.endswith("base5.result.json") for _, path in opened)
     assert [path for thread, path in opened if thread == ui] == []
 

@@ -204,21 +204,31 @@ class DyePanel(QWidget):
     def preview(self):
         work = self.model.preview_work(self.dye_combo.currentData(), self.target_combo.currentData(),
                                        self.dose_spin.value())
-        if work is not None:
-            for label in (self.pred_label, self.style_label):
-                label.clear()
-                label.setText("rendering…")
-        return self.jobs.run("preview", work)
+        return self._run("preview", work, (self.pred_label, self.style_label), "rendering…")
 
     def card(self):
         import matplotlib
 
         matplotlib.use("Agg")    # the card is drawn in a worker: on no Qt canvas (widgets belong to the UI thread)
         work = self.model.card_work(self.dye_combo.currentData())
-        if work is not None:
-            self.card_label.clear()
-            self.card_label.setText("rendering the shade card…")
-        return self.jobs.run("card", work)
+        return self._run("card", work, (self.card_label,), "rendering the shade card…")
+
+    def _run(self, name: str, work, labels: tuple[QLabel, ...], text: str):
+        """Run a render job, its labels saying so until it shows them or ends without (failed, cancelled)."""
+        if work is None:
+            return None
+        for label in labels:
+            label.clear()
+            label.setText(text)
+        task = self.jobs.run(name, work)
+
+        def ended() -> None:
+            if self.jobs.alive and not self.jobs.busy(name):   # not replaced by a newer one, which says the same
+                for label in labels:
+                    if label.pixmap().isNull():
+                        label.setText("–")
+        task.signals.finished.connect(ended)
+        return task
 
     def cancel(self) -> None:
         """Stop the preview and the shade card at their next pass (what they showed stays)."""
