@@ -97,8 +97,7 @@ class LibraryPanel(QWidget):
 
     def __init__(self, library: Library, window=None, parent=None) -> None:
         super().__init__(parent)
-        self.model = LibraryModel(library)
-        self.library = library
+        self.model = LibraryModel(library)      # the connection is the model's, used in its works only
         self.window_ = window
         self.jobs = Jobs(self.model.apply, lambda text: self.status.setText(f"library: {text}"), owner=self)
         self.search_timer = QTimer(self)
