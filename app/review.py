@@ -337,8 +337,9 @@ def parameter_view(shown: Shown, extra: tuple[EstimateWarning, ...] = ()) -> Par
     info = [f"model {(prov.get('model') or {}).get('sha256', '')[:12]}, calibration "
             f"{(prov.get('calibration') or {}).get('id')}"]
     if rec.refinement.ran:
+        residual = rec.refinement.residual_de2000   # None in a record written without it
         info.append(f"refined in {rec.refinement.seconds:.1f} s: residual ΔE2000 "
-                    f"{rec.refinement.residual_de2000:.2f}")
+                    + ("not recorded" if residual is None else f"{residual:.2f}"))
     colour = rec.uncertainty.get("mean_colour_de2000_p68")
     if colour is not None:
         info.append(f"colour within ΔE2000 {colour:.2f} of the truth in 68% of held-out captures "

@@ -160,7 +160,8 @@ def say_record(record, say=print) -> None:
     """The refinement's residual, the chain's stated colour interval, and the warnings of a record."""
     refinement = record.refinement
     if refinement.ran:
-        say(f"refined to the swatch's mean colour: residual ΔE2000 {refinement.residual_de2000:.2f} "
+        residual = "not recorded" if refinement.residual_de2000 is None else f"{refinement.residual_de2000:.2f}"
+        say(f"refined to the swatch's mean colour: residual ΔE2000 {residual} "
             f"in {refinement.seconds:.2f} s (six parameters reach the image through three absorption "
             "values, so other parameters can render the same colour: compare colours, not parameters)")
     u = record.uncertainty

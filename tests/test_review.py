@@ -212,3 +212,18 @@ def test_the_window_says_a_records_colour_under_other_lights_and_its_spectral_in
     undeclared = {**stated, "camera": "unknown"}
     assert spectral_lines(EstimateRecord(hair=HairParams(), uncertainty={"spectral": undeclared})) == [
         "spectral world (unknown camera): within ΔE2000 1.21 in 68% for every light"]
+
+
+def test_a_record_whose_refinement_has_no_residual_is_shown_not_crashed():
+    """A record file may hold a refinement without its residual (an older or a hand-made one)."""
+    from hairdigi.app.review import Shown, Stage, parameter_view
+    from hairdigi.app.rig_cli import say_record
+    from hairdigi.render.base.params import HairParams
+    from hairdigi.render.base.records import EstimateRecord
+
+    rec = EstimateRecord.from_json({"hair": HairParams().to_dict(), "refinement": {"ran": True, "sigma_a": [0.1, 0.2, 0.3]}})
+    view = parameter_view(Shown("x", np.zeros((4, 4, 3)), (0, 0, 4, 4), (4, 4), HairParams(), Stage.REFINED, rec))
+    assert "residual ΔE2000 not recorded" in view.info
+    said = []
+    say_record(rec, said.append)
+    assert "residual ΔE2000 not recorded" in said[0]
