@@ -85,11 +85,13 @@ def _chips(*colours_hex: str):
 
 
 def draw_card(dye: DyeRecord, rows: list[dict], dose: float = 1.0):
-    """The card as a matplotlib figure: the natural levels above, the dye's result below, labelled."""
-    import matplotlib.pyplot as plt
+    """The card as a matplotlib figure: the natural levels above, the dye's result below, labelled. A plain
+    ``Figure``, not pyplot's: no GUI canvas, so a worker thread may draw it while a Qt window runs."""
+    from matplotlib.figure import Figure
 
     # 11 x 4.8 in: the PDF prints on A4 or Letter, landscape, without scaling
-    fig, axes = plt.subplots(4, len(rows), figsize=(11.0, 6.6), gridspec_kw={"height_ratios": [1, 1, 0.45, 0.45]})
+    fig = Figure(figsize=(11.0, 6.6))
+    axes = fig.subplots(4, len(rows), gridspec_kw={"height_ratios": [1, 1, 0.45, 0.45]})
     lift = (f"lift {dye.lift:.2f}" + ("" if dye.lift_measured else " (assumed: one base)"))
     dep = ", ".join(f"{v:.3f}" for v in dye.deposit_sigma_a)
     fig.suptitle(f"{dye.name}{'' if dose == 1 else f' at dose {dose:g}'}: deposit sigma_a ({dep}), {lift}",
@@ -128,20 +130,15 @@ def shade_card(dye: DyeRecord, out_png: str | os.PathLike, dose: float = 1.0, si
     of them half made, and the old card whole); returns the three paths and the rows."""
     import json
 
-    import matplotlib.pyplot as plt
-
     out_png = Path(out_png)
     rows = card_rows(dye, size, spp, dose=dose, curve=curve)
     fig = draw_card(dye, rows, dose)
     pdf, table = out_png.with_suffix(".pdf"), out_png.with_suffix(".json")
     clean = [{k: v for k, v in r.items() if not k.startswith("_")} for r in rows]
-    try:
-        with atomic_paths(out_png, pdf, table, suffixes=(".png", ".pdf", ".json")) as (png_tmp, pdf_tmp, json_tmp):
-            fig.savefig(pdf_tmp, format="pdf")
-            fig.savefig(png_tmp, dpi=150, format="png")
-            json_tmp.write_text(json.dumps({"dye": dye.name, "dose": dose, "render": {
-                "size": size, "spp": spp, "seed": CARD_SEED, "framing": "crop"}, "levels": clean}, indent=2) + "\n",
-                encoding="utf-8")
-    finally:
-        plt.close(fig)
+    with atomic_paths(out_png, pdf, table, suffixes=(".png", ".pdf", ".json")) as (png_tmp, pdf_tmp, json_tmp):
+        fig.savefig(pdf_tmp, format="pdf")
+        fig.savefig(png_tmp, dpi=150, format="png")
+        json_tmp.write_text(json.dumps({"dye": dye.name, "dose": dose, "render": {
+            "size": size, "spp": spp, "seed": CARD_SEED, "framing": "crop"}, "levels": clean}, indent=2) + "\n",
+            encoding="utf-8")
     return out_png, pdf, table, clean

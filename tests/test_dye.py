@@ -180,11 +180,18 @@ def test_natural_levels_get_lighter():
         natural_base(11)
 
 
-def test_shade_card_renders_ten_levels(curve, tmp_path):
+def test_shade_card_renders_ten_levels(curve, tmp_path, monkeypatch):
+    import matplotlib.pyplot as plt
+
+    from hairdigi.inference import dye_card
     from hairdigi.inference.dye_card import shade_card
 
     dye = D.characterise([_pair(8, lift=0.0), _pair(3, lift=0.0)], "copper", curve)
+    real, drawn = dye_card.draw_card, []    # the real card, its figure kept to look at
+    monkeypatch.setattr(dye_card, "draw_card", lambda *a, **kw: drawn.append(real(*a, **kw)) or drawn[-1])
     png, pdf, table, rows = shade_card(dye, tmp_path / "card.png", size=16, spp=2, curve=curve)
+    # drawn on no GUI canvas: pyplot never held it (the Dye panel draws it in a worker while Qt runs)
+    assert len(drawn) == 1 and plt.get_fignums() == [] and type(drawn[0].canvas).__name__ == "FigureCanvasBase"
     assert png.stat().st_size > 1000 and pdf.read_bytes()[:4] == b"%PDF"
     assert [r["level"] for r in rows] == list(LEVELS)
     # a deposit shows less on black hair than on blonde

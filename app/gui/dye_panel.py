@@ -207,9 +207,6 @@ class DyePanel(QWidget):
         return self._run("preview", work, (self.pred_label, self.style_label), "rendering…")
 
     def card(self):
-        import matplotlib
-
-        matplotlib.use("Agg")    # the card is drawn in a worker: on no Qt canvas (widgets belong to the UI thread)
         work = self.model.card_work(self.dye_combo.currentData())
         return self._run("card", work, (self.card_label,), "rendering the shade card…")
 
