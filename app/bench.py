@@ -53,10 +53,11 @@ def bench_rig(args: argparse.Namespace) -> int:
 
 def bench_encoder(args: argparse.Namespace) -> int:
     """ONNX encoders side by side: latency and error on held-out swatches."""
+    from hairdigi.app.validation import ArgumentError
     from hairdigi.inference.training.report import bench_encoders
 
     if not args.models:
-        raise ValueError("bench encoder needs --models A.onnx B.onnx ...")
+        raise ArgumentError("bench encoder needs --models A.onnx B.onnx ...")
     out = Path(args.out)
     rows = bench_encoders(args.models, out, n=args.n or 300, data_root=args.data)
     for r in rows:

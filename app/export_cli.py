@@ -24,7 +24,9 @@ def export_record(record: str | Path, fmt: str, out: str | Path, blend: str | Pa
     if fmt not in FORMATS:
         raise ValueError(f"unknown export format {fmt!r}; choose one of {', '.join(FORMATS)}")
     if blend and fmt != "blender":
-        raise ValueError("--blend goes with --format blender")
+        from hairdigi.app.validation import ArgumentError
+
+        raise ArgumentError("--blend goes with --format blender")
     look = load_look(record, name)
     written = [write_look(look, fmt, out)]
     if blend:

@@ -23,6 +23,7 @@ from typing import Iterator
 import numpy as np
 
 from hairdigi.app.swatch_colour import ILLUMINANTS, delta_e
+from hairdigi.render.base.errors import HairdigiError
 
 KINDS = ("capture", "estimate", "dye")   # dye: predictions of issue "Hair-dye development", same layout
 BUSY_TIMEOUT_S = 5.0            # SQLite: the longest wait for another writer's lock
@@ -34,7 +35,7 @@ SL_MAX = 1.0 + 0.015 * 2500 / (20 + 2500) ** 0.5 + 1e-6
 FIRST_BAND = 4.0     # L* either side of the query read first
 
 
-class LibraryError(ValueError):
+class LibraryError(HairdigiError, ValueError):
     """The library cannot be opened or does not hold what was asked; the message says which."""
 
 

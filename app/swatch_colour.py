@@ -17,9 +17,15 @@ import re
 
 import numpy as np
 
+from hairdigi.render.base.errors import HairdigiError
+
 ILLUMINANTS = ("daylight", "studio")
 STUDIO_CCT = 3200.0
 _HEX = re.compile(r"^#?([0-9a-fA-F]{6})$")
+
+
+class ColourError(HairdigiError, ValueError):
+    """A colour given as text is not ``#RRGGBB``; the message shows the text."""
 
 
 @functools.lru_cache(maxsize=1)
@@ -66,7 +72,7 @@ def hex_lab(text: str) -> np.ndarray:
 
     match = _HEX.match(text.strip())
     if not match:
-        raise ValueError(f"colour {text!r} is not #RRGGBB (six hexadecimal digits)")
+        raise ColourError(f"colour {text!r} is not #RRGGBB (six hexadecimal digits)")
     value = int(match.group(1), 16)
     srgb = np.array([(value >> 16) & 255, (value >> 8) & 255, value & 255], float)
     return linear_rgb_to_lab(srgb8_to_linear(srgb))

@@ -14,13 +14,14 @@ from typing import Protocol
 import cv2
 import numpy as np
 
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.srgb import linear_to_srgb8
 
 IMAGE_EXTENSIONS = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"}
 RAW_EXTENSIONS = {".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2", ".pef", ".srw"}
 
 
-class CameraError(RuntimeError):
+class CameraError(HairdigiError, RuntimeError):
     """The camera cannot deliver a frame; the message says what to check."""
 
 

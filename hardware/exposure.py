@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.srgb import srgb8_to_linear
 
 #: The white patch should sit in this 8-bit band: bright, with headroom before clipping.
@@ -18,6 +19,10 @@ SWATCH_BAND = (12.0, 235.0)   # loose: black hair is dark, platinum is bright
 #: A photosite at this share of the range from its black to its white level, or above, is saturated.
 SENSOR_SATURATION = 0.99
 _BAND_ROWS = 512              # sensor rows judged at once (a 48 MP still's mask stays tens of MB)
+
+
+class ExposureError(HairdigiError, ValueError):
+    """An area to judge lies outside the frame (a swatch region larger than the camera's image)."""
 
 
 def _linear(v: np.ndarray | float) -> np.ndarray:
@@ -77,7 +82,7 @@ def check_region(img: np.ndarray, box: tuple[int, int, int, int], region: str,
     x, y, w, h = box
     patch = img[y:y + h, x:x + w].reshape(-1, 3)
     if patch.size == 0:
-        raise ValueError(f"the {region} area {box} lies outside the {img.shape[1]}x{img.shape[0]} frame")
+        raise ExposureError(f"the {region} area {box} lies outside the {img.shape[1]}x{img.shape[0]} frame")
     clipped = tuple(float(v) for v in (patch >= 254 if clipped_mask is None else
                                        clipped_mask[y:y + h, x:x + w].reshape(-1, 3)).mean(0))
     crushed = tuple(float(v) for v in (patch <= 1).mean(0))

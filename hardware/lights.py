@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import serial
 import serial.tools.list_ports
 
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.rig_geometry import N_LIGHTS  # the rig has as many lights as the board has channels
 
 try:  # pyserial's POSIX backend lets termios.error (not an OSError) escape from a vanished tty
@@ -26,7 +27,7 @@ RECONNECT_S = 1.6
 _STATUS_PART = re.compile(r"([01]):(0|[1-9][0-9]{0,2})")
 
 
-class LightError(RuntimeError):
+class LightError(HairdigiError, RuntimeError):
     """Base of the light-controller errors; each message names the command and the fix."""
 
 

@@ -24,6 +24,7 @@ import numpy as np
 from hairdigi.render.base.appearance import (DEFAULT_APPEARANCE, SHINE_RANGE, SPREAD_RANGE, GREY_RANGE, Appearance,
                                              AppearanceEstimate)
 from hairdigi.inference.shine import SHINE_FLOOR, estimate_shine, shine_tables
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.files import read_json
 from hairdigi.render.base.records import EstimateWarning, WarningKind
 from hairdigi.render.base.rig_geometry import N_LIGHTS
@@ -36,7 +37,7 @@ FALLBACK = {"longitudinal_roughness": {"p68": 0.02, "p95": 0.05}}
 _RANGES = {"longitudinal_roughness": SHINE_RANGE, "fibre_spread": SPREAD_RANGE, "grey_fraction": GREY_RANGE}
 
 
-class LightFramesError(ValueError):
+class LightFramesError(HairdigiError, ValueError):
     """The single-light frames do not fit the capture (count, size); the message says how to fix it."""
 
 

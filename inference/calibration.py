@@ -23,6 +23,7 @@ import cv2
 import numpy as np
 
 from hairdigi.inference.preprocess import to_linear
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.records import CalibrationProfile, CaptureRecord, RecordError, read_record, write_record
 from hairdigi.render.chart import WHITE_PATCH, colorchecker_reflectances, rig_chart_targets
 from hairdigi.render.metrics import delta_e2000
@@ -33,7 +34,7 @@ DEFAULT_METHOD = "Finlayson 2015"
 STALE_AFTER_S = 8 * 3600   # a shift: recalibrate every morning
 
 
-class CalibrationError(RuntimeError):
+class CalibrationError(HairdigiError, RuntimeError):
     """Calibration cannot proceed; the message says why and what to do."""
 
 

@@ -37,6 +37,7 @@ import numpy as np
 from hairdigi.inference.refine import ResponseCurve, params_for_sigma
 from hairdigi.render.absorption import MELANIN_REMAP, albedo_from_sigma_a, hair_sigma_a, melanin_quantity
 from hairdigi.render.base.dye_record import DyePairRecord, DyeRecord
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.files import read_json
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.base.records import (EstimateRecord, EstimateWarning, RecordError, RefinementRecord,
@@ -62,7 +63,7 @@ CHANNELS = ("red", "green", "blue")
 _MC_DRAWS = 200
 
 
-class DyeError(ValueError):
+class DyeError(HairdigiError, ValueError):
     """A dye cannot be characterised, applied or dosed as asked; the message says why and what to do."""
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.inference.preprocess import Roi, encode, swatch_crop
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
 from hairdigi.resources import MODELS
 
@@ -19,7 +20,7 @@ DEFAULT_MODEL = MODELS / "encoder.onnx"
 EDGE_LOGIT = 6.9
 
 
-class ModelError(RuntimeError):
+class ModelError(HairdigiError, RuntimeError):
     """The model file is missing or unusable; the message says how to get one."""
 
 

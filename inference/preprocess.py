@@ -13,6 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.files import read_bytes
 from hairdigi.render.srgb import linear_to_srgb, linear_to_srgb8, srgb8_to_linear
 
@@ -25,7 +26,7 @@ MAX_IMAGE_BYTES = 512 * 1024 * 1024
 SEARCH_SIDE = 800      # frames are searched for the swatch at most this many pixels on their longer side
 
 
-class ImageError(ValueError):
+class ImageError(HairdigiError, ValueError):
     """The image cannot be used; the message names the problem and the fix."""
 
 

@@ -19,11 +19,12 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.render.base import rig_geometry as rg
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.interchange import HairLook, blender_script_text
 from hairdigi.render.strands import SWATCH_LENGTH, SWATCH_WIDTH, Strands
 
 
-class BlenderError(RuntimeError):
+class BlenderError(HairdigiError, RuntimeError):
     """No Blender to run, or Blender failed; the message says which and how to fix it."""
 
 

@@ -17,8 +17,10 @@ import threading
 
 import numpy as np
 
+from hairdigi.render.base.errors import HairdigiError
 
-class DenoiserMissing(RuntimeError):
+
+class DenoiserMissing(HairdigiError, RuntimeError):
     """``pyoidn`` is not installed (or its OIDN libraries do not load)."""
 
 

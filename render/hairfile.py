@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.render import head
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.strands import HAIR_RADIUS, Strands
 
 _HEADER = struct.Struct("<4sIIIIff3f88s")
@@ -49,7 +50,7 @@ MAX_POINTS_PER_STRAND = 96
 RADIUS = HAIR_RADIUS
 
 
-class HairFileError(ValueError):
+class HairFileError(HairdigiError, ValueError):
     """A ``.hair`` file is malformed; the message says which part, in one line."""
 
 

@@ -26,6 +26,7 @@ from hairdigi.render import scenes
 from hairdigi.render.absorption import hair_bsdf, hair_sigma_a
 from hairdigi.render.hairfile import hair_model_strands
 from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.interrupt import sigint_held
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.fibres import FIBRE_GROUPS, group_keys, group_sigma_a, split_strands
@@ -44,6 +45,11 @@ HAIR_FILE_SCENE = "hairfile"
 #: physical structures (deposited, tilted layers, ...), which ``hairdigi evaluate --structures`` hides.
 SWATCH_MODELS = ("layered", "today") + tuple(k for k in STRUCTURES if k != "layered")
 DEFAULT_SWATCH_MODEL = "layered"
+
+
+class SceneError(HairdigiError, ValueError):
+    """A scene cannot be built as asked (an unknown name, environment or framing, a missing .hair file, a
+    setting out of its range); the message names it and what would work."""
 
 
 @dataclass(frozen=True)
@@ -99,38 +105,38 @@ class SceneSpec:
         if self.name == HAIR_FILE_SCENE:
             path = Path(self.hair_file or "")
             if not self.hair_file or not path.is_file():
-                raise ValueError(f"hair model {self.hair_file!r}: no such file; give the path of a .hair file")
+                raise SceneError(f"hair model {self.hair_file!r}: no such file; give the path of a .hair file")
             object.__setattr__(self, "hair_file", str(path.resolve()))
         elif self.hair_file is not None:
-            raise ValueError(f"hair_file applies to the {HAIR_FILE_SCENE!r} scene, not {self.name!r}")
+            raise SceneError(f"hair_file applies to the {HAIR_FILE_SCENE!r} scene, not {self.name!r}")
         elif self.name not in SCENE_NAMES:
-            raise ValueError(f"unknown scene {self.name!r}; choose one of {', '.join(SCENE_NAMES)} "
+            raise SceneError(f"unknown scene {self.name!r}; choose one of {', '.join(SCENE_NAMES)} "
                              f"or the path of a .hair file")
         if self.name != "swatch" and self.env not in scenes.ENVIRONMENTS:
-            raise ValueError(f"unknown environment {self.env!r}; choose one of {', '.join(scenes.ENVIRONMENTS)}")
+            raise SceneError(f"unknown environment {self.env!r}; choose one of {', '.join(scenes.ENVIRONMENTS)}")
         if self.name == "swatch" and self.env not in ("studio", scenes.KEY_SKY):
-            raise ValueError(f"unknown swatch environment {self.env!r}; choose 'studio' (the rig) or "
+            raise SceneError(f"unknown swatch environment {self.env!r}; choose 'studio' (the rig) or "
                              f"{scenes.KEY_SKY!r} (a key light and a grey sky)")
         if self.name == "swatch" and self.framing not in rig_geometry.FRAMING_HALF_WIDTH:
-            raise ValueError(f"unknown framing {self.framing!r}; choose one of "
+            raise SceneError(f"unknown framing {self.framing!r}; choose one of "
                              f"{', '.join(rig_geometry.FRAMING_HALF_WIDTH)}")
         if self.max_depth is not None and (not is_whole(self.max_depth)
                                            or not MIN_DEPTH <= self.max_depth <= MAX_DEPTH):
-            raise ValueError(f"max_depth must be a whole number between {MIN_DEPTH} and {MAX_DEPTH} (depth 1 "
+            raise SceneError(f"max_depth must be a whole number between {MIN_DEPTH} and {MAX_DEPTH} (depth 1 "
                              f"shows only the lights, 0 nothing), got {self.max_depth!r}")
         if self.strands is not None and (not is_whole(self.strands) or not 1 <= self.strands <= MAX_STRANDS):
-            raise ValueError(f"strands must be a whole number between 1 and {MAX_STRANDS}, got {self.strands!r}")
+            raise SceneError(f"strands must be a whole number between 1 and {MAX_STRANDS}, got {self.strands!r}")
         if self.appearance is not None and not isinstance(self.appearance, Appearance):
             raise ValueError(f"appearance must be an Appearance (render.base.appearance), got {self.appearance!r}")
         if self.fibre_groups is not None and (not is_whole(self.fibre_groups) or not 1 <= self.fibre_groups <= 64):
-            raise ValueError(f"fibre_groups must be a whole number between 1 and 64, got {self.fibre_groups!r}")
+            raise SceneError(f"fibre_groups must be a whole number between 1 and 64, got {self.fibre_groups!r}")
         if not all(np.isfinite(float(v)) and v >= 0 for v in self.lights):
             raise ValueError(f"lights {self.lights} must be finite scales >= 0")
         if self.name == "swatch" and self.swatch_model is None:
             object.__setattr__(self, "swatch_model", DEFAULT_SWATCH_MODEL)
         if (self.swatch_model is not None and self.swatch_model not in SWATCH_MODELS) or \
                 (self.swatch_model is not None and self.name != "swatch"):
-            raise ValueError(f"swatch_model {self.swatch_model!r}: choose one of {', '.join(SWATCH_MODELS)} "
+            raise SceneError(f"swatch_model {self.swatch_model!r}: choose one of {', '.join(SWATCH_MODELS)} "
                              f"(it applies to the swatch scene only)")
         if self.camera is not None:
             check_camera(self.camera, self.name)
@@ -140,7 +146,7 @@ class SceneSpec:
             illuminant_spd(self.illuminant)   # an unknown name or a bad CSV fails here, in one line
         if self.sensitivities is not None:
             if self.illuminant is None:
-                raise ValueError("a camera's sensitivities need a spectral render: give an illuminant too")
+                raise SceneError("a camera's sensitivities need a spectral render: give an illuminant too")
             from hairdigi.render.spectra import camera_sensitivities
 
             camera_sensitivities(self.sensitivities)

@@ -38,6 +38,7 @@ import numpy as np
 from hairdigi.render.absorption import (AZIMUTHAL_ROUGHNESS, EUMELANIN_SIGMA_A, MIN_DYE_ALBEDO,
                                         PHEOMELANIN_SIGMA_A, melanin_quantity, sigma_a_from_albedo)
 from hairdigi.render.base.bounds import CAMERAS, ILLUMINANTS  # noqa: F401  (named cameras and lights)
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.params import HairParams
 
 #: nm: Mitsuba's spectral range (``MI_CIE_MIN``..``MI_CIE_MAX``) every 5 nm.
@@ -55,7 +56,7 @@ MIN_ROWS = 4
 MAX_CSV_BYTES = 1 << 20
 
 
-class SpectrumError(ValueError):
+class SpectrumError(HairdigiError, ValueError):
     """A light or camera is unknown, or its CSV file cannot be used; the message names the fix."""
 
 

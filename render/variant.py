@@ -16,6 +16,7 @@ from __future__ import annotations
 import os
 import warnings
 
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.interrupt import sigint_held, stop_among
 
 with sigint_held():   # threads started while Mitsuba loads inherit the block (render.base.interrupt)
@@ -26,7 +27,7 @@ from hairdigi.render.base.bounds import PREFERRED_VARIANTS as PREFERRED  # noqa:
 from hairdigi.render.base.bounds import VARIANT_CHOICES as CHOICES  # noqa: E402  (the command line's --variant)
 
 
-class VariantError(RuntimeError):
+class VariantError(HairdigiError, RuntimeError):
     """No asked-for Mitsuba variant works on this machine (a one-line message saying why)."""
 
 

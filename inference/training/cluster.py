@@ -21,6 +21,8 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import TYPE_CHECKING, Callable
 
+from hairdigi.render.base.errors import HairdigiError
+
 if TYPE_CHECKING:
     from hairdigi.inference.training.dataset import DatasetConfig
 
@@ -29,7 +31,7 @@ INSTALL_HINT = "pip install 'hairdigi[cluster]'"
 MAX_RETRIES = 3
 
 
-class ClusterError(RuntimeError):
+class ClusterError(HairdigiError, RuntimeError):
     """The Ray backend cannot run: Ray missing, no cluster at the address, no GPU for a CUDA variant."""
 
 

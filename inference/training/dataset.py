@@ -25,6 +25,7 @@ import numpy as np
 
 from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance, sample_appearance
 from hairdigi.render.base.appearance import FIELDS as APPEARANCE_FIELDS
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.files import atomic_path
 
 from hairdigi.render.base.params import HairParams, sample_params
@@ -61,15 +62,15 @@ class DatasetConfig:
         from hairdigi.render.renderer import SWATCH_MODELS
 
         if self.store not in STORES:
-            raise ValueError(f"dataset store {self.store!r} is not one of {', '.join(STORES)}")
+            raise DatasetError(f"dataset store {self.store!r} is not one of {', '.join(STORES)}")
         if self.swatch_model not in SWATCH_MODELS:
-            raise ValueError(f"dataset swatch_model {self.swatch_model!r} is not one of {', '.join(SWATCH_MODELS)}")
+            raise DatasetError(f"dataset swatch_model {self.swatch_model!r} is not one of {', '.join(SWATCH_MODELS)}")
         if self.appearance not in APPEARANCES:
-            raise ValueError(f"dataset appearance {self.appearance!r} is not one of {', '.join(APPEARANCES)}")
+            raise DatasetError(f"dataset appearance {self.appearance!r} is not one of {', '.join(APPEARANCES)}")
         for name, low in (("size", 8), ("spp", 1), ("n", 1), ("shard_size", 1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-                raise ValueError(f"dataset {name} must be a whole number >= {low}, got {value!r}")
+                raise DatasetError(f"dataset {name} must be a whole number >= {low}, got {value!r}")
 
     @property
     def n_shards(self) -> int:
@@ -230,7 +231,7 @@ def write_shard(root: str | os.PathLike, shard: int, arrays: dict[str, np.ndarra
     return path
 
 
-class DatasetError(ValueError):
+class DatasetError(HairdigiError, ValueError):
     """A dataset's file is damaged or not what it should be; the message names the file and the fix."""
 
 
@@ -292,8 +293,8 @@ def _check_manifest(root: Path, config: DatasetConfig, variant: str | None = Non
         stored = {**LEGACY_DEFAULTS, **json.loads(path.read_text())["config"]}
         if stored != asdict(config):
             diff = {k: (stored.get(k), v) for k, v in asdict(config).items() if stored.get(k) != v}
-            raise ValueError(f"{root} holds a dataset made with other settings {diff} (stored, asked); "
-                             f"use another --out or the same settings to resume")
+            raise DatasetError(f"{root} holds a dataset made with other settings {diff} (stored, asked); "
+                               f"use another --out or the same settings to resume")
     else:
         from hairdigi.render.base.files import write_json_atomic
         from hairdigi.render.variant import mi
@@ -314,8 +315,8 @@ def _check_variant(root: Path, variant: str, has_shards: bool) -> None:
     if not stored or stored == variant:
         return
     if has_shards:
-        raise ValueError(f"{root} was rendered with Mitsuba variant {stored}, not {variant}; resume it with "
-                         f"--variant {stored}, or use another --out")
+        raise DatasetError(f"{root} was rendered with Mitsuba variant {stored}, not {variant}; resume it with "
+                           f"--variant {stored}, or use another --out")
     from hairdigi.render.base.files import write_json_atomic
     write_json_atomic(root / MANIFEST, {**manifest, "mitsuba_variant": variant})
 

@@ -31,11 +31,17 @@ from hairdigi.inference.training.dataset import DatasetConfig, generate, load, s
 from hairdigi.inference.refine import RefineSettings, mean_linear, refine
 from hairdigi.render.metrics import delta_e2000, l1_255, ms_ssim
 from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.files import atomic_path, write_json_atomic
 
 EVAL_SEED = 1_000_003  # training datasets use small seeds; this one is disjoint by construction
 SPANS = np.array([hi - lo for _, lo, hi in VECTOR_FIELDS])
 NAMES = [name for name, _, _ in VECTOR_FIELDS]
+
+
+class EvaluationError(HairdigiError, ValueError):
+    """An evaluation cannot run with the settings asked (sizes that cannot be compared); the message says
+    which settings to change."""
 
 
 @dataclass(frozen=True)
@@ -147,8 +153,8 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 64, 
     from hairdigi.inference.uncertainty import coverage_of, fit_intervals
 
     if judge.size != size:
-        raise ValueError(f"the judge renders at {judge.size}² but the held-out swatches are {size}²; the paper's "
-                         "image metrics compare the two pixel for pixel: use one size")
+        raise EvaluationError(f"the judge renders at {judge.size}² but the held-out swatches are {size}²; the "
+                              "paper's image metrics compare the two pixel for pixel: use one size")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     config = heldout_config(n, size, spp)

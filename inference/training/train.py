@@ -16,7 +16,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hairdigi.inference.training.dataset import load, usable
+from hairdigi.inference.training.dataset import DatasetError, load, usable
 from hairdigi.inference.preprocess import encode
 from hairdigi.render.camera_model import CameraModel, CaptureErrors, random_camera, sensor_response
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
@@ -94,12 +94,12 @@ def load_datasets(dataset_dirs) -> tuple[np.ndarray, np.ndarray, np.ndarray, lis
     parts = [load(d) for d in dirs]
     sizes = {p[0].shape[1:] for p in parts}
     if len(sizes) > 1:
-        raise ValueError(f"datasets {', '.join(map(str, dirs))} have different image sizes {sorted(sizes)}; "
-                         "train on datasets rendered at one --size")
+        raise DatasetError(f"datasets {', '.join(map(str, dirs))} have different image sizes {sorted(sizes)}; "
+                           "train on datasets rendered at one --size")
     framings = {p[3]["config"].get("framing", "crop") for p in parts}
     if len(framings) > 1:
-        raise ValueError(f"datasets {', '.join(map(str, dirs))} mix framings {sorted(framings)}; "
-                         "train on datasets of one framing")
+        raise DatasetError(f"datasets {', '.join(map(str, dirs))} mix framings {sorted(framings)}; "
+                           "train on datasets of one framing")
     configs = [{"path": str(d), **p[3]["config"], "n_loaded": int(len(p[0]))} for d, p in zip(dirs, parts)]
     return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
             np.concatenate([p[2] for p in parts]), configs)
@@ -146,7 +146,7 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
     if ckpt.exists():
         state = _load_checkpoint(ckpt)
         if state["encoder"] != encoder_config.to_dict() or state["train"] != asdict(config):
-            raise ValueError(f"{ckpt} was made with other settings; use another output folder or the same settings")
+            raise DatasetError(f"{ckpt} was made with other settings; use another output folder or the same settings")
         model.load_state_dict(state["model"])
         opt.load_state_dict(state["optimizer"])
         sched.load_state_dict(state["scheduler"])
@@ -202,8 +202,6 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
 def _load_checkpoint(path: Path) -> dict:
     """A training checkpoint; a damaged one raises DatasetError naming the file (one line)."""
     import torch
-
-    from hairdigi.inference.training.dataset import DatasetError
 
     try:
         state = torch.load(path, weights_only=False)

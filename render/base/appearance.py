@@ -19,6 +19,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from hairdigi.render.base.errors import HairdigiError
+
 #: The shine the project rendered before issue 18, and every default scene still renders.
 DEFAULT_SHINE = 0.3
 #: Shine the renderer accepts: 0 renders black and below 0.05 gives fireflies (Mitsuba 3.9).
@@ -37,7 +39,7 @@ _MEANING = {"longitudinal_roughness": "the shine, Mitsuba's beta_m", "fibre_spre
             "grey_fraction": "the share of grey fibres"}
 
 
-class AppearanceError(ValueError):
+class AppearanceError(HairdigiError, ValueError):
     """An appearance value is out of its range or not a number; the message names the field."""
 
 

@@ -9,6 +9,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from hairdigi.render.base import rig_geometry
+from hairdigi.render.base.errors import HairdigiError
+
+
+class BoundsError(HairdigiError, ValueError):
+    """A render setting (size, spp, camera) outside what a render can finish or show; the message names
+    the setting and its range."""
+
 
 # Bounds on what a render may ask for: outside them the image is black, or the job cannot finish.
 MIN_SIZE = 8                 #: pixels a side; smaller holds too few strands to see
@@ -78,25 +85,25 @@ def is_whole(value: object) -> bool:
 
 
 def check_size_spp(size: int | tuple[int, int], spp: int) -> None:
-    """Raise ValueError naming ``size`` or ``spp`` when a render could not finish or show anything."""
+    """Raise BoundsError naming ``size`` or ``spp`` when a render could not finish or show anything."""
     sides = tuple(size) if isinstance(size, (tuple, list)) else (size,)
     if not all(is_whole(s) for s in sides) or not MIN_SIZE <= min(sides) <= max(sides) <= MAX_SIZE:
-        raise ValueError(f"size must be whole pixels between {MIN_SIZE} and {MAX_SIZE}, got {size!r}")
+        raise BoundsError(f"size must be whole pixels between {MIN_SIZE} and {MAX_SIZE}, got {size!r}")
     if not is_whole(spp) or not 1 <= spp <= MAX_SPP:
-        raise ValueError(f"spp must be a whole number between 1 and {MAX_SPP}, got {spp!r}")
+        raise BoundsError(f"spp must be a whole number between 1 and {MAX_SPP}, got {spp!r}")
     pixels = int(sides[0]) * int(sides[-1])
     if pixels * int(spp) > MAX_SAMPLES:
-        raise ValueError(f"size {size} at {spp} spp is {pixels * int(spp):.3g} samples, over the limit of "
-                         f"{MAX_SAMPLES:.3g} for one render; lower the size or the spp")
+        raise BoundsError(f"size {size} at {spp} spp is {pixels * int(spp):.3g} samples, over the limit of "
+                          f"{MAX_SAMPLES:.3g} for one render; lower the size or the spp")
 
 
 def check_camera(pose: rig_geometry.CameraPose, scene: str = "swatch") -> None:
-    """Raise ValueError naming the camera when its angles or distance are not finite, or its distance
+    """Raise BoundsError naming the camera when its angles or distance are not finite, or its distance
     puts it inside the geometry or absurdly far (both give a black image)."""
     values = (pose.polar_deg, pose.azimuth_deg, pose.distance)
     if not all(np.isfinite(float(v)) for v in values):
-        raise ValueError(f"camera {values} must be finite numbers (polar, azimuth, distance)")
+        raise BoundsError(f"camera {values} must be finite numbers (polar, azimuth, distance)")
     low = MIN_CAMERA_DISTANCE["swatch" if scene == "swatch" else "hairstyle"]
     if not low <= pose.distance <= MAX_CAMERA_DISTANCE:
-        raise ValueError(f"camera distance {pose.distance:g} must be between {low:g} (nearer is inside or "
-                         f"against the hair) and {MAX_CAMERA_DISTANCE:g} scene units")
+        raise BoundsError(f"camera distance {pose.distance:g} must be between {low:g} (nearer is inside or "
+                          f"against the hair) and {MAX_CAMERA_DISTANCE:g} scene units")

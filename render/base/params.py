@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.files import read_json, write_json_atomic
 
 # (name, low, high) for the six normalised components, in vector order.
@@ -24,7 +25,7 @@ _LOW = np.array([f[1] for f in VECTOR_FIELDS])
 _SPAN = np.array([f[2] - f[1] for f in VECTOR_FIELDS])
 
 
-class HairParamsError(ValueError):
+class HairParamsError(HairdigiError, ValueError):
     """A hair-parameter value or file is invalid; the message names the field and its range."""
 
 

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from hairdigi.render.base.appearance import AppearanceError, AppearanceEstimate
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.files import MAX_JSON_BYTES, read_json, sha256_file, write_json_atomic
 from hairdigi.render.base.params import HairParams, HairParamsError
 
@@ -36,7 +37,7 @@ SIGMA_A_MAX = 100.0
 SCHEMA_VERSION = 2
 
 
-class RecordError(ValueError):
+class RecordError(HairdigiError, ValueError):
     """A record file or dict is not what it claims; the message names the field and the fix."""
 
 

@@ -16,6 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hairdigi.render.base.errors import HairdigiError
+
+
+class GeometryError(HairdigiError, ValueError):
+    """A camera pose or a frame's region the rig cannot have; the message names it and what would work."""
+
+
 # --- the holder and the lights -------------------------------------------------------------
 HOLDER_SIZE = (3.8, 4.0)      # the 1 x 1.4 swatch, with room for the chart on its right
 HOLDER_CENTER = (0.6, -0.75)
@@ -44,9 +51,9 @@ class CameraPose:
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.polar_deg < 90.0:
-            raise ValueError(f"camera polar angle {self.polar_deg}° must be in [0, 90)")
+            raise GeometryError(f"camera polar angle {self.polar_deg}° must be in [0, 90)")
         if not self.distance > 0.0:
-            raise ValueError(f"camera distance {self.distance} must be positive")
+            raise GeometryError(f"camera distance {self.distance} must be positive")
 
     def position(self, target: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
         return np.asarray(target, float) + self.distance * spherical_direction(self.polar_deg, self.azimuth_deg)
@@ -57,9 +64,9 @@ class CameraPose:
         try:
             values = [float(v) for v in text.split(",")]
         except ValueError:
-            raise ValueError(f"camera {text!r} must be POLAR,AZIMUTH[,DIST] numbers, e.g. 20,45") from None
+            raise GeometryError(f"camera {text!r} must be POLAR,AZIMUTH[,DIST] numbers, e.g. 20,45") from None
         if len(values) not in (2, 3):
-            raise ValueError(f"camera {text!r} must be POLAR,AZIMUTH[,DIST], e.g. 20,45 or 20,45,4")
+            raise GeometryError(f"camera {text!r} must be POLAR,AZIMUTH[,DIST], e.g. 20,45 or 20,45,4")
         return cls(*values) if len(values) == 3 else cls(*values, distance=default_distance)
 
 
@@ -220,7 +227,7 @@ class RigRegion:
         x, y, w, h = self.roi
         width, height = self.frame_size
         if w < 1 or h < 1 or x < 0 or y < 0 or x + w > width or y + h > height:
-            raise ValueError(f"region {self.roi} is not inside the {width}x{height} frame")
+            raise GeometryError(f"region {self.roi} is not inside the {width}x{height} frame")
 
     def render_plan(self, pixels: int = 48 * 48) -> tuple[tuple[int, int], tuple[int, int, int, int],
                                                           tuple[int, int, int, int]]:

@@ -7,13 +7,18 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.files import atomic_path
+
+
+class ImageWriteError(HairdigiError, ValueError):
+    """An image cannot be written under the name asked (its extension says another format)."""
 
 
 def _check_suffix(path: Path, suffix: str) -> None:
     """The file's name must say what it holds: a PNG ends in .png, an EXR in .exr."""
     if path.suffix.lower() != suffix:
-        raise ValueError(f"{path}: this writes {suffix[1:].upper()} data; name the file with {suffix}")
+        raise ImageWriteError(f"{path}: this writes {suffix[1:].upper()} data; name the file with {suffix}")
 
 
 def save_png(path: str | os.PathLike, srgb: np.ndarray) -> Path:
