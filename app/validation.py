@@ -13,13 +13,13 @@ because its output cannot be written:
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import shutil
 from pathlib import Path
 from typing import Callable, Iterable
 
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.files import cache_dir
 
 #: Bounds of the numbers the commands take (render bounds live in ``render.base.bounds``).
@@ -45,7 +45,7 @@ def _models_folder() -> str:
     return str(MODELS)
 
 
-class ArgumentError(ValueError):
+class ArgumentError(HairdigiError, ValueError):
     """An argument cannot be used; the message names it and says what would work."""
 
 
@@ -267,20 +267,20 @@ def illuminant(text: str) -> str:
 
 def check_render(args: argparse.Namespace) -> None:
     """``hairdigi render``: the parameter file, the outputs, and size x spp, depth and camera together."""
-    from hairdigi.render.base.bounds import check_camera, check_size_spp, defaults_for
+    from hairdigi.render.base.bounds import BoundsError, check_camera, check_size_spp, defaults_for
     from hairdigi.render.scenes import PORTRAIT_CAMERA
-    from hairdigi.render.base.rig_geometry import CAMERA_DISTANCE, CameraPose
+    from hairdigi.render.base.rig_geometry import CAMERA_DISTANCE, CameraPose, GeometryError
 
     check_input_file(args.params, "--params")
     inputs = {"--params": args.params}
     if args.scene.lower().endswith(".hair"):
-        from hairdigi.render.hairfile import read_hair_file
+        from hairdigi.render.hairfile import HairFileError, read_hair_file
 
         check_input_file(args.scene, "--scene")
         inputs["--scene"] = args.scene
         try:
             read_hair_file(args.scene)   # a malformed model stops here, before any scene is built
-        except ValueError as exc:
+        except HairFileError as exc:
             raise ArgumentError(f"--scene {exc}") from None
     check_distinct({"--out": args.out, "--exr": args.exr})
     check_output_file(args.out, "--out", (".png",), "an 8-bit PNG", inputs)
@@ -291,13 +291,13 @@ def check_render(args: argparse.Namespace) -> None:
     spp = defaults.spp if args.spp is None else args.spp
     try:
         check_size_spp(size, spp)
-    except ValueError as exc:
+    except BoundsError as exc:
         raise ArgumentError(f"--size {size} --spp {spp}: {exc}") from None
     if args.camera:
         distance = CAMERA_DISTANCE if args.scene == "swatch" else PORTRAIT_CAMERA.distance
         try:
             check_camera(CameraPose.parse(args.camera, distance), args.scene)
-        except ValueError as exc:
+        except (GeometryError, BoundsError) as exc:
             raise ArgumentError(f"--camera {args.camera}: {exc}") from None
 
 
@@ -551,6 +551,46 @@ def check_model_card(args: argparse.Namespace) -> None:
                       allow=(_models_folder(),))
     check_output_file(out.with_name("uncertainty.json"), "--out (the intervals beside it)", (".json",), "JSON",
                       inputs, allow=(_models_folder(),))
+    evaluation = _json_object(args.evaluation, "--evaluation", "hairdigi evaluate's evaluation.json")
+    if not isinstance(evaluation.get("buckets"), dict) or not isinstance(evaluation["buckets"].get("all"), dict):
+        raise ArgumentError(f"--evaluation {args.evaluation}: holds no \"buckets\": {{\"all\": ...}}, so it is not "
+                            f"hairdigi evaluate's evaluation.json; give that file")
+    if args.rig:
+        _json_object(args.rig, "--rig", "hairdigi evaluate --rig's JSON")
+    history = _json_object(Path(args.run) / "history.json", "--run", "a training run's history.json")
+    if not isinstance(history.get("epochs"), list) or not history["epochs"]:
+        raise ArgumentError(f"--run {args.run}: its history.json holds no finished epoch; train it first")
+    for flag, path in (("--variants", args.variants), ("--convergence", args.convergence),
+                       ("--refine-bench", args.refine_bench)):
+        if path:
+            _check_number_table(path, flag)
+
+
+def _json_object(path: str | os.PathLike, flag: str, what: str) -> dict:
+    """A JSON file holding an object, or an ArgumentError naming ``flag`` and the file."""
+    from hairdigi.render.base.files import read_json
+
+    data = read_json(path, ArgumentError, f"no such file; give {what} as {flag}",
+                     f"not JSON ({{exc}}); give {what} as {flag}")
+    if not isinstance(data, dict):
+        raise ArgumentError(f"{flag} {path}: holds a JSON {type(data).__name__}, not an object; give {what}")
+    return data
+
+
+def _check_number_table(path: str | os.PathLike, flag: str) -> None:
+    """A CSV table whose cells are numbers, but for its ``model`` column (as ``model-card`` reads it)."""
+    import csv
+
+    line = 1
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            for line, row in enumerate(csv.DictReader(f), 2):
+                for key, value in row.items():
+                    if key != "model":
+                        float(value)
+    except (ValueError, TypeError, csv.Error) as exc:   # UnicodeDecodeError is a ValueError
+        raise ArgumentError(f"{flag} {path}: line {line} is not a row of numbers ({one_line(str(exc))[:80]}); "
+                            f"give the CSV that hairdigi bench wrote") from None
 
 
 def check_bench(args: argparse.Namespace) -> None:
@@ -614,9 +654,13 @@ def describe_os_error(exc: OSError) -> str:
 
 
 def is_expected(exc: BaseException) -> bool:
-    """Whether ``exc`` is a failure the user can fix (bad input, a file system problem, hairdigi's own
-    error classes), rather than a bug: those get one line, bugs a traceback."""
-    if isinstance(exc, (ValueError, OSError, MemoryError, json.JSONDecodeError)):
-        return True
-    return any(cls.__module__.startswith("hairdigi.") and cls.__name__.endswith("Error")
-               for cls in type(exc).__mro__)
+    """Whether ``exc`` is a failure the user can fix (one line, exit status 2) rather than a bug (its
+    traceback, exit status 1).
+
+    The user's: a :class:`~hairdigi.render.base.errors.HairdigiError` (hairdigi's own errors, whose
+    message names the problem and the fix), an ``OSError`` (the file system: a full disk, a permission,
+    a missing path), a ``MemoryError``, and an argument argparse refuses. A plain ``ValueError``,
+    ``TypeError``, ``KeyError`` or ``RuntimeError`` is a bug, numpy's and json's included: code that
+    reads a user's data converts those into its module's ``HairdigiError`` where it reads them."""
+    return isinstance(exc, (HairdigiError, OSError, MemoryError, argparse.ArgumentError,
+                            argparse.ArgumentTypeError))
