@@ -7,6 +7,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.threads import start_up
 from hairdigi.render.base.version import version
 
@@ -29,7 +30,7 @@ if __name__ == "__main__" or Path((sys.argv or [""])[0]).name == "hairdigi":   #
     signal.signal(signal.SIGINT, _interrupted_at_start)
 
 
-class CliError(Exception):
+class CliError(HairdigiError):
     """A user-facing error: printed as one line, exit status 2."""
 
 
@@ -828,7 +829,7 @@ def main(argv: list[str] | None = None) -> int:
                 traceback.print_exc()
             print(f"{prog}: error: {missing}", file=sys.stderr)
             return 2
-        if not is_expected(exc) and not isinstance(exc, CliError):
+        if not is_expected(exc):
             traceback.print_exc()
             print(f"{prog}: internal error (a bug in hairdigi): {type(exc).__name__}; please report it with "
                   f"the traceback above", file=sys.stderr)

@@ -43,6 +43,7 @@ from hairdigi.app.previews import (HairstylePass, PassTag, PreviewSettings, Stag
 from hairdigi.render import denoise as dn
 from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance, AppearanceEstimate
 from hairdigi.render.base.bounds import ILLUMINANTS
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
 from hairdigi.render.base.records import CalibrationProfile, EstimateRecord, EstimateWarning, WarningKind
 from hairdigi.render.base.rig_geometry import N_LIGHTS
@@ -63,6 +64,10 @@ Cancelled = Callable[[], bool]
 
 # --- work ------------------------------------------------------------------------------------------
 @dataclass
+class ReviewError(HairdigiError, ValueError):
+    """What the review cannot do for the operator now (nothing to export yet), with what to do."""
+
+
 class Work:
     """A generator function run by a worker: its yields are progress, its return value the result.
 
@@ -1026,7 +1031,7 @@ class ReviewModel:
             raise ValueError(f"save which render? 'hairstyle' or 'twin', got {which!r}")
         item = self.hairstyle if which == "hairstyle" else self.twin
         if item is None:
-            raise ValueError(f"no {which} render yet: capture or select a swatch first")
+            raise ReviewError(f"no {which} render yet: capture or select a swatch first")
         linear = item.clean if self.show_denoised and item.clean is not None else item.raw
         path = Path(path)
         if path.suffix.lower() not in (".png", ".exr"):
@@ -1040,7 +1045,7 @@ class ReviewModel:
         if not all_ and self.shown is not None and self.shown.capture_id is not None:
             entries = [e for e in entries if e.id == self.shown.capture_id]
         if not entries:
-            raise ValueError("nothing to export: no capture has an estimate yet")
+            raise ReviewError("nothing to export: no capture has an estimate yet")
         return rs.export_records([e.record for e in entries], path)
 
 

@@ -23,6 +23,7 @@ from hairdigi.inference.calibration import (CalibrationError, apply_profile, cal
                                             save_profile, staleness)
 from hairdigi.render.base.files import write_json_atomic
 from hairdigi.render.base.params import HairParams
+from hairdigi.render.base.errors import HairdigiError
 from hairdigi.render.base.records import (CalibrationProfile, CaptureRecord, EstimateRecord, EstimateWarning,
                                           RecordError, WarningKind, capture_profile, read_record, write_record)
 from hairdigi.render.base.rig_geometry import RIG_HALF_WIDTH, CameraPose, RigRegion
@@ -473,6 +474,10 @@ def _write_result(folder: Path, result: CaptureResult, roi) -> None:
     write_record(Path(folder) / "captures" / f"{result.capture_id}.result.json", done)
 
 
+class StillError(HairdigiError, ValueError):
+    """A file given as a RAW still that is not one."""
+
+
 def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
                  in_spectral_world: Callable[..., EstimateRecord] | None = None) -> CaptureResult:
     """A RAW still (DNG, CR2, NEF, ...) of the rig, taken with the chart in view, as a capture.
@@ -487,7 +492,7 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
     start = time.perf_counter()
     path = Path(path)
     if path.suffix.lower() not in RAW_EXTENSIONS:
-        raise ValueError(f"{path}: not a RAW still ({', '.join(sorted(RAW_EXTENSIONS))}); "
+        raise StillError(f"{path}: not a RAW still ({', '.join(sorted(RAW_EXTENSIONS))}); "
                          "open images and videos with hairdigi estimate")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such RAW file")
