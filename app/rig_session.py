@@ -42,6 +42,7 @@ class CaptureResult:
     blocked: list[str] = field(default_factory=list)   # why no estimate was made
     corrected: np.ndarray | None = None                # the colour-corrected frame that was estimated (linear)
     seconds: float = 0.0
+    curve: object | None = None                        # the response curve the refinement inverted
 
 
 @dataclass
@@ -328,20 +329,22 @@ class RigSession:
                       [(f.srgb if f.linear is None else f.linear, k) for f, k in zip(singles, factors)], chart)
         result.seconds = time.perf_counter() - start    # capture to parameters; the spectral reading follows
         if result.record is not None:
-            result.record = self.in_spectral_world(result.record)
+            result.record = self.in_spectral_world(result.record, curve=result.curve)
         _write_result(self.folder, result, roi)
         return result
 
-    def in_spectral_world(self, record: EstimateRecord, profile: CalibrationProfile | None = None) -> EstimateRecord:
+    def in_spectral_world(self, record: EstimateRecord, profile: CalibrationProfile | None = None,
+                          curve=None) -> EstimateRecord:
         """``record`` with its spectral reading (the rig's spectra declared) or the metamerism of an
         undeclared camera in its colour interval (a real rig); the simulated RGB rig's is left as it is.
-        ``profile``: the chart correction the capture was made with (default: the session's)."""
+        ``profile``: the chart correction the capture was made with (default: the session's); ``curve``:
+        the response curve its refinement inverted (default: the rig's swatch crop's)."""
         if self.simulated and self.spectra is None:
             return record
         from hairdigi.inference.spectral import spectral_record
 
         profile = profile or self.profile
-        return spectral_record(record, self.spectra, None if profile is None else profile.matrix)
+        return spectral_record(record, self.spectra, None if profile is None else profile.matrix, curve)
 
     def load_capture(self, capture_id: str) -> "LoadedCapture":
         """A saved capture with what reviewing it needs: the frame, its swatch area, its result record,
@@ -461,6 +464,7 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
                               on_encoder_estimate=on_encoder_estimate, light_images=lights, sensor_clipped=clipped)
     result.params = estimate.params
     result.corrected = corrected
+    result.curve = None if estimate.refinement is None else estimate.refinement.curve
     result.record = record(estimate, encoder, result.image_path.read_bytes(), result.image_path,
                            calibration_summary(profile), view)
 
@@ -524,7 +528,7 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
                   clipped=still.clipped)
     result.seconds = time.perf_counter() - start
     if result.record is not None and in_spectral_world is not None:
-        result.record = in_spectral_world(result.record, profile)
+        result.record = in_spectral_world(result.record, profile, result.curve)
     _write_result(Path(folder), result, roi)
     return result
 

@@ -248,6 +248,7 @@ class Refinement:
     history: list[float] = field(default_factory=list)   # residual ΔE2000 after each step
     nonfinite: int = 0                 # NaN or Inf samples in its renders (counted, replaced by 0)
     region: dict = field(default_factory=dict)            # what it fitted and rendered
+    curve: "ResponseCurve | None" = None   # the curve it inverted (the region's, at the swatch's appearance)
 
     @property
     def polish_seconds(self) -> float:
@@ -371,4 +372,4 @@ def refine(prior: HairParams, target: np.ndarray, view: View = CameraPose(),
     return Refinement(params, hair_sigma_a(params), target, np.asarray(final, float), residual, len(history),
                       residual < REACHABLE_DE, time.perf_counter() - start, curve.seconds, curve.cached, history,
                       nonfinite, {**(view.to_dict() if isinstance(view, RigRegion) else {"crop_pose": asdict(view)}),
-                                  "swatch_model": spec.swatch_model})
+                                  "swatch_model": spec.swatch_model}, curve)

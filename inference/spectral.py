@@ -90,7 +90,10 @@ class RigSpectra:
 def spectral_record(record, spectra: RigSpectra | None, ccm, curve=None, table: dict | None = None):
     """``record`` (an ``EstimateRecord``) in the spectral world: with the rig's ``spectra`` declared and a
     linear chart correction ``ccm``, its :class:`SpectralReading` and that camera's colour interval; with
-    none declared, its colour interval widened by the metamerism an undeclared camera leaves."""
+    none declared, its colour interval widened by the metamerism an undeclared camera leaves. ``curve``:
+    the response curve the record's refinement inverted (the capture's region, at its appearance), so
+    that the colour read and its model agree; default, the rig's swatch crop's. A camera whose bands
+    overlap (the Sigma's CCM has coefficients to 7.5) amplifies any disagreement between the two."""
     from hairdigi.inference.uncertainty import load_table
 
     table = load_table(SPECTRAL_TABLE) if table is None else table
@@ -103,9 +106,12 @@ def spectral_record(record, spectra: RigSpectra | None, ccm, curve=None, table: 
     from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.chart import rig_chart_targets
 
-    curve = curve or response_curve(RIG_SWATCH_POSE, RefineSettings())
-    sigma = np.asarray(record.sigma_a if record.sigma_a is not None else hair_sigma_a(record.hair), float)
-    reading = read_spectral(record.hair, curve(sigma), curve, np.asarray(ccm, float), spectra.led,
+    measured = record.refinement.target_linear_rgb
+    if curve is None or measured is None:   # no capture's own curve: the crop's, and the answer's colour on it
+        curve = curve or response_curve(RIG_SWATCH_POSE, RefineSettings())
+        sigma = np.asarray(record.sigma_a if record.sigma_a is not None else hair_sigma_a(record.hair), float)
+        measured = curve(sigma)
+    reading = read_spectral(record.hair, np.asarray(measured, float), curve, np.asarray(ccm, float), spectra.led,
                             spectra.sensitivities, rig_chart_targets()[0])
     return replace(record, spectral=reading,
                    uncertainty=with_spectral(record.uncertainty, table, reading.camera))

@@ -59,7 +59,7 @@ class StructureSet:
 
 
 #: A held-out dark hair's melanin concentration: from dark brown (its least sigma_a near 1) to
-#: black (near 2; the estimate of black reads 3.9-8), either side of ``inference.structure.DARK_SIGMA``, the rule chosen on the named cases.
+#: black (near 2; the estimate of black reads 3.9-8), beyond ``inference.structure.DARK_SIGMA``: they check whether dark hair keeps its answer.
 DARK_MELANIN = (0.95, 1.0)
 
 
@@ -157,7 +157,8 @@ def _estimate(render, truth, structure: str, layout: int, shine: float, encoder,
         raise RuntimeError("no refinement")
     sigma = np.asarray(result.refinement.sigma_a, float)
     misfits = read_structure(np.array([mean_linear(im) for im in lights]), RIG_SWATCH_POSE).misfits
-    return result, read, {"shipped": sigma, "family": to_family(sigma, family),
+    switched = result.refinement.region.get("swatch_model") not in (None, "layered")   # read: out of reach
+    return result, read, {"shipped": sigma, "family": sigma if switched else to_family(sigma, family),
                           "read": np.asarray(read.refinement.sigma_a, float)}, misfits
 
 
