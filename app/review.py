@@ -62,12 +62,12 @@ __all__ = ["Events", "ReviewModel", "Work", "run_now", "Shown", "Stage", "Previe
 Cancelled = Callable[[], bool]
 
 
-# --- work ------------------------------------------------------------------------------------------
-@dataclass
 class ReviewError(HairdigiError, ValueError):
     """What the review cannot do for the operator now (nothing to export yet), with what to do."""
 
 
+# --- work ------------------------------------------------------------------------------------------
+@dataclass
 class Work:
     """A generator function run by a worker: its yields are progress, its return value the result.
 
