@@ -26,6 +26,7 @@ import numpy as np
 
 from hairdigi.render.base.params import HairParams
 from hairdigi.render.base.records import SpectralReading
+from hairdigi.inference.uncertainty import load_table, widen_colour
 from hairdigi.resources import MODELS
 
 #: How much a refit may move the parameters (normalised to [0, 1]) for one unit of CIELAB distance.
@@ -94,8 +95,6 @@ def spectral_record(record, spectra: RigSpectra | None, ccm, curve=None, table: 
     the response curve the record's refinement inverted (the capture's region, at its appearance), so
     that the colour read and its model agree; default, the rig's swatch crop's. A camera whose bands
     overlap (the Sigma's CCM has coefficients to 7.5) amplifies any disagreement between the two."""
-    from hairdigi.inference.uncertainty import load_table
-
     table = load_table(SPECTRAL_TABLE) if table is None else table
     if record.hair is None:
         return record
@@ -152,13 +151,8 @@ def with_spectral(uncertainty: dict, table: dict | None, camera: str) -> dict:
         measured = max(read, key=lambda c: c["p95"]) if read else None
     if measured is None:
         return uncertainty
-    out = dict(uncertainty)
-    if out.get("mean_colour_de2000_p68", np.inf) < measured["p68"]:
-        out["mean_colour_source"] = f"{table.get('source', 'hairdigi evaluate --spectral')} ({camera} camera)"
-    for level in ("p68", "p95"):
-        name = f"mean_colour_de2000_{level}"
-        if name in out:
-            out[name] = round(max(out[name], measured[level]), 3)
+    out = widen_colour(uncertainty, measured["p68"], measured["p95"],
+                       f"{table.get('source', 'hairdigi evaluate --spectral')} ({camera} camera)")
     out["spectral"] = {"camera": camera, "answer": measured["answer"], "holds_for": measured["holds_for"],
                        "mean_colour_de2000_p68": measured["p68"], "mean_colour_de2000_p95": measured["p95"],
                        "source": table.get("source", "")}

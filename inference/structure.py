@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hairdigi.inference.refine import RefineSettings, ResponseCurve, View, response_curve
+from hairdigi.inference.uncertainty import widen_colour
 from hairdigi.render.base.bounds import STRUCTURE_MODES  # noqa: F401  (re-exported: the modes' one home)
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.swatch_family import FAMILY
@@ -152,13 +153,8 @@ def with_structure(uncertainty: dict, table: dict | None, mode: str = "assumed",
     if not table or key not in table:
         return uncertainty
     measured = table[key]
-    out = dict(uncertainty)
-    if out.get("mean_colour_de2000_p68", np.inf) < measured["p68"]:
-        out["mean_colour_source"] = f"{table.get('source', 'hairdigi evaluate --structures')} (--structure {mode})"
-    for level in ("p68", "p95"):
-        name = f"mean_colour_de2000_{level}"
-        if name in out:
-            out[name] = round(max(out[name], measured[level]), 3)
+    out = widen_colour(uncertainty, measured["p68"], measured["p95"],
+                       f"{table.get('source', 'hairdigi evaluate --structures')} (--structure {mode})")
     out["structure"] = {"mode": mode, "rendered": swatch_model, "mean_colour_de2000_p68": round(measured["p68"], 3),
                         "mean_colour_de2000_p95": round(measured["p95"], 3), "source": table.get("source", "")}
     return out

@@ -66,6 +66,19 @@ def load_table(path: str | Path) -> dict | None:
         return None
 
 
+def widen_colour(uncertainty: dict, p68: float, p95: float, source: str) -> dict:
+    """``uncertainty`` with its colour interval widened to a measured (``p68``, ``p95``) ΔE2000, the larger
+    per level; where that widens the 68%, ``source`` becomes the interval's source."""
+    out = dict(uncertainty)
+    if out.get("mean_colour_de2000_p68", float("inf")) < p68:
+        out["mean_colour_source"] = source
+    for level, value in (("p68", p68), ("p95", p95)):
+        name = f"mean_colour_de2000_{level}"
+        if name in out:
+            out[name] = round(max(out[name], value), 3)
+    return out
+
+
 def intervals(params: HairParams, table: dict | None, colour_table: dict | None = None) -> dict:
     """Each parameter with its measured 68% interval, or flagged undetermined; and the colour's ΔE.
 
