@@ -125,12 +125,11 @@ def answers(record, profile=None, led: str | None = None, sensitivities: str | N
     """A record's answers: ``rgb``, its RGB ``sigma_a``; ``spectral``, its parameters refitted in the
     spectral world (``inference.spectral.spectral_answer``); with the calibration ``profile`` and the
     rig's ``led`` and camera ``sensitivities`` known, ``camera``, read in the camera's own RGB
-    (``inference.spectral.camera_answer``). ``*_residual``: each refit's colour residual."""
+    (``inference.spectral.spectral_record``, as a capture of a declared rig is). ``*_residual``: each refit's colour residual."""
     from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.inference.spectral import camera_answer, spectral_answer
+    from hairdigi.inference.spectral import RigSpectra, spectral_answer, spectral_record
     from hairdigi.render.absorption import hair_sigma_a
     from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
-    from hairdigi.render.chart import rig_chart_targets
 
     curve = curve or response_curve(RIG_SWATCH_POSE, RefineSettings())
     rgb_sigma = np.asarray(record.refinement.sigma_a if record.refinement.sigma_a else hair_sigma_a(record.hair))
@@ -138,9 +137,10 @@ def answers(record, profile=None, led: str | None = None, sensitivities: str | N
     out["spectral"], out["spectral_residual"] = spectral_answer(record.hair, curve(rgb_sigma), curve)
     if record.spectral is not None:      # read as the capture was made (``inference.spectral.spectral_record``)
         out["camera"], out["camera_residual"] = record.spectral.hair, record.spectral.residual
-    elif profile is not None and led is not None and np.shape(profile.matrix) == (3, 3):
-        out["camera"], out["camera_residual"] = camera_answer(record.hair, curve(rgb_sigma), curve, profile.matrix,
-                                                              led, sensitivities, rig_chart_targets()[0])
+    elif profile is not None and led is not None:   # a record made before the rig declared its spectra
+        reading = spectral_record(record, RigSpectra(led, sensitivities), profile.matrix).spectral
+        if reading is not None:
+            out["camera"], out["camera_residual"] = reading.hair, reading.residual
     return out
 
 

@@ -127,9 +127,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
         # a rig view's single-light frames show the holder and the chart too: a light dark there is dead
         levels = None if light_images is None or not isinstance(view, RigRegion) else np.array(
             [mean_linear(im) for im in light_images])
-        reading = read_appearance(singles, view, settings, renderer,
-                                  texture_pixels=to_linear(fitted) if isinstance(view, RigRegion) else None,
-                                  frame_levels=levels,
+        texture = to_linear(fitted) if isinstance(view, RigRegion) else None
+        reading = read_appearance(singles, view, settings, renderer, texture_pixels=texture, frame_levels=levels,
                                   structures=READ_MEMBERS if structure == "read" else None)
         warnings += reading.warnings
         appearance = reading.estimate
@@ -152,9 +151,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
         if structure != "read" and singles is not None and refinement.residual_de2000 > UNREACHED_DE:
             # no hair on the assumed swatch renders the capture's colour: the swatch is built another way.
             # Its structure is read from the single-light frames and kept where it reaches the colour
-            reread = read_appearance(singles, view, settings, renderer,
-                                     texture_pixels=to_linear(fitted) if isinstance(view, RigRegion) else None,
-                                     frame_levels=levels, structures=READ_MEMBERS)
+            reread = read_appearance(singles, view, settings, renderer, texture_pixels=texture, frame_levels=levels,
+                                     structures=READ_MEMBERS)
             other = refine(est.params, mean_linear(fitted), view, settings, renderer, reread.value, reread.curve,
                            swatch_model=reread.swatch_model)
             if other.residual_de2000 < refinement.residual_de2000 / 2:
