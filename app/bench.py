@@ -71,7 +71,7 @@ def bench_refine(args: argparse.Namespace) -> int:
     """Refinement by synthesis: render size, spp and iterations against error and time."""
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.training.bench_refine import bench_refine as run
-    from hairdigi.render.base.files import cache_dir
+    from hairdigi.render.domain.files import cache_dir
 
     out = Path(args.out)
     data = Path(args.data) if args.data else cache_dir() / "datasets" / "heldout-s1000003-64px-64spp-linear16"
@@ -140,7 +140,7 @@ def previews_lines(out_dir: str | Path, quick: bool = False) -> list[str]:
     scales the app renders it) and the hairstyle; the summary lines say each default's measured error
     and the cheapest clean setting."""
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SIM_SIZE
-    from hairdigi.render.base.rig_geometry import swatch_roi
+    from hairdigi.render.domain.rig_geometry import swatch_roi
     from hairdigi.render.bench_previews import CLEAN_DE, cheapest_clean, run_previews_bench
 
     from hairdigi.app.previews import PreviewSettings, twin_view

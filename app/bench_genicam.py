@@ -95,7 +95,7 @@ def run_genicam_bench(out: Path, quick: bool = False) -> list[dict]:
     """Every case's frame rate and latency; writes ``genicam_bench.csv``, ``.json`` and ``.png``."""
     from hairdigi.app.rig_session import RigSession
     from hairdigi.hardware.genicam import FAKE_ID, GenICamCamera, GenICamSettings
-    from hairdigi.render.base.files import write_json_atomic
+    from hairdigi.render.domain.files import write_json_atomic
     from hairdigi.render.io.figures import save_table
 
     n, captures = (10, 2) if quick else (60, 8)

@@ -65,7 +65,7 @@ WHITE = 4095
 def rig_still_linear(size: tuple[int, int] = (400, 300)) -> np.ndarray:
     """The simulated rig's view (swatch and ColorChecker on the holder), linear RGB scaled to the sensor."""
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
-    from hairdigi.render.base import rig_geometry
+    from hairdigi.render.domain import rig_geometry
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.renderer import Renderer, SceneSpec
 
@@ -176,7 +176,7 @@ def _plot(rows: list[dict], path: Path) -> None:
 
 def bench_memory(args: argparse.Namespace) -> int:
     """``hairdigi bench memory``: run the cases, write the table, the JSON and the plot."""
-    from hairdigi.render.base.files import write_json_atomic
+    from hairdigi.render.domain.files import write_json_atomic
     from hairdigi.render.io.figures import save_table
 
     out = Path(args.out)

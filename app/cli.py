@@ -7,9 +7,9 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.threads import start_up
-from hairdigi.render.base.version import version
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.threads import start_up
+from hairdigi.render.domain.version import version
 
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # torch's OpenMP spinning starves a 2-core CPU
 
@@ -35,7 +35,7 @@ class CliError(HairdigiError):
 
 
 def _cache_dir() -> Path:
-    from hairdigi.render.base.files import cache_dir
+    from hairdigi.render.domain.files import cache_dir
 
     return cache_dir()
 
@@ -51,10 +51,10 @@ def _use_variant(name: str | None) -> str:
 # --- render -----------------------------------------------------------------------------------
 def cmd_render(args: argparse.Namespace) -> int:
     from hairdigi.render.io.images import save_exr, save_png
-    from hairdigi.render.base.params import load_params
+    from hairdigi.render.domain.params import load_params
     from hairdigi.render.renderer import SceneSpec, render
     from hairdigi.render.scenes import PORTRAIT_CAMERA
-    from hairdigi.render.base.rig_geometry import CAMERA_DISTANCE, CameraPose
+    from hairdigi.render.domain.rig_geometry import CAMERA_DISTANCE, CameraPose
 
     _use_variant(args.variant)
     params = load_params(args.params)
@@ -73,7 +73,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         from hairdigi.render.hairfile import model_summary
 
         print(model_summary(spec.hair_file, spec.n_strands))
-    from hairdigi.render.base.files import atomic_paths
+    from hairdigi.render.domain.files import atomic_paths
 
     with atomic_paths(args.out, args.exr) as (png, exr):   # both written, then both published: a failed
         save_png(png, result.srgb)                         # EXR leaves the old PNG in place
@@ -151,8 +151,8 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_file
     from hairdigi.inference.preprocess import Roi
-    from hairdigi.render.base.records import write_record
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE, CameraPose
+    from hairdigi.render.domain.records import write_record
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose
 
     encoder = Encoder(args.model)
     roi = Roi.parse(args.roi) if args.roi else None
@@ -218,7 +218,7 @@ def evaluate_rig_command(args: argparse.Namespace) -> int:
 
 def _ship(path: Path, table: dict, what: str) -> None:
     """Write a measured table into the model's resources (``evaluate --ship``)."""
-    from hairdigi.render.base.files import write_json_atomic
+    from hairdigi.render.domain.files import write_json_atomic
 
     write_json_atomic(path, table)
     print(f"shipped {what}: {path}")
@@ -492,11 +492,11 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     from hairdigi.app import validation as v
-    from hairdigi.render.base.bounds import (ENVIRONMENTS, MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH,
+    from hairdigi.render.domain.bounds import (ENVIRONMENTS, MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH,
                                              MIN_SIZE, SCENE_NAMES)
-    from hairdigi.render.base.bounds import ILLUMINANTS as ILLUMINANT_NAMES
-    from hairdigi.render.base.bounds import STRUCTURE_MODES, VARIANT_CHOICES as VARIANTS
-    from hairdigi.render.base.rig_geometry import N_LIGHTS
+    from hairdigi.render.domain.bounds import ILLUMINANTS as ILLUMINANT_NAMES
+    from hairdigi.render.domain.bounds import STRUCTURE_MODES, VARIANT_CHOICES as VARIANTS
+    from hairdigi.render.domain.rig_geometry import N_LIGHTS
 
     size, spp = v.int_in(MIN_SIZE, MAX_SIZE), v.int_in(1, MAX_SPP)
     variant_help = "Mitsuba variant (auto: cuda_ad_rgb when Mitsuba finds a GPU, else llvm_ad_rgb, else scalar_rgb)"
@@ -776,7 +776,7 @@ def _missing_extra(exc: BaseException) -> str | None:
 
 def _caused_by_interrupt(exc: BaseException) -> bool:
     """Whether a KeyboardInterrupt is among the causes of ``exc``."""
-    from hairdigi.render.base.interrupt import stop_among
+    from hairdigi.render.domain.interrupt import stop_among
 
     return stop_among(exc, (KeyboardInterrupt,)) is not None
 
@@ -791,7 +791,7 @@ def main(argv: list[str] | None = None) -> int:
     # Run as a program, Ctrl-C while starting (native libraries load) ends at once, with one line;
     # once the command runs it raises KeyboardInterrupt, so that files and devices are closed.
     program = signal.getsignal(signal.SIGINT) is _interrupted_at_start
-    start_up()   # the process's thread budget, before numpy's BLAS loads (render.base.threads)
+    start_up()   # the process's thread budget, before numpy's BLAS loads (render.domain.threads)
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv == ["--version"]:   # answered before build_parser loads Mitsuba, so it is instant
         print(f"hairdigi {version()}")

@@ -23,7 +23,7 @@ def run_demo(out: Path, quick: bool = False) -> list[Path]:
     finally:
         session.close()
     if "params" in figures:
-        from hairdigi.render.base.params import HairParams
+        from hairdigi.render.domain.params import HairParams
         params, source = HairParams.from_dict(figures["params"]), "the estimate"
     else:
         params, source = hidden, "the simulated swatch's hidden parameters (no estimate was made)"

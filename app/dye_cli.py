@@ -100,8 +100,8 @@ def _check(args: argparse.Namespace) -> None:
 
 
 def _read_dye(path: str):
-    from hairdigi.render.base.dye_record import DyeRecord
-    from hairdigi.render.base.records import read_record, record_sha256
+    from hairdigi.render.domain.dye_record import DyeRecord
+    from hairdigi.render.domain.records import read_record, record_sha256
 
     return read_record(path, DyeRecord), record_sha256(path)
 
@@ -113,7 +113,7 @@ def cmd_dye(args: argparse.Namespace) -> int:
 
 def _characterise(args: argparse.Namespace) -> int:
     from hairdigi.inference.dye import characterise, load_sample
-    from hairdigi.render.base.records import write_record
+    from hairdigi.render.domain.records import write_record
 
     pairs = [(load_sample(base), load_sample(dyed)) for base, dyed in args.pair]
     dye = characterise(pairs, args.name, allow_mixed=args.allow_mixed_calibrations)
@@ -132,7 +132,7 @@ def _characterise(args: argparse.Namespace) -> int:
 
 def _apply(args: argparse.Namespace) -> int:
     from hairdigi.inference.dye import apply, describe_colour, load_sample
-    from hairdigi.render.base.files import atomic_paths
+    from hairdigi.render.domain.files import atomic_paths
 
     dye, sha = _read_dye(args.dye)
     base = load_sample(args.base)
@@ -175,7 +175,7 @@ def _render_prediction(sigma, path: Path, scenes: list[str]) -> list[tuple[Path,
 
 def _dose(args: argparse.Namespace) -> int:
     from hairdigi.inference.dye import describe_colour, dose, load_sample, target_colour
-    from hairdigi.render.base.files import write_json_atomic
+    from hairdigi.render.domain.files import write_json_atomic
 
     dye, _ = _read_dye(args.dye)
     base = load_sample(args.base)

@@ -9,8 +9,8 @@ import os
 import time
 from pathlib import Path
 
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.records import write_record
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import write_record
 
 #: The simulated sensor's white-balance error (the CCM corrects it) and the rig's light-render spp.
 CAST, SPP = (1.1, 1.0, 0.9), 32

@@ -16,7 +16,7 @@ import numpy as np
 from hairdigi.app.events import EventGroup
 from hairdigi.app.panel_model import PanelModel, Status
 from hairdigi.app.review import Work
-from hairdigi.render.base.dye_record import DyeRecord
+from hairdigi.render.domain.dye_record import DyeRecord
 
 __all__ = ["DyeModel", "DyeSettings", "Events", "Listing", "Characterised", "CaptureCrop", "PreviewPass",
            "HairstylePass", "Card", "dye_path", "session_records", "capture_crop"]
@@ -42,7 +42,7 @@ def _slug(name: str) -> str:
 
 def _saved_name(path: Path) -> str | None:
     """The name of the dye saved at ``path`` (None: no such file, or not a dye record)."""
-    from hairdigi.render.base.records import RecordError, read_record
+    from hairdigi.render.domain.records import RecordError, read_record
 
     try:
         return read_record(path, DyeRecord).name if path.exists() else None
@@ -66,7 +66,7 @@ def dye_path(folder: Path, name: str) -> Path:
 
 def session_records(folder: Path) -> list[Path]:
     """The session's captures that hold an estimate (``captures/<id>.result.json`` with ``hair``)."""
-    from hairdigi.render.base.files import read_json
+    from hairdigi.render.domain.files import read_json
 
     found = []
     for path in sorted((folder / "captures").glob("*.result.json")):
@@ -90,7 +90,7 @@ def capture_crop(record_path: Path) -> np.ndarray | None:
     """The captured swatch (8-bit sRGB) of a session capture's record, cropped to its swatch area."""
     import cv2
 
-    from hairdigi.render.base.files import read_json
+    from hairdigi.render.domain.files import read_json
 
     try:
         data = read_json(record_path, ValueError, "missing", "unreadable ({exc})")
@@ -261,7 +261,7 @@ class DyeModel(PanelModel):
 
         def run():
             from hairdigi.inference import dye as D
-            from hairdigi.render.base.records import write_record
+            from hairdigi.render.domain.records import write_record
 
             yield Status(f"characterising {name}: reading {2 * len(pairs)} records")
             try:
@@ -305,7 +305,7 @@ class DyeModel(PanelModel):
 
         def run():
             from hairdigi.inference.dye import DyeError, apply, describe_colour, load_sample
-            from hairdigi.render.base.records import RecordError, read_record
+            from hairdigi.render.domain.records import RecordError, read_record
             from hairdigi.render.renderer import SceneSpec, default_renderer
 
             yield CaptureCrop(generation, capture_crop(target))
@@ -358,7 +358,7 @@ class DyeModel(PanelModel):
             import cv2
 
             from hairdigi.inference.dye_card import shade_card
-            from hairdigi.render.base.records import RecordError, read_record
+            from hairdigi.render.domain.records import RecordError, read_record
 
             try:
                 record = read_record(dye, DyeRecord)

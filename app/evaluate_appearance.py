@@ -28,11 +28,11 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.appearance import APPEARANCE_DRAW, DEFAULT_APPEARANCE, FIELDS, Appearance
-from hairdigi.render.base.files import write_json_atomic
+from hairdigi.render.domain.appearance import APPEARANCE_DRAW, DEFAULT_APPEARANCE, FIELDS, Appearance
+from hairdigi.render.domain.files import write_json_atomic
 from hairdigi.render.io.figures import save_table
-from hairdigi.render.base.params import HairParams, sample_params
-from hairdigi.render.base.rig_geometry import N_LIGHTS, TRANSFER_POSE
+from hairdigi.render.domain.params import HairParams, sample_params
+from hairdigi.render.domain.rig_geometry import N_LIGHTS, TRANSFER_POSE
 from hairdigi.render.metrics import error_stats
 
 SEED = 2_026_118

@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.appearance import DEFAULT_APPEARANCE
+from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE
 from hairdigi.render.io.figures import save_table
-from hairdigi.render.base.params import HairParams, sample_params
+from hairdigi.render.domain.params import HairParams, sample_params
 from hairdigi.render.metrics import error_stats
 
 #: Named hard cases of the held-out hidden swatches (Table 1: dye RGB, dye conc., melanin conc., ratio).
@@ -121,7 +121,7 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
                     session.close()
                 bar.update()
             if k % 2 == 0:        # a tilted camera
-                from hairdigi.render.base.rig_geometry import CameraPose
+                from hairdigi.render.domain.rig_geometry import CameraPose
 
                 pose = CameraPose(*POSES[(k // 2) % len(POSES)])
                 session = RigSession.simulated_rig(Path(tmp) / f"s{k}", hidden=params, spp=config.spp,

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.render.io.figures import save_table
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 from hairdigi.render.metrics import error_stats
 
 #: The worlds: (camera sensitivities, the rig's LEDs: CIE LED series phosphor LEDs, LED-B4 5109 K and
@@ -55,7 +55,7 @@ def hidden_hairs(config: SpectralSet = SpectralSet()) -> list[tuple[str, HairPar
     (``config.seed``), ``config.random`` hairs drawn in turn: a Table 1 hair, a natural one (melanins
     alone), and a band dye (centre 430-660 nm) on a natural base."""
     from hairdigi.app.evaluate_rig import HARD_CASES
-    from hairdigi.render.base.params import sample_params
+    from hairdigi.render.domain.params import sample_params
     from hairdigi.render.spectra import band_dye, hair_sigma_a_spectrum
 
     if config.seed is not None:
@@ -80,7 +80,7 @@ def hidden_hairs(config: SpectralSet = SpectralSet()) -> list[tuple[str, HairPar
 
 
 def _scene(view: str, light: str | None):
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE, CameraPose
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose
     from hairdigi.render.renderer import SceneSpec
 
     if view == "rig":
@@ -128,8 +128,8 @@ def answers(record, profile=None, led: str | None = None, sensitivities: str | N
     (``inference.spectral.spectral_record``, as a capture of a declared rig is). ``*_residual``: each refit's colour residual."""
     from hairdigi.inference.refine import RefineSettings, response_curve
     from hairdigi.inference.spectral import RigSpectra, spectral_answer, spectral_record
-    from hairdigi.render.absorption import hair_sigma_a
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.absorption import hair_sigma_a
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 
     curve = curve or response_curve(RIG_SWATCH_POSE, RefineSettings())
     rgb_sigma = np.asarray(record.refinement.sigma_a if record.refinement.sigma_a else hair_sigma_a(record.hair))
@@ -157,7 +157,7 @@ def evaluate_spectral(out_dir: str | os.PathLike, config: SpectralSet = Spectral
     from hairdigi.app.rig_session import RigSession
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 
     encoder = Encoder()
     curve = response_curve(RIG_SWATCH_POSE, RefineSettings())

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hairdigi.render.base.records import EstimateRecord, read_record
+from hairdigi.render.domain.records import EstimateRecord, read_record
 from hairdigi.render.interchange import FORMATS, HairLook, look_from_record, write_look
 
 SUFFIXES = {"materialx": ".mtlx", "blender": ".py"}

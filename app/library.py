@@ -23,7 +23,7 @@ from typing import Iterator
 import numpy as np
 
 from hairdigi.app.swatch_colour import ILLUMINANTS, delta_e
-from hairdigi.render.base.errors import HairdigiError
+from hairdigi.render.domain.errors import HairdigiError
 
 KINDS = ("capture", "estimate", "dye")   # dye: predictions of issue "Hair-dye development", same layout
 BUSY_TIMEOUT_S = 5.0            # SQLite: the longest wait for another writer's lock

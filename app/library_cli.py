@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import io
 import os
 import sys
 import tempfile
@@ -130,7 +129,7 @@ def check_export_paths(csv_path: str | None, xlsx_path: str | None, library_wher
 def write_export(library: Library, csv_path: str | None = None, xlsx_path: str | None = None) -> list[Path]:
     """The library as CSV and/or XLSX, both published together; cells that a spreadsheet would run as a
     formula are neutralised (a leading ``'``)."""
-    from hairdigi.render.base.files import atomic_paths
+    from hairdigi.render.domain.files import atomic_paths
 
     rows = [{k: neutral_cell(v) for k, v in row.items()} for row in export_rows(library)]
     book = None
@@ -250,8 +249,8 @@ def synthetic_rows(n: int, seed: int = 0) -> list:
     """``n`` swatches of uniformly drawn Table 1 parameters, coloured as an import colours them."""
     from hairdigi.app.library import SwatchRow
     from hairdigi.app.library_import import _with_colours
-    from hairdigi.render.absorption import hair_sigma_a
-    from hairdigi.render.base.params import HairParams
+    from hairdigi.render.domain.absorption import hair_sigma_a
+    from hairdigi.render.domain.params import HairParams
 
     rng = np.random.default_rng(seed)
     rows = []
@@ -265,7 +264,7 @@ def synthetic_rows(n: int, seed: int = 0) -> list:
 
 def bench_library(args: argparse.Namespace) -> int:
     """Time ``find`` (k = 10) on a library of ``--n`` swatches (10,000), SQLite and (``HAIRDIGI_BENCH_POSTGRES``) PostgreSQL."""
-    from hairdigi.render.base.files import write_csv_atomic, write_json_atomic
+    from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
 
     n = args.n or 10_000
     out = Path("packaging/bench/library") if args.out == "out/bench" else Path(args.out)

@@ -10,9 +10,8 @@ import numpy as np
 
 from hairdigi.app.library import Library, LibraryError, SwatchRow
 from hairdigi.app.swatch_colour import swatch_labs
-from hairdigi.render.absorption import hair_sigma_a
-from hairdigi.render.base.files import read_json
-from hairdigi.render.base.records import CaptureRecord, EstimateRecord, RecordError, record_sha256
+from hairdigi.render.domain.files import read_json
+from hairdigi.render.domain.records import CaptureRecord, EstimateRecord, RecordError, record_sha256
 
 FIRST_RUN_KEY = "first_run_import"
 
@@ -22,10 +21,7 @@ def _short(text: str) -> str:
 
 
 def _sigma(record: EstimateRecord | None) -> tuple[float, float, float] | None:
-    if record is None or (record.hair is None and record.sigma_a is None):
-        return None
-    sigma = record.sigma_a if record.sigma_a is not None else hair_sigma_a(record.hair)
-    return tuple(float(s) for s in sigma)
+    return None if record is None else record.sigma_a
 
 
 def _with_colours(rows: list[SwatchRow]) -> list[SwatchRow]:

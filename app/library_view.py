@@ -39,7 +39,7 @@ def capture_image(swatch: Swatch) -> np.ndarray | None:
         return None
     record = {}
     if swatch.record_path and Path(swatch.record_path).is_file():
-        from hairdigi.render.base.files import read_json
+        from hairdigi.render.domain.files import read_json
 
         try:   # a regular file of bounded size
             record = read_json(swatch.record_path, ValueError, "missing", "unreadable ({exc})")

@@ -17,10 +17,10 @@ from typing import Callable, Iterator
 import numpy as np
 
 from hairdigi.render import denoise as dn
-from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.rig_geometry import N_LIGHTS
-from hairdigi.render.base.rig_geometry import CameraPose
+from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.rig_geometry import N_LIGHTS
+from hairdigi.render.domain.rig_geometry import CameraPose
 from hairdigi.render.metrics import delta_e_map, mean_colour_delta_e
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
@@ -196,14 +196,14 @@ def hair_colour_rgb8(linear: np.ndarray) -> tuple[int, int, int]:
 
 def strand_colour(params: HairParams) -> tuple[int, int, int]:
     """The strands' colour in the 3-D view: the fibre albedo, a little darkened (as lit hair looks)."""
-    from hairdigi.render.absorption import approximate_albedo
+    from hairdigi.render.domain.absorption import approximate_albedo
 
     return hair_colour_rgb8(approximate_albedo(params) * 0.8)
 
 
 def scalp_linear(params: HairParams) -> tuple[float, float, float]:
     """The scalp under the hair, linear, as the renderer colours it (``scenes.scalp_albedo``)."""
-    from hairdigi.render.absorption import hair_sigma_a
+    from hairdigi.render.domain.absorption import hair_sigma_a
     from hairdigi.render.scenes import scalp_albedo
 
     return tuple(float(v) for v in scalp_albedo(hair_sigma_a(params)))

@@ -41,12 +41,12 @@ from hairdigi.app.previews import (HairstylePass, PassTag, PreviewSettings, Stag
                                    hairstyle_passes, orbit_pose, scalp_linear, scene_appearance, strand_colour,
                                    twin_passes, twin_view)
 from hairdigi.render import denoise as dn
-from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance, AppearanceEstimate
-from hairdigi.render.base.bounds import ILLUMINANTS
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
-from hairdigi.render.base.records import CalibrationProfile, EstimateRecord, EstimateWarning, WarningKind
-from hairdigi.render.base.rig_geometry import N_LIGHTS
+from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance, AppearanceEstimate
+from hairdigi.render.domain.bounds import ILLUMINANTS
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.params import VECTOR_FIELDS, HairParams
+from hairdigi.render.domain.records import CalibrationProfile, EstimateRecord, EstimateWarning, WarningKind
+from hairdigi.render.domain.rig_geometry import N_LIGHTS
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.srgb import linear_to_srgb8
 

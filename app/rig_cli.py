@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.app.rig_session import RigSession
-from hairdigi.render.base.rig_geometry import N_LIGHTS
+from hairdigi.render.domain.rig_geometry import N_LIGHTS
 
 
 def check_dead_lights(dead) -> set[int]:
     """The simulated dead lights as a set of light numbers; ValueError naming ``--dead`` for any other."""
-    from hairdigi.render.base.rig_geometry import LIGHT_POSITIONS
+    from hairdigi.render.domain.rig_geometry import LIGHT_POSITIONS
 
     n = len(LIGHT_POSITIONS)
     wrong = [d for d in (dead or ()) if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d < n]
@@ -32,7 +32,7 @@ def open_session(args) -> RigSession:
         simulated = {"camera_model": CameraModel(exposure_ev=args.exposure, cast=tuple(args.cast)),
                      "dead": check_dead_lights(args.dead), "spp": args.spp}
         if getattr(args, "hidden", None):
-            from hairdigi.render.base.params import load_params
+            from hairdigi.render.domain.params import load_params
 
             simulated["hidden"] = load_params(args.hidden)
             simulated["appearance"] = hidden_appearance(args.hidden)
@@ -53,9 +53,9 @@ def open_session(args) -> RigSession:
 
 def hidden_appearance(path):
     """The ``appearance`` block of a hidden swatch's JSON (shine, fibre spread, greys), or None."""
-    from hairdigi.render.base.appearance import Appearance, AppearanceError
-    from hairdigi.render.base.files import read_json
-    from hairdigi.render.base.params import HairParamsError
+    from hairdigi.render.domain.appearance import Appearance, AppearanceError
+    from hairdigi.render.domain.files import read_json
+    from hairdigi.render.domain.params import HairParamsError
 
     data = read_json(path, HairParamsError, "no such parameter file", "not valid JSON ({exc})")
     if not isinstance(data, dict) or data.get("appearance") is None:
@@ -196,7 +196,7 @@ def report_still(session_folder: str | Path, still: str | Path, say=print) -> in
 
     result = import_still(session_folder, still, encoder)
     say(f"still: {result.image_path} (+ {result.meta_path.name}), copied before processing")
-    from hairdigi.render.base.records import CaptureRecord, read_record
+    from hairdigi.render.domain.records import CaptureRecord, read_record
 
     profile = read_record(result.meta_path, CaptureRecord).calibration
     if profile is not None:
@@ -216,8 +216,8 @@ def detection_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16) -> list
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
     from hairdigi.render.camera_model import CameraModel, sensor_response
     from hairdigi.inference.calibration import CalibrationError, calibrate
-    from hairdigi.render.base import rig_geometry
-    from hairdigi.render.base.files import write_csv_atomic
+    from hairdigi.render.domain import rig_geometry
+    from hairdigi.render.domain.files import write_csv_atomic
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.renderer import Renderer, SceneSpec
     from tqdm import tqdm

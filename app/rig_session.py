@@ -21,12 +21,12 @@ from hairdigi.hardware.lights import N_LIGHTS, LightController, LightError
 from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, correction_warnings,
                                             detect_chart, light_colour_warnings, load_profile, profile_warnings,
                                             save_profile, staleness)
-from hairdigi.render.base.files import write_json_atomic
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.records import (CalibrationProfile, CaptureRecord, EstimateRecord, EstimateWarning,
+from hairdigi.render.domain.files import write_json_atomic
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.records import (CalibrationProfile, CaptureRecord, EstimateRecord, EstimateWarning,
                                           RecordError, WarningKind, capture_profile, read_record, write_record)
-from hairdigi.render.base.rig_geometry import RIG_HALF_WIDTH, CameraPose, RigRegion
+from hairdigi.render.domain.rig_geometry import RIG_HALF_WIDTH, CameraPose, RigRegion
 
 #: How much longer a single-light frame is exposed, where the camera can (``RigSession.light_frames``).
 LIGHT_FRAME_EV = 1.5
@@ -122,7 +122,7 @@ class RigSession:
         ``genicam`` (Aravis's fake camera ID) the frames come through the GenICam path as 12-bit Bayer.
         ``illuminant`` makes it a spectral rig: LEDs of that SPD, the chart's measured spectra, seen by
         a camera's ``sensitivities`` (or the CIE observer); ``hidden`` may then be an absorption spectrum."""
-        from hairdigi.render.base.appearance import DEFAULT_APPEARANCE
+        from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE
         from hairdigi.hardware.sim_lights import SimulatedLightBoard
         from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SimRig
         from hairdigi.render.camera_model import CameraModel
@@ -358,7 +358,7 @@ class RigSession:
         result_data, record = None, None
         if result_path.exists():
             try:
-                from hairdigi.render.base.files import read_json
+                from hairdigi.render.domain.files import read_json
 
                 result_data = read_json(result_path, RecordError, "missing", "not a result record ({exc})")
                 record = EstimateRecord.from_json(result_data)

@@ -17,7 +17,7 @@ import re
 
 import numpy as np
 
-from hairdigi.render.base.errors import HairdigiError
+from hairdigi.render.domain.errors import HairdigiError
 
 ILLUMINANTS = ("daylight", "studio")
 STUDIO_CCT = 3200.0
@@ -42,7 +42,7 @@ def studio_light_rgb() -> np.ndarray:
 @functools.lru_cache(maxsize=1)
 def _curve():
     from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 
     return response_curve(RIG_SWATCH_POSE, RefineSettings())
 

@@ -19,10 +19,10 @@ import shutil
 from pathlib import Path
 from typing import Callable, Iterable
 
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.files import cache_dir
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.files import cache_dir
 
-#: Bounds of the numbers the commands take (render bounds live in ``render.base.bounds``).
+#: Bounds of the numbers the commands take (render bounds live in ``render.domain.bounds``).
 MAX_SEED = 2 ** 32 - 1           # Mitsuba's and NumPy's seeds are unsigned 32-bit
 MAX_DATASET_N = 10_000_000
 MAX_SHARD_SIZE = 100_000
@@ -176,7 +176,7 @@ def check_output_file(path: str | os.PathLike, flag: str, suffixes: Iterable[str
 
 def check_not_protected(path: str | os.PathLike, flag: str, allow: tuple = ()) -> None:
     """``path`` must not be a file hairdigi reads back: a session's, a dataset's or the package's."""
-    from hairdigi.render.base.files import protected_reason
+    from hairdigi.render.domain.files import protected_reason
 
     reason = protected_reason(path, allow)
     if reason:
@@ -220,7 +220,7 @@ def check_output_dir(path: str | os.PathLike, flag: str,
 
 def _not_a_protected_folder(p: Path, flag: str, dataset_ok: bool) -> None:
     """An output folder must not be the package's, a session's captures, or (but for ``dataset``) a dataset."""
-    from hairdigi.render.base.files import _checkout_protected, _is_session, _within, package_folders
+    from hairdigi.render.domain.files import _checkout_protected, _is_session, _within, package_folders
 
     real = p.resolve()
     folders = package_folders()
@@ -256,8 +256,8 @@ def scene_name(names) -> Callable[[str], str]:
 
 
 def illuminant(text: str) -> str:
-    """An argparse type: a named light (``render.base.bounds.ILLUMINANTS``) or a CSV's path (read later)."""
-    from hairdigi.render.base.bounds import ILLUMINANTS
+    """An argparse type: a named light (``render.domain.bounds.ILLUMINANTS``) or a CSV's path (read later)."""
+    from hairdigi.render.domain.bounds import ILLUMINANTS
 
     if text in ILLUMINANTS or text.lower().endswith((".csv", ".txt")):
         return text
@@ -267,9 +267,9 @@ def illuminant(text: str) -> str:
 
 def check_render(args: argparse.Namespace) -> None:
     """``hairdigi render``: the parameter file, the outputs, and size x spp, depth and camera together."""
-    from hairdigi.render.base.bounds import BoundsError, check_camera, check_size_spp, defaults_for
+    from hairdigi.render.domain.bounds import BoundsError, check_camera, check_size_spp, defaults_for
     from hairdigi.render.scenes import PORTRAIT_CAMERA
-    from hairdigi.render.base.rig_geometry import CAMERA_DISTANCE, CameraPose, GeometryError
+    from hairdigi.render.domain.rig_geometry import CAMERA_DISTANCE, CameraPose, GeometryError
 
     check_input_file(args.params, "--params")
     inputs = {"--params": args.params}
@@ -334,7 +334,7 @@ def check_dataset_folder(path: str | os.PathLike) -> None:
     manifest = Path(path) / "manifest.json"
     if not manifest.exists():
         return
-    from hairdigi.render.base.files import read_json
+    from hairdigi.render.domain.files import read_json
 
     data = read_json(manifest, ArgumentError, "no manifest", "not a hairdigi dataset manifest ({exc})")
     if not isinstance(data, dict) or not isinstance(data.get("config"), dict):
@@ -350,8 +350,8 @@ def check_dataset(args: argparse.Namespace) -> None:
 
 
 def camera_sensitivities(text: str) -> str:
-    """An argparse type: a named camera (``render.base.bounds.CAMERAS``), ``cie``, or a CSV's path (read later)."""
-    from hairdigi.render.base.bounds import CAMERAS
+    """An argparse type: a named camera (``render.domain.bounds.CAMERAS``), ``cie``, or a CSV's path (read later)."""
+    from hairdigi.render.domain.bounds import CAMERAS
 
     if text in CAMERAS or text == "cie" or text.lower().endswith((".csv", ".txt")):
         return text
@@ -568,7 +568,7 @@ def check_model_card(args: argparse.Namespace) -> None:
 
 def _json_object(path: str | os.PathLike, flag: str, what: str) -> dict:
     """A JSON file holding an object, or an ArgumentError naming ``flag`` and the file."""
-    from hairdigi.render.base.files import read_json
+    from hairdigi.render.domain.files import read_json
 
     data = read_json(path, ArgumentError, f"no such file; give {what} as {flag}",
                      f"not JSON ({{exc}}); give {what} as {flag}")
@@ -657,7 +657,7 @@ def is_expected(exc: BaseException) -> bool:
     """Whether ``exc`` is a failure the user can fix (one line, exit status 2) rather than a bug (its
     traceback, exit status 1).
 
-    The user's: a :class:`~hairdigi.render.base.errors.HairdigiError` (hairdigi's own errors, whose
+    The user's: a :class:`~hairdigi.render.domain.errors.HairdigiError` (hairdigi's own errors, whose
     message names the problem and the fix), an ``OSError`` (the file system: a full disk, a permission,
     a missing path), a ``MemoryError``, and an argument argparse refuses. A plain ``ValueError``,
     ``TypeError``, ``KeyError`` or ``RuntimeError`` is a bug, numpy's and json's included: code that

@@ -14,7 +14,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 
-from hairdigi.render.base.errors import HairdigiError
+from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.srgb import linear_to_srgb8
 
 IMAGE_EXTENSIONS = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"}

@@ -11,8 +11,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hairdigi.render.base.files import atomic_path
-from hairdigi.render.base.records import CaptureRecord
+from hairdigi.render.domain.files import atomic_path
+from hairdigi.render.domain.records import CaptureRecord
 
 
 def _atomic_bytes(path: Path, data: bytes) -> None:

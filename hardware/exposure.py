@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hairdigi.render.base.errors import HairdigiError
+from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.srgb import srgb8_to_linear
 
 #: The white patch should sit in this 8-bit band: bright, with headroom before clipping.

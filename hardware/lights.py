@@ -10,8 +10,8 @@ from dataclasses import dataclass
 import serial
 import serial.tools.list_ports
 
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.rig_geometry import N_LIGHTS  # the rig has as many lights as the board has channels
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.rig_geometry import N_LIGHTS  # the rig has as many lights as the board has channels
 
 try:  # pyserial's POSIX backend lets termios.error (not an OSError) escape from a vanished tty
     import termios

@@ -30,7 +30,7 @@ import numpy as np
 
 from hairdigi.hardware.cameras import CameraError
 from hairdigi.hardware.genicam import FAKE_ID, GenICamCamera, GenICamSettings, load_aravis
-from hairdigi.render.base.files import atomic_path
+from hairdigi.render.domain.files import atomic_path
 
 #: PFNC BayerRG12 (unpacked, 16-bit words)
 BAYER_RG12 = 0x01100011

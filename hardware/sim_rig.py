@@ -18,12 +18,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hairdigi.hardware.cameras import Frame
-from hairdigi.render.base import rig_geometry
+from hairdigi.render.domain import rig_geometry
 from hairdigi.render.camera_model import NOMINAL_EXPOSURE, CameraModel, sensor_response, spread_glints  # noqa: F401
-from hairdigi.render.base.files import atomic_path, cache_dir
+from hairdigi.render.domain.files import atomic_path, cache_dir
 from hairdigi.render.chart import colorchecker_reflectances
-from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance
+from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec
 
 SIM_SIZE = (400, 300)

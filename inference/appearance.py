@@ -21,13 +21,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from hairdigi.render.base.appearance import (DEFAULT_APPEARANCE, SHINE_RANGE, SPREAD_RANGE, GREY_RANGE, Appearance,
+from hairdigi.render.domain.appearance import (DEFAULT_APPEARANCE, SHINE_RANGE, SPREAD_RANGE, GREY_RANGE, Appearance,
                                              AppearanceEstimate)
 from hairdigi.inference.shine import SHINE_FLOOR, estimate_shine, shine_tables
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.files import read_json
-from hairdigi.render.base.records import EstimateWarning, WarningKind
-from hairdigi.render.base.rig_geometry import N_LIGHTS
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.files import read_json
+from hairdigi.render.domain.records import EstimateWarning, WarningKind
+from hairdigi.render.domain.rig_geometry import N_LIGHTS
 from hairdigi.resources import MODELS
 
 UNCERTAINTY = MODELS / "appearance_uncertainty.json"

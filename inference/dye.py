@@ -6,7 +6,7 @@ is melanin (d'Eon et al. 2011; eumelanin and pheomelanin coefficients as in pbrt
 ways (the oxidative-dye chemistry every colourist knows: developer lightens, dye molecules deposit):
 
 - **deposit**: an added absorption, a ``sigma_a`` 3-vector ``D >= 0``. Kips et al. 2022's Table 1
-  writes it as a dye colour and concentration (``render.absorption.dye_sigma_a``); any ``D`` Table 1
+  writes it as a dye colour and concentration (``render.domain.absorption.dye_sigma_a``); any ``D`` Table 1
   can make is one such pair.
 - **lift**: the developer removes a share ``L`` in [0, 1) of the melanin.
 
@@ -35,14 +35,14 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.inference.refine import ResponseCurve, params_for_sigma
-from hairdigi.render.absorption import MELANIN_REMAP, albedo_from_sigma_a, hair_sigma_a, melanin_quantity
-from hairdigi.render.base.dye_record import DyePairRecord, DyeRecord
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.files import read_json
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.records import (EstimateRecord, EstimateWarning, RecordError, RefinementRecord,
+from hairdigi.render.domain.absorption import MELANIN_REMAP, albedo_from_sigma_a, melanin_quantity
+from hairdigi.render.domain.dye_record import DyePairRecord, DyeRecord
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.files import read_json
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import (EstimateRecord, EstimateWarning, RecordError, RefinementRecord,
                                           WarningKind, read_record, record_sha256)
-from hairdigi.render.base.version import version
+from hairdigi.render.domain.version import version
 from hairdigi.render.metrics import delta_e2000, linear_rgb_to_lab
 
 #: The largest share of melanin a developer may remove (a high-lift bleach). A dyed hair lighter than
@@ -71,7 +71,7 @@ class DyeError(HairdigiError, ValueError):
 def rig_curve() -> ResponseCurve:
     """The response curve at the rig's pose (rendered once, then read from the disk cache)."""
     from hairdigi.inference.refine import response_curve
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 
     return response_curve(RIG_SWATCH_POSE)
 
@@ -124,11 +124,9 @@ class HairSample:
 
 def sigma_of(record: EstimateRecord) -> np.ndarray:
     """The ``sigma_a`` that reaches the image: the refinement's, else Table 1's mapping of ``hair``."""
-    if record.sigma_a is not None:
-        return np.asarray(record.sigma_a, float)
-    if record.hair is None:
+    if record.sigma_a is None:
         raise DyeError("the record holds no estimate")
-    return hair_sigma_a(record.hair)
+    return np.asarray(record.sigma_a, float)
 
 
 def sample_of(record: EstimateRecord, path: str = "", sha256: str = "", calibration: str | None = None) -> HairSample:

@@ -18,14 +18,14 @@ from pathlib import Path
 
 from hairdigi.inference.dye import apply, describe_colour, sample_of
 from hairdigi.inference.levels import LEVEL_NAMES, LEVELS, natural_base
-from hairdigi.render.absorption import hair_sigma_a
-from hairdigi.render.base.dye_record import DyeRecord
-from hairdigi.render.base.files import atomic_paths
-from hairdigi.render.base.records import EstimateRecord
+from hairdigi.render.domain.absorption import hair_sigma_a
+from hairdigi.render.domain.dye_record import DyeRecord
+from hairdigi.render.domain.files import atomic_paths
+from hairdigi.render.domain.records import EstimateRecord
 from hairdigi.render.metrics import delta_e2000
 
 CARD_SIZE, CARD_SPP, CARD_SEED = 64, 16, 3
-#: The lights each result is shown under (``render.base.bounds.ILLUMINANTS``), daylight first.
+#: The lights each result is shown under (``render.domain.bounds.ILLUMINANTS``), daylight first.
 CARD_LIGHTS = ("D65", "A", "shop-led")
 
 

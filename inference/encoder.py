@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.inference.preprocess import Roi, encode, swatch_crop
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.params import VECTOR_FIELDS, HairParams
 from hairdigi.resources import MODELS
 
 DEFAULT_MODEL = MODELS / "encoder.onnx"
@@ -60,12 +60,12 @@ def _views(x: np.ndarray) -> np.ndarray:
 
 class Encoder:
     """An onnxruntime session for the encoder; its intra-op threads from the process's thread budget
-    (``render.base.threads``: one; latency is under a millisecond)."""
+    (``render.domain.threads``: one; latency is under a millisecond)."""
 
     def __init__(self, path: str | os.PathLike = DEFAULT_MODEL, threads: int | None = None) -> None:
         import onnxruntime as ort
 
-        from hairdigi.render.base.threads import plan
+        from hairdigi.render.domain.threads import plan
 
         threads = plan()["onnxruntime"] if threads is None else threads
 

@@ -24,12 +24,12 @@ from hairdigi.inference.preprocess import Roi, crop_of, read_image, swatch_crop,
 from hairdigi.inference.refine import Refinement, RefineSettings, View, fitted_pixels, mean_linear, refine
 from hairdigi.inference.structure import READ_MEMBERS, STRUCTURE_TABLE, toward_family, with_structure
 from hairdigi.inference.uncertainty import intervals, load_table
-from hairdigi.render.base.version import version
-from hairdigi.render.base.appearance import AppearanceEstimate
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.records import (CalibrationProfile, EstimateRecord, EstimateWarning, RefinementRecord,
+from hairdigi.render.domain.version import version
+from hairdigi.render.domain.appearance import AppearanceEstimate
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import (CalibrationProfile, EstimateRecord, EstimateWarning, RefinementRecord,
                                           UNRELIABLE, WarningKind)
-from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE, CameraPose, RigRegion
+from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose, RigRegion
 from hairdigi.resources import MODELS
 
 UNCERTAINTY_TABLE = MODELS / "uncertainty.json"
@@ -304,7 +304,7 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
 def _recorded_exposures(image_path: Path, light_paths: list) -> list[float] | None:
     """The single-light frames' exposures from the rig's capture record beside the image, when it
     names exactly these frames (a capture re-estimated from its folder)."""
-    from hairdigi.render.base.records import CaptureRecord, RecordError, read_record
+    from hairdigi.render.domain.records import CaptureRecord, RecordError, read_record
 
     meta = image_path.with_suffix(".json")
     try:

@@ -4,7 +4,7 @@ Colourists grade natural hair by level, 1 (black) to 10 (lightest blonde). No co
 fixes a level's colour, so hairdigi defines them once, here, as undyed Table 1 hair (Kips et al. 2022):
 
 - **melanin concentration** falls in equal steps from 1.0 (level 1) to 0.1 (level 10). The rig's
-  melanin remap (``render.absorption.MELANIN_REMAP``) was measured so that equal steps of
+  melanin remap (``render.domain.absorption.MELANIN_REMAP``) was measured so that equal steps of
   concentration give equal steps of the swatch's L*, so the levels are evenly spaced in lightness,
   as a colourist's level chart is meant to be. Level 10 keeps 0.1, not 0: a natural blonde still
   has melanin, and concentration 0 is platinum-white fibre.
@@ -17,7 +17,7 @@ These are the bases of the shade card (``hairdigi dye card``) and of ``hairdigi 
 """
 from __future__ import annotations
 
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 
 LEVELS = tuple(range(1, 11))
 LEVEL_NAMES = {1: "black", 2: "darkest brown", 3: "dark brown", 4: "medium brown", 5: "light brown",

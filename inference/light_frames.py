@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 from hairdigi.inference.preprocess import MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS, ImageError, read_image
-from hairdigi.render.base.files import read_bytes
+from hairdigi.render.domain.files import read_bytes
 
 
 def _rgb_only(img: np.ndarray, path: Path) -> np.ndarray:

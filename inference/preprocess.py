@@ -13,8 +13,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.files import read_bytes
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.files import read_bytes
 from hairdigi.render.srgb import linear_to_srgb, linear_to_srgb8, srgb8_to_linear
 
 MIN_SIDE = 32          # smaller images hold too few strands to judge a colour

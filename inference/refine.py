@@ -34,13 +34,13 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
-from hairdigi.render.absorption import albedo_from_sigma_a, hair_sigma_a
+from hairdigi.render.domain.absorption import albedo_from_sigma_a, hair_sigma_a
 from hairdigi.render.metrics import delta_e2000
-from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, GREY_SIGMA_A, Appearance
-from hairdigi.render.base.files import cache_dir
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.records import RefinementRecord
-from hairdigi.render.base.rig_geometry import CameraPose, RigRegion
+from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, GREY_SIGMA_A, Appearance
+from hairdigi.render.domain.files import cache_dir
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import RefinementRecord
+from hairdigi.render.domain.rig_geometry import CameraPose, RigRegion
 
 #: Where the refinement looks: a camera pose over the crop framing's centre (an all-hair image), or
 #: a region of a rig-view frame (``RigRegion``: the capture's swatch area, rendered exactly).
@@ -225,7 +225,7 @@ def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool,
             result.linear.reshape(-1, 3).mean(0)
     curve = ResponseCurve(levels, means, time.perf_counter() - start)
     if cache:
-        from hairdigi.render.base.files import write_json_atomic
+        from hairdigi.render.domain.files import write_json_atomic
 
         write_json_atomic(path, {"view": view_key(view), "settings": curve_settings(settings), **curve.to_dict()})
     return curve

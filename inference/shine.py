@@ -17,15 +17,15 @@ from __future__ import annotations
 
 import threading
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from hairdigi.render.base.appearance import Appearance
+from hairdigi.render.domain.appearance import Appearance
 from hairdigi.inference.refine import (ResponseCurve, RefineSettings, View, cache_key, curve_settings, scene_for,
                                        view_key)
-from hairdigi.render.base.files import cache_dir
-from hairdigi.render.base.rig_geometry import N_LIGHTS
+from hairdigi.render.domain.files import cache_dir
+from hairdigi.render.domain.rig_geometry import N_LIGHTS
 
 #: The beta_m grid of the tables: glossy virgin hair to rough, bleached hair (issue 18's 0.1-0.6).
 BETA_GRID = (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6)
@@ -100,7 +100,7 @@ def _shine_tables(view: View, settings: RefineSettings, betas, renderer, cache: 
                 means[light, b, [t, t + len(order), t + 2 * len(order)]] = mean
     tables = ShineTables(np.asarray(betas, float), levels, means, time.perf_counter() - start)
     if cache:
-        from hairdigi.render.base.files import atomic_path
+        from hairdigi.render.domain.files import atomic_path
 
         with atomic_path(path, ".npz") as tmp:
             np.savez(tmp, betas=tables.betas, sigma=tables.sigma, means=tables.means, seconds=tables.seconds)

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.records import SpectralReading
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import SpectralReading
 from hairdigi.inference.uncertainty import load_table, widen_colour
 from hairdigi.resources import MODELS
 
@@ -101,14 +101,13 @@ def spectral_record(record, spectra: RigSpectra | None, ccm, curve=None, table: 
     if spectra is None or ccm is None or np.shape(ccm) != (3, 3):
         return replace(record, uncertainty=with_spectral(record.uncertainty, table, "unknown"))
     from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.render.absorption import hair_sigma_a
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.chart import rig_chart_targets
 
     measured = record.refinement.target_linear_rgb
     if curve is None or measured is None:   # no capture's own curve: the crop's, and the answer's colour on it
         curve = curve or response_curve(RIG_SWATCH_POSE, RefineSettings())
-        sigma = np.asarray(record.sigma_a if record.sigma_a is not None else hair_sigma_a(record.hair), float)
+        sigma = np.asarray(record.sigma_a, float)
         measured = curve(sigma)
     reading = read_spectral(record.hair, np.asarray(measured, float), curve, np.asarray(ccm, float), spectra.led,
                             spectra.sensitivities, rig_chart_targets()[0])

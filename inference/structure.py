@@ -22,7 +22,7 @@ import numpy as np
 
 from hairdigi.inference.refine import RefineSettings, ResponseCurve, View, response_curve
 from hairdigi.inference.uncertainty import widen_colour
-from hairdigi.render.base.bounds import STRUCTURE_MODES  # noqa: F401  (re-exported: the modes' one home)
+from hairdigi.render.domain.bounds import STRUCTURE_MODES  # noqa: F401  (re-exported: the modes' one home)
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.swatch_family import FAMILY
 from hairdigi.resources import MODELS
@@ -168,7 +168,7 @@ def toward_family(refinement, prior, view: View, settings: RefineSettings = Refi
     from dataclasses import replace as replaced
 
     from hairdigi.inference.refine import params_for_sigma
-    from hairdigi.render.absorption import hair_sigma_a
+    from hairdigi.render.domain.absorption import hair_sigma_a
 
     start = time.perf_counter()
     family = family_curves(view, settings, renderer)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
+from hairdigi.render.domain.params import VECTOR_FIELDS, HairParams
 
 COVERAGE = 0.68
 MELANIN_BANDS = (0.0, 0.4, 0.75, 1.0001)   # pale, mid, dark: the dye is harder to read the darker the hair

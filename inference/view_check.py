@@ -16,7 +16,7 @@ import functools
 
 import numpy as np
 
-from hairdigi.render.base.rig_geometry import SWATCH_HALF, SWATCH_VISIBLE_HALF_LENGTH
+from hairdigi.render.domain.rig_geometry import SWATCH_HALF, SWATCH_VISIBLE_HALF_LENGTH
 
 
 def outline_shape(corners: np.ndarray) -> tuple[float, float]:

@@ -17,9 +17,9 @@ import numpy as np
 from tqdm import tqdm
 
 from hairdigi.render.io.figures import save_figure
-from hairdigi.render.base.files import write_csv_atomic
+from hairdigi.render.domain.files import write_csv_atomic
 from hairdigi.render.metrics import mean_colour_delta_e, rmse
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec, defaults_for
 
 

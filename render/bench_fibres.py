@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.appearance import Appearance
-from hairdigi.render.base.files import write_csv_atomic
-from hairdigi.render.base.rig_geometry import RigRegion, swatch_roi
+from hairdigi.render.domain.appearance import Appearance
+from hairdigi.render.domain.files import write_csv_atomic
+from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
 
 HAIRS = {"platinum": (0.05, 0.08, 0.15), "brown": (0.35, 0.6, 1.2), "dark": (2.0, 3.0, 5.0)}
 GROUPS = (1, 2, 4, 6, 8, 12, 16, 32)

@@ -23,9 +23,9 @@ from tqdm import tqdm
 
 from hairdigi.render import denoise as dn
 from hairdigi.render.io.figures import save_figure, save_table
-from hairdigi.render.base.files import atomic_path
+from hairdigi.render.domain.files import atomic_path
 from hairdigi.render.metrics import delta_e2000, mean_colour_delta_e, pixel_delta_e
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec
 
 #: The app's denoise modes: none, colour alone, colour with albedo and normal guides.
@@ -66,7 +66,8 @@ def _aux_images(renderer: Renderer, hair: HairParams, spec: SceneSpec, size, spp
 
 def _scene_code() -> str:
     """A digest of the modules that make the scenes: a reference is stale once they change."""
-    from hairdigi.render import absorption, head, renderer, scenes, strands
+    from hairdigi.render import head, renderer, scenes, strands
+    from hairdigi.render.domain import absorption
 
     digest = hashlib.sha256()
     for module in (absorption, head, renderer, scenes, strands):

@@ -8,7 +8,7 @@ judged as an observer adapted to the light sees them: mean-colour ΔE2000 agains
 
 Two RGB stand-ins for each hair:
 
-- ``table1``: Table 1's RGB mapping (``render.absorption``), for the hairs Table 1 can say: how far
+- ``table1``: Table 1's RGB mapping (``render.domain.absorption``), for the hairs Table 1 can say: how far
   the fast path's colour is from the spectral model's, light by light;
 - ``matched``: the RGB ``sigma_a`` whose RGB render matches the spectral render under D65, read per
   channel off a response curve of flat absorptions rendered at the same size and spp: what a perfect
@@ -26,8 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.files import write_csv_atomic
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.files import write_csv_atomic
+from hairdigi.render.domain.params import HairParams
 
 LIGHTS = ("D65", "A", "shop-led", "FL11")
 BLONDE = HairParams(melanin_concentration=0.15, melanin_ratio=0.7, dye_concentration=0.0)
@@ -64,8 +64,8 @@ def matched_sigma(colour: np.ndarray, curve: np.ndarray) -> np.ndarray:
 
 def run(out: Path, quick: bool = False) -> list[dict]:
     """Render each hair in RGB and under each light; write ``spectral_bench.csv`` and ``.png``."""
-    from hairdigi.render.absorption import hair_sigma_a
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.absorption import hair_sigma_a
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.metrics import delta_e2000
     from hairdigi.render.renderer import Renderer, SceneSpec
     from hairdigi.render.spectra import illuminant_whitepoint, light_rgb

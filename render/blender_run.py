@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base import rig_geometry as rg
-from hairdigi.render.base.errors import HairdigiError
+from hairdigi.render.domain import rig_geometry as rg
+from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.interchange import HairLook, blender_script_text
 from hairdigi.render.strands import SWATCH_LENGTH, SWATCH_WIDTH, Strands
 
@@ -131,7 +131,7 @@ def mitsuba_mean(look: HairLook, strands: Strands, pose: rg.CameraPose = rg.RIG_
     import mitsuba as mi
 
     from hairdigi.render import scenes
-    from hairdigi.render.base.interrupt import sigint_held
+    from hairdigi.render.domain.interrupt import sigint_held
     from hairdigi.render.renderer import RENDER_LOCK
     from hairdigi.render.variant import select_variant
 
@@ -145,7 +145,7 @@ def mitsuba_mean(look: HairLook, strands: Strands, pose: rg.CameraPose = rg.RIG_
         scene = mi.load_dict(scenes.swatch_scene(str(curve_file), bsdf, pose, size, framing=framing,
                                                  max_depth=max_depth))
         start = time.perf_counter()
-        with sigint_held():   # render.base.interrupt
+        with sigint_held():   # render.domain.interrupt
             image = np.array(mi.render(scene, spp=spp, seed=0))
     return image.reshape(-1, 3).mean(0), time.perf_counter() - start
 
@@ -159,7 +159,7 @@ def write_blend(look: HairLook, out: str | Path, size: int = 256) -> Path:
         rig.write_text(json.dumps(rig_for_blender(layered_swatch(), size=size)))
         blend = Path(tmp) / out.name
         run_script(script, ["--scene", str(rig), "--blend", str(blend)])
-        from hairdigi.render.base.files import atomic_path
+        from hairdigi.render.domain.files import atomic_path
 
         with atomic_path(out) as target:
             shutil.copyfile(blend, target)

@@ -16,7 +16,7 @@ import numpy as np
 
 from hairdigi.resources import CHARTS
 
-from hairdigi.render.base import rig_geometry
+from hairdigi.render.domain import rig_geometry
 
 CHART_NAME = "ColorChecker24 - After November 2014"
 TARGETS_FILE = CHARTS / "rig_chart_targets.json"
@@ -89,7 +89,7 @@ def patch_means(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
 def render_chart_targets(size: tuple[int, int] = (400, 300), spp: int = 256) -> np.ndarray:
     """Render the rig with the chart under all three lights at full power; (24, 3) linear patch values
     (ValueError when the render had NaN or Inf samples)."""
-    from hairdigi.render.base.params import HairParams
+    from hairdigi.render.domain.params import HairParams
     from hairdigi.render.renderer import Renderer, SceneSpec
 
     spec = SceneSpec("swatch", framing="rig", chart=tuple(map(tuple, colorchecker_reflectances())),

@@ -17,7 +17,7 @@ import threading
 
 import numpy as np
 
-from hairdigi.render.base.errors import HairdigiError
+from hairdigi.render.domain.errors import HairdigiError
 
 
 class DenoiserMissing(HairdigiError, RuntimeError):

@@ -1,6 +1,6 @@
 """Fibre-to-fibre variation as groups of strands, each with its own ``hair`` BSDF (issue 18).
 
-A varied appearance (``render.base.appearance.Appearance``: ``fibre_spread`` > 0 or
+A varied appearance (``render.domain.appearance.Appearance``: ``fibre_spread`` > 0 or
 ``grey_fraction`` > 0) is drawn by splitting the strands at random into ``groups`` pigmented groups
 of equal size and one grey group. Pigmented group k takes sigma_a_median * exp(spread * z_k), with
 z_k the normal quantiles at (k + 0.5) / groups scaled to unit standard deviation (so the groups'
@@ -17,7 +17,7 @@ from statistics import NormalDist
 
 import numpy as np
 
-from hairdigi.render.base.appearance import GREY_SIGMA_A
+from hairdigi.render.domain.appearance import GREY_SIGMA_A
 from hairdigi.render.strands import Strands
 
 #: Pigment groups of a varied appearance (``hairdigi bench fibres``).

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.render import head
-from hairdigi.render.base.errors import HairdigiError
+from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.strands import HAIR_RADIUS, Strands
 
 _HEADER = struct.Struct("<4sIIIIff3f88s")
@@ -218,7 +218,7 @@ def hair_file_bytes(hair: HairFile) -> bytes:
 
 def write_hair_file(path: str | os.PathLike, hair: HairFile) -> Path:
     """Write ``hair`` as a ``.hair`` file, atomically."""
-    from hairdigi.render.base.files import write_bytes_atomic
+    from hairdigi.render.domain.files import write_bytes_atomic
 
     return write_bytes_atomic(path, hair_file_bytes(hair))
 

@@ -323,7 +323,7 @@ def ply_bytes(mesh: HeadMesh) -> bytes:
 
 def write_ply(path: str | os.PathLike, mesh: HeadMesh | None = None) -> Path:
     """Write the bust (or ``mesh``) as a PLY, atomically."""
-    from hairdigi.render.base.files import write_bytes_atomic
+    from hairdigi.render.domain.files import write_bytes_atomic
 
     return write_bytes_atomic(path, ply_bytes(mesh or head_mesh()))
 

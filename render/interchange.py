@@ -27,10 +27,9 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from hairdigi.render.absorption import (AZIMUTHAL_ROUGHNESS, LONGITUDINAL_ROUGHNESS,
-                                        hair_sigma_a)
-from hairdigi.render.base.files import write_text_atomic
-from hairdigi.render.base.records import EstimateRecord, RecordError
+from hairdigi.render.domain.absorption import AZIMUTHAL_ROUGHNESS, LONGITUDINAL_ROUGHNESS
+from hairdigi.render.domain.files import write_text_atomic
+from hairdigi.render.domain.records import EstimateRecord, RecordError
 
 #: Mitsuba's ``hair`` defaults, which hairdigi renders with (render/scenes.py sets neither).
 SCALE_TILT_DEG = 2.0
@@ -66,10 +65,10 @@ class HairLook:
 
 def look_from_record(record: EstimateRecord, name: str = "hairdigi_hair", source: str = "") -> HairLook:
     """The look of an estimate (or dye prediction): refinement's ``sigma_a``, else Table 1's mapping."""
-    if record.hair is None and record.sigma_a is None:
+    if record.sigma_a is None:
         why = "; ".join(record.blocked) or "it holds no hair parameters"
         raise RecordError(f"the record has no estimate to export ({why})")
-    sigma = np.asarray(record.sigma_a if record.sigma_a is not None else hair_sigma_a(record.hair), float)
+    sigma = np.asarray(record.sigma_a, float)
     appearance = record.appearance
     measured = appearance is not None and appearance.shine_measured
     return HairLook(name=safe_name(name), sigma_a=tuple(float(s) for s in sigma),

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 from hairdigi.render.metrics import delta_e2000
 
 #: Judge renders: 64² at 64 spp with a common seed, so most noise cancels. On the layered swatch (8000

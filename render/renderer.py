@@ -16,19 +16,19 @@ from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
-from hairdigi.render.base import rig_geometry
-# Bounds, defaults and their checks: in render.base.bounds, so the command line reads them without Mitsuba.
-from hairdigi.render.base.bounds import (DEFAULTS, MAX_CAMERA_DISTANCE, MAX_DEPTH, MAX_SAMPLES,  # noqa: F401
+from hairdigi.render.domain import rig_geometry
+# Bounds, defaults and their checks: in render.domain.bounds, so the command line reads them without Mitsuba.
+from hairdigi.render.domain.bounds import (DEFAULTS, MAX_CAMERA_DISTANCE, MAX_DEPTH, MAX_SAMPLES,  # noqa: F401
                                          MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_CAMERA_DISTANCE, MIN_DEPTH, MIN_SIZE,
                                          SCENE_NAMES, SceneDefaults, check_camera, check_size_spp, defaults_for,
                                          is_whole)
 from hairdigi.render import scenes
-from hairdigi.render.absorption import hair_bsdf, hair_sigma_a
+from hairdigi.render.domain.absorption import hair_bsdf, hair_sigma_a
 from hairdigi.render.hairfile import hair_model_strands
-from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.interrupt import sigint_held
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.interrupt import sigint_held
+from hairdigi.render.domain.params import HairParams
 from hairdigi.render.fibres import FIBRE_GROUPS, group_keys, group_sigma_a, split_strands
 from hairdigi.render.srgb import linear_to_srgb8
 from hairdigi.render.strands import (STYLES, Strands, hairstyle_strands, layered_radius,
@@ -66,7 +66,7 @@ class SceneSpec:
     ``chart_center`` on the holder (x, y; default ``rig_geometry.CHART_CENTER``). ``crop`` (swatch
     only) renders just that x, y, w, h window of the film (``rig_geometry.RigRegion.render_plan``).
     ``swatch_model`` (swatch only) picks its strands from ``SWATCH_MODELS``. ``appearance``
-    (``render.base.appearance.Appearance``) is the hair's shine, fibre spread and grey share; a varied
+    (``render.domain.appearance.Appearance``) is the hair's shine, fibre spread and grey share; a varied
     one is drawn as ``fibre_groups`` pigment groups and a grey group (``render.fibres``). A swatch's
     ``env`` ``"key-sky"`` adds a key light and a grey sky (the rig's lights set to 0: away from the rig).
     ``illuminant`` None renders in RGB with white lights; a name of ``render.spectra.ILLUMINANTS`` or a
@@ -127,7 +127,7 @@ class SceneSpec:
         if self.strands is not None and (not is_whole(self.strands) or not 1 <= self.strands <= MAX_STRANDS):
             raise SceneError(f"strands must be a whole number between 1 and {MAX_STRANDS}, got {self.strands!r}")
         if self.appearance is not None and not isinstance(self.appearance, Appearance):
-            raise ValueError(f"appearance must be an Appearance (render.base.appearance), got {self.appearance!r}")
+            raise ValueError(f"appearance must be an Appearance (render.domain.appearance), got {self.appearance!r}")
         if self.fibre_groups is not None and (not is_whole(self.fibre_groups) or not 1 <= self.fibre_groups <= 64):
             raise SceneError(f"fibre_groups must be a whole number between 1 and 64, got {self.fibre_groups!r}")
         if not all(np.isfinite(float(v)) and v >= 0 for v in self.lights):
@@ -451,7 +451,7 @@ def render_in_passes(scene, size: int | tuple[int, int], spp: int, seed: int):
     weighted by their spp (deterministic: the split depends on the size and spp alone)."""
     width, height = (size, size) if isinstance(size, int) else size
     if width * height * spp <= SPLIT_ABOVE:
-        with sigint_held():   # Ctrl-C waits for the call, then is a KeyboardInterrupt (render.base.interrupt)
+        with sigint_held():   # Ctrl-C waits for the call, then is a KeyboardInterrupt (render.domain.interrupt)
             return mi.render(scene, spp=spp, seed=seed)   # as before: one call
     per_pass = max(1, PASS_SAMPLES // (width * height))
     total, done, k = None, 0, 0

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hairdigi.render.base.rig_geometry import (CHART_BOARD_HALF, CHART_CENTER, CHART_PATCH, HOLDER_CENTER, HOLDER_SIZE, LIGHT_SIZE,
+from hairdigi.render.domain.rig_geometry import (CHART_BOARD_HALF, CHART_CENTER, CHART_PATCH, HOLDER_CENTER, HOLDER_SIZE, LIGHT_SIZE,
                                  N_LIGHTS, CameraPose, chart_patch_centres, framing_fov, light_position,
                                  look_at_matrix, spherical_direction)
 from hairdigi.render.variant import transform
@@ -17,7 +17,7 @@ from hairdigi.render.variant import transform
 HOLDER_ALBEDO = 0.18          # mid grey, like a photographic grey card
 LIGHT_RADIANCE = 16.0
 
-from hairdigi.render.base.bounds import ENVIRONMENTS  # noqa: E402  (the names, for the command line without Mitsuba)
+from hairdigi.render.domain.bounds import ENVIRONMENTS  # noqa: E402  (the names, for the command line without Mitsuba)
 SKIN_ALBEDO = (0.55, 0.38, 0.30)
 
 
@@ -175,7 +175,7 @@ def portrait_lights(env: str) -> dict:
 
 def scalp_albedo(sigma_a) -> list[float]:
     """The scalp under the hair, as the fibre's albedo darkened by the hair's own shadow."""
-    from hairdigi.render.absorption import albedo_from_sigma_a
+    from hairdigi.render.domain.absorption import albedo_from_sigma_a
 
     return (SCALP_SHADE * albedo_from_sigma_a(np.asarray(sigma_a, float))).tolist()
 

@@ -6,13 +6,13 @@ Table 1 stays; each parameter maps to an absorption spectrum ``sigma_a(λ)`` per
 1. **Melanins.** Donner & Jensen 2006 ("A spectral BSSRDF for shading human skin") give eumelanin's
    absorption as ∝ λ^-3.33 and pheomelanin's as ∝ λ^-4.75; d'Eon et al. 2011 ("An energy-conserving
    hair reflectance model") use them for hair, and their RGB coefficients are the ones
-   ``render.absorption`` renders with. Each power law is scaled here so that its projection on
+   ``render.domain.absorption`` renders with. Each power law is scaled here so that its projection on
    linear sRGB under D65 (:func:`rgb_projection`: the channel's colour matching function times D65,
    normalised, so that a flat spectrum projects to itself) fits those coefficients in the
    least-squares sense of their logarithms. Measured (``tests/test_spectra.py``): eumelanin
    (0.392, 0.716, 1.429) against (0.419, 0.697, 1.37), pheomelanin (0.172, 0.411, 1.113) against
    (0.187, 0.4, 1.05): within 6.5% and 8.2% per channel. The melanin quantity ``q`` and the ratio
-   split them exactly as in RGB (``render.absorption.melanin_quantity``).
+   split them exactly as in RGB (``render.domain.absorption.melanin_quantity``).
 2. **The dye.** Its colour ``c = dye_rgb / 255`` (a linear albedo, as in RGB) is read as a smooth
    spectral albedo by Jakob & Hanika 2019 ("A low-dimensional function space for efficient spectral
    upsampling", colour-science's ``XYZ_to_sd_Jakob2019``): the same model Mitsuba's spectral variants
@@ -35,11 +35,11 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.absorption import (AZIMUTHAL_ROUGHNESS, EUMELANIN_SIGMA_A, MIN_DYE_ALBEDO,
+from hairdigi.render.domain.absorption import (AZIMUTHAL_ROUGHNESS, EUMELANIN_SIGMA_A, MIN_DYE_ALBEDO,
                                         PHEOMELANIN_SIGMA_A, melanin_quantity, sigma_a_from_albedo)
-from hairdigi.render.base.bounds import CAMERAS, ILLUMINANTS  # noqa: F401  (named cameras and lights)
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.bounds import CAMERAS, ILLUMINANTS  # noqa: F401  (named cameras and lights)
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.params import HairParams
 
 #: nm: Mitsuba's spectral range (``MI_CIE_MIN``..``MI_CIE_MAX``) every 5 nm.
 WAVELENGTHS = np.arange(360.0, 830.0 + 1e-9, 5.0)
@@ -157,7 +157,7 @@ def rgb_sigma_spectrum(sigma_rgb: np.ndarray, azimuthal_roughness: float = AZIMU
     """An RGB absorption (a dye's deposit, a prediction) as a spectrum, the way a dye's colour becomes one:
     its fibre albedo (Chiang 2016 eq. 9 inverted) read as a smooth spectral albedo (Jakob & Hanika 2019),
     then eq. 9 per wavelength. A flat absorption stays flat."""
-    from hairdigi.render.absorption import albedo_from_sigma_a
+    from hairdigi.render.domain.absorption import albedo_from_sigma_a
 
     sigma_rgb = np.asarray(sigma_rgb, float)
     if np.ptp(sigma_rgb) < 1e-9:
@@ -180,7 +180,7 @@ def hair_sigma_a_spectrum(params: HairParams, azimuthal_roughness: float = AZIMU
 # -- lights and cameras ------------------------------------------------------------------------
 def _read_table(path: Path, columns: int, what: str, form: str) -> np.ndarray:
     """The numeric rows of a CSV (a header line is allowed), checked; ``SpectrumError`` names the fix."""
-    from hairdigi.render.base.files import read_bytes
+    from hairdigi.render.domain.files import read_bytes
 
     fix = f"give a CSV of {form}, one row per wavelength in nm, rising"
     data = read_bytes(path, SpectrumError, "a CSV file", MAX_CSV_BYTES, f"a spectrum needs far less; {fix}")

@@ -17,7 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from hairdigi.render import head
-from hairdigi.render.base.rig_geometry import SWATCH_HALF
+from hairdigi.render.domain.rig_geometry import SWATCH_HALF
 
 
 @dataclass(frozen=True)
@@ -224,7 +224,7 @@ def layered_swatch_strands(n_strands: int = 2000, seed: int = 0, radius: float =
 
 # --- hairstyles on the head -------------------------------------------------------------------
 
-from hairdigi.render.base.bounds import HAIRSTYLES  # noqa: E402  (the names, for the command line without Mitsuba)
+from hairdigi.render.domain.bounds import HAIRSTYLES  # noqa: E402  (the names, for the command line without Mitsuba)
 DOWN = np.array([0.0, -1.0, 0.0])
 MIN_GUIDES = 120
 #: Fibre radius of the hairstyles (0.6 mm: far thicker than hair, so that ~6000 strands cover a head;

@@ -16,15 +16,15 @@ from __future__ import annotations
 import os
 import warnings
 
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.interrupt import sigint_held, stop_among
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.interrupt import sigint_held, stop_among
 
-with sigint_held():   # threads started while Mitsuba loads inherit the block (render.base.interrupt)
+with sigint_held():   # threads started while Mitsuba loads inherit the block (render.domain.interrupt)
     import mitsuba as mi
 
-from hairdigi.render.base.bounds import AUTO_VARIANTS as AUTO  # noqa: E402  (tried by "auto", in order)
-from hairdigi.render.base.bounds import PREFERRED_VARIANTS as PREFERRED  # noqa: E402
-from hairdigi.render.base.bounds import VARIANT_CHOICES as CHOICES  # noqa: E402  (the command line's --variant)
+from hairdigi.render.domain.bounds import AUTO_VARIANTS as AUTO  # noqa: E402  (tried by "auto", in order)
+from hairdigi.render.domain.bounds import PREFERRED_VARIANTS as PREFERRED  # noqa: E402
+from hairdigi.render.domain.bounds import VARIANT_CHOICES as CHOICES  # noqa: E402  (the command line's --variant)
 
 
 class VariantError(HairdigiError, RuntimeError):
@@ -72,7 +72,7 @@ def select_variant(preferred: str | None = None) -> str:
     if mi.variant().startswith(("llvm", "cuda")):   # the path tracer's pool: the process's thread budget
         import drjit as dr
 
-        from hairdigi.render.base.threads import plan
+        from hairdigi.render.domain.threads import plan
         with sigint_held():
             dr.set_thread_count(plan()["drjit"])
     if mi.variant() == "scalar_rgb" and not wanted:

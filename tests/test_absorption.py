@@ -2,8 +2,8 @@ import itertools
 
 import numpy as np
 
-from hairdigi.render.absorption import dye_sigma_a, hair_bsdf, hair_sigma_a, melanin_quantity
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.absorption import dye_sigma_a, hair_bsdf, hair_sigma_a, melanin_quantity
+from hairdigi.render.domain.params import HairParams
 
 
 def test_finite_and_non_negative_on_every_corner():
@@ -42,7 +42,7 @@ def test_bsdf_dict_uses_sigma_a_only():
 
 
 def test_approximate_albedo_inverts_the_dye_mapping():
-    from hairdigi.render.absorption import approximate_albedo
+    from hairdigi.render.domain.absorption import approximate_albedo
     p = HairParams((200, 100, 50), 1.0, 0.0, 0.5)
     assert np.allclose(approximate_albedo(p), np.array([200, 100, 50]) / 255, atol=1e-6)
     dark = approximate_albedo(HairParams((255, 255, 255), 0, 1.0, 1.0))

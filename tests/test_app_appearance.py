@@ -14,8 +14,8 @@ from hairdigi.app import review
 from hairdigi.app.rig_session import RigSession
 from hairdigi.inference.calibration import apply_profile
 from hairdigi.inference.encoder import Encoder
-from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance, AppearanceEstimate
-from hairdigi.render.base.records import WarningKind
+from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance, AppearanceEstimate
+from hairdigi.render.domain.records import WarningKind
 from hairdigi.render.metrics import mean_colour_delta_e
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
 

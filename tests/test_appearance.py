@@ -5,9 +5,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from hairdigi.render.base.appearance import Appearance, AppearanceError, AppearanceEstimate
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.records import EstimateRecord, RecordError, WarningKind
+from hairdigi.render.domain.appearance import Appearance, AppearanceError, AppearanceEstimate
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import EstimateRecord, RecordError, WarningKind
 from hairdigi.render.fibres import FIBRE_GROUPS, group_sigma_a, group_z, split_strands
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.strands import swatch_strands
@@ -78,7 +78,7 @@ def glossy_rig(tmp_path_factory):
 
 @pytest.mark.slow
 def test_a_capture_takes_one_frame_per_light_and_reads_the_shine(glossy_rig):
-    from hairdigi.render.base.records import CaptureRecord, read_record
+    from hairdigi.render.domain.records import CaptureRecord, read_record
 
     result = glossy_rig.capture()
     capture = read_record(result.meta_path, CaptureRecord)
@@ -107,7 +107,7 @@ def test_a_capture_missing_a_light_frame_fails_with_one_line(glossy_rig, tmp_pat
 
     result = glossy_rig.capture(estimate=False)
     folder = result.meta_path.parent
-    from hairdigi.render.base.records import CaptureRecord, read_record
+    from hairdigi.render.domain.records import CaptureRecord, read_record
 
     names = read_record(result.meta_path, CaptureRecord).light_images
     (folder / names[1]).unlink()
@@ -147,7 +147,7 @@ def test_a_hidden_swatch_file_may_carry_an_appearance_and_a_bad_one_is_named(tmp
     import json
 
     from hairdigi.app.rig_cli import hidden_appearance
-    from hairdigi.render.base.params import HairParamsError
+    from hairdigi.render.domain.params import HairParamsError
 
     hair = {"dye_rgb": [190, 80, 40], "dye_concentration": 0.5, "melanin_concentration": 0.5, "melanin_ratio": 0.6}
     path = tmp_path / "hidden.json"
@@ -176,7 +176,7 @@ def test_a_share_reported_as_none_says_it_was_not_told_from_none():
     "0.00 (68%: 0.02-0.16)", which reads as a contradiction, but as not told from none."""
     from hairdigi.app.review import appearance_lines
     from hairdigi.app.rig_cli import appearance_lines as cli_lines
-    from hairdigi.render.base.appearance import AppearanceEstimate
+    from hairdigi.render.domain.appearance import AppearanceEstimate
 
     intervals = {"grey_fraction": {"p68": [0.019, 0.155], "p95": [0.0, 0.21]},
                  "longitudinal_roughness": {"p68": [0.29, 0.31], "p95": [0.27, 0.33]}}

@@ -6,8 +6,8 @@ import pytest
 
 from hairdigi.app.rig_session import RigSession, rig_region
 from hairdigi.inference.refine import fitted_pixels, mean_linear
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.records import EstimateRecord, WarningKind, read_record
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import EstimateRecord, WarningKind, read_record
 from hairdigi.render.camera_model import CameraModel, spread_glints
 from hairdigi.render.judge import judge
 
@@ -75,7 +75,7 @@ def test_an_interval_that_misses_is_flagged():
 def test_a_calibration_that_does_not_fit_the_hair_is_said_so():
     """The chart's large residual, or a correction that moves the hair more than any patch, warns."""
     from hairdigi.inference.calibration import correction_warnings
-    from hairdigi.render.base.records import CalibrationProfile
+    from hairdigi.render.domain.records import CalibrationProfile
 
     profile = CalibrationProfile(id="x", method="Finlayson 2015", matrix=((1, 0, 0), (0, 1, 0), (0, 0, 1)),
                                  time=1.7e9, delta_e2000={"after": {"mean": 0.4}, "patch_shift_max": 3.0})
@@ -94,7 +94,7 @@ def test_the_swatch_area_of_a_tilted_camera_lies_on_the_swatch(pose):
     region fitted and rendered holds hair, not holder), and covers most of it."""
     import cv2
 
-    from hairdigi.render.base.rig_geometry import (RIG_HALF_WIDTH, RIG_TARGET, SWATCH_HALF, SWATCH_VISIBLE_HALF_LENGTH,
+    from hairdigi.render.domain.rig_geometry import (RIG_HALF_WIDTH, RIG_TARGET, SWATCH_HALF, SWATCH_VISIBLE_HALF_LENGTH,
                                                    CameraPose, project, swatch_roi)
 
     pose, size, half_width = CameraPose(*pose), (400, 300), RIG_HALF_WIDTH * 1.1

@@ -14,7 +14,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from hairdigi.inference.training.evaluate_cycles import CASES, CyclesSet, _one, hidden_set, other_swatch
-from hairdigi.render.base import rig_geometry as rg
+from hairdigi.render.domain import rig_geometry as rg
 from hairdigi.render.blender_run import rig_for_blender
 from hairdigi.render.scenes import KEY_RADIANCE, KEY_SKY, LIGHT_RADIANCE, SKY_RADIANCE
 from hairdigi.render.strands import SWATCH_LENGTH

@@ -8,7 +8,7 @@ import pytest
 
 from hairdigi.render import denoise as dn
 from hairdigi.render.metrics import mean_colour_delta_e, pixel_delta_e
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec
 
 needs_oidn = pytest.mark.skipif(not dn.available(), reason="pyoidn is not installed")

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from hairdigi.inference.domain import domain_stats, domain_warnings
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import SceneSpec, render
-from hairdigi.render.base.rig_geometry import CameraPose
+from hairdigi.render.domain.rig_geometry import CameraPose
 
 RNG = np.random.default_rng(0)
 GARBAGE = {
@@ -52,7 +52,7 @@ def test_clean_swatch_renders_are_not_flagged(hair, pose):
 def test_the_estimate_record_carries_the_warnings(tiny_model):
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_image, record
-    from hairdigi.render.base.records import EstimateRecord, WarningKind
+    from hairdigi.render.domain.records import EstimateRecord, WarningKind
 
     _, onnx_path, _ = tiny_model
     encoder = Encoder(onnx_path)

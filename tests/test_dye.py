@@ -15,10 +15,10 @@ import pytest
 from hairdigi.inference import dye as D
 from hairdigi.inference.levels import EVALUATION_LEVELS, LEVELS, natural_base
 from hairdigi.inference.refine import fibre_appearance
-from hairdigi.render.absorption import dye_sigma_a, hair_sigma_a
-from hairdigi.render.base.dye_record import DyeRecord
-from hairdigi.render.base.params import load_params
-from hairdigi.render.base.records import EstimateRecord, RecordError, RefinementRecord, read_record, write_record
+from hairdigi.render.domain.absorption import dye_sigma_a, hair_sigma_a
+from hairdigi.render.domain.dye_record import DyeRecord
+from hairdigi.render.domain.params import load_params
+from hairdigi.render.domain.records import EstimateRecord, RecordError, RefinementRecord, read_record, write_record
 
 DEPOSIT = dye_sigma_a((190.0, 70.0, 40.0), 0.55)   # a copper dye's absorption
 LIFT = 0.35

@@ -14,8 +14,8 @@ import pytest
 
 from hairdigi.app.cli import main
 from hairdigi.app.validation import is_expected
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.files import PACKAGE_PARTS
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.files import PACKAGE_PARTS
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Modules that cannot be imported outside their own program: the Blender-side script needs bpy.
@@ -103,7 +103,7 @@ def test_every_error_class_of_hairdigi_is_a_hairdigi_error():
     named_error = [n for n in classes if n.endswith("Error")]
     assert len(named_error) >= 22 and "hairdigi.app.cli.CliError" in classes   # the walk found them
     strays = sorted(n for n, cls in classes.items() if not issubclass(cls, HairdigiError))
-    assert strays == [], f"derive these from render.base.errors.HairdigiError: {strays}"
+    assert strays == [], f"derive these from render.domain.errors.HairdigiError: {strays}"
 
 
 #: The builtin base each error class had before HairdigiError, kept so that ``except ValueError`` (or
@@ -116,8 +116,8 @@ BUILTIN_BASES = {
     "inference.dye.DyeError": ValueError, "inference.encoder.ModelError": RuntimeError,
     "render.hairfile.HairFileError": ValueError, "render.blender_run.BlenderError": RuntimeError,
     "render.denoise.DenoiserMissing": RuntimeError, "render.spectra.SpectrumError": ValueError,
-    "render.variant.VariantError": RuntimeError, "render.base.params.HairParamsError": ValueError,
-    "render.base.records.RecordError": ValueError, "render.base.appearance.AppearanceError": ValueError,
+    "render.variant.VariantError": RuntimeError, "render.domain.params.HairParamsError": ValueError,
+    "render.domain.records.RecordError": ValueError, "render.domain.appearance.AppearanceError": ValueError,
 }
 
 
@@ -131,7 +131,7 @@ def test_each_error_keeps_its_builtin_base(name):
 # --- (c) the user's errors stay one line and exit status 2 -----------------------------------
 def test_a_hairdigi_error_or_a_full_disk_in_a_command_is_one_line(record, tmp_path, monkeypatch, capsys):
     from hairdigi.app import export_cli
-    from hairdigi.render.base.records import RecordError
+    from hairdigi.render.domain.records import RecordError
 
     args = ["export", str(record), "--format", "materialx", "--out", str(tmp_path / "look.mtlx")]
 

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from hairdigi.app.cli import main
-from hairdigi.render.absorption import hair_sigma_a
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.appearance import AppearanceEstimate
-from hairdigi.render.base.records import EstimateRecord, RefinementRecord, write_record
+from hairdigi.render.domain.absorption import hair_sigma_a
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.appearance import AppearanceEstimate
+from hairdigi.render.domain.records import EstimateRecord, RefinementRecord, write_record
 
 mx = pytest.importorskip("MaterialX")
 

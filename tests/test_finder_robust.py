@@ -11,7 +11,7 @@ import pytest
 
 from hairdigi.inference.preprocess import ImageError, find_swatch_roi
 from hairdigi.inference.training.evaluate_views import HAIRS, crop_box, share_on_swatch, swatch_outline
-from hairdigi.render.base.rig_geometry import CameraPose
+from hairdigi.render.domain.rig_geometry import CameraPose
 from hairdigi.render.renderer import Renderer, SceneSpec
 
 SIZE, SPP = 96, 64
@@ -92,7 +92,7 @@ def test_the_bench_cameras_frame_is_not_warned_but_a_tilted_one_is(renderer):
     not warned of; the same rig seen from 40° is; an all-hair crop has no outline to read."""
     from hairdigi.inference.preprocess import find_swatch
     from hairdigi.inference.view_check import view_warning
-    from hairdigi.render.base import rig_geometry as rg
+    from hairdigi.render.domain import rig_geometry as rg
     from hairdigi.render.chart import colorchecker_reflectances
 
     chart = tuple(map(tuple, colorchecker_reflectances()))
@@ -152,7 +152,7 @@ def test_a_dark_raw_still_is_not_called_clipped(tmp_path):
     from media import write_raw_still
 
     from hairdigi.app.rig_session import RigSession
-    from hairdigi.render.base import rig_geometry as rg
+    from hairdigi.render.domain import rig_geometry as rg
     from hairdigi.render.chart import WHITE_PATCH
 
     session = RigSession.simulated_rig(tmp_path / "s", hidden=HAIRS["black"], spp=8)
@@ -180,7 +180,7 @@ def test_fine_fibres_through_a_lens_are_not_out_of_domain_but_a_defocused_swatch
     texture". Its texture is fine and its channels move together there: not out of domain. The same
     swatch defocused (8 px) is still flagged: what fine texture is left is the sensor's noise."""
     from hairdigi.inference.domain import domain_stats, domain_warnings
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.camera_model import CameraModel, sensor_response
 
     linear = renderer.render(HAIRS["black"], SceneSpec("swatch", camera=RIG_SWATCH_POSE), 192, 32, seed=1).linear

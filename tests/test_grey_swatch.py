@@ -15,8 +15,8 @@ import pytest
 
 from hairdigi.inference.domain import domain_stats, domain_warnings
 from hairdigi.inference.preprocess import ImageError, Roi, find_swatch_roi, swatch_crop
-from hairdigi.render.base import rig_geometry
-from hairdigi.render.base.appearance import Appearance
+from hairdigi.render.domain import rig_geometry
+from hairdigi.render.domain.appearance import Appearance
 from hairdigi.render.renderer import Renderer, SceneSpec
 
 CROP = 128

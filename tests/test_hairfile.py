@@ -17,7 +17,7 @@ from hairdigi.render.hairfile import (HAS_COLOR, HAS_POINTS, HAS_SEGMENTS, HAS_T
                                       MAX_POINTS_PER_STRAND, RADIUS, HairFile, HairFileError, fit_to_head,
                                       hair_file_bytes, hair_model_strands, read_hair, read_hair_file, write_hair,
                                       write_hair_file)
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import HAIR_FILE_SCENE, Renderer, SceneSpec
 from hairdigi.render.strands import Strands, hairstyle_strands
 

@@ -115,7 +115,7 @@ def materials(tmp_path_factory):
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
     from hairdigi.render.camera_model import spread_glints
     from hairdigi.inference.calibration import calibrate
-    from hairdigi.render.base import rig_geometry
+    from hairdigi.render.domain import rig_geometry
     from hairdigi.render.camera_model import CameraModel, sensor_response
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.renderer import Renderer, SceneSpec
@@ -177,7 +177,7 @@ def test_an_output_linked_to_an_input_is_refused(ws):
 
 # --- 2. the swatch, not the chart -----------------------------------------------------------
 def test_estimate_finds_the_swatch_beside_the_chart_and_records_it(ws, expect):
-    from hairdigi.render.base.rig_geometry import swatch_roi
+    from hairdigi.render.domain.rig_geometry import swatch_roi
 
     run = hairdigi("estimate", "photo.png", "--out", "e.json", *no_refine(), cwd=ws)
     expect |= {"e.json"}
@@ -330,10 +330,10 @@ class Says(importlib.abc.MetaPathFinder):
 sys.meta_path.insert(0, Says())"""
 
 #: Prints "rendering" as each ``mitsuba.render`` call starts, inside the renderer's held block: a Ctrl-C
-#: sent on that line is delivered when the call returns (render.base.interrupt). Mitsuba is loaded as
+#: sent on that line is delivered when the call returns (render.domain.interrupt). Mitsuba is loaded as
 #: the program loads it (render.variant), after the start-up's thread budget.
 SAYS_WHEN_RENDERING = """\
-from hairdigi.render.base.threads import start_up
+from hairdigi.render.domain.threads import start_up
 start_up()
 from hairdigi.render.variant import mi
 _render = mi.render
@@ -438,7 +438,7 @@ def test_profile_warnings_follow_the_one_staleness_rule(materials):
     """In process: the rule behind the warnings above (``calibration.staleness``), and its edges."""
     from hairdigi.inference.calibration import STALE_AFTER_S, profile_warnings
 
-    from hairdigi.render.base.records import CalibrationProfile
+    from hairdigi.render.domain.records import CalibrationProfile
 
     profile = CalibrationProfile.from_json(json.loads((materials / "cal.json").read_text()))
     now = profile.time

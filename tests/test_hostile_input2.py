@@ -266,7 +266,7 @@ def test_ctrl_c_stops_a_render_within_3_s(ws):
                 return
     threading.Thread(target=watch, daemon=True).start()
     assert seen.wait(120), "the render did not start"
-    # at once: the marker is written inside the pass's held block (render.base.interrupt), so the signal
+    # at once: the marker is written inside the pass's held block (render.domain.interrupt), so the signal
     # waits for the whole pass, the worst case, before it is a KeyboardInterrupt
     start = time.monotonic()
     proc.send_signal(signal.SIGINT)

@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 
 from hairdigi.app.cli import main
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.records import EstimateRecord, RefinementRecord, write_record
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import EstimateRecord, RefinementRecord, write_record
 
 ROOT = Path(__file__).resolve().parent.parent
 CAPTURE = "20261124-101500-123"
@@ -191,8 +191,8 @@ def test_device_files_are_refused_before_a_byte_is_read(ws, capsys, args):
 
 def test_device_file_as_a_dye_target_or_record_is_refused(ws, capsys):
     from hairdigi.inference.dye import DyeError, target_colour
-    from hairdigi.render.base.files import read_json
-    from hairdigi.render.base.records import RecordError, read_record, record_sha256
+    from hairdigi.render.domain.files import read_json
+    from hairdigi.render.domain.records import RecordError, read_record, record_sha256
 
     with pytest.raises(DyeError, match="not a regular file"):
         target_colour("/dev/zero", curve=object())
@@ -366,8 +366,8 @@ def test_impossible_absorption_is_refused_everywhere(ws, capsys, sigma):
     one_line(main(["export", "bad.json", "--format", "materialx", "--out", "bad.mtlx"]), capsys, "outside 0 to")
     one_line(main(["library", "import", "bad.json"]), capsys, "outside 0 to")
     (ws / "dye.json").write_text(json.dumps(dye_record_json(deposit=(1e300, 0.1, 0.1))))
-    from hairdigi.render.base.dye_record import DyeRecord
-    from hairdigi.render.base.records import RecordError, read_record
+    from hairdigi.render.domain.dye_record import DyeRecord
+    from hairdigi.render.domain.records import RecordError, read_record
 
     with pytest.raises(RecordError, match="outside 0 to"):
         read_record(ws / "dye.json", DyeRecord)
@@ -375,8 +375,8 @@ def test_impossible_absorption_is_refused_everywhere(ws, capsys, sigma):
 
 
 def test_inverted_intervals_are_refused(ws):
-    from hairdigi.render.base.dye_record import DyeRecord
-    from hairdigi.render.base.records import RecordError
+    from hairdigi.render.domain.dye_record import DyeRecord
+    from hairdigi.render.domain.records import RecordError
 
     data = estimate_record().to_json()
     data["uncertainty"] = {"parameters": {"melanin_ratio": {"value": 0.4, "low": 0.6, "high": 0.2}}}
@@ -622,7 +622,7 @@ def curve():
 
 def _natural(level: int):
     from hairdigi.inference.levels import natural_base
-    from hairdigi.render.absorption import hair_sigma_a
+    from hairdigi.render.domain.absorption import hair_sigma_a
 
     return natural_base(level), hair_sigma_a(natural_base(level))
 
@@ -749,12 +749,12 @@ def test_evaluate_dye_takes_size_and_spp_and_judges_no_goal_on_a_few(monkeypatch
 
 
 def test_a_misspelt_hidden_appearance_key_is_refused(tmp_path):
-    from hairdigi.render.base.appearance import Appearance, AppearanceError
+    from hairdigi.render.domain.appearance import Appearance, AppearanceError
 
     with pytest.raises(AppearanceError, match="did you mean 'grey_fraction'"):
         Appearance.from_dict({"grey_fracton": 0.2})
     from hairdigi.app.rig_cli import hidden_appearance
-    from hairdigi.render.base.params import HairParamsError
+    from hairdigi.render.domain.params import HairParamsError
 
     (tmp_path / "h.json").write_text(json.dumps({"hair": HAIR.to_dict(), "appearance": {"fibre_sprad": 0.3}}))
     with pytest.raises(HairParamsError, match="fibre_spread"):
@@ -765,7 +765,7 @@ def test_errors_name_the_file_asked_for_never_a_temporary_one(tmp_path):
     import errno
 
     from hairdigi.app.validation import describe_os_error
-    from hairdigi.render.base.files import atomic_path
+    from hairdigi.render.domain.files import atomic_path
 
     with pytest.raises(OSError) as exc:
         with atomic_path(tmp_path / "out.png") as tmp:
@@ -785,7 +785,7 @@ def test_a_failing_card_leaves_no_partial_outputs(ws, monkeypatch):
     from matplotlib.figure import Figure
 
     from hairdigi.inference import dye_card
-    from hairdigi.render.base.dye_record import DyeRecord
+    from hairdigi.render.domain.dye_record import DyeRecord
 
     class Failing(Figure):
         def savefig(self, fname, *a, format=None, **kw):

@@ -10,9 +10,9 @@ from hairdigi.app.cli import main
 from hairdigi.inference.training.dataset import DatasetConfig, generate, load, sample_spec, shard_path
 from hairdigi.inference.encoder import Encoder
 from hairdigi.inference.preprocess import Roi, find_swatch_roi, swatch_crop
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import SceneSpec, render
-from hairdigi.render.base.rig_geometry import CameraPose, light_blocks_view
+from hairdigi.render.domain.rig_geometry import CameraPose, light_blocks_view
 
 from conftest import TINY
 
@@ -46,7 +46,7 @@ def test_torch_absorption_matches_the_renderers():
     import torch
 
     from hairdigi.inference.training.losses import appearance, sigma_a
-    from hairdigi.render.absorption import approximate_albedo, hair_sigma_a
+    from hairdigi.render.domain.absorption import approximate_albedo, hair_sigma_a
 
     v = np.random.default_rng(0).random((300, 6))
     v[:11, 4] = np.linspace(0, 1, 11)                 # every knot of the melanin remap
@@ -90,7 +90,7 @@ def test_dataset_draws_and_records_each_swatchs_appearance_and_keeps_old_dataset
     import json
 
     from hairdigi.inference.training.dataset import read_shard, sample_spec, scene_of
-    from hairdigi.render.base.appearance import APPEARANCE_DRAW, FIELDS
+    from hairdigi.render.domain.appearance import APPEARANCE_DRAW, FIELDS
 
     config = DatasetConfig(**TINY)
     generate(config, tmp_path / "new", workers=1, progress=False)

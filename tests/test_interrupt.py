@@ -1,4 +1,4 @@
-"""Ctrl-C around native rendering (render.base.interrupt): Mitsuba's own SIGINT handler, which logs
+"""Ctrl-C around native rendering (render.domain.interrupt): Mitsuba's own SIGINT handler, which logs
 from inside the handler and can deadlock, never runs; the signal becomes a KeyboardInterrupt once the
 native call returns, and the native pools' threads never take it."""
 import os
@@ -21,7 +21,7 @@ LINUX = sys.platform.startswith("linux")
 RENDERS = """
 from hairdigi.app.cli import start_up
 start_up()
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import default_renderer
 renderer = default_renderer()
 renderer.render(HairParams(), "swatch", 16, 1)      # compiled and loaded before the loop
@@ -64,7 +64,7 @@ def test_no_thread_but_the_main_one_takes_ctrl_c_once_mitsuba_has_rendered():
     code = ("import json, os\n"
             "from hairdigi.app.cli import start_up\n"
             "start_up()\n"
-            "from hairdigi.render.base.params import HairParams\n"
+            "from hairdigi.render.domain.params import HairParams\n"
             "from hairdigi.render.renderer import default_renderer\n"
             "default_renderer().render(HairParams(), 'swatch', 16, 1)\n"
             "takes = {}\n"
@@ -86,7 +86,7 @@ def test_no_thread_but_the_main_one_takes_ctrl_c_once_mitsuba_has_rendered():
 
 
 def test_a_signal_held_is_delivered_when_the_block_ends():
-    from hairdigi.render.base.interrupt import sigint_held
+    from hairdigi.render.domain.interrupt import sigint_held
 
     if not hasattr(signal, "pthread_sigmask"):
         pytest.skip("no signal masks on this OS")

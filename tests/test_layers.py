@@ -68,31 +68,31 @@ def test_a_stray_import_breaks_the_contracts(site, tmp_path):
     assert "hairdigi.render.metrics -> hairdigi.inference.estimate" in result.stdout
 
 
-def base_imports(site: Path) -> dict[str, list[str]]:
-    """What each module of render.base imports directly (external packages by their top-level name),
+def domain_imports(site: Path) -> dict[str, list[str]]:
+    """What each module of render.domain imports directly (external packages by their top-level name),
     read by grimp from the package in ``site`` (in a subprocess: this one imports the checkout's)."""
     import json
 
     code = ("import grimp, json; g = grimp.build_graph('hairdigi', include_external_packages=True, cache_dir=None); "
             "print(json.dumps({m: sorted(g.find_modules_directly_imported_by(m)) "
-            "for m in g.find_descendants('hairdigi.render.base')}))")
+            "for m in g.find_descendants('hairdigi.render.domain')}))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True,
                          env={"PATH": "/usr/bin:/bin", "PYTHONPATH": str(site)})
     return json.loads(out.stdout)
 
 
-def test_render_base_imports_numpy_and_the_standard_library_only(site, tmp_path):
+def test_render_domain_imports_numpy_and_the_standard_library_only(site, tmp_path):
     allowed = set(sys.stdlib_module_names) | {"numpy"}
 
     def strays(imports: dict[str, set[str]]) -> set[str]:
         return {f"{m} -> {i}" for m, targets in imports.items() for i in targets
-                if not i.startswith("hairdigi.render.base") and i.split(".")[0] not in allowed}
-    assert base_imports(site) and strays(base_imports(site)) == set()
+                if not i.startswith("hairdigi.render.domain") and i.split(".")[0] not in allowed}
+    assert domain_imports(site) and strays(domain_imports(site)) == set()
     shutil.copytree(site / "hairdigi", tmp_path / "hairdigi")      # and the rule can fail
-    with open(tmp_path / "hairdigi" / "render" / "base" / "params.py", "a") as f:
+    with open(tmp_path / "hairdigi" / "render" / "domain" / "params.py", "a") as f:
         f.write("\nfrom hairdigi.render import renderer  # stray\nimport cv2  # stray\n")
-    assert strays(base_imports(tmp_path)) == {"hairdigi.render.base.params -> hairdigi.render.renderer",
-                                              "hairdigi.render.base.params -> cv2"}
+    assert strays(domain_imports(tmp_path)) == {"hairdigi.render.domain.params -> hairdigi.render.renderer",
+                                              "hairdigi.render.domain.params -> cv2"}
 
 
 def _modules_after_import(statement: str) -> dict:
@@ -105,7 +105,7 @@ def _modules_after_import(statement: str) -> dict:
 
 
 def test_the_rig_geometry_imports_without_mitsuba():
-    seen = _modules_after_import("import hairdigi.render.base.rig_geometry, hairdigi.inference.preprocess")
+    seen = _modules_after_import("import hairdigi.render.domain.rig_geometry, hairdigi.inference.preprocess")
     assert not seen["mitsuba"] and not seen["qt"] and not seen["torch"]
 
 

@@ -19,9 +19,9 @@ import pytest
 from hairdigi.app.cli import main
 from hairdigi.app.library import SCHEMA_VERSION, Library, LibraryError
 from hairdigi.app.swatch_colour import hex_lab, lab_hex, rendered_linear, swatch_labs
-from hairdigi.render.absorption import hair_sigma_a
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.records import CaptureRecord, EstimateRecord, RefinementRecord, write_record
+from hairdigi.render.domain.absorption import hair_sigma_a
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import CaptureRecord, EstimateRecord, RefinementRecord, write_record
 from hairdigi.render.metrics import delta_e2000
 
 

@@ -12,7 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from hairdigi.render.base.version import _pyproject_version, version
+from hairdigi.render.domain.version import _pyproject_version, version
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGING = ROOT / "packaging"
@@ -33,7 +33,7 @@ def test_one_version_string(tmp_path):
 
     from hairdigi.inference.encoder import Estimate
     from hairdigi.inference.estimate import EstimateResult, record
-    from hairdigi.render.base.params import HairParams
+    from hairdigi.render.domain.params import HairParams
 
     est = Estimate(HairParams(), np.zeros(6), [])
     encoder = SimpleNamespace(path=Path("encoder.onnx"), sha256="0" * 64, input_size=48)

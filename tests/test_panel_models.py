@@ -13,8 +13,8 @@ import pytest
 
 from hairdigi.app.library import Library
 from hairdigi.inference.levels import natural_base
-from hairdigi.render.absorption import dye_sigma_a, hair_sigma_a
-from hairdigi.render.base.records import EstimateRecord, RefinementRecord, write_record
+from hairdigi.render.domain.absorption import dye_sigma_a, hair_sigma_a
+from hairdigi.render.domain.records import EstimateRecord, RefinementRecord, write_record
 from test_library import make_session
 
 DEPOSIT = dye_sigma_a((190.0, 70.0, 40.0), 0.55)   # a copper dye's absorption

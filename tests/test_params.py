@@ -4,7 +4,7 @@ import re
 import numpy as np
 import pytest
 
-from hairdigi.render.base.params import HairParams, HairParamsError, load_params, sample_params, save_params
+from hairdigi.render.domain.params import HairParams, HairParamsError, load_params, sample_params, save_params
 
 
 def test_json_round_trip_top_level_and_under_hair(tmp_path):

@@ -36,7 +36,7 @@ def flat_png(path, width: int, height: int, rgb=(120, 80, 40), rows: int = 50) -
 def chart_positions() -> list[tuple[float, float]]:
     """Chart centres the rig allows: the whole chart on the holder, in view, right of the swatch
     (the view is RIG_HALF_WIDTH either side of RIG_TARGET, 4:3), at its corners, edges and default."""
-    from hairdigi.render.base import rig_geometry
+    from hairdigi.render.domain import rig_geometry
     from hairdigi.render.strands import SWATCH_WIDTH
 
     pitch = rig_geometry.CHART_PATCH + rig_geometry.CHART_GAP
@@ -50,7 +50,7 @@ def chart_positions() -> list[tuple[float, float]]:
 
 def chart_box(center, size=SIM) -> tuple[int, int, int, int]:
     """The chart board's pixel box (x, y, w, h) in the rig view."""
-    from hairdigi.render.base import rig_geometry
+    from hairdigi.render.domain import rig_geometry
 
     pitch = rig_geometry.CHART_PATCH + rig_geometry.CHART_GAP
     half_w, half_h = 3 * pitch + rig_geometry.CHART_GAP, 2 * pitch + rig_geometry.CHART_GAP
@@ -71,7 +71,7 @@ def rig_frames():
     """{chart centre: simulated rig frame (8-bit sRGB through the camera model)}, tiny renders."""
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
     from hairdigi.render.camera_model import spread_glints
-    from hairdigi.render.base import rig_geometry
+    from hairdigi.render.domain import rig_geometry
     from hairdigi.render.camera_model import CameraModel, sensor_response
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.renderer import Renderer, SceneSpec
@@ -89,7 +89,7 @@ def rig_frames():
 
 
 def test_chart_positions_cover_the_rig():
-    from hairdigi.render.base.rig_geometry import swatch_roi
+    from hairdigi.render.domain.rig_geometry import swatch_roi
 
     positions = chart_positions()
     assert len(positions) == 7 and len(set(positions)) == 7
@@ -100,7 +100,7 @@ def test_chart_positions_cover_the_rig():
 
 
 def test_the_swatch_is_found_beside_the_chart_wherever_the_chart_is(rig_frames):
-    from hairdigi.render.base.rig_geometry import swatch_roi
+    from hairdigi.render.domain.rig_geometry import swatch_roi
 
     truth = swatch_roi(SIM)
     for centre, frame in rig_frames.items():

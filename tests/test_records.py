@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.records import (SCHEMA_VERSION, CalibrationProfile, CaptureRecord, EstimateRecord,
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import (SCHEMA_VERSION, CalibrationProfile, CaptureRecord, EstimateRecord,
                                           EstimateWarning, RecordError, RefinementRecord, WarningKind,
                                           capture_profile, read_record, write_record)
 
@@ -164,7 +164,7 @@ def test_a_table_with_a_failed_row_is_written_whole(tmp_path):
     header is every key, in the order first met, and a row without one leaves it empty."""
     import csv
 
-    from hairdigi.render.base.files import write_csv_atomic
+    from hairdigi.render.domain.files import write_csv_atomic
 
     rows = [{"hidden": "copper", "fit": 0.4}, {"hidden": "random 0", "error": "ImageError: too small"}]
     path = write_csv_atomic(tmp_path / "t.csv", rows)

@@ -2,14 +2,14 @@
 import numpy as np
 import pytest
 
-from hairdigi.render.base.records import RefinementRecord
+from hairdigi.render.domain.records import RefinementRecord
 from hairdigi.inference.refine import (RefineSettings, fibre_appearance, mean_linear, params_for_sigma, refine,
                               response_curve)
-from hairdigi.render.absorption import hair_sigma_a
+from hairdigi.render.domain.absorption import hair_sigma_a
 from hairdigi.render.metrics import delta_e2000
-from hairdigi.render.base.params import HairParams, sample_params
+from hairdigi.render.domain.params import HairParams, sample_params
 from hairdigi.render.renderer import Renderer, SceneSpec
-from hairdigi.render.base.rig_geometry import CameraPose
+from hairdigi.render.domain.rig_geometry import CameraPose
 
 SMALL = RefineSettings(size=24, spp=8, check_spp=8, iterations=3, strand_seed=3)   # 3: the layered swatch took 3 for copper
 
@@ -80,7 +80,7 @@ def test_the_region_the_refinement_renders_is_the_region_it_fits():
     import numpy as np
 
     from hairdigi.inference.refine import RefineSettings, fitted_pixels, scene_for
-    from hairdigi.render.base.rig_geometry import RigRegion
+    from hairdigi.render.domain.rig_geometry import RigRegion
 
     for frame, roi in (((400, 300), (30, 73, 130, 154)), ((800, 600), (61, 147, 259, 307)), ((400, 300), (0, 0, 400, 300))):
         region = RigRegion(frame, roi)
@@ -105,7 +105,7 @@ def test_a_cropped_render_is_that_window_of_the_whole_film(tmp_path):
     """The film crop renders the same scene's window: its mean matches the same window of the full render."""
     import numpy as np
 
-    from hairdigi.render.base.rig_geometry import RIG_HALF_WIDTH, RIG_TARGET
+    from hairdigi.render.domain.rig_geometry import RIG_HALF_WIDTH, RIG_TARGET
     from hairdigi.render.metrics import delta_e2000
 
     renderer = Renderer(max_cached=2)

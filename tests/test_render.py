@@ -6,9 +6,9 @@ import sys
 import numpy as np
 import pytest
 
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec
-from hairdigi.render.base.rig_geometry import CameraPose
+from hairdigi.render.domain.rig_geometry import CameraPose
 
 SIZE, SPP, STRANDS = 32, 4, 300
 
@@ -97,7 +97,7 @@ def test_white_furnace_at_zero_absorption():
     """A lossless fibre under a white environment must come out white; absorption must not."""
     from hairdigi.render.scenes import furnace_scene
     from hairdigi.render.strands import swatch_strands
-    from hairdigi.render.absorption import hair_bsdf
+    from hairdigi.render.domain.absorption import hair_bsdf
     from hairdigi.render.variant import load_scene, mi
     import tempfile, os
 
@@ -187,7 +187,7 @@ def test_invalid_scene_and_size_are_clear(renderer):
 
 def test_no_eumelanin_bspline_crash_case():
     """The case that segfaulted Mitsuba 3.9.1 without the dummy strand: eumelanin 0, 64 spp."""
-    code = ("from hairdigi.render.renderer import render, SceneSpec; from hairdigi.render.base.params import HairParams;"
+    code = ("from hairdigi.render.renderer import render, SceneSpec; from hairdigi.render.domain.params import HairParams;"
             "import numpy as np;"
             "r = render(HairParams((255,255,255), 0, 0.7, 0.0), SceneSpec('swatch'), 96, 64, 0);"
             "assert np.isfinite(r.linear).all(); print('ok')")
@@ -197,7 +197,7 @@ def test_no_eumelanin_bspline_crash_case():
 
 def test_uniform_parameters_span_platinum_to_black_and_many_hues(renderer):
     import colorsys
-    from hairdigi.render.base.params import sample_params
+    from hairdigi.render.domain.params import sample_params
 
     rng = np.random.default_rng(0)
     means = np.array([mean_rgb(renderer.render(sample_params(rng), swatch(), SIZE, 4, i)) for i in range(24)])
@@ -210,7 +210,7 @@ def test_uniform_parameters_span_platinum_to_black_and_many_hues(renderer):
 def test_scalar_fallback_renders_the_same_scene():
     """HAIRDIGI_VARIANT=scalar_rgb (what a machine without libLLVM 19 gets) gives the same mean colour."""
     import os
-    code = ("import numpy as np; from hairdigi.render.renderer import render, SceneSpec; from hairdigi.render.base.params import HairParams;"
+    code = ("import numpy as np; from hairdigi.render.renderer import render, SceneSpec; from hairdigi.render.domain.params import HairParams;"
             "from hairdigi.render.variant import mi;"
             "r = render(HairParams((200,90,40), 0.6, 0.3, 0.5), SceneSpec('swatch', strands=300), 24, 16, 0);"
             "print(mi.variant(), *r.linear.reshape(-1, 3).mean(0))")

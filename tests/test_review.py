@@ -142,8 +142,8 @@ def test_one_open_rig_serves_the_command_line_and_the_window(tmp_path):
 
 def test_a_pass_with_nonfinite_values_becomes_a_warning_of_the_shown_capture():
     """A NaN or Inf count in a pass is a NONFINITE warning under the shown parameters, once."""
-    from hairdigi.render.base.params import HairParams
-    from hairdigi.render.base.records import EstimateRecord, WarningKind
+    from hairdigi.render.domain.params import HairParams
+    from hairdigi.render.domain.records import EstimateRecord, WarningKind
 
     model = review.ReviewModel(session=None)
     seen = []
@@ -197,8 +197,8 @@ def test_a_hairstyle_under_another_light_renders_spectrally_and_is_shown_adapted
 
 def test_the_window_says_a_records_colour_under_other_lights_and_its_spectral_interval():
     from hairdigi.app.review import spectral_lines
-    from hairdigi.render.base.params import HairParams
-    from hairdigi.render.base.records import EstimateRecord, SpectralReading
+    from hairdigi.render.domain.params import HairParams
+    from hairdigi.render.domain.records import EstimateRecord, SpectralReading
 
     assert spectral_lines(EstimateRecord(hair=HairParams())) == []
     reading = SpectralReading(HairParams(), "LED-B4", "nikon-5100", 0.01,
@@ -218,8 +218,8 @@ def test_a_record_whose_refinement_has_no_residual_is_shown_not_crashed():
     """A record file may hold a refinement without its residual (an older or a hand-made one)."""
     from hairdigi.app.review import Shown, Stage, parameter_view
     from hairdigi.app.rig_cli import say_record
-    from hairdigi.render.base.params import HairParams
-    from hairdigi.render.base.records import EstimateRecord
+    from hairdigi.render.domain.params import HairParams
+    from hairdigi.render.domain.records import EstimateRecord
 
     rec = EstimateRecord.from_json({"hair": HairParams().to_dict(), "refinement": {"ran": True, "sigma_a": [0.1, 0.2, 0.3]}})
     view = parameter_view(Shown("x", np.zeros((4, 4, 3)), (0, 0, 4, 4), (4, 4), HairParams(), Stage.REFINED, rec))

@@ -12,7 +12,7 @@ from hairdigi.app.rig_session import RigSession
 from hairdigi.hardware.cameras import FileCamera
 from hairdigi.hardware.exposure import check_region
 from hairdigi.hardware.sim_rig import SIM_SIZE, SimRig
-from hairdigi.render.base.rig_geometry import swatch_roi
+from hairdigi.render.domain.rig_geometry import swatch_roi
 from hairdigi.render.camera_model import CameraModel
 from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, detect_chart, load_profile,
                                    staleness)
@@ -158,7 +158,7 @@ def test_estimate_of_a_rig_capture_matches_the_rig_chain(tmp_path, tiny_model):
     # renders that same area, so their absorptions agree where it counts, at the rig's swatch pose
     assert cli["refinement"]["region"]["roi"] == [x, y, w, h]
     # ... each with the appearance it read (a grey share read in one and not the other moves the median fibre)
-    from hairdigi.render.base.records import EstimateRecord
+    from hairdigi.render.domain.records import EstimateRecord
     looks = (EstimateRecord.from_json(cli).appearance.value, result.record.appearance.value)
     assert judge(cli["refinement"]["sigma_a"], rig["refinement"]["sigma_a"], looks=looks).de2000 < 0.5
 

@@ -5,11 +5,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from hairdigi.render.base.appearance import Appearance
+from hairdigi.render.domain.appearance import Appearance
 from hairdigi.inference.refine import RefineSettings, scene_for
 from hairdigi.inference.appearance import dark_lights, read_appearance
 from hairdigi.inference.shine import estimate_shine, shine_tables
-from hairdigi.render.base.rig_geometry import N_LIGHTS, RigRegion, swatch_roi
+from hairdigi.render.domain.rig_geometry import N_LIGHTS, RigRegion, swatch_roi
 from hairdigi.render.renderer import Renderer, SceneSpec
 
 SMALL = RefineSettings(size=24, spp=16, check_spp=16)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from hairdigi.render import spectra
-from hairdigi.render.absorption import EUMELANIN_SIGMA_A, PHEOMELANIN_SIGMA_A, hair_sigma_a
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+from hairdigi.render.domain.absorption import EUMELANIN_SIGMA_A, PHEOMELANIN_SIGMA_A, hair_sigma_a
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 
 ROOT = Path(__file__).resolve().parents[1]
 N = len(spectra.WAVELENGTHS)

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.records import EstimateRecord, read_record
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import EstimateRecord, read_record
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_the_response_curve_read_per_wavelength_is_a_spectral_render_without_the_render():
     from hairdigi.inference.refine import RefineSettings, response_curve, scene_for
     from hairdigi.inference.spectral import colour_under
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.metrics import delta_e2000
     from hairdigi.render.renderer import default_renderer
     from hairdigi.render.spectra import band_dye, hair_sigma_a_spectrum, illuminant_whitepoint
@@ -90,7 +90,7 @@ def test_a_record_is_widened_by_metamerism_unless_its_rig_declares_its_camera():
 
 
 def test_a_spectral_reading_survives_its_file_and_a_damaged_one_is_named():
-    from hairdigi.render.base.records import RecordError, SpectralReading
+    from hairdigi.render.domain.records import RecordError, SpectralReading
 
     reading = SpectralReading(HairParams((200, 40, 40), 0.8, 0.2, 0.4), "LED-B4", "nikon-5100", 0.013,
                               {"D65": (36.6, 7.7, 21.7), "A": (37.5, 9.9, 22.4)}, 1.9)
@@ -150,6 +150,6 @@ def test_a_real_rigs_record_carries_metamerism_unless_the_rig_declares_its_spect
 
 
 def _identity_profile():
-    from hairdigi.render.base.records import CalibrationProfile
+    from hairdigi.render.domain.records import CalibrationProfile
 
     return CalibrationProfile(id="test", method="identity", matrix=((1.0, 0, 0), (0, 1.0, 0), (0, 0, 1.0)), time=0.0)

@@ -87,7 +87,7 @@ def test_deposited_fibres_rest_on_one_another_and_settle() -> None:
 def test_structures_render_apart_at_equal_sigma_a() -> None:
     """At equal sigma_a a deposited swatch renders darker than the layered one at the rig's swatch pose
     (what makes an estimate read through one structure wrong for another)."""
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.metrics import delta_e2000
     from hairdigi.render.renderer import SceneSpec, default_renderer
 
@@ -106,8 +106,8 @@ def test_the_structure_read_is_the_one_whose_tables_fit_best() -> None:
     of 35 hidden swatches, ``evaluate --structures``; the mode is measured, not the default.)"""
     from hairdigi.inference.refine import RefineSettings
     from hairdigi.inference.structure import read_structure
-    from hairdigi.render.base.appearance import Appearance
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.appearance import Appearance
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.renderer import SceneSpec, default_renderer
 
     settings = RefineSettings(size=24, spp=16)
@@ -137,10 +137,10 @@ def test_a_deposited_swatch_is_estimated_within_the_goal_mapped_to_the_family() 
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.inference.refine import RefineSettings
     from hairdigi.inference.training.evaluate import capture
-    from hairdigi.render.absorption import hair_sigma_a
-    from hairdigi.render.base.appearance import Appearance
-    from hairdigi.render.base.params import HairParams
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.absorption import hair_sigma_a
+    from hairdigi.render.domain.appearance import Appearance
+    from hairdigi.render.domain.params import HairParams
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.metrics import delta_e2000
     from hairdigi.render.renderer import SceneSpec, default_renderer
 
@@ -176,9 +176,9 @@ def test_two_layouts_of_one_swatch_give_one_answer() -> None:
     from dataclasses import replace
 
     from hairdigi.inference.refine import RefineSettings, refine, scene_for
-    from hairdigi.render.absorption import hair_sigma_a
-    from hairdigi.render.base.params import HairParams
-    from hairdigi.render.base.rig_geometry import RigRegion, swatch_roi
+    from hairdigi.render.domain.absorption import hair_sigma_a
+    from hairdigi.render.domain.params import HairParams
+    from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
     from hairdigi.render.metrics import delta_e2000
     from hairdigi.render.renderer import default_renderer
 
@@ -236,7 +236,7 @@ def test_a_held_out_set_has_no_named_case_and_spans_the_dark_rule(tmp_path) -> N
     a run cut short keeps its judged rows only for the same settings."""
     from hairdigi.inference.structure import DARK_SIGMA
     from hairdigi.inference.training.evaluate_structures import CASES, StructureSet, _resumed, hidden_hairs
-    from hairdigi.render.absorption import hair_sigma_a
+    from hairdigi.render.domain.absorption import hair_sigma_a
 
     named = hidden_hairs(StructureSet(random=3))
     assert [n for n, _, _ in named[:len(CASES)]] == list(CASES)
@@ -270,10 +270,10 @@ def test_a_swatch_out_of_the_layered_swatchs_reach_is_estimated_on_its_structure
     from hairdigi.inference.estimate import UNREACHED_DE, estimate_image
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.inference.training.evaluate import capture
-    from hairdigi.render.absorption import hair_sigma_a
-    from hairdigi.render.base.appearance import Appearance
-    from hairdigi.render.base.params import HairParams
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.absorption import hair_sigma_a
+    from hairdigi.render.domain.appearance import Appearance
+    from hairdigi.render.domain.params import HairParams
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.metrics import delta_e2000
     from hairdigi.render.renderer import SceneSpec, default_renderer
 

@@ -2,7 +2,7 @@
 import numpy as np
 
 from hairdigi.inference.uncertainty import NAMES, band, coverage_of, fit_intervals, intervals
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 
 
 def _rows(seed, n=600):

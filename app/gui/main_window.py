@@ -22,7 +22,7 @@ from hairdigi.app.gui.images import DELTA_E_MAX, colour_scale, delta_e_colours, 
 from hairdigi.app.gui.workers import POOL, FrameFeed, Task, start
 from hairdigi.app.previews import Stage
 from hairdigi.app.review import HAIRSTYLE_LIGHTS
-from hairdigi.render.base.params import VECTOR_FIELDS
+from hairdigi.render.domain.params import VECTOR_FIELDS
 from hairdigi.render.scenes import ENVIRONMENTS
 from hairdigi.render.strands import HAIRSTYLES
 
@@ -639,7 +639,7 @@ class MainWindow(QMainWindow):
         from PySide6.QtWidgets import QMessageBox
 
         from hairdigi.inference.encoder import ModelError
-        from hairdigi.render.base.version import version
+        from hairdigi.render.domain.version import version
         from hairdigi.render.variant import select_variant
 
         try:

@@ -15,7 +15,7 @@ from pathlib import Path
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
 
-from hairdigi.render.base.files import write_json_atomic
+from hairdigi.render.domain.files import write_json_atomic
 
 #: What tour.json reports, in seconds from the capture click, and the mark each is read from.
 TARGETS = {"capture_to_parameters_s": ("parameters", 1.0), "capture_to_refined_parameters_s": ("refined", None),

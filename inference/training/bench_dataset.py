@@ -54,7 +54,7 @@ def run_dataset_bench(out_dir: str | os.PathLike, quick: bool = False, n: int | 
     """
     import sys
 
-    from hairdigi.render.base.files import write_csv_atomic
+    from hairdigi.render.domain.files import write_csv_atomic
     from hairdigi.render.variant import select_variant
 
     out = Path(out_dir)

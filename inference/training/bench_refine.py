@@ -18,7 +18,7 @@ from hairdigi.inference.training.dataset import DatasetConfig, load, sample_spec
 from hairdigi.inference.training.evaluate import JUDGE, Judge, capture, judge_file, judge_render
 from hairdigi.inference.refine import RefineSettings, mean_linear, refine
 from hairdigi.render.metrics import delta_e2000
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 
 
 def bench_refine(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLike,
@@ -100,9 +100,9 @@ def bench_check_spp(out_dir: str | os.PathLike, progress: bool = True) -> list[d
     from tqdm import tqdm
 
     from hairdigi.inference.refine import response_curve, scene_for
-    from hairdigi.render.absorption import hair_sigma_a
-    from hairdigi.render.base.files import write_csv_atomic
-    from hairdigi.render.base.rig_geometry import RigRegion, swatch_roi
+    from hairdigi.render.domain.absorption import hair_sigma_a
+    from hairdigi.render.domain.files import write_csv_atomic
+    from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
     from hairdigi.render.renderer import default_renderer
 
     renderer = default_renderer()
@@ -149,9 +149,9 @@ def bench_layouts(out_dir: str | os.PathLike, progress: bool = True) -> list[dic
     from tqdm import tqdm
 
     from hairdigi.inference.refine import response_curve, scene_for
-    from hairdigi.render.absorption import hair_sigma_a
-    from hairdigi.render.base.files import write_csv_atomic
-    from hairdigi.render.base.rig_geometry import RigRegion, swatch_roi
+    from hairdigi.render.domain.absorption import hair_sigma_a
+    from hairdigi.render.domain.files import write_csv_atomic
+    from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
     from hairdigi.render.renderer import default_renderer
 
     renderer = default_renderer()

@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.appearance import Appearance
-from hairdigi.render.base.files import write_csv_atomic
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.appearance import Appearance
+from hairdigi.render.domain.files import write_csv_atomic
+from hairdigi.render.domain.params import HairParams
 
 #: Held-out shine values (the tables' grid is 0.1-0.6) and colours (copper, platinum, dark brown).
 BETAS = (0.12, 0.22, 0.35, 0.5)
@@ -30,8 +30,8 @@ CAPTURE_SPP, CAPTURE_SEED, CAPTURE_STRANDS = 64, 99, 3
 def run_shine_bench(out_dir: str | os.PathLike, quick: bool = False) -> list[dict]:
     from hairdigi.inference.refine import RefineSettings, response_curve, scene_for
     from hairdigi.inference.shine import estimate_shine, shine_tables
-    from hairdigi.render.absorption import LONGITUDINAL_ROUGHNESS, hair_sigma_a
-    from hairdigi.render.base.rig_geometry import N_LIGHTS, CameraPose, RigRegion, swatch_roi
+    from hairdigi.render.domain.absorption import LONGITUDINAL_ROUGHNESS, hair_sigma_a
+    from hairdigi.render.domain.rig_geometry import N_LIGHTS, CameraPose, RigRegion, swatch_roi
     from hairdigi.render.judge import judge_mean
     from hairdigi.render.metrics import delta_e2000
     from hairdigi.render.renderer import SceneSpec, default_renderer
@@ -146,7 +146,7 @@ def run_spread_bench(out_dir: str | os.PathLike, capture_misfit: float | None = 
     with a plot against ``capture_misfit`` (a real capture's shine misfit, for scale)."""
     from hairdigi.inference.refine import RefineSettings
     from hairdigi.inference.shine import shine_tables
-    from hairdigi.render.base.rig_geometry import RigRegion, swatch_roi
+    from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
 
     size = (400, 300)
     rows = spread_from_means(shine_tables(RigRegion(size, swatch_roi(size)), RefineSettings()))

@@ -13,13 +13,12 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-import time
 from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.files import write_csv_atomic
-from hairdigi.render.base.rig_geometry import RigRegion, swatch_roi
+from hairdigi.render.domain.files import write_csv_atomic
+from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
 from hairdigi.render.io.figures import save_figure
 from hairdigi.render.metrics import delta_e2000, linear_rgb_to_lab
 from hairdigi.render.renderer import Renderer, SceneSpec, strands_for

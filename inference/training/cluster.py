@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import TYPE_CHECKING, Callable
 
-from hairdigi.render.base.errors import HairdigiError
+from hairdigi.render.domain.errors import HairdigiError
 
 if TYPE_CHECKING:
     from hairdigi.inference.training.dataset import DatasetConfig

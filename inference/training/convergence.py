@@ -18,7 +18,7 @@ from hairdigi.inference.training.dataset import DatasetConfig, load, sample_spec
 from hairdigi.inference.training.evaluate import JUDGE, Judge, capture, judge_file, judge_render
 from hairdigi.inference.refine import RefineSettings, mean_linear, refine
 from hairdigi.render.metrics import delta_e2000
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.params import HairParams
 
 
 def convergence_sweep(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLike,

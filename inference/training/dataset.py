@@ -23,20 +23,20 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.appearance import DEFAULT_APPEARANCE, Appearance, sample_appearance
-from hairdigi.render.base.appearance import FIELDS as APPEARANCE_FIELDS
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.files import atomic_path
+from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance, sample_appearance
+from hairdigi.render.domain.appearance import FIELDS as APPEARANCE_FIELDS
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.files import atomic_path
 
-from hairdigi.render.base.params import HairParams, sample_params
-from hairdigi.render.base.rig_geometry import CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
+from hairdigi.render.domain.params import HairParams, sample_params
+from hairdigi.render.domain.rig_geometry import CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
 
 MANIFEST = "manifest.json"
 STORES = ("linear16", "srgb8")
 #: Settings added after datasets were made, with the value those older datasets implicitly used.
 LEGACY_DEFAULTS = {"store": "srgb8", "swatch_model": "today", "appearance": "fixed"}
 #: How a sample's appearance (shine, fibre spread, greys) is drawn: ``fixed`` is the default uniform
-#: hair (datasets before issue 18); ``random`` draws ``render.base.appearance.APPEARANCE_DRAW``.
+#: hair (datasets before issue 18); ``random`` draws ``render.domain.appearance.APPEARANCE_DRAW``.
 APPEARANCES = ("random", "fixed")
 
 
@@ -150,7 +150,7 @@ def _die_with_parent() -> None:
 #: ``nonfinite``: per sample, the NaN or Inf values the path tracer returned (replaced by 0 in ``images``).
 SHARD_FIELDS = ("images", "params", "cameras", "seeds", "indices", "nonfinite")
 #: Arrays written since issue 18 and absent from older shards: ``appearance`` (N, 3), the sample's
-#: shine, fibre spread and grey share (``render.base.appearance.FIELDS``).
+#: shine, fibre spread and grey share (``render.domain.appearance.FIELDS``).
 OPTIONAL_FIELDS = ("appearance",)
 #: Where shards are rendered: ``local`` processes, or ``ray`` tasks (``inference.training.cluster``).
 BACKENDS = ("local", "ray")
@@ -199,8 +199,8 @@ def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
     if threads:
         import drjit as dr
 
-        from hairdigi.render.base.interrupt import sigint_held
-        with sigint_held():   # new pool threads never take Ctrl-C (render.base.interrupt)
+        from hairdigi.render.domain.interrupt import sigint_held
+        with sigint_held():   # new pool threads never take Ctrl-C (render.domain.interrupt)
             dr.set_thread_count(threads)
     from hairdigi.render.variant import select_variant
 
@@ -296,7 +296,7 @@ def _check_manifest(root: Path, config: DatasetConfig, variant: str | None = Non
             raise DatasetError(f"{root} holds a dataset made with other settings {diff} (stored, asked); "
                                f"use another --out or the same settings to resume")
     else:
-        from hairdigi.render.base.files import write_json_atomic
+        from hairdigi.render.domain.files import write_json_atomic
         from hairdigi.render.variant import mi
         write_json_atomic(path, {"config": asdict(config), "format": "shard-NNNNN.npz: images (N,S,S,3) "
                                  "linear float16 radiance (store linear16) or uint8 sRGB (srgb8); params (N,6) normalised Table 1 vector; cameras (N,3) "
@@ -317,7 +317,7 @@ def _check_variant(root: Path, variant: str, has_shards: bool) -> None:
     if has_shards:
         raise DatasetError(f"{root} was rendered with Mitsuba variant {stored}, not {variant}; resume it with "
                            f"--variant {stored}, or use another --out")
-    from hairdigi.render.base.files import write_json_atomic
+    from hairdigi.render.domain.files import write_json_atomic
     write_json_atomic(root / MANIFEST, {**manifest, "mitsuba_variant": variant})
 
 
@@ -406,7 +406,7 @@ def load(root: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, d
     root = Path(root)
     if not (root / MANIFEST).exists():
         raise FileNotFoundError(f"{root} is not a hairdigi dataset (no {MANIFEST}); make one with hairdigi dataset")
-    from hairdigi.render.base.files import read_json
+    from hairdigi.render.domain.files import read_json
 
     manifest = read_json(root / MANIFEST, DatasetError, "no manifest", "not a hairdigi dataset manifest ({exc})")
     if not isinstance(manifest, dict) or not isinstance(manifest.get("config"), dict):

@@ -30,9 +30,9 @@ import numpy as np
 from hairdigi.inference.training.dataset import DatasetConfig, generate, load, sample_spec, scene_of
 from hairdigi.inference.refine import RefineSettings, mean_linear, refine
 from hairdigi.render.metrics import delta_e2000, l1_255, ms_ssim
-from hairdigi.render.base.params import VECTOR_FIELDS, HairParams
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.files import atomic_path, write_json_atomic
+from hairdigi.render.domain.params import VECTOR_FIELDS, HairParams
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.files import atomic_path, write_json_atomic
 
 EVAL_SEED = 1_000_003  # training datasets use small seeds; this one is disjoint by construction
 SPANS = np.array([hi - lo for _, lo, hi in VECTOR_FIELDS])

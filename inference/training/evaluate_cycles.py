@@ -38,8 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.params import HairParams, sample_params
-from hairdigi.render.base.rig_geometry import N_LIGHTS, RIG_SWATCH_POSE, TRANSFER_POSE
+from hairdigi.render.domain.params import HairParams, sample_params
+from hairdigi.render.domain.rig_geometry import N_LIGHTS, RIG_SWATCH_POSE, TRANSFER_POSE
 from hairdigi.render.strands import SWATCH_LENGTH, SWATCH_WIDTH, Strands
 
 SEED = 2_026_125
@@ -100,7 +100,7 @@ def other_swatch(seed: int) -> tuple[Strands, dict]:
 def hidden_set(config: CyclesSet) -> list[tuple[str, HairParams, float, int]]:
     """(name, Table 1, shine, strand layout) of each hidden swatch; without ``config.shine`` every shine is
     the default."""
-    from hairdigi.render.base.appearance import APPEARANCE_DRAW, DEFAULT_SHINE
+    from hairdigi.render.domain.appearance import APPEARANCE_DRAW, DEFAULT_SHINE
 
     rng = np.random.default_rng(SEED)
     named = [(n, h, b, 301 + i) for i, (n, (h, b)) in enumerate(CASES.items())]
@@ -116,7 +116,7 @@ def cycles_render(sigma_a, strands: Strands, scene: str, config: CyclesSet, seed
     """One Cycles render of ``strands`` with absorption ``sigma_a`` and ``shine`` (None: the default):
     ``scene`` "rig" (the rig's swatch pose, its three lights), "light0".."light2" (one light alone) or
     "transfer"; the mean linear colour (and the pixels) and the seconds."""
-    from hairdigi.render.absorption import LONGITUDINAL_ROUGHNESS
+    from hairdigi.render.domain.absorption import LONGITUDINAL_ROUGHNESS
     from hairdigi.render.blender_run import rig_for_blender, run_script
     from hairdigi.render.interchange import HairLook, blender_script_text
     from hairdigi.render.scenes import KEY_SKY
@@ -152,7 +152,7 @@ def _one(name: str, hidden: HairParams, shine: float, layout: int, config: Cycle
     from hairdigi.inference.estimate import estimate_image
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.inference.training.evaluate import capture
-    from hairdigi.render.absorption import hair_sigma_a
+    from hairdigi.render.domain.absorption import hair_sigma_a
     from hairdigi.render.metrics import delta_e2000
 
     def de(a, b) -> float:
@@ -202,7 +202,7 @@ def evaluate_cycles(out_dir: str | os.PathLike, config: CyclesSet = CyclesSet(),
     from tqdm import tqdm
 
     from hairdigi.inference.encoder import Encoder
-    from hairdigi.render.base.files import write_csv_atomic, write_json_atomic
+    from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
 
     encoder = Encoder()
     out = Path(out_dir)

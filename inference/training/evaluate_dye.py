@@ -34,10 +34,10 @@ import numpy as np
 
 from hairdigi.inference.dye import apply, characterise, colour_of, dose, lifted_melanin, load_sample, rig_curve
 from hairdigi.inference.levels import EVALUATION_LEVELS, natural_base
-from hairdigi.render.absorption import dye_sigma_a, hair_sigma_a
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.files import write_json_atomic
-from hairdigi.render.base.records import EstimateRecord, write_record
+from hairdigi.render.domain.absorption import dye_sigma_a, hair_sigma_a
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.files import write_json_atomic
+from hairdigi.render.domain.records import EstimateRecord, write_record
 from hairdigi.render.metrics import delta_e2000
 
 GOAL_MEDIAN, GOAL_P95 = 1.0, 2.0
@@ -99,7 +99,7 @@ def _estimate_record(sigma: np.ndarray, index: int, encoder, config: DyeEvalConf
     """Render ``sigma`` as a capture, estimate it with the real estimator, write its record."""
     from hairdigi.inference.estimate import estimate_image, record
     from hairdigi.inference.preprocess import Roi
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.renderer import SceneSpec, default_renderer
 
     spec = SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop", strand_seed=1000 + index)
@@ -117,7 +117,7 @@ def _estimate_record(sigma: np.ndarray, index: int, encoder, config: DyeEvalConf
 
 def _judge(sigma: np.ndarray, config: DyeEvalConfig) -> np.ndarray:
     """The mean linear colour of ``sigma`` rendered at the judge's layout and common seed."""
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.renderer import SceneSpec, default_renderer
 
     spec = SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop", strand_seed=config.judge_strands_seed)
@@ -139,7 +139,7 @@ def evaluate_dye(encoder, out_dir: str | os.PathLike, config: DyeEvalConfig = Dy
     ``capture`` makes each record (default: :func:`clean_capture`); ``inputs`` says what it is."""
     from tqdm import tqdm
 
-    from hairdigi.render.base.files import write_csv_atomic
+    from hairdigi.render.domain.files import write_csv_atomic
 
     t_all = time.perf_counter()
     out = Path(out_dir)

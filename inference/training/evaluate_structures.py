@@ -32,9 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.params import HairParams, sample_params
+from hairdigi.render.domain.params import HairParams, sample_params
 from hairdigi.inference.training.evaluate_cycles import CASES as CYCLES_CASES, LIGHT_EV, _relative_error
-from hairdigi.render.base.rig_geometry import N_LIGHTS, RIG_SWATCH_POSE, TRANSFER_POSE
+from hairdigi.render.domain.rig_geometry import N_LIGHTS, RIG_SWATCH_POSE, TRANSFER_POSE
 
 SEED = 2_026_1126
 #: The hard cases: ``evaluate --cycles``'s (Table 1 and the shine), platinum at shine 0.18 (the figures
@@ -66,7 +66,7 @@ DARK_MELANIN = (0.95, 1.0)
 def hidden_hairs(config: StructureSet) -> list[tuple[str, HairParams, float]]:
     """(name, Table 1, shine) of each hidden hair: the named cases and ``random`` uniform Table 1 draws or,
     held out (``seed``), ``random`` uniform draws and as many dark ones."""
-    from hairdigi.render.base.appearance import APPEARANCE_DRAW
+    from hairdigi.render.domain.appearance import APPEARANCE_DRAW
 
     rng = np.random.default_rng(SEED if config.seed is None else config.seed)
 
@@ -92,7 +92,7 @@ class _Mitsuba:
         self.config, self.renderer = config, default_renderer()
 
     def mean(self, sigma, structure: str, layout: int, scene: str, shine: float, pixels: bool = False):
-        from hairdigi.render.base.appearance import Appearance
+        from hairdigi.render.domain.appearance import Appearance
         from hairdigi.render.renderer import SceneSpec
         from hairdigi.render.scenes import KEY_SKY
 
@@ -169,7 +169,7 @@ def _shine(result, default: float) -> float:
 def _one(name: str, hidden: HairParams, shine: float, structure: str, layout: int, render, encoder, family,
          index: int) -> dict:
     from hairdigi.inference.structure import nuisance
-    from hairdigi.render.absorption import hair_sigma_a
+    from hairdigi.render.domain.absorption import hair_sigma_a
 
     truth = hair_sigma_a(hidden)
     row = {"hidden": name, "structure": structure, "layout": layout, "true_shine": shine,
@@ -198,7 +198,7 @@ def _one(name: str, hidden: HairParams, shine: float, structure: str, layout: in
 
 def _layout_row(name: str, hidden: HairParams, shine: float, render, encoder, family, index: int) -> dict:
     """One hair hidden in two layouts of ``LAYOUT_STRUCTURE``: its two answers rendered on the first."""
-    from hairdigi.render.absorption import hair_sigma_a
+    from hairdigi.render.domain.absorption import hair_sigma_a
 
     truth = hair_sigma_a(hidden)
     a, b = (_estimate(render, truth, LAYOUT_STRUCTURE, s, shine, encoder, family, index + k)
@@ -218,7 +218,7 @@ def evaluate_structures(out_dir: str | os.PathLike, config: StructureSet = Struc
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.refine import RefineSettings
     from hairdigi.inference.structure import family_curves
-    from hairdigi.render.base.files import write_csv_atomic, write_json_atomic
+    from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
 
     encoder = Encoder()
     out = Path(out_dir)

@@ -16,8 +16,8 @@ import time
 
 import numpy as np
 
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.rig_geometry import (FRAMING_HALF_WIDTH, SWATCH_HALF, SWATCH_VISIBLE_HALF_LENGTH,
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.rig_geometry import (FRAMING_HALF_WIDTH, SWATCH_HALF, SWATCH_VISIBLE_HALF_LENGTH,
                                                CameraPose, project)
 
 #: Hidden hairs: the hard cases of ``hairdigi evaluate --rig`` (black, platinum, a saturated red, copper)
@@ -67,8 +67,8 @@ def view_row(name: str, hair: HairParams, pose: CameraPose, encoder, renderer, c
     from hairdigi.inference.estimate import estimate_image
     from hairdigi.inference.preprocess import ImageError, find_swatch
     from hairdigi.inference.view_check import outline_tilt, view_warning
-    from hairdigi.render.base.records import EstimateWarning, WarningKind
-    from hairdigi.render.base.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.domain.records import EstimateWarning, WarningKind
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.judge import judge
 
     image = view_image(name, pose, renderer)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.files import atomic_path
+from hairdigi.render.domain.files import atomic_path
 
 
 def export_onnx(model, path: str | os.PathLike, input_size: int) -> Path:

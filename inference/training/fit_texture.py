@@ -22,15 +22,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.base.appearance import APPEARANCE_DRAW
-from hairdigi.render.base.files import atomic_path, cache_dir
+from hairdigi.render.domain.appearance import APPEARANCE_DRAW
+from hairdigi.render.domain.files import atomic_path, cache_dir
 
 #: Bumped when what a cached sample holds or how it is rendered changes.
 DATA_VERSION = 4   # 2: a quarter of the swatch area per sample; 4: the layered swatch, 8000 fibres
@@ -51,8 +50,8 @@ def data_dir() -> Path:
 
 def draw_sample(index: int, seed: int = SEED) -> dict:
     """The hidden truth of sample ``index``: sigma_a, shine, spread, grey share, strand and camera seeds."""
-    from hairdigi.render.absorption import hair_sigma_a
-    from hairdigi.render.base.params import HairParams
+    from hairdigi.render.domain.absorption import hair_sigma_a
+    from hairdigi.render.domain.params import HairParams
 
     rng = np.random.default_rng([seed, index])
     kind = rng.uniform()
@@ -81,7 +80,7 @@ def quadrant_roi(quadrant: int, roi: tuple[int, int, int, int] | None = None) ->
     A sample renders a quarter of the area, not all of it: four times the samples for the same
     render time. Its statistics are the whole area's with more sampling noise, so the intervals
     calibrated on quarters are, if anything, wide for a whole area."""
-    from hairdigi.render.base import rig_geometry
+    from hairdigi.render.domain import rig_geometry
 
     x, y, w, h = roi or rig_geometry.swatch_roi(SIZE)
     hw, hh = w // 2, h // 2
@@ -93,8 +92,8 @@ def render_swatch_lights(sigma_a, shine: float, spread: float, grey: float, stra
                          spp: int = SPP) -> np.ndarray:
     """(3, h, w, 3) linear renders of the bench frame's swatch area (``roi``, default the whole
     ``swatch_roi``) lit by each light alone, glints spread, as ``hardware.sim_rig`` renders them."""
-    from hairdigi.render.base import rig_geometry
-    from hairdigi.render.base.appearance import Appearance
+    from hairdigi.render.domain import rig_geometry
+    from hairdigi.render.domain.appearance import Appearance
     from hairdigi.render.camera_model import spread_glints
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.renderer import Renderer, SceneSpec

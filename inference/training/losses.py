@@ -1,7 +1,7 @@
 """The training loss: L2 in parameter space plus an appearance term (PyTorch; training only).
 
 The renderer sees the six Table 1 parameters only through the 3-vector ``sigma_a``
-(``render.absorption.hair_sigma_a``): a three-dimensional family of parameter vectors renders
+(``render.domain.absorption.hair_sigma_a``): a three-dimensional family of parameter vectors renders
 identically (a dye ``c`` at concentration ``k`` is the dye ``c**sqrt(k)`` at concentration 1).
 An L2 loss in parameter space alone learns the conditional mean over that family, which need not
 lie on it, and re-renders to another colour (measured: median mean-colour ΔE2000 2.8). The
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import torch
 
-from hairdigi.render.absorption import (AZIMUTHAL_ROUGHNESS, EUMELANIN_SIGMA_A, MELANIN_REMAP, MIN_DYE_ALBEDO,
+from hairdigi.render.domain.absorption import (AZIMUTHAL_ROUGHNESS, EUMELANIN_SIGMA_A, MELANIN_REMAP, MIN_DYE_ALBEDO,
                                PHEOMELANIN_SIGMA_A, chiang_denominator)
 
 

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.inference.training.evaluate import evaluate
-from hairdigi.render.base.files import write_json_atomic, write_text_atomic
-from hairdigi.render.base.version import version
+from hairdigi.render.domain.files import write_json_atomic, write_text_atomic
+from hairdigi.render.domain.version import version
 
 
 def bench_encoders(onnx_paths: list[str | os.PathLike], out_dir: str | os.PathLike, n: int = 300,
@@ -19,7 +19,7 @@ def bench_encoders(onnx_paths: list[str | os.PathLike], out_dir: str | os.PathLi
     """Latency (ONNX, 1 thread, median) against the encoder-alone error of several encoders on one
     clean held-out set. Writes ``encoder_bench.csv`` and ``encoder_bench.png``."""
     from hairdigi.inference.encoder import Encoder
-    from hairdigi.render.base.files import write_csv_atomic
+    from hairdigi.render.domain.files import write_csv_atomic
 
     out = Path(out_dir)
     data_root = Path(data_root) if data_root else out / "heldout"   # one held-out set for every variant
@@ -150,7 +150,7 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
             for ds in datasets) +
         f": uniform Table 1 parameters, cameras uniform on a {datasets[0]['polar_max_deg']}° cap (distance ±"
         f"{100 * datasets[0]['distance_jitter']:.0f}%) clear of the rig lights, a new strand layout per swatch, "
-        + ("shine, fibre spread and grey share drawn uniformly over render.base.appearance.APPEARANCE_DRAW, "
+        + ("shine, fibre spread and grey share drawn uniformly over render.domain.appearance.APPEARANCE_DRAW, "
            if datasets[0].get("appearance") == "random" else "") +
         f"crop framing (all hair), linear float16 radiance. {sum(ds['n_loaded'] for ds in datasets)} swatches "
         f"loaded; {100 * history['train']['val_fraction']:.0f}% held for validation.",

@@ -20,7 +20,7 @@ from hairdigi.inference.training.dataset import DatasetError, load, usable
 from hairdigi.inference.preprocess import encode
 from hairdigi.render.camera_model import CameraModel, CaptureErrors, random_camera, sensor_response
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
-from hairdigi.render.base.files import atomic_path
+from hairdigi.render.domain.files import atomic_path
 
 
 @dataclass(frozen=True)
@@ -193,7 +193,7 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
             torch.save({"model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
                         "epoch": epoch, "history": history, "encoder": encoder_config.to_dict(),
                         "train": asdict(config)}, tmp)
-    from hairdigi.render.base.files import write_json_atomic
+    from hairdigi.render.domain.files import write_json_atomic
     write_json_atomic(out / "history.json", history)
     plot_history(history, out / "training_curve.png")
     return history

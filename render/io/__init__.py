@@ -1,2 +1,2 @@
 """Images (``images``) and figures and tables (``figures``), written through the base's atomic writer
-(``hairdigi.render.base.files``)."""
+(``hairdigi.render.domain.files``)."""

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import matplotlib
 
-from hairdigi.render.base.files import atomic_path, write_csv_atomic
+from hairdigi.render.domain.files import atomic_path, write_csv_atomic
 
 matplotlib.use("Agg")
 
@@ -26,7 +26,7 @@ def save_figure(fig, path: str | os.PathLike, dpi: int = 110) -> Path:
 def save_table(out_dir: str | os.PathLike, stem: str, rows: list[dict], plot, summary: dict | None = None) -> Path:
     """A benchmark's or an evaluation's results: ``stem.csv``, ``stem.png`` drawn by ``plot(rows, path)``
     and, with a ``summary``, ``stem.json`` holding it and the rows."""
-    from hairdigi.render.base.files import write_json_atomic
+    from hairdigi.render.domain.files import write_json_atomic
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

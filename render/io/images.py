@@ -7,8 +7,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.files import atomic_path
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.files import atomic_path
 
 
 class ImageWriteError(HairdigiError, ValueError):

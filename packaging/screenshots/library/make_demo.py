@@ -2,8 +2,8 @@
 import hashlib, sys
 from pathlib import Path
 import cv2, numpy as np
-from hairdigi.render.base.params import HairParams
-from hairdigi.render.base.records import CaptureRecord, EstimateRecord, write_record
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import CaptureRecord, EstimateRecord, write_record
 from hairdigi.render.renderer import SceneSpec, render
 
 out = Path(sys.argv[1]); cap = out / "captures"; cap.mkdir(parents=True, exist_ok=True)

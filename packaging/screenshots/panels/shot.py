@@ -22,9 +22,9 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hairdigi.inference.levels import natural_base  # noqa: E402
-from hairdigi.render.absorption import dye_sigma_a, hair_sigma_a  # noqa: E402
-from hairdigi.render.base.params import HairParams  # noqa: E402
-from hairdigi.render.base.records import CaptureRecord, EstimateRecord, RefinementRecord, write_record  # noqa: E402
+from hairdigi.render.domain.absorption import dye_sigma_a, hair_sigma_a  # noqa: E402
+from hairdigi.render.domain.params import HairParams  # noqa: E402
+from hairdigi.render.domain.records import CaptureRecord, EstimateRecord, RefinementRecord, write_record  # noqa: E402
 from hairdigi.render.renderer import SceneSpec, default_renderer  # noqa: E402
 
 DEPOSIT, LIFT = dye_sigma_a((190.0, 70.0, 40.0), 0.55), 0.35

@@ -8,8 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hairdigi.render.base import rig_geometry
-from hairdigi.render.base.errors import HairdigiError
+from hairdigi.render.domain import rig_geometry
+from hairdigi.render.domain.errors import HairdigiError
 
 
 class BoundsError(HairdigiError, ValueError):

@@ -30,15 +30,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from hairdigi.render.base.appearance import DEFAULT_SHINE
-from hairdigi.render.base.params import HairParams
+from hairdigi.render.domain.appearance import DEFAULT_SHINE
+from hairdigi.render.domain.params import HairParams
 
 EUMELANIN_SIGMA_A = np.array([0.419, 0.697, 1.37])
 PHEOMELANIN_SIGMA_A = np.array([0.187, 0.4, 1.05])
 
 #: Roughness of the fibres; Table 1 holds colour only, so the roughness is fixed. Roughness 0
 #: renders black and 0.01 gives fireflies in Mitsuba 3.9, so values are clamped to this range.
-LONGITUDINAL_ROUGHNESS = DEFAULT_SHINE   # the default shine (render.base.appearance)
+LONGITUDINAL_ROUGHNESS = DEFAULT_SHINE   # the default shine (render.domain.appearance)
 AZIMUTHAL_ROUGHNESS = 0.3
 ROUGHNESS_RANGE = (0.05, 1.0)
 

@@ -24,10 +24,11 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from hairdigi.render.base.appearance import AppearanceError, AppearanceEstimate
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.files import MAX_JSON_BYTES, read_json, sha256_file, write_json_atomic
-from hairdigi.render.base.params import HairParams, HairParamsError
+from hairdigi.render.domain.absorption import hair_sigma_a
+from hairdigi.render.domain.appearance import AppearanceError, AppearanceEstimate
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.files import MAX_JSON_BYTES, read_json, sha256_file, write_json_atomic
+from hairdigi.render.domain.params import HairParams, HairParamsError
 
 #: The largest absorption (per fibre radius) a record may hold: Table 1's darkest hair is under 10; a fibre
 #: at 100 passes e^-200 of the light, black to any renderer (MaterialX and Cycles refuse far larger values).
@@ -395,7 +396,9 @@ class EstimateRecord:
         """The absorption that reaches the image: the refinement's, or Table 1's mapping of ``hair``."""
         if self.refinement.sigma_a is not None:
             return self.refinement.sigma_a
-        return None
+        if self.hair is None:
+            return None
+        return tuple(float(s) for s in hair_sigma_a(self.hair))
 
     def warning_messages(self) -> list[str]:
         return [w.message for w in self.warnings]

@@ -6,7 +6,7 @@ A dye acts on a fibre by **deposit** (an added absorption ``sigma_a``, per fibre
 with their 68% intervals, the (base, dyed) pairs it came from, each cited by its record's sha256 and
 with its fit residual, the warnings (one pair: lift not measured), and provenance.
 
-Layout as in ``render/base/records.py``: a frozen dataclass with ``to_json()`` / ``from_json(data)``,
+Layout as in ``render/domain/records.py``: a frozen dataclass with ``to_json()`` / ``from_json(data)``,
 ``schema_version`` written into every file, :class:`RecordError` naming the field at fault. numpy-free
 and standard library only.
 """
@@ -16,7 +16,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from hairdigi.render.base.records import RecordError, check_interval, check_sigma_a
+from hairdigi.render.domain.records import RecordError, check_interval, check_sigma_a
 
 #: The layout written today (1: the first dye record, hairdigi 0.2).
 DYE_SCHEMA_VERSION = 1

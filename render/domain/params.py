@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from hairdigi.render.base.errors import HairdigiError
-from hairdigi.render.base.files import read_json, write_json_atomic
+from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.files import read_json, write_json_atomic
 
 # (name, low, high) for the six normalised components, in vector order.
 VECTOR_FIELDS: tuple[tuple[str, float, float], ...] = (

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from hairdigi.render.base.errors import HairdigiError
+from hairdigi.render.domain.errors import HairdigiError
 
 #: The shine the project rendered before issue 18, and every default scene still renders.
 DEFAULT_SHINE = 0.3

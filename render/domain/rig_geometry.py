@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hairdigi.render.base.errors import HairdigiError
+from hairdigi.render.domain.errors import HairdigiError
 
 
 class GeometryError(HairdigiError, ValueError):
