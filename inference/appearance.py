@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from hairdigi.render.domain.appearance import (DEFAULT_APPEARANCE, SHINE_RANGE, SPREAD_RANGE, GREY_RANGE, Appearance,
-                                             AppearanceEstimate)
+                                               AppearanceEstimate)
 from hairdigi.inference.shine import SHINE_FLOOR, estimate_shine, shine_tables
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.files import read_json

@@ -41,7 +41,7 @@ from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.files import read_json
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import (EstimateRecord, EstimateWarning, RecordError, RefinementRecord,
-                                          WarningKind, read_record, record_sha256)
+                                            WarningKind, read_record, record_sha256)
 from hairdigi.render.domain.version import version
 from hairdigi.render.metrics import delta_e2000, linear_rgb_to_lab
 

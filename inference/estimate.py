@@ -28,7 +28,7 @@ from hairdigi.render.domain.version import version
 from hairdigi.render.domain.appearance import AppearanceEstimate
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import (CalibrationProfile, EstimateRecord, EstimateWarning, RefinementRecord,
-                                          UNRELIABLE, WarningKind)
+                                            UNRELIABLE, WarningKind)
 from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose, RigRegion
 from hairdigi.resources import MODELS
 
@@ -100,7 +100,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     before refinement starts (the app shows them at once). ``light_images``: the same view lit by
     each light alone (light order), corrected as ``image`` and at its exposure: the shine is read
     from them; without them the record says "shine not measured". ``structure``: how the swatch's
-    structure is treated (``inference.structure.STRUCTURE_MODES``): "assumed", hairdigi's layered swatch;
+    structure is treated (``render.domain.bounds.STRUCTURE_MODES``): "assumed", hairdigi's layered swatch;
     "family", the answer mapped to the mean of ``render.swatch_family``'s physical structures; "read",
     read from the single-light frames among them and refined on it. ``sensor_clipped``: the image's
     saturated photosites per pixel (a RAW still's, ``Frame.clipped``): clipping is judged on them.

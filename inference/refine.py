@@ -314,8 +314,6 @@ def mean_linear(image: np.ndarray, band_pixels: int = 1 << 18) -> np.ndarray:
 def check_render(sigma: np.ndarray, spec, size, settings: RefineSettings, renderer) -> tuple[np.ndarray, int]:
     """The check render's mean linear colour of ``sigma`` and its NaN/Inf count: ``settings.check_layouts``
     strand layouts (from ``spec.strand_seed`` on; one for varied fibres), ``check_spp`` samples in all."""
-    from dataclasses import replace as replaced
-
     # varied fibres (greys, a spread) split the strands into groups: a new layout is a new scene there, so one
     layouts = 1 if spec.groups else max(1, int(settings.check_layouts))
     spp = max(1, settings.check_spp // layouts)

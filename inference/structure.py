@@ -22,7 +22,6 @@ import numpy as np
 
 from hairdigi.inference.refine import RefineSettings, ResponseCurve, View, response_curve
 from hairdigi.inference.uncertainty import widen_colour
-from hairdigi.render.domain.bounds import STRUCTURE_MODES  # noqa: F401  (re-exported: the modes' one home)
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.swatch_family import FAMILY
 from hairdigi.resources import MODELS

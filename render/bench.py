@@ -17,10 +17,11 @@ import numpy as np
 from tqdm import tqdm
 
 from hairdigi.render.io.figures import save_figure
+from hairdigi.render.domain.bounds import defaults_for
 from hairdigi.render.domain.files import write_csv_atomic
 from hairdigi.render.metrics import mean_colour_delta_e, rmse
 from hairdigi.render.domain.params import HairParams
-from hairdigi.render.renderer import Renderer, SceneSpec, defaults_for
+from hairdigi.render.renderer import Renderer, SceneSpec
 
 
 @dataclass(frozen=True)
@@ -44,7 +45,7 @@ BENCH_HAIR = (
 def bench_cases(quick: bool = False) -> tuple[list[BenchCase], dict[tuple, tuple[int, int]]]:
     """The cases, and the reference (spp, depth) for each (scene, size, strands).
 
-    Each sweep varies one setting around the scene's defaults (``renderer.DEFAULTS``): spp and
+    Each sweep varies one setting around the scene's defaults (``render.domain.bounds.DEFAULTS``): spp and
     strands at the default depth, depth at the default spp.
     """
     cases: list[BenchCase] = []

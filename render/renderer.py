@@ -18,10 +18,8 @@ import numpy as np
 
 from hairdigi.render.domain import rig_geometry
 # Bounds, defaults and their checks: in render.domain.bounds, so the command line reads them without Mitsuba.
-from hairdigi.render.domain.bounds import (DEFAULTS, MAX_CAMERA_DISTANCE, MAX_DEPTH, MAX_SAMPLES,  # noqa: F401
-                                         MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_CAMERA_DISTANCE, MIN_DEPTH, MIN_SIZE,
-                                         SCENE_NAMES, SceneDefaults, check_camera, check_size_spp, defaults_for,
-                                         is_whole)
+from hairdigi.render.domain.bounds import (MAX_DEPTH, MAX_STRANDS, MIN_DEPTH, SCENE_NAMES, check_camera,
+                                           check_size_spp, defaults_for, is_whole)
 from hairdigi.render import scenes
 from hairdigi.render.domain.absorption import hair_bsdf, hair_sigma_a
 from hairdigi.render.hairfile import hair_model_strands

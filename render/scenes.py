@@ -9,8 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from hairdigi.render.domain.rig_geometry import (CHART_BOARD_HALF, CHART_CENTER, CHART_PATCH, HOLDER_CENTER, HOLDER_SIZE, LIGHT_SIZE,
-                                 N_LIGHTS, CameraPose, chart_patch_centres, framing_fov, light_position,
-                                 look_at_matrix, spherical_direction)
+                                                 N_LIGHTS, CameraPose, chart_patch_centres, framing_fov, light_position,
+                                                 look_at_matrix, spherical_direction)
 from hairdigi.render.variant import transform
 
 # The rig: a flat holder in the z = 0 plane, its normal along +z, strands along y.

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.render.domain.absorption import (AZIMUTHAL_ROUGHNESS, EUMELANIN_SIGMA_A, MIN_DYE_ALBEDO,
-                                        PHEOMELANIN_SIGMA_A, melanin_quantity, sigma_a_from_albedo)
+                                               PHEOMELANIN_SIGMA_A, melanin_quantity, sigma_a_from_albedo)
 from hairdigi.render.domain.bounds import CAMERAS, ILLUMINANTS  # noqa: F401  (named cameras and lights)
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.params import HairParams

@@ -24,7 +24,6 @@ with sigint_held():   # threads started while Mitsuba loads inherit the block (r
 
 from hairdigi.render.domain.bounds import AUTO_VARIANTS as AUTO  # noqa: E402  (tried by "auto", in order)
 from hairdigi.render.domain.bounds import PREFERRED_VARIANTS as PREFERRED  # noqa: E402
-from hairdigi.render.domain.bounds import VARIANT_CHOICES as CHOICES  # noqa: E402  (the command line's --variant)
 
 
 class VariantError(HairdigiError, RuntimeError):

@@ -1,10 +1,7 @@
-"""Media the tests write for the real readers: RAW stills (a linear Bayer DNG, RGGB, 12-bit in 16,
-written with tifffile's CFA and DNG tags, which rawpy reads like a camera's file) and videos (MJPG
-through OpenCV, which ``cv2.VideoCapture`` replays like a camera)."""
+"""Media the tests write for the real readers: videos (MJPG through OpenCV, which ``cv2.VideoCapture``
+replays like a camera). RAW stills come from ``hairdigi.hardware.sim_still.write_raw_still``."""
 import cv2
 import numpy as np
-
-from hairdigi.hardware.sim_still import WHITE, write_raw_still  # noqa: F401  (one home: the simulated rig's stills)
 
 
 def write_video(path, frames: int = 5, size=(64, 48), step: int = 40, fps: int = 10):

@@ -161,7 +161,7 @@ def test_uncalibrated_capture_is_kept_and_blocked(qtbot, tiny_model, tmp_path):
 
 def test_a_raw_still_is_a_capture_source_in_the_window(qtbot, tiny_model, tmp_path):
     """File > Import RAW still: the still joins the session as a capture, calibrated on its own chart."""
-    from media import write_raw_still
+    from hairdigi.hardware.sim_still import write_raw_still
 
     _, onnx_path, _ = tiny_model
     win, session = open_window(qtbot, tmp_path / "s", onnx_path)

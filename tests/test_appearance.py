@@ -1,7 +1,5 @@
 """Issue 18: the appearance record, fibre groups, one frame per light, the shine in the estimate, and
 ``estimate --lights``."""
-from dataclasses import replace
-
 import numpy as np
 import pytest
 

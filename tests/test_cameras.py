@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from hairdigi.hardware.cameras import CameraError, FileCamera, OpenCVCamera, read_raw
-from media import write_raw_still, write_video
+from hairdigi.hardware.sim_still import write_raw_still
+from media import write_video
 
 
 def write_dng(path, width=64, height=48, level=(0.25, 0.5, 0.125)):

@@ -95,7 +95,7 @@ def test_the_swatch_area_of_a_tilted_camera_lies_on_the_swatch(pose):
     import cv2
 
     from hairdigi.render.domain.rig_geometry import (RIG_HALF_WIDTH, RIG_TARGET, SWATCH_HALF, SWATCH_VISIBLE_HALF_LENGTH,
-                                                   CameraPose, project, swatch_roi)
+                                                     CameraPose, project, swatch_roi)
 
     pose, size, half_width = CameraPose(*pose), (400, 300), RIG_HALF_WIDTH * 1.1
     x, y, w, h = swatch_roi(size, pose=pose, half_width=half_width)

@@ -111,7 +111,7 @@ def test_the_bench_cameras_frame_is_not_warned_but_a_tilted_one_is(renderer):
 def test_a_raw_still_knows_which_pixels_are_saturated_on_the_sensor(tmp_path):
     """rawpy's counts against the white level, per channel: a dark area whose 8-bit encode is all 0 is
     not clipped; photosites at the white level are, in their channel only."""
-    from media import WHITE, write_raw_still
+    from hairdigi.hardware.sim_still import WHITE, write_raw_still
 
     from hairdigi.hardware.cameras import read_raw
 
@@ -149,7 +149,7 @@ def test_a_dark_raw_still_is_not_called_clipped(tmp_path):
     """Issue 28: a 12-bit RAW still of black hair, exposed so that the chart's white patch sits at 80%,
     was called "clipped: 17.8% of the swatch area is at 0 or 255" (the zeros of the corrected image's
     8-bit encode). Judged on the sensor's counts, nothing there is clipped."""
-    from media import write_raw_still
+    from hairdigi.hardware.sim_still import write_raw_still
 
     from hairdigi.app.rig_session import RigSession
     from hairdigi.render.domain import rig_geometry as rg

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from hairdigi.hardware.lights import (LightArgumentError, LightCommandError, LightController, LightError, LightLinkError,
-                             LightProtocolError, LightState, LightTimeout, N_LIGHTS, parse_status)
-from hairdigi.hardware.sim_lights import BoardState, EmulatedFirmwareBoard, SimulatedLightBoard, handle
+                                      LightProtocolError, LightState, LightTimeout, N_LIGHTS, parse_status)
+from hairdigi.hardware.sim_lights import BoardState, SimulatedLightBoard, handle
 
 
 @pytest.fixture

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hairdigi.inference.preprocess import (MAX_IMAGE_PIXELS, ImageError, Roi, find_swatch_roi, image_size, read_image,
-                                  swatch_crop)
+                                           swatch_crop)
 
 SIM = (200, 150)   # a small rig frame (the rig's is 400 x 300): the same view, a quarter of the pixels
 

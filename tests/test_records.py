@@ -9,8 +9,8 @@ import pytest
 
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import (SCHEMA_VERSION, CalibrationProfile, CaptureRecord, EstimateRecord,
-                                          EstimateWarning, RecordError, RefinementRecord, WarningKind,
-                                          capture_profile, read_record, write_record)
+                                            EstimateWarning, RecordError, RefinementRecord, WarningKind,
+                                            capture_profile, read_record, write_record)
 
 LEGACY = Path(__file__).parent / "data" / "legacy-session"
 LIVE, STILL = "20261124-035325-574", "20261124-035444-053"

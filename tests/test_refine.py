@@ -4,7 +4,7 @@ import pytest
 
 from hairdigi.render.domain.records import RefinementRecord
 from hairdigi.inference.refine import (RefineSettings, fibre_appearance, mean_linear, params_for_sigma, refine,
-                              response_curve)
+                                       response_curve)
 from hairdigi.render.domain.absorption import hair_sigma_a
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.domain.params import HairParams, sample_params

@@ -15,7 +15,7 @@ from hairdigi.hardware.sim_rig import SIM_SIZE, SimRig
 from hairdigi.render.domain.rig_geometry import swatch_roi
 from hairdigi.render.camera_model import CameraModel
 from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, detect_chart, load_profile,
-                                   staleness)
+                                            staleness)
 from hairdigi.render.chart import colorchecker_reflectances, rig_chart_targets
 
 SPP = 8
@@ -135,7 +135,6 @@ def test_estimate_of_a_rig_capture_matches_the_rig_chain(tmp_path, tiny_model):
     """``hairdigi estimate`` on a saved rig frame (chart in view, swatch found) gives the rig's estimate."""
     from hairdigi.app.cli import main
     from hairdigi.inference.encoder import Encoder
-    from hairdigi.render.metrics import delta_e2000
 
     _, onnx_path, _ = tiny_model
     session = RigSession.simulated_rig(tmp_path / "s", spp=SPP, encoder=Encoder(onnx_path))
@@ -218,9 +217,7 @@ def test_an_old_capture_is_reviewed_with_its_own_calibration(tmp_path):
 def test_a_raw_still_of_the_rig_is_a_capture_calibrated_on_its_own_chart(tmp_path):
     """A still camera's DNG of the rig (its own colour cast and exposure): copied into the session
     first, calibrated on the chart in the still, estimated, and reviewed later with that profile."""
-    from media import write_raw_still
-
-    from hairdigi.render.metrics import delta_e2000
+    from hairdigi.hardware.sim_still import write_raw_still
 
     session = RigSession.simulated_rig(tmp_path / "s", spp=SPP)
     try:
@@ -256,9 +253,8 @@ def test_a_file_that_is_not_a_raw_still_is_refused_before_anything_is_written(tm
 
 def test_rig_still_on_the_command_line(tmp_path, capsys):
     """``hairdigi rig --still``: no camera or board; the still's file is refused if it is not RAW."""
-    from media import write_raw_still
-
     from hairdigi.app.cli import main
+    from hairdigi.hardware.sim_still import write_raw_still
 
     png = tmp_path / "x.png"
     png.write_bytes(b"\x89PNG")

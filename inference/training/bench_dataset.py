@@ -31,7 +31,7 @@ def bench_config(quick: bool = False, n: int | None = None) -> DatasetConfig:
     n = n if n is not None else (4 if quick else 16)
     if n < 1:
         raise ValueError(f"bench dataset --n must be at least 1, got {n}")
-    from hairdigi.render.renderer import defaults_for
+    from hairdigi.render.domain.bounds import defaults_for
 
     return DatasetConfig(n=n, size=16 if quick else 64, spp=1 if quick else 4, seed=7,
                          strands=150 if quick else defaults_for("swatch").strands,

@@ -72,7 +72,7 @@ def buckets(params: HairParams, polar_deg: float) -> list[str]:
 
 
 def heldout_config(n: int, size: int = 64, spp: int = 64) -> DatasetConfig:
-    from hairdigi.render.renderer import defaults_for
+    from hairdigi.render.domain.bounds import defaults_for
 
     sw = defaults_for("swatch")
     # today's world: uniform hair of shine 0.3 (evaluate --appearance judges shine and variation)

@@ -122,7 +122,7 @@ class _Cycles:
     def mean(self, sigma, structure: str, layout: int, scene: str, shine: float, pixels: bool = False):
         from hairdigi.inference.training.evaluate_cycles import cycles_render
         from hairdigi.render.swatch_family import structure_strands
-        from hairdigi.render.renderer import defaults_for
+        from hairdigi.render.domain.bounds import defaults_for
 
         key = (structure, layout)   # a deposited swatch takes ~0.7 s to build: once per swatch, not per render
         if key not in self.strands:

@@ -18,7 +18,7 @@ import numpy as np
 
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.rig_geometry import (FRAMING_HALF_WIDTH, SWATCH_HALF, SWATCH_VISIBLE_HALF_LENGTH,
-                                               CameraPose, project)
+                                                 CameraPose, project)
 
 #: Hidden hairs: the hard cases of ``hairdigi evaluate --rig`` (black, platinum, a saturated red, copper)
 #: and a mid brown.

@@ -15,7 +15,7 @@ from __future__ import annotations
 import torch
 
 from hairdigi.render.domain.absorption import (AZIMUTHAL_ROUGHNESS, EUMELANIN_SIGMA_A, MELANIN_REMAP, MIN_DYE_ALBEDO,
-                               PHEOMELANIN_SIGMA_A, chiang_denominator)
+                                               PHEOMELANIN_SIGMA_A, chiang_denominator)
 
 
 def _interp(x: torch.Tensor, xp: tuple, fp: tuple) -> torch.Tensor:

@@ -218,8 +218,6 @@ def _load_checkpoint(path: Path) -> dict:
 
 def load_trained(out_dir: str | os.PathLike):
     """The model from a training folder's checkpoint, in eval mode."""
-    import torch
-
     from hairdigi.inference.training.model import EncoderConfig, HairEncoder
 
     state = _load_checkpoint(Path(out_dir) / "checkpoint.pt")
