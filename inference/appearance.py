@@ -1,4 +1,4 @@
-"""Reading a swatch's appearance at estimate time (issue 18): its shine from the single-light frames,
+"""Reading a swatch's appearance at estimate time: its shine from the single-light frames,
 its fibre spread and grey share from the texture, and their intervals.
 
 - **Shine.** The three single-light frames' swatch-area means (3 lights x 3 channels) against the

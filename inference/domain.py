@@ -22,7 +22,7 @@ class Thresholds:
     """Limits on the 48² input (8-bit units). Held-out renders: std 5.0–21, coherence 0.07–0.46,
     gradient energy 25–116, view spread 0.005–0.13 (the first 100 of the clean held-out set).
 
-    Issue 18: the layered (physical) swatch has no streaks of its own. Its fibres lie side by side,
+    The layered (physical) swatch has no streaks of its own. Its fibres lie side by side,
     far finer than a pixel, so a crop seen from above is as isotropic as noise: 24 renders of the
     training distribution at 64², 16 spp gave coherence 0.014–0.30 (median 0.039) against 0.035 for
     uniform RGB noise. Coherence now flags only what has none at all (a checkerboard); colour noise
@@ -36,13 +36,13 @@ class Thresholds:
     max_view_spread: float = 0.2    # the encoder's eight flips/turns disagree (normalised units)
     clipped_share: float = 0.15     # share of pixels at 0 or 255 in some channel (held-out: up to 0.09,
                                     # the glints of pale hair)
-    # issue 22, from 160 renders of the held-out distribution (80 as rendered, 80 through the camera
-    # model): gradient energy 27–140, peak share 0.02–0.44, channel correlation 0.24–1.0. Issue 18: the
+    # from 160 renders of the held-out distribution (80 as rendered, 80 through the camera
+    # model): gradient energy 27–140, peak share 0.02–0.44, channel correlation 0.24–1.0. The
     # peak share is taken on the texture less its smooth shading; dark or dyed swatches with fibre
     # spread 0.3 and 0–40% grey fibres read 0.06–0.26 (0.54–0.70 with the shading), stripes 0.93, a
     # checkerboard 0.78–0.99, a smooth gradient 1
     min_energy: float = 12.0        # below: no strand texture (a smooth gradient, a blurred picture) ...
-    # ... unless its texture is fine fibres' (issue 28). A real camera's view of fibres about a photosite
+    # ... unless its texture is fine fibres'. A real camera's view of fibres about a photosite
     # wide, through its lens (Gaussian blur 1-2 px on renders of 128-384 px, then the camera model),
     # keeps 0.57-0.76 of its texture's power above half the 48² input's Nyquist frequency, its three
     # channels moving together there (correlation 0.55-0.80), though black hair's texture is weak
@@ -134,7 +134,7 @@ def _peak_share(luminance: np.ndarray, k: int = 4) -> float:
 
     The texture is the luminance less its smooth shading (``_texture``): a swatch's brightness falls
     off along its fibres, and on dark hair with few grey fibres that shading held most of the power,
-    so that uniform hair read as "a few frequencies" (issue 18). All shading, a gradient: 1 (a flat
+    so that uniform hair read as "a few frequencies". All shading, a gradient: 1 (a flat
     input: 0).
     """
     texture = _texture(luminance)

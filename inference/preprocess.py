@@ -212,7 +212,7 @@ def _detail_energy(img: np.ndarray) -> np.ndarray:
 #: (the world beyond it: black in a render, a bench in a lab), a band along one side of the frame. A
 #: group of border colours far from the holder's (``BACKGROUND_APART``) and holding at least
 #: ``BACKGROUND_SHARE`` of the border is a background of its own, and a region like any background is
-#: not the swatch (issue 28: at 55° the band beyond the holder was unlike the holder, merged with the
+#: not the swatch (at 55° the band beyond the holder was unlike the holder, merged with the
 #: swatch, and the whole frame, holder included, was taken as hair). The holder's own shading (the
 #: simulated rig's border spans about 40 codes) stays one background: a dark swatch is unlike it.
 BACKGROUND_SHARE = 0.15
@@ -273,7 +273,7 @@ def swatch_score(img: np.ndarray) -> np.ndarray:
 
 #: Strand coherence (0 to 1) above which the frame's border counts as hair: the border of an all-hair
 #: image (uniform, dyed or with grey fibres) reads 0.45–0.8, a holder 0.1–0.2 and the simulated
-#: rig's holder 0.12–0.18 (issue 18: grey fibres in an all-hair crop were taken for a swatch on a
+#: rig's holder 0.12–0.18 (without it, grey fibres in an all-hair crop were taken for a swatch on a
 #: holder, and the "swatch" was a streak of greys).
 HAIR_BORDER_COHERENCE = 0.35
 
@@ -429,7 +429,7 @@ def region_outline(region: np.ndarray) -> np.ndarray | None:
 
 
 #: A region filling this share of its convex hull is a filled shape: a swatch seen obliquely is a
-#: parallelogram filling half its bounding box (at 60° a rhombus: issue 28), but all of its hull.
+#: parallelogram filling half its bounding box (at 60° a rhombus), but all of its hull.
 SOLIDITY = 0.9
 
 

@@ -1,4 +1,4 @@
-"""The fibre spread and the grey share, read from the swatch's texture at the fibre scale (issue 18).
+"""The fibre spread and the grey share, read from the swatch's texture at the fibre scale.
 
 At the bench camera a fibre is about one pixel wide, so fibres that differ in pigment make the
 swatch area's pixels differ from their neighbours: a spread of ln sigma_a makes neighbouring fibres

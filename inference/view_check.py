@@ -1,4 +1,4 @@
-"""Is the image seen from the camera the estimate assumes? The swatch's outline says (issue 28).
+"""Is the image seen from the camera the estimate assumes? The swatch's outline says.
 
 The swatch is a 1 x 1.4 rectangle on the holder (``rig_geometry.SWATCH_HALF``), its fibres along its
 long side. Seen by a camera tilted ``polar`` degrees from the holder's normal, towards ``azimuth``,

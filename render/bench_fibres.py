@@ -1,4 +1,4 @@
-"""``hairdigi bench fibres``: how many fibre groups a varied swatch needs (issue 18).
+"""``hairdigi bench fibres``: how many fibre groups a varied swatch needs.
 
 A varied appearance is drawn as pigment groups (``render.fibres``). More groups sample the
 log-normal spread of sigma_a more finely but add shapes to the scene. For group counts 2-32 this

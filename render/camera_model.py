@@ -81,8 +81,8 @@ def spread_glints(linear: np.ndarray, ratio: float = 3.0, margin: float = 0.05, 
     their surroundings; a camera integrates the converged glint over each pixel's area behind its
     lens. The excess over ``ratio`` x the 3 x 3 median + ``margin`` is blurred with a Gaussian of
     ``sigma_px`` and added back, so the image's sum (the swatch's colour) is unchanged where
-    removing the outliers would darken hair by up to 18% in red (``shared/reference/inverse-notes.md``,
-    issue 17: ΔE2000 3.65 on the simulated rig's hidden swatch).
+    removing the outliers would darken hair by up to 18% in red (``shared/reference/inverse-notes.md``;
+    on the simulated rig's hidden swatch that was ΔE2000 3.65).
     """
     import cv2
 

@@ -1,4 +1,4 @@
-"""Fibre-to-fibre variation as groups of strands, each with its own ``hair`` BSDF (issue 18).
+"""Fibre-to-fibre variation as groups of strands, each with its own ``hair`` BSDF.
 
 A varied appearance (``render.domain.appearance.Appearance``: ``fibre_spread`` > 0 or
 ``grey_fraction`` > 0) is drawn by splitting the strands at random into ``groups`` pigmented groups

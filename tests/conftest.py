@@ -21,7 +21,7 @@ TEST_OUTPUT = Path(os.environ.get("HAIRDIGI_TEST_OUTPUT", Path(__file__).resolve
 def _private_cache(tmp_path_factory):
     """One cache for the whole run (the simulated rig's light renders are made once), never ~/.cache."""
     os.environ["HAIRDIGI_CACHE"] = str(tmp_path_factory.mktemp("cache"))
-    # the swatch library (issue 20): a private file, and no sessions written before it to import
+    # the swatch library: a private file, and no sessions written before it to import
     os.environ["HAIRDIGI_LIBRARY"] = str(tmp_path_factory.mktemp("library") / "library.sqlite")
     os.environ["HAIRDIGI_SESSIONS"] = str(tmp_path_factory.mktemp("no-sessions"))
 

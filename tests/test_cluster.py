@@ -1,4 +1,4 @@
-"""Issue 12: the dataset's Ray backend and the Mitsuba variant switch.
+"""The dataset's Ray backend and the Mitsuba variant switch.
 
 A dataset rendered as Ray tasks is bitwise the one the local backend renders; a resumed Ray run
 renders only the missing shards; without Ray, ``--backend ray`` is one line saying how to install

@@ -1,4 +1,4 @@
-"""Hair-dye development (issue 19): the deposit + lift model, its fit, prediction, dose, card and CLI.
+"""Hair-dye development: the deposit + lift model, its fit, prediction, dose, card and CLI.
 
 Records are written as ``hairdigi estimate`` writes them (refinement ``sigma_a`` set), with exact
 ``sigma_a`` where a test checks the algebra; the rig's response curve is rendered for real (small,

@@ -1,4 +1,4 @@
-"""Issue 18, "Also": a swatch with grey fibres, or any image that holds only hair, is never refused
+"""A swatch with grey fibres, or any image that holds only hair, is never refused
 for its texture, and the swatch finder finds hair with greys whole.
 
 Before the fix, an all-hair crop of dark or dyed hair with grey fibres was read as a swatch on a

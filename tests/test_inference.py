@@ -85,7 +85,7 @@ def test_dataset_resumes_only_missing_shards(tmp_path):
 
 
 def test_dataset_draws_and_records_each_swatchs_appearance_and_keeps_old_datasets(tmp_path):
-    """Issue 18: swatches of random shine, spread and greys on the layered swatch, each recorded in its
+    """Swatches of random shine, spread and greys on the layered swatch, each recorded in its
     shard; a dataset made before (no appearance, today's swatch) keeps its samples and still resumes."""
     import json
 

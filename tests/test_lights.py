@@ -54,7 +54,7 @@ def test_board_refusals_are_clear(board, lights):
         lights.command("L10 ON")
     with pytest.raises(LightCommandError, match="E3 value out of range"):
         lights.command("L0 I -0")
-    with pytest.raises(LightArgumentError, match="at most 32"):   # E4's limit, kept by the host (issue 22)
+    with pytest.raises(LightArgumentError, match="at most 32"):   # the firmware's E4 limit, kept by the host
         lights.command("L0 I " + "0" * 40)
 
 

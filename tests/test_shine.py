@@ -1,4 +1,4 @@
-"""Shine from the rig's three lights (issue 18, first part): the renderer renders a given shine, and
+"""Shine from the rig's three lights: the renderer renders a given shine, and
 the shine is read back from single-light renders of known shine."""
 from dataclasses import replace
 

@@ -1,4 +1,4 @@
-"""The layered swatch (issue 18): fibres that never meet, optically thick, full length, and darker
+"""The layered swatch: fibres that never meet, optically thick, full length, and darker
 than today's interpenetrating swatch at equal sigma_a (resources/models/swatch-structure.md)."""
 from __future__ import annotations
 
@@ -71,7 +71,7 @@ def test_swatch_model_is_validated() -> None:
 
     with pytest.raises(ValueError, match="swatch_model"):
         SceneSpec("swatch", swatch_model="dense")
-    assert SceneSpec("swatch").swatch_model == "layered"          # the default since issue 18
+    assert SceneSpec("swatch").swatch_model == "layered"          # the default since the layered swatch
     assert SceneSpec("wavy").swatch_model is None                   # a hairstyle has no swatch model
     with pytest.raises(ValueError, match="swatch scene only"):
         SceneSpec("wavy", swatch_model="layered")

@@ -1,4 +1,4 @@
-"""The texture model (issue 18): the fibre spread and the grey share read from the swatch area.
+"""The texture model: the fibre spread and the grey share read from the swatch area.
 
 Real renders, as ``inference.training.fit_texture`` renders its samples (a quarter of the bench
 frame's swatch area, each light alone at 32 spp, through the camera model), with strand layouts and

@@ -1,4 +1,4 @@
-"""``hairdigi bench shine``: can the rig's three lights, one at a time, read the shine? (issue 18)
+"""``hairdigi bench shine``: can the rig's three lights, one at a time, read the shine?
 
 Held-out swatches of known shine (longitudinal roughness beta_m) and colour are rendered in the rig's
 swatch area under each light alone, with another strand layout and sampler seed than the tables'.

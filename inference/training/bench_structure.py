@@ -1,4 +1,4 @@
-"""``hairdigi bench structure``: how the swatch's fibre structure sets its rig colour (issue 18).
+"""``hairdigi bench structure``: how the swatch's fibre structure sets its rig colour.
 
 Today's swatch (``swatch_strands``) packs its fibres into a few layers that pass through one
 another; ``layered_swatch_strands`` stacks them in irregular layers where none meets another. This

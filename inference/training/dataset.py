@@ -36,7 +36,7 @@ STORES = ("linear16", "srgb8")
 #: Settings added after datasets were made, with the value those older datasets implicitly used.
 LEGACY_DEFAULTS = {"store": "srgb8", "swatch_model": "today", "appearance": "fixed"}
 #: How a sample's appearance (shine, fibre spread, greys) is drawn: ``fixed`` is the default uniform
-#: hair (datasets before issue 18); ``random`` draws ``render.domain.appearance.APPEARANCE_DRAW``.
+#: hair (datasets made before appearance was drawn); ``random`` draws ``render.domain.appearance.APPEARANCE_DRAW``.
 APPEARANCES = ("random", "fixed")
 
 
@@ -149,7 +149,7 @@ def _die_with_parent() -> None:
 #: The arrays of a shard file, in the order they are written.
 #: ``nonfinite``: per sample, the NaN or Inf values the path tracer returned (replaced by 0 in ``images``).
 SHARD_FIELDS = ("images", "params", "cameras", "seeds", "indices", "nonfinite")
-#: Arrays written since issue 18 and absent from older shards: ``appearance`` (N, 3), the sample's
+#: Arrays written since appearance was drawn and absent from older shards: ``appearance`` (N, 3), the sample's
 #: shine, fibre spread and grey share (``render.domain.appearance.FIELDS``).
 OPTIONAL_FIELDS = ("appearance",)
 #: Where shards are rendered: ``local`` processes, or ``ray`` tasks (``inference.training.cluster``).
@@ -301,7 +301,7 @@ def _check_manifest(root: Path, config: DatasetConfig, variant: str | None = Non
         write_json_atomic(path, {"config": asdict(config), "format": "shard-NNNNN.npz: images (N,S,S,3) "
                                  "linear float16 radiance (store linear16) or uint8 sRGB (srgb8); params (N,6) normalised Table 1 vector; cameras (N,3) "
                                  "polar°, azimuth°, distance; seeds (N,2) strand, render; indices (N,); "
-                                 "appearance (N,3) shine, fibre spread, grey share (since issue 18)",
+                                 "appearance (N,3) shine, fibre spread, grey share",
                                  "mitsuba_variant": variant or mi.variant(),
                                  "created": time.strftime("%Y-%m-%dT%H:%M:%S")})
 

@@ -1,6 +1,6 @@
 """``hairdigi evaluate --dye``: dyes characterised on two natural bases, predicted on the third.
 
-The held-out protocol of issue 19, through the whole estimate chain:
+The held-out protocol of dye development, through the whole estimate chain:
 
 1. **Truth.** Three natural bases (``inference.levels.EVALUATION_LEVELS``: light, medium, dark) and
    ``dyes`` random dyes: deposit ``dye_sigma_a(rgb, concentration)`` with the colour and the

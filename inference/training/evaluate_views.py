@@ -1,4 +1,4 @@
-"""Rig-framed swatches of hairdigi's own world seen from other cameras, estimated and judged (issue 28).
+"""Rig-framed swatches of hairdigi's own world seen from other cameras, estimated and judged.
 
 Each hidden hair is rendered on its holder (``framing="rig"``, no chart) from a camera pose, estimated
 as ``hairdigi estimate`` does (with ``--camera`` the pose, or without it: the rig's assumed), and

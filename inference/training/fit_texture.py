@@ -1,4 +1,4 @@
-"""Fit the texture model (issue 18): read the fibre spread and the grey share from the swatch area.
+"""Fit the texture model: read the fibre spread and the grey share from the swatch area.
 
 ``python -m hairdigi.inference.training.fit_texture render --n 300`` renders the dataset: swatch
 areas as the simulated rig captures them (the bench camera's 400x300 frame at full resolution, only

@@ -1,4 +1,4 @@
-"""The hair's appearance beyond Table 1 (issue 18): its shine and how its fibres differ.
+"""The hair's appearance beyond Table 1: its shine and how its fibres differ.
 
 Table 1 gives one absorption ``sigma_a`` for every fibre and the renderer gave them one shine. Real
 swatches differ in both: virgin hair is glossy and bleached hair rough, fibres vary in pigment, and
@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 from hairdigi.render.domain.errors import HairdigiError
 
-#: The shine the project rendered before issue 18, and every default scene still renders.
+#: The shine the project rendered before appearance was read, and every default scene still renders.
 DEFAULT_SHINE = 0.3
 #: Shine the renderer accepts: 0 renders black and below 0.05 gives fireflies (Mitsuba 3.9).
 RENDER_SHINE_RANGE = (0.05, 1.0)
@@ -30,7 +30,7 @@ SHINE_RANGE = (0.1, 0.6)
 SPREAD_RANGE = (0.0, 1.0)
 GREY_RANGE = (0.0, 1.0)
 #: The absorption of an unpigmented fibre, per fibre radius (a faint keratin yellow is below what
-#: the rig can tell; issue 18: "sigma_a about 0.01").
+#: the rig can tell: "sigma_a about 0.01").
 GREY_SIGMA_A = 0.01
 
 FIELDS = ("longitudinal_roughness", "fibre_spread", "grey_fraction")
@@ -88,7 +88,7 @@ class Appearance:
 
 DEFAULT_APPEARANCE = Appearance()
 
-#: The ranges synthetic swatches are drawn from (issue 18's held-out set; the training data of the
+#: The ranges synthetic swatches are drawn from (the appearance's held-out set; the training data of the
 #: encoder and of the texture model): shine, fibre spread, grey share, each uniform.
 APPEARANCE_DRAW = {"longitudinal_roughness": (0.12, 0.5), "fibre_spread": (0.0, 0.5), "grey_fraction": (0.0, 0.3)}
 

@@ -1,7 +1,7 @@
 """One thread budget for the process, from the cores the operating system gives it.
 
 ``len(os.sched_getaffinity(0))`` (``taskset``, a container's cpuset, a scheduler's allotment), not
-the machine's count: each pool sized for the whole machine oversubscribes a share of it (issue 21:
+the machine's count: each pool sized for the whole machine oversubscribes a share of it (measured:
 the app's previews ran 25x slower beside one other CPU-bound process). :func:`plan` is where each
 pool's size is decided; :func:`start_up` applies what must be set before the libraries load (the
 command line calls it first); each pool's owner reads its entry when it creates the pool:
