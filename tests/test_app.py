@@ -6,9 +6,9 @@ import threading
 import numpy as np
 import pytest
 
-from hairdigi.app import review
+from hairdigi.app.review import model as review
 from hairdigi.app.gui.main_window import MainWindow
-from hairdigi.app.rig_session import RigSession
+from hairdigi.app.session.rig_session import RigSession
 from hairdigi.inference.encoder import Encoder
 from hairdigi.render.hairfile import write_hair
 from hairdigi.render.strands import hairstyle_strands

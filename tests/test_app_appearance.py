@@ -10,8 +10,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hairdigi.app import review
-from hairdigi.app.rig_session import RigSession
+from hairdigi.app.review import model as review
+from hairdigi.app.session.rig_session import RigSession
 from hairdigi.inference.calibration import apply_profile
 from hairdigi.inference.encoder import Encoder
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance, AppearanceEstimate

@@ -65,7 +65,7 @@ def test_a_grouped_render_matches_a_single_group_of_equal_sigma():
 @pytest.fixture(scope="module")
 def glossy_rig(tmp_path_factory):
     """The simulated rig with a glossy hidden swatch (shine 0.18), calibrated."""
-    from hairdigi.app.rig_session import RigSession
+    from hairdigi.app.session.rig_session import RigSession
 
     session = RigSession.simulated_rig(tmp_path_factory.mktemp("glossy"), HairParams((190, 80, 40), 0.5, 0.5, 0.6),
                                        spp=16, appearance=Appearance(0.18))
@@ -144,7 +144,7 @@ def test_a_light_of_another_colour_is_warned_about(glossy_rig):
 def test_a_hidden_swatch_file_may_carry_an_appearance_and_a_bad_one_is_named(tmp_path):
     import json
 
-    from hairdigi.app.rig_cli import hidden_appearance
+    from hairdigi.app.cli.rig import hidden_appearance
     from hairdigi.render.domain.params import HairParamsError
 
     hair = {"dye_rgb": [190, 80, 40], "dye_concentration": 0.5, "melanin_concentration": 0.5, "melanin_ratio": 0.6}
@@ -172,8 +172,8 @@ def test_a_grey_share_is_reported_only_when_its_95_percent_interval_excludes_non
 def test_a_share_reported_as_none_says_it_was_not_told_from_none():
     """A grey share set to 0 by the 95% rule while its 68% interval excludes 0 is not shown as
     "0.00 (68%: 0.02-0.16)", which reads as a contradiction, but as not told from none."""
-    from hairdigi.app.review import appearance_lines
-    from hairdigi.app.rig_cli import appearance_lines as cli_lines
+    from hairdigi.app.review.model import appearance_lines
+    from hairdigi.app.cli.rig import appearance_lines as cli_lines
     from hairdigi.render.domain.appearance import AppearanceEstimate
 
     intervals = {"grey_fraction": {"p68": [0.019, 0.155], "p95": [0.0, 0.21]},

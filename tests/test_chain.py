@@ -4,7 +4,7 @@ when they cannot hold."""
 import numpy as np
 import pytest
 
-from hairdigi.app.rig_session import RigSession, rig_region
+from hairdigi.app.session.rig_session import RigSession, rig_region
 from hairdigi.inference.refine import fitted_pixels, mean_linear
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import EstimateRecord, WarningKind, read_record

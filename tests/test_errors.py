@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from hairdigi.app.cli import main
-from hairdigi.app.validation import is_expected
+from hairdigi.app.cli.validation import is_expected
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.files import PACKAGE_PARTS
 
@@ -45,7 +45,7 @@ def numpy_bug(*args, **kwargs):
 def test_a_numpy_value_error_in_a_command_is_a_bug_with_its_traceback(record, tmp_path, monkeypatch, capsys):
     """Before ``HairdigiError``, every ValueError counted as the user's: this one exited 2 in one line,
     and the bug was hidden."""
-    from hairdigi.app import export_cli
+    from hairdigi.app.cli import export as export_cli
 
     monkeypatch.setattr(export_cli, "export_record", numpy_bug)
     code = main(["export", str(record), "--format", "materialx", "--out", str(tmp_path / "look.mtlx")])
@@ -109,7 +109,7 @@ def test_every_error_class_of_hairdigi_is_a_hairdigi_error():
 #: The builtin base each error class had before HairdigiError, kept so that ``except ValueError`` (or
 #: ``RuntimeError``) written against them still catches them.
 BUILTIN_BASES = {
-    "app.library.LibraryError": ValueError, "app.validation.ArgumentError": ValueError,
+    "app.library.store.LibraryError": ValueError, "app.cli.validation.ArgumentError": ValueError,
     "hardware.cameras.CameraError": RuntimeError, "hardware.lights.LightError": RuntimeError,
     "hardware.lights.LightArgumentError": ValueError, "inference.calibration.CalibrationError": RuntimeError,
     "inference.preprocess.ImageError": ValueError, "inference.appearance.LightFramesError": ValueError,
@@ -130,7 +130,7 @@ def test_each_error_keeps_its_builtin_base(name):
 
 # --- (c) the user's errors stay one line and exit status 2 -----------------------------------
 def test_a_hairdigi_error_or_a_full_disk_in_a_command_is_one_line(record, tmp_path, monkeypatch, capsys):
-    from hairdigi.app import export_cli
+    from hairdigi.app.cli import export as export_cli
     from hairdigi.render.domain.records import RecordError
 
     args = ["export", str(record), "--format", "materialx", "--out", str(tmp_path / "look.mtlx")]

@@ -151,7 +151,7 @@ def test_a_dark_raw_still_is_not_called_clipped(tmp_path):
     8-bit encode). Judged on the sensor's counts, nothing there is clipped."""
     from hairdigi.hardware.sim_still import write_raw_still
 
-    from hairdigi.app.rig_session import RigSession
+    from hairdigi.app.session.rig_session import RigSession
     from hairdigi.render.domain import rig_geometry as rg
     from hairdigi.render.chart import WHITE_PATCH
 

@@ -23,7 +23,7 @@ try:
 except CameraError as exc:     # Aravis or PyGObject absent: nothing here can run
     pytest.skip(str(exc), allow_module_level=True)
 
-from hairdigi.app.rig_session import RigSession
+from hairdigi.app.session.rig_session import RigSession
 from hairdigi.hardware.bayer import bayer_format, demosaic, unpack
 from hairdigi.hardware.genicam import FAKE_ID, GenICamCamera, GenICamSettings, discover
 from hairdigi.hardware.lights import LightController

@@ -29,7 +29,7 @@ FRESH = dict(PYTHONPATH=str(ROOT), OMP_WAIT_POLICY="PASSIVE", PYTHONDONTWRITEBYT
 
 # --- running the command line ----------------------------------------------------------------
 def hairdigi(*args: str, cwd: Path, prelude: str | None = None, timeout: float = 180) -> subprocess.CompletedProcess:
-    """``python -m app.cli ARGS`` in ``cwd``; with ``prelude``, that Python runs first (a fault to inject)."""
+    """``python -m hairdigi.app.cli ARGS`` in ``cwd``; with ``prelude``, that Python runs first (a fault to inject)."""
     if prelude is None:
         cmd = [sys.executable, "-m", "hairdigi.app.cli", *args]
     else:

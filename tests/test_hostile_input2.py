@@ -166,7 +166,7 @@ def watched(args: list[str], cwd: Path, timeout: float = 240) -> tuple[subproces
 
 
 def test_an_image_at_the_pixel_cap_is_estimated_in_bounded_memory(ws, expect):
-    from hairdigi.app.bench_memory import write_large_png
+    from hairdigi.app.evaluation.bench_memory import write_large_png
 
     write_large_png(ws / "cap.png", 8000, 8000)   # exactly the 64 MP cap
     expect |= {"cap.png", "e.json"}
@@ -207,7 +207,7 @@ def test_a_huge_sparse_hair_file_is_refused_from_its_header(ws, expect):
 
 
 def test_a_48_mp_raw_still_is_read_in_bounded_memory(ws, expect):
-    from hairdigi.app.bench_memory import write_large_dng
+    from hairdigi.app.evaluation.bench_memory import write_large_dng
     from hairdigi.hardware.cameras import read_raw
 
     write_large_dng(ws / "big.dng", 8000, 6000)

@@ -140,7 +140,7 @@ def test_dye_apply_checks_the_hairstyles_it_writes_beside_the_render(ws, capsys)
 
 
 def test_dye_panel_never_saves_one_dye_over_another(tmp_path):
-    from hairdigi.app.dye_model import dye_path
+    from hairdigi.app.dye.model import dye_path
 
     saved = []
     for name in ["Copper 7.4", "Copper/7.4", "Copper-7.4", "染料", "色", "dye", ".json"]:
@@ -156,7 +156,7 @@ def test_dye_panel_never_saves_one_dye_over_another(tmp_path):
 def test_exported_tables_neutralise_formulas(ws, capsys):
     from openpyxl import load_workbook
 
-    from hairdigi.app.library import Library
+    from hairdigi.app.library.store import Library
 
     assert main(["library", "import", "r.json"]) == 0
     with Library() as lib:
@@ -225,14 +225,14 @@ def test_a_read_only_library_is_one_line(ws, capsys):
 
 
 def test_a_held_lock_times_out_in_seconds_naming_the_library(ws, capsys):
-    from hairdigi.app.library import BUSY_TIMEOUT_S
+    from hairdigi.app.library.store import BUSY_TIMEOUT_S
 
     assert main(["library", "import", "r.json"]) == 0
     capsys.readouterr()
     holder = sqlite3.connect(ws / "lib.sqlite", isolation_level=None)
     holder.execute("BEGIN IMMEDIATE")            # another process writing, for longer than the timeout
     try:
-        from hairdigi.app.library import Library
+        from hairdigi.app.library.store import Library
 
         with Library() as lib:
             sid = lib.all()[0].id
@@ -272,7 +272,7 @@ class SilentServer:
 
 def test_a_postgresql_server_that_never_answers_times_out_without_the_password(ws, capsys, monkeypatch):
     pytest.importorskip("psycopg")
-    from hairdigi.app.library import CONNECT_TIMEOUT_S
+    from hairdigi.app.library.store import CONNECT_TIMEOUT_S
 
     server = SilentServer()
     try:
@@ -287,7 +287,7 @@ def test_a_postgresql_server_that_never_answers_times_out_without_the_password(w
 
 def test_postgresql_sessions_have_lock_and_statement_timeouts(monkeypatch):
     psycopg = pytest.importorskip("psycopg")
-    from hairdigi.app import library as L
+    from hairdigi.app.library import store as L
 
     seen = {}
 
@@ -323,7 +323,7 @@ def test_a_corrupt_old_session_is_skipped_with_one_line_and_the_rest_imported(ws
 
 # --- 8. secrets ------------------------------------------------------------------------------------
 def test_no_password_is_shown(monkeypatch):
-    from hairdigi.app.library import _first_line, redact
+    from hairdigi.app.library.store import _first_line, redact
 
     for url in ("postgresql://lab:s3cr3t@db.lab:5432/hairdigi", "postgres://lab:s3cr3t@db/x?sslmode=require",
                 "postgresql://db/x?user=lab&password=s3cr3t", "host=db password=s3cr3t dbname=x"):
@@ -332,7 +332,7 @@ def test_no_password_is_shown(monkeypatch):
 
 
 def test_library_info_masks_the_password():
-    from hairdigi.app import library_cli
+    from hairdigi.app.cli import library as library_cli
 
     class Fake:
         where, version = "postgresql://lab:s3cr3t@db/x", 2
@@ -422,7 +422,7 @@ def test_a_dye_record_with_a_megabyte_name_is_refused(ws, capsys):
 
 
 def test_an_xlsx_cell_over_excels_limit_is_refused_not_cut(ws, capsys):
-    from hairdigi.app.library import Library
+    from hairdigi.app.library.store import Library
 
     assert main(["library", "import", "r.json"]) == 0
     with Library() as lib:
@@ -479,7 +479,7 @@ def test_repeated_scene_keeps_every_one():
 
 
 def test_like_wildcards_match_literally(ws):
-    from hairdigi.app.library import Library, LibraryError
+    from hairdigi.app.library.store import Library, LibraryError
 
     assert main(["library", "import", "r.json"]) == 0
     with Library() as lib:
@@ -494,7 +494,7 @@ def test_like_wildcards_match_literally(ws):
 
 
 def test_escape_sequences_never_reach_the_terminal(ws, capsys):
-    from hairdigi.app.library import Library
+    from hairdigi.app.library.store import Library
 
     assert main(["library", "import", "r.json"]) == 0
     with Library() as lib:
@@ -510,7 +510,7 @@ def test_escape_sequences_never_reach_the_terminal(ws, capsys):
 @pytest.fixture(scope="module")
 def rig_capture(tmp_path_factory):
     """One simulated capture (8 spp): the all-lights frame, the three single-light frames and their exposures."""
-    from hairdigi.app.rig_session import RigSession
+    from hairdigi.app.session.rig_session import RigSession
 
     folder = tmp_path_factory.mktemp("rig") / "s"
     session = RigSession.simulated_rig(folder, spp=8)
@@ -690,7 +690,7 @@ def test_a_dye_on_a_dyed_base_is_said_to_be(curve):
                                              ("remotehost.invalid:0", "no X server answers"),
                                              ("garbage", "not a display name"), ("\x1b[2J:0", "no X server")])
 def test_a_display_that_cannot_be_opened_is_one_line_before_qt(monkeypatch, display, needle):
-    from hairdigi.app import validation as v
+    from hairdigi.app.cli import validation as v
 
     monkeypatch.delenv("QT_QPA_PLATFORM", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
@@ -707,7 +707,7 @@ def test_a_display_that_cannot_be_opened_is_one_line_before_qt(monkeypatch, disp
 
 
 def test_a_stale_wayland_display_is_one_line(monkeypatch, tmp_path):
-    from hairdigi.app import validation as v
+    from hairdigi.app.cli import validation as v
 
     monkeypatch.delenv("QT_QPA_PLATFORM", raising=False)
     monkeypatch.delenv("DISPLAY", raising=False)
@@ -729,7 +729,7 @@ def test_contradictory_evaluation_flags_are_refused(ws, capsys, args):
 def test_evaluate_dye_takes_size_and_spp_and_judges_no_goal_on_a_few(monkeypatch, capsys):
     import argparse
 
-    from hairdigi.app import dye_cli
+    from hairdigi.app.cli import dye as dye_cli
     from hairdigi.inference.training import evaluate_dye
 
     seen = {}
@@ -753,7 +753,7 @@ def test_a_misspelt_hidden_appearance_key_is_refused(tmp_path):
 
     with pytest.raises(AppearanceError, match="did you mean 'grey_fraction'"):
         Appearance.from_dict({"grey_fracton": 0.2})
-    from hairdigi.app.rig_cli import hidden_appearance
+    from hairdigi.app.cli.rig import hidden_appearance
     from hairdigi.render.domain.params import HairParamsError
 
     (tmp_path / "h.json").write_text(json.dumps({"hair": HAIR.to_dict(), "appearance": {"fibre_sprad": 0.3}}))
@@ -764,7 +764,7 @@ def test_a_misspelt_hidden_appearance_key_is_refused(tmp_path):
 def test_errors_name_the_file_asked_for_never_a_temporary_one(tmp_path):
     import errno
 
-    from hairdigi.app.validation import describe_os_error
+    from hairdigi.app.cli.validation import describe_os_error
     from hairdigi.render.domain.files import atomic_path
 
     with pytest.raises(OSError) as exc:

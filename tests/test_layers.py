@@ -27,7 +27,8 @@ def wheel(tmp_path_factory) -> Path:
 def test_the_wheel_installs_one_top_level_package(wheel):
     names = zipfile.ZipFile(wheel).namelist()
     assert {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")} == {"hairdigi"}
-    for sub in ("app", "app/gui", "hardware", "inference", "render", "resources"):
+    for sub in ("app", "app/cli", "app/dye", "app/evaluation", "app/gui", "app/library", "app/review", "app/session",
+                "hardware", "inference", "render", "resources"):
         assert f"hairdigi/{sub}/__init__.py" in names
     assert "hairdigi/resources/models/encoder.onnx" in names
     assert not [n for n in names if n.endswith((".log", ".pyc"))]
@@ -55,16 +56,16 @@ def test_import_contracts_hold_on_the_built_package(site):
 
 
 def test_a_stray_import_breaks_the_contracts(site, tmp_path):
-    """The contracts are rules: a copy of the package with an ``app.review -> PySide6`` and a
+    """The contracts are rules: a copy of the package with an ``app.review.model -> PySide6`` and a
     ``render -> inference`` import (modules no contract lists) fails them."""
     shutil.copytree(site / "hairdigi", tmp_path / "hairdigi")
-    with open(tmp_path / "hairdigi" / "app" / "review.py", "a") as f:
+    with open(tmp_path / "hairdigi" / "app" / "review" / "model.py", "a") as f:
         f.write("\nimport PySide6  # stray\n")
     with open(tmp_path / "hairdigi" / "render" / "metrics.py", "a") as f:
         f.write("\nfrom hairdigi.inference import estimate  # stray\n")
     result = lint_imports(tmp_path)
     assert result.returncode != 0 and "2 broken" in result.stdout, result.stdout[-3000:]
-    assert "hairdigi.app.review -> PySide6" in result.stdout
+    assert "hairdigi.app.review.model -> PySide6" in result.stdout
     assert "hairdigi.render.metrics -> hairdigi.inference.estimate" in result.stdout
 
 
@@ -112,5 +113,5 @@ def test_the_rig_geometry_imports_without_mitsuba():
 def test_importing_the_renderer_chooses_no_variant():
     """The entry points or the first renderer choose Mitsuba's variant; an import never does."""
     seen = _modules_after_import("import hairdigi.render.renderer, hairdigi.render.scenes, "
-                                 "hairdigi.inference.training.dataset, hairdigi.app.rig_session")
+                                 "hairdigi.inference.training.dataset, hairdigi.app.session.rig_session")
     assert seen["variant"] is None and not seen["qt"]

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 
 from hairdigi.app.cli import main
-from hairdigi.app.library import SCHEMA_VERSION, Library, LibraryError
-from hairdigi.app.swatch_colour import hex_lab, lab_hex, rendered_linear, swatch_labs
+from hairdigi.app.library.store import SCHEMA_VERSION, Library, LibraryError
+from hairdigi.app.library.swatch_colour import hex_lab, lab_hex, rendered_linear, swatch_labs
 from hairdigi.render.domain.absorption import hair_sigma_a
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import CaptureRecord, EstimateRecord, RefinementRecord, write_record
@@ -163,7 +163,7 @@ def test_import_find_tag_note_export(tmp_path, lib_env, capsys):
 
 
 def test_lone_estimates_and_dye_predictions_are_swatches_too(tmp_path, lib_env):
-    from hairdigi.app.library_import import import_paths
+    from hairdigi.app.library.importing import import_paths
 
     hair = HairParams((120.0, 60.0, 160.0), 0.7, 0.3, 0.5)
     estimate = write_record(tmp_path / "violet.json", EstimateRecord(hair=hair))
@@ -180,8 +180,8 @@ def test_lone_estimates_and_dye_predictions_are_swatches_too(tmp_path, lib_env):
 
 def test_find_through_the_lightness_index_is_exact(lib_env):
     """``find`` reads a band of L* only; it must rank exactly as a scan of every swatch does."""
-    from hairdigi.app.library_cli import synthetic_rows
-    from hairdigi.app.swatch_colour import delta_e
+    from hairdigi.app.cli.library import synthetic_rows
+    from hairdigi.app.library.swatch_colour import delta_e
 
     with Library() as lib:
         lib.add(synthetic_rows(1500, seed=4))
@@ -345,12 +345,12 @@ def test_postgresql_same_schema_same_commands(tmp_path, postgres_url, monkeypatc
 # --- the Library panel -----------------------------------------------------------------------------
 def test_library_panel_search_sort_find_compare_review(tmp_path, lib_env, qtbot, test_output):
     from hairdigi.app.gui.library_panel import LibraryPanel
-    from hairdigi.app.library_view import compare
+    from hairdigi.app.library.view import compare
 
     make_session(tmp_path / "march", 6, seed=21)
     make_session(tmp_path / "april", 4, seed=22)
     with Library() as lib:
-        from hairdigi.app.library_import import import_paths
+        from hairdigi.app.library.importing import import_paths
 
         import_paths(lib, [tmp_path / "march", tmp_path / "april"], progress=lambda line: None)
         lib.tag("20260021-000001", ["copper"])

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from hairdigi.app.library import Library
+from hairdigi.app.library.store import Library
 from hairdigi.inference.levels import natural_base
 from hairdigi.render.domain.absorption import dye_sigma_a, hair_sigma_a
 from hairdigi.render.domain.records import EstimateRecord, RefinementRecord, write_record
@@ -85,7 +85,7 @@ def dye_session(folder: Path) -> dict[str, Path]:
 
 def swatch_library(folder: Path) -> Library:
     """Ten swatches of two sessions, one tagged copper, in a library file of their own."""
-    from hairdigi.app.library_import import import_paths
+    from hairdigi.app.library.importing import import_paths
 
     make_session(folder / "march", 6, seed=21)
     make_session(folder / "april", 4, seed=22)
@@ -229,9 +229,9 @@ def test_the_dye_dock_offers_a_new_capture_once_the_window_has_saved_it(tmp_path
 
 
 # --- the models without Qt -----------------------------------------------------------------------------
-from hairdigi.app import dye_model as dm  # noqa: E402
-from hairdigi.app import library_model as lm  # noqa: E402
-from hairdigi.app.review import run_now  # noqa: E402
+from hairdigi.app.dye import model as dm  # noqa: E402
+from hairdigi.app.library import model as lm  # noqa: E402
+from hairdigi.app.review.model import run_now  # noqa: E402
 
 SMALL = dm.DyeSettings(preview_size=24, preview_spp=2, hairstyle_size=24, hairstyle_spp=1, card_size=16, card_spp=2)
 
@@ -382,7 +382,7 @@ def _returned(generator):
 
 
 def test_the_library_model_compares_reads_images_imports_and_exports(tmp_path):
-    from hairdigi.app.library_view import compare
+    from hairdigi.app.library.view import compare
 
     library = swatch_library(tmp_path)
     model = lm.LibraryModel(library)
@@ -443,7 +443,7 @@ def _catch(failures: list, fn) -> None:
 def test_the_models_import_without_qt():
     import subprocess
 
-    code = ("import sys, hairdigi.app.dye_model, hairdigi.app.library_model; "
+    code = ("import sys, hairdigi.app.dye.model, hairdigi.app.library.model; "
             "print(sorted(m for m in ('PySide6', 'pyvista', 'pyvistaqt', 'vtk') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
     assert out.stdout.strip() == "[]"

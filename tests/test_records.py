@@ -67,7 +67,7 @@ def test_files_of_the_previous_layout_are_read_and_upgraded(tmp_path):
 def test_a_legacy_session_opens_and_reviews_with_its_own_calibration(tmp_path):
     """A session folder written by the previous layout opens, lists its captures, and loads the live
     capture with the profile it was taken with."""
-    from hairdigi.app.rig_session import RigSession, load_results
+    from hairdigi.app.session.rig_session import RigSession, load_results
     from hairdigi.hardware.cameras import FileCamera
 
     folder = tmp_path / "s"
@@ -103,7 +103,7 @@ def test_a_bad_record_names_its_problem(tmp_path, text, field):
 def test_one_bad_file_in_a_session_hides_nothing_else(tmp_path):
     """A result holding ``[1,2]``, a non-UTF-8 one, and a corrupt calibration: the session opens (the
     calibration set aside and said so), the good capture lists, the bad ones are named."""
-    from hairdigi.app.rig_session import RigSession, load_results
+    from hairdigi.app.session.rig_session import RigSession, load_results
     from hairdigi.hardware.cameras import FileCamera
 
     folder = tmp_path / "s"
@@ -130,7 +130,7 @@ def test_a_capture_image_that_is_a_fifo_is_refused_not_waited_on(tmp_path):
     import os
     import threading
 
-    from hairdigi.app.rig_session import RigSession
+    from hairdigi.app.session.rig_session import RigSession
     from hairdigi.hardware.cameras import FileCamera
 
     folder = tmp_path / "s"

@@ -8,8 +8,8 @@ import threading
 import numpy as np
 import pytest
 
-from hairdigi.app import review
-from hairdigi.app.rig_session import RigSession
+from hairdigi.app.review import model as review
+from hairdigi.app.session.rig_session import RigSession
 from hairdigi.inference.encoder import Encoder
 from hairdigi.render.metrics import delta_e2000, delta_e_map
 
@@ -26,7 +26,7 @@ def calibrated(tmp_path, tiny_model):
 
 
 def test_the_model_imports_without_qt():
-    code = ("import sys, hairdigi.app.review; "
+    code = ("import sys, hairdigi.app.review.model; "
             "print(sorted(m for m in ('PySide6', 'pyvista', 'pyvistaqt', 'vtk') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
     assert out.stdout.strip() == "[]"
@@ -129,7 +129,7 @@ def test_the_delta_e_map_shows_colour_differences_not_noise():
 
 def test_one_open_rig_serves_the_command_line_and_the_window(tmp_path):
     from hairdigi.hardware.cameras import CameraError
-    from hairdigi.app.rig_session import open_rig
+    from hairdigi.app.session.rig_session import open_rig
 
     with pytest.raises(CameraError, match="no camera at"):          # the command line: the error, as it is
         open_rig(tmp_path / "a", camera=str(tmp_path / "no-camera.mp4"))
@@ -196,7 +196,7 @@ def test_a_hairstyle_under_another_light_renders_spectrally_and_is_shown_adapted
 
 
 def test_the_window_says_a_records_colour_under_other_lights_and_its_spectral_interval():
-    from hairdigi.app.review import spectral_lines
+    from hairdigi.app.review.model import spectral_lines
     from hairdigi.render.domain.params import HairParams
     from hairdigi.render.domain.records import EstimateRecord, SpectralReading
 
@@ -216,8 +216,8 @@ def test_the_window_says_a_records_colour_under_other_lights_and_its_spectral_in
 
 def test_a_record_whose_refinement_has_no_residual_is_shown_not_crashed():
     """A record file may hold a refinement without its residual (an older or a hand-made one)."""
-    from hairdigi.app.review import Shown, Stage, parameter_view
-    from hairdigi.app.rig_cli import say_record
+    from hairdigi.app.review.model import Shown, Stage, parameter_view
+    from hairdigi.app.cli.rig import say_record
     from hairdigi.render.domain.params import HairParams
     from hairdigi.render.domain.records import EstimateRecord
 

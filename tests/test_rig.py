@@ -8,7 +8,7 @@ from hairdigi.render.judge import judge
 from hairdigi.render.srgb import linear_to_srgb8
 import pytest
 
-from hairdigi.app.rig_session import RigSession
+from hairdigi.app.session.rig_session import RigSession
 from hairdigi.hardware.cameras import FileCamera
 from hairdigi.hardware.exposure import check_region
 from hairdigi.hardware.sim_rig import SIM_SIZE, SimRig
@@ -242,7 +242,7 @@ def test_a_raw_still_of_the_rig_is_a_capture_calibrated_on_its_own_chart(tmp_pat
 
 
 def test_a_file_that_is_not_a_raw_still_is_refused_before_anything_is_written(tmp_path):
-    from hairdigi.app.rig_session import import_still
+    from hairdigi.app.session.rig_session import import_still
 
     png = tmp_path / "frame.png"
     png.write_bytes(b"not used")

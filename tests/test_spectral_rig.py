@@ -37,8 +37,8 @@ def test_the_response_curve_read_per_wavelength_is_a_spectral_render_without_the
 
 
 def test_a_spectral_rig_capture_is_read_in_the_camera_and_carries_to_tungsten(tmp_path):
-    from hairdigi.app.evaluate_spectral import SpectralSet, answers, _judge
-    from hairdigi.app.rig_session import RigSession
+    from hairdigi.app.evaluation.spectral import SpectralSet, answers, _judge
+    from hairdigi.app.session.rig_session import RigSession
 
     hidden = HairParams((230, 20, 30), 1.0, 0.08, 0.3)            # a saturated red: far from the chart's colours
     session = RigSession.simulated_rig(tmp_path / "session", hidden=hidden, spp=8,
@@ -126,7 +126,7 @@ def test_a_real_rigs_record_carries_metamerism_unless_the_rig_declares_its_spect
     leaves, or, with its LEDs and camera declared (``rig --led --sensor``), the reading in its RGB."""
     from media import write_video
 
-    from hairdigi.app.rig_session import RigSession
+    from hairdigi.app.session.rig_session import RigSession
     from hairdigi.hardware.cameras import OpenCVCamera
     from hairdigi.inference.spectral import SPECTRAL_TABLE, RigSpectra
     from hairdigi.inference.uncertainty import load_table

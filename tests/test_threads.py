@@ -47,7 +47,7 @@ def test_the_parser_loads_neither_mitsuba_nor_colour_science():
 
 
 def test_every_bench_is_in_the_registry_and_on_the_command_line(monkeypatch, capsys, tmp_path):
-    from hairdigi.app import bench
+    from hairdigi.app.evaluation import bench
     from hairdigi.app.cli import main
 
     assert {"render", "rig", "encoder", "refine", "dataset", "previews"} <= set(bench.BENCHES)

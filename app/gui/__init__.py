@@ -1,1 +1,1 @@
-"""The PySide6 desktop app: Qt widgets over the Qt-free session in app/rig_session.py."""
+"""The PySide6 desktop app: Qt widgets over the Qt-free session in app/session/rig_session.py."""

@@ -1,5 +1,5 @@
 """The Dye panel (a dock of the main window): characterise a dye from captures, preview it on any
-capture, show its shade card. A view of ``app/dye_model.py``'s :class:`DyeModel` (free of Qt), which
+capture, show its shade card. A view of ``app/dye/model.py``'s :class:`DyeModel` (free of Qt), which
 owns the state and the work: the panel runs the model's works in the window's worker pool and shows
 what the model's events carry; it reads no file and renders nothing on the UI thread."""
 from __future__ import annotations
@@ -11,8 +11,8 @@ from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (QComboBox, QDockWidget, QDoubleSpinBox, QFileDialog, QGroupBox, QHBoxLayout, QLabel,
                                QLineEdit, QListWidget, QPushButton, QVBoxLayout, QWidget)
 
-from hairdigi.app import dye_model
-from hairdigi.app.dye_model import DyeModel, DyeSettings
+from hairdigi.app.dye import model as dye_model
+from hairdigi.app.dye.model import DyeModel, DyeSettings
 from hairdigi.app.gui.images import to_pixmap
 from hairdigi.app.gui.workers import Jobs
 

@@ -1,7 +1,7 @@
 """The Library panel (a dock of the main window): search the swatch library, sort by colour, find near a
 colour, open a capture's review, and compare two swatches side by side with their ΔE2000.
 
-A view of ``app/library_model.py``'s :class:`LibraryModel` (free of Qt), which owns the query, the rows,
+A view of ``app/library/model.py``'s :class:`LibraryModel` (free of Qt), which owns the query, the rows,
 the chosen swatches and their images, and the work behind them: the panel runs the model's works in
 the window's worker pool and shows what the model's events carry; it queries nothing and reads no file
 on the UI thread. The search runs once typing pauses (``SEARCH_DELAY_MS``), and a newer query
@@ -15,13 +15,13 @@ from PySide6.QtGui import QColor
 from PySide6.QtWidgets import (QAbstractItemView, QComboBox, QDialog, QDockWidget, QFileDialog, QGridLayout, QHBoxLayout,
                                QLabel, QLineEdit, QPushButton, QTableWidget, QTableWidgetItem, QVBoxLayout, QWidget)
 
-from hairdigi.app import library_model
-from hairdigi.app import library_view as view
+from hairdigi.app.library import model as library_model
+from hairdigi.app.library import view
 from hairdigi.app.gui.images import to_pixmap
 from hairdigi.app.gui.workers import POOL, Jobs, Task, start
-from hairdigi.app.library import Library, Swatch
-from hairdigi.app.library_model import MAX_ROWS, LibraryModel
-from hairdigi.app.swatch_colour import ILLUMINANTS
+from hairdigi.app.library.store import Library, Swatch
+from hairdigi.app.library.model import MAX_ROWS, LibraryModel
+from hairdigi.app.library.swatch_colour import ILLUMINANTS
 
 COLUMNS = ("colour", "ΔE2000", "captured", "where", "tags", "note", "id")
 SORTS = {"newest first": "captured", "by colour (light to dark)": "colour"}
@@ -286,7 +286,7 @@ class LibraryPanel(QWidget):
 
 def _open_or_reason():
     """The library, or the one line why it cannot be opened (run in a worker: a lock or a server may take seconds)."""
-    from hairdigi.app.library import LibraryError, open_library
+    from hairdigi.app.library.store import LibraryError, open_library
 
     try:
         return open_library()

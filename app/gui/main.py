@@ -8,7 +8,7 @@ from pathlib import Path
 from PySide6.QtWidgets import QApplication, QDialog, QDialogButtonBox, QFormLayout, QLineEdit
 
 from hairdigi.app.gui.main_window import MainWindow, settings_store
-from hairdigi.app.rig_session import open_rig
+from hairdigi.app.session.rig_session import open_rig
 
 SETTING_DEFAULTS = {"camera": "0", "serial_port": "", "output_folder": str(Path.home() / "hairdigi-sessions" / "default"),
                     "hairstyle_size": 512}

@@ -1,7 +1,7 @@
 """The main window: rig panel, result panel, hairstyle panel and the session list.
 
 The window holds widgets and workers only. The review state and the work behind it are in
-app/review.py (``ReviewModel``, free of Qt): the window runs the model's works in its workers,
+app/review/model.py (``ReviewModel``, free of Qt): the window runs the model's works in its workers,
 hands what they yield and return back to ``model.apply`` on the UI thread, and redraws on the
 model's events, from the model's views (parameters, lights, feed rate, thumbnails).
 """
@@ -16,12 +16,12 @@ from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QFileDialog, 
                                QListWidget, QListWidgetItem, QMainWindow, QProgressBar, QPushButton, QSlider,
                                QSplitter, QVBoxLayout, QWidget)
 
-from hairdigi.app import previews, review
-from hairdigi.app import rig_session as rs
+from hairdigi.app.review import model as review, previews
+from hairdigi.app.session import rig_session as rs
 from hairdigi.app.gui.images import DELTA_E_MAX, colour_scale, delta_e_colours, overlay, to_pixmap
 from hairdigi.app.gui.workers import POOL, FrameFeed, Task, start
-from hairdigi.app.previews import Stage
-from hairdigi.app.review import HAIRSTYLE_LIGHTS
+from hairdigi.app.review.previews import Stage
+from hairdigi.app.review.model import HAIRSTYLE_LIGHTS
 from hairdigi.render.domain.params import VECTOR_FIELDS
 from hairdigi.render.scenes import ENVIRONMENTS
 from hairdigi.render.strands import HAIRSTYLES

@@ -4,7 +4,7 @@ Every error class hairdigi defines derives from :class:`HairdigiError` and, for 
 catches it by its builtin kind, keeps that builtin base too (``class RecordError(HairdigiError,
 ValueError)``). The command line prints a ``HairdigiError`` as one line and exits 2; a plain
 ``ValueError``, ``TypeError``, ``KeyError`` or ``RuntimeError`` is a bug and keeps its traceback
-(``hairdigi.app.validation.is_expected``).
+(``hairdigi.app.cli.validation.is_expected``).
 
 Raise a ``HairdigiError`` subclass where a user's input or environment (a file, an argument, a
 device, a missing program) can cause the failure; keep a builtin error where only a programming

@@ -3,8 +3,8 @@ import os, sys, time
 from pathlib import Path
 from PySide6.QtWidgets import QApplication
 from PySide6.QtCore import QTimer
-from hairdigi.app.library import Library
-from hairdigi.app.library_import import import_paths
+from hairdigi.app.library.store import Library
+from hairdigi.app.library.importing import import_paths
 
 out = Path(sys.argv[1])
 with Library() as lib:
@@ -13,7 +13,7 @@ with Library() as lib:
     lib.note("20260315-100200-000", "the copper we measured in March")
 app = QApplication(sys.argv[:1])
 from hairdigi.app.gui.main_window import MainWindow
-from hairdigi.app.rig_session import open_rig
+from hairdigi.app.session.rig_session import open_rig
 rig, reason = open_rig(Path("/tmp/shot/session"), True, "0", "", fallback=True)
 window = MainWindow(rig, {}, strand_view=False)
 window.show()

@@ -3,7 +3,7 @@ work behind them (reading the records, characterising, previews and shade cards)
 
 The science is ``inference/dye.py`` and ``inference/dye_card.py``. Widgets subscribe to the model's
 events (``model.events.preview.connect(callback)``) and run its works in their workers (see
-``app/panel_model.py``); nothing here reads a file, renders or fits on the caller's thread.
+``app/review/panel_model.py``); nothing here reads a file, renders or fits on the caller's thread.
 """
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.events import EventGroup
-from hairdigi.app.panel_model import PanelModel, Status
-from hairdigi.app.review import Work
+from hairdigi.app.review.events import EventGroup
+from hairdigi.app.review.panel_model import PanelModel, Status
+from hairdigi.app.review.model import Work
 from hairdigi.render.domain.dye_record import DyeRecord
 
 __all__ = ["DyeModel", "DyeSettings", "Events", "Listing", "Characterised", "CaptureCrop", "PreviewPass",

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.library import Library, LibraryError, SwatchRow
-from hairdigi.app.swatch_colour import swatch_labs
+from hairdigi.app.library.store import Library, LibraryError, SwatchRow
+from hairdigi.app.library.swatch_colour import swatch_labs
 from hairdigi.render.domain.files import read_json
 from hairdigi.render.domain.records import CaptureRecord, EstimateRecord, RecordError, record_sha256
 

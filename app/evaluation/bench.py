@@ -1,8 +1,8 @@
 """``hairdigi bench NAME``: the benchmarks, one registry (``BENCHES``: name -> function(args) -> exit code).
 
 Each entry prints its summary and writes its table and plot; the work itself lives with what it
-measures (``render.bench``, ``render.bench_previews``, ``inference.training.bench_*``, ``app.rig_cli``,
-``app.library_cli``, ``app.bench_memory``), imported when the benchmark runs, so the command line's
+measures (``render.bench``, ``render.bench_previews``, ``inference.training.bench_*``, ``app.cli.rig``,
+``app.cli.library``, ``app.evaluation.bench_memory``), imported when the benchmark runs, so the command line's
 parser loads none of them.
 """
 from __future__ import annotations
@@ -40,7 +40,7 @@ def bench_rig(args: argparse.Namespace) -> int:
     """Chart detection and ΔE2000 over simulated poses, noise and casts."""
     import numpy as np
 
-    from hairdigi.app.rig_cli import detection_sweep
+    from hairdigi.app.cli.rig import detection_sweep
 
     out = Path(args.out)
     rows = detection_sweep(out)
@@ -53,7 +53,7 @@ def bench_rig(args: argparse.Namespace) -> int:
 
 def bench_encoder(args: argparse.Namespace) -> int:
     """ONNX encoders side by side: latency and error on held-out swatches."""
-    from hairdigi.app.validation import ArgumentError
+    from hairdigi.app.cli.validation import ArgumentError
     from hairdigi.inference.training.report import bench_encoders
 
     if not args.models:
@@ -143,7 +143,7 @@ def previews_lines(out_dir: str | Path, quick: bool = False) -> list[str]:
     from hairdigi.render.domain.rig_geometry import swatch_roi
     from hairdigi.render.bench_previews import CLEAN_DE, cheapest_clean, run_previews_bench
 
-    from hairdigi.app.previews import PreviewSettings, twin_view
+    from hairdigi.app.review.previews import PreviewSettings, twin_view
 
     s = PreviewSettings()
     roi = swatch_roi(SIM_SIZE)
@@ -271,13 +271,13 @@ BENCHES: dict[str, Bench] = {
     "layouts": bench_layouts,                                               # check renders over strand layouts
     "dataset": bench_dataset,
     "previews": bench_previews,
-    "library": _elsewhere("hairdigi.app.library_cli", "bench_library"),    # issue 20: find in a library of --n swatches
-    "memory": _elsewhere("hairdigi.app.bench_memory", "bench_memory"),     # issue 22: peak memory of the largest inputs
+    "library": _elsewhere("hairdigi.app.cli.library", "bench_library"),    # issue 20: find in a library of --n swatches
+    "memory": _elsewhere("hairdigi.app.evaluation.bench_memory", "bench_memory"),     # issue 22: peak memory of the largest inputs
     "shine": bench_shine,                                                   # issue 18: shine from the three lights
     "spread": bench_spread,                                                 # issue 18: can the lights read a spread?
     "fibres": bench_fibres,                                                 # issue 18: how many fibre groups
     "family": bench_family,                                                 # issue 28: the family of swatch structures
     "structure": bench_structure,                                           # issue 18: the swatch's fibre structure
     "spectral": bench_spectral,                                             # the RGB fast path against spectral renders
-    "genicam": _elsewhere("hairdigi.app.bench_genicam", "bench_genicam"),   # issue 32: frame rate, capture latency
+    "genicam": _elsewhere("hairdigi.app.evaluation.bench_genicam", "bench_genicam"),   # issue 32: frame rate, capture latency
 }

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.rig_session import RigSession
+from hairdigi.app.session.rig_session import RigSession
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
 
 
@@ -23,7 +23,7 @@ def check_dead_lights(dead) -> set[int]:
 
 def open_session(args) -> RigSession:
     """The simulated rig with ``--sim``, else the camera and the light board (``--port``, or found)."""
-    from hairdigi.app.rig_session import open_rig
+    from hairdigi.app.session.rig_session import open_rig
 
     simulated = {}
     if args.sim:
@@ -109,7 +109,7 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
         say_record(result.record, say)
         hidden = getattr(session.camera, "hidden", None)
         if hidden is not None and getattr(session.camera, "illuminant", None) is not None:
-            from hairdigi.app.evaluate_spectral import LIGHTS, judge_record
+            from hairdigi.app.evaluation.spectral import LIGHTS, judge_record
 
             where = judge_record(hidden, result.record, session.profile, session.camera.illuminant,
                                  session.camera.sensitivities)
@@ -129,7 +129,7 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
 
             look = session.camera.appearance
             if result.record.appearance is not None:
-                from hairdigi.app.evaluate_appearance import judge_everywhere
+                from hairdigi.app.evaluation.appearance import judge_everywhere
 
                 read = result.record.appearance.value
                 say(f"hidden appearance: shine {look.longitudinal_roughness:.2f}, fibre spread {look.fibre_spread:.2f}, "
@@ -185,7 +185,7 @@ def say_record(record, say=print) -> None:
 
 def report_still(session_folder: str | Path, still: str | Path, say=print) -> int:
     """``hairdigi rig --still``: import a RAW still into the session, estimate it, and say what came out."""
-    from hairdigi.app.rig_session import import_still
+    from hairdigi.app.session.rig_session import import_still
     from hairdigi.inference.encoder import Encoder, ModelError
 
     def encoder():

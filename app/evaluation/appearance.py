@@ -97,7 +97,7 @@ def judge_everywhere(truth: tuple, estimate: tuple, view) -> dict:
 
 
 def _one(name: str, hidden: HairParams, look: Appearance, layout: int, folder: Path, spp: int, encoder) -> list[dict]:
-    from hairdigi.app.rig_session import RigSession
+    from hairdigi.app.session.rig_session import RigSession
 
     session = RigSession.simulated_rig(folder, hidden=hidden, spp=spp, encoder=encoder, appearance=look,
                                        strand_seed=layout)

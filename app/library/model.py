@@ -2,8 +2,8 @@
 swatches it found, the chosen ones compared, their captured images, and the work behind them
 (library queries, image reads, imports and exports).
 
-The library is ``app/library.py``; what a row shows is ``app/library_view.py``. Widgets subscribe to
-the model's events and run its works in their workers (see ``app/panel_model.py``): nothing here
+The library is ``app/library/store.py``; what a row shows is ``app/library/view.py``. Widgets subscribe to
+the model's events and run its works in their workers (see ``app/review/panel_model.py``): nothing here
 queries the library or reads a file on the caller's thread. The works share the panel's one
 connection, one at a time (a lock); imports open their own. A newer query supersedes an older one:
 its result is dropped when it comes back (a stale result never overwrites a newer one).
@@ -18,12 +18,12 @@ from typing import Iterator
 
 import numpy as np
 
-from hairdigi.app import library_view as view
-from hairdigi.app.events import EventGroup
-from hairdigi.app.library import Library, Swatch, redact
-from hairdigi.app.panel_model import PanelModel, Status
-from hairdigi.app.review import Work
-from hairdigi.app.swatch_colour import ILLUMINANTS, hex_lab
+from hairdigi.app.library import view
+from hairdigi.app.review.events import EventGroup
+from hairdigi.app.library.store import Library, Swatch, redact
+from hairdigi.app.review.panel_model import PanelModel, Status
+from hairdigi.app.review.model import Work
+from hairdigi.app.library.swatch_colour import ILLUMINANTS, hex_lab
 
 __all__ = ["LibraryModel", "Query", "Rows", "Selection", "SwatchImage", "Imported", "Exported", "Events",
            "ORDERS", "MAX_ROWS", "NEAR_K"]
@@ -229,7 +229,7 @@ class LibraryModel(PanelModel):
         where, folders = self.where, [str(f) for f in folders]
 
         def run():
-            from hairdigi.app.library_import import import_paths
+            from hairdigi.app.library.importing import import_paths
 
             with Library(where) as lib:
                 return Imported(f"imported {', '.join(folders)}", import_paths(lib, folders, progress=lambda line: None))
@@ -241,7 +241,7 @@ class LibraryModel(PanelModel):
         where = self.where
 
         def run():
-            from hairdigi.app.library_import import first_run
+            from hairdigi.app.library.importing import first_run
 
             with Library(where) as lib:
                 return Imported("sessions written before the library imported", first_run(lib, progress=lambda line: None))
@@ -261,7 +261,7 @@ class LibraryModel(PanelModel):
         record, name, path = swatch.record_path, swatch.capture_id or swatch.id, str(path)
 
         def run():
-            from hairdigi.app.export_cli import export_record
+            from hairdigi.app.cli.export import export_record
 
             try:
                 return Exported(tuple(Path(p) for p in export_record(record, fmt, path, name=name)))

@@ -54,7 +54,7 @@ def hidden_hairs(config: SpectralSet = SpectralSet()) -> list[tuple[str, HairPar
     """The hidden hairs: Table 1 hard cases, and absorption spectra of banded dyes on blonde; held out
     (``config.seed``), ``config.random`` hairs drawn in turn: a Table 1 hair, a natural one (melanins
     alone), and a band dye (centre 430-660 nm) on a natural base."""
-    from hairdigi.app.evaluate_rig import HARD_CASES
+    from hairdigi.app.evaluation.rig import HARD_CASES
     from hairdigi.render.domain.params import sample_params
     from hairdigi.render.spectra import band_dye, hair_sigma_a_spectrum
 
@@ -154,7 +154,7 @@ def evaluate_spectral(out_dir: str | os.PathLike, config: SpectralSet = Spectral
     """Capture every hidden hair in every world, estimate, refit, judge; write the table and plot."""
     from tqdm import tqdm
 
-    from hairdigi.app.rig_session import RigSession
+    from hairdigi.app.session.rig_session import RigSession
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.refine import RefineSettings, response_curve
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE

@@ -35,9 +35,9 @@ from typing import Callable, Generator
 
 import numpy as np
 
-from hairdigi.app import rig_session as rs
-from hairdigi.app.events import EventGroup
-from hairdigi.app.previews import (HairstylePass, PassTag, PreviewSettings, Stage, TwinPreview, hair_colour_rgb8,
+from hairdigi.app.session import rig_session as rs
+from hairdigi.app.review.events import EventGroup
+from hairdigi.app.review.previews import (HairstylePass, PassTag, PreviewSettings, Stage, TwinPreview, hair_colour_rgb8,
                                    hairstyle_passes, orbit_pose, scalp_linear, scene_appearance, strand_colour,
                                    twin_passes, twin_view)
 from hairdigi.render import denoise as dn

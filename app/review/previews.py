@@ -158,7 +158,7 @@ def twin_view(roi: tuple[int, int, int, int], frame_size: tuple[int, int], simul
     """The twin's scene and size: the rig camera over exactly the ROI (simulated geometry), or a crop;
     ``scale`` < 1 renders the same view with fewer pixels. The hair has the estimate's ``appearance``
     (shine, fibre spread, greys; None: the default), lit by ``light`` alone (None: all lights)."""
-    from hairdigi.app import rig_session as rs
+    from hairdigi.app.session import rig_session as rs
 
     if simulated:
         spec, size = rs.twin_spec(roi, frame_size, scale)

@@ -18,7 +18,7 @@ CAST, SPP = (1.1, 1.0, 0.9), 32
 
 def rig_capture(folder: str | os.PathLike, encoder, cast=CAST, spp: int = SPP):
     """A capture function for ``evaluate_dye``: the hidden hair under the simulated rig, captured."""
-    from hairdigi.app.rig_session import RigSession
+    from hairdigi.app.session.rig_session import RigSession
     from hairdigi.render.camera_model import CameraModel
 
     folder = Path(folder)

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from hairdigi.app.rig_cli import run_chain
-from hairdigi.app.rig_session import RigSession
+from hairdigi.app.cli.rig import run_chain
+from hairdigi.app.session.rig_session import RigSession
 from hairdigi.render.io.images import save_png
 from hairdigi.render.renderer import SceneSpec, render
 

@@ -96,7 +96,7 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
     """Capture every hidden swatch through the simulated rig, estimate, judge; write the table and plot."""
     from tqdm import tqdm
 
-    from hairdigi.app.rig_session import RigSession
+    from hairdigi.app.session.rig_session import RigSession
     from hairdigi.hardware.sim_still import write_raw_still
     from hairdigi.inference.encoder import Encoder
     from hairdigi.render.camera_model import CameraModel

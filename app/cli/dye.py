@@ -7,7 +7,7 @@ import json
 import sys
 from pathlib import Path
 
-from hairdigi.app import validation as v
+from hairdigi.app.cli import validation as v
 
 HAIRSTYLE_SIZE, HAIRSTYLE_SPP = 384, 16
 MAX_NAME = 200
@@ -208,13 +208,13 @@ def _card(args: argparse.Namespace) -> int:
 
 def cmd_evaluate_dye(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --dye [--rig]``: the dye held-out protocol (``inference/training/evaluate_dye.py``),
-    on clean renders or (``--rig``) on simulated-rig captures (``app/dye_eval_rig.py``)."""
+    on clean renders or (``--rig``) on simulated-rig captures (``app/evaluation/dye_rig.py``)."""
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.training.evaluate_dye import DyeEvalConfig, evaluate_dye
 
     config = DyeEvalConfig(dyes=args.n if args.n != 300 else DyeEvalConfig.dyes, size=args.size, spp=args.spp)
     if getattr(args, "rig", False):        # --dye --rig: the captures are the simulated rig's
-        from hairdigi.app.dye_eval_rig import evaluate_dye_rig
+        from hairdigi.app.evaluation.dye_rig import evaluate_dye_rig
 
         summary = evaluate_dye_rig(Encoder(args.model), args.out, config)
     else:

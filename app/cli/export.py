@@ -24,7 +24,7 @@ def export_record(record: str | Path, fmt: str, out: str | Path, blend: str | Pa
     if fmt not in FORMATS:
         raise ValueError(f"unknown export format {fmt!r}; choose one of {', '.join(FORMATS)}")
     if blend and fmt != "blender":
-        from hairdigi.app.validation import ArgumentError
+        from hairdigi.app.cli.validation import ArgumentError
 
         raise ArgumentError("--blend goes with --format blender")
     look = load_look(record, name)
@@ -39,7 +39,7 @@ def export_record(record: str | Path, fmt: str, out: str | Path, blend: str | Pa
 def check_export_look(args: argparse.Namespace) -> str:
     """The record is a readable file; the outputs have their format's extension and are none of the inputs
     nor a session's, library's or the package's files (checked before anything is written). The output."""
-    from hairdigi.app import validation as v
+    from hairdigi.app.cli import validation as v
 
     v.check_input_file(args.record, "record")
     out = args.out or str(Path(args.record).with_suffix("").with_suffix(SUFFIXES[args.format]))

@@ -22,7 +22,7 @@ from typing import Iterator
 
 import numpy as np
 
-from hairdigi.app.swatch_colour import ILLUMINANTS, delta_e
+from hairdigi.app.library.swatch_colour import ILLUMINANTS, delta_e
 from hairdigi.render.domain.errors import HairdigiError
 
 KINDS = ("capture", "estimate", "dye")   # dye: predictions of issue "Hair-dye development", same layout

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app import validation as v
-from hairdigi.app.library import Library, LibraryError, Swatch, open_library, redact
-from hairdigi.app.swatch_colour import ILLUMINANTS, hex_lab, lab_hex
+from hairdigi.app.cli import validation as v
+from hairdigi.app.library.store import Library, LibraryError, Swatch, open_library, redact
+from hairdigi.app.library.swatch_colour import ILLUMINANTS, hex_lab, lab_hex
 
 EXPORT_COLUMNS = ("id", "kind", "session", "capture_id", "captured", "imported", "reliable", "tags", "note",
                   "sigma_r", "sigma_g", "sigma_b", "daylight_L", "daylight_a", "daylight_b", "daylight_hex",
@@ -23,7 +23,7 @@ EXPORT_COLUMNS = ("id", "kind", "session", "capture_id", "captured", "imported",
 
 def _open(progress=None) -> Library:
     """The library, with sessions written before it imported on its first open."""
-    from hairdigi.app.library_import import first_run
+    from hairdigi.app.library.importing import first_run
 
     library = open_library()
     first_run(library, progress or (lambda line: print(line, file=sys.stderr)))
@@ -49,7 +49,7 @@ def query_lab(near: str, under: str) -> np.ndarray:
     if text.startswith("#") or (len(text) == 6 and all(c in "0123456789abcdefABCDEF" for c in text)
                                 and not Path(text).exists()):
         return hex_lab(text)
-    from hairdigi.app.library_import import record_row
+    from hairdigi.app.library.importing import record_row
 
     row = record_row(text)
     if not row.labs:
@@ -115,8 +115,8 @@ def _xlsx_cell(value, row: dict, column: str):
 
 def check_export_paths(csv_path: str | None, xlsx_path: str | None, library_where: str | None = None) -> None:
     """Both outputs have their extension, differ, and are none of the library's, a session's or the package's files."""
-    from hairdigi.app import validation as v
-    from hairdigi.app.library import is_url
+    from hairdigi.app.cli import validation as v
+    from hairdigi.app.library.store import is_url
 
     inputs = {"library": library_where} if library_where and not is_url(library_where) else {}
     v.check_distinct({"--csv": csv_path, "--xlsx": xlsx_path})
@@ -158,7 +158,7 @@ def write_export(library: Library, csv_path: str | None = None, xlsx_path: str |
 
 # --- commands --------------------------------------------------------------------------------------
 def cmd_library(args: argparse.Namespace) -> int:
-    from hairdigi.app.library import location
+    from hairdigi.app.library.store import location
 
     if args.library_command == "export":   # the outputs are checked before the library is opened
         if not args.csv and not args.xlsx:
@@ -169,7 +169,7 @@ def cmd_library(args: argparse.Namespace) -> int:
 
 
 def _import(library: Library, args) -> int:
-    from hairdigi.app.library_import import import_paths
+    from hairdigi.app.library.importing import import_paths
 
     n = import_paths(library, args.paths, progress=lambda line: print(line, flush=True))
     print(f"imported {n} swatches; the library at {redact(library.where)} holds {library.count()}")
@@ -228,7 +228,7 @@ def add_parser(sub) -> None:
     q = lib.add_parser("find", help="the swatches nearest a colour, by mean-colour ΔE2000, one a line")
     q.add_argument("--near", required=True, help="an estimate record (JSON) or #RRGGBB")
     q.add_argument("--under", choices=ILLUMINANTS, default="daylight",
-                   help="the light the colours are compared under (approximations; see app/swatch_colour.py)")
+                   help="the light the colours are compared under (approximations; see app/library/swatch_colour.py)")
     q.add_argument("--k", type=v.int_in(1, MAX_K), default=10, help=f"how many matches (1 to {MAX_K}; default 10)")
     q = lib.add_parser("tag", help="tag a swatch (its id or a unique start of it, or its capture id)")
     q.add_argument("swatch")
@@ -247,8 +247,8 @@ def add_parser(sub) -> None:
 # --- benchmark -------------------------------------------------------------------------------------
 def synthetic_rows(n: int, seed: int = 0) -> list:
     """``n`` swatches of uniformly drawn Table 1 parameters, coloured as an import colours them."""
-    from hairdigi.app.library import SwatchRow
-    from hairdigi.app.library_import import _with_colours
+    from hairdigi.app.library.store import SwatchRow
+    from hairdigi.app.library.importing import _with_colours
     from hairdigi.render.domain.absorption import hair_sigma_a
     from hairdigi.render.domain.params import HairParams
 

@@ -14,7 +14,7 @@ from hairdigi.render.domain.version import version
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # torch's OpenMP spinning starves a 2-core CPU
 
 
-def _interrupted_at_start(signum, frame) -> None:
+def interrupted_at_start(signum, frame) -> None:
     """Ctrl-C before ``main`` takes over (the program is still importing): one line, exit 130."""
     try:
         prog = _prog(sys.argv[1:])
@@ -24,10 +24,10 @@ def _interrupted_at_start(signum, frame) -> None:
     os._exit(130)
 
 
-if __name__ == "__main__" or Path((sys.argv or [""])[0]).name == "hairdigi":   # a program, not a library import
+if Path((sys.argv or [""])[0]).name == "hairdigi":   # a program, not a library import (-m: __main__.py)
     import signal
 
-    signal.signal(signal.SIGINT, _interrupted_at_start)
+    signal.signal(signal.SIGINT, interrupted_at_start)
 
 
 class CliError(HairdigiError):
@@ -90,7 +90,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from hairdigi.app.demo import run_demo
+    from hairdigi.app.cli.demo import run_demo
 
     run_demo(Path(args.out), quick=args.quick)
     return 0
@@ -173,7 +173,7 @@ def cmd_estimate(args: argparse.Namespace) -> int:
     print(f"dye rgb {tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
           f"{p.melanin_concentration:.2f} (ratio {p.melanin_ratio:.2f}); {how}; wrote {args.out}")
     if record.appearance is not None:
-        from hairdigi.app.rig_cli import appearance_lines
+        from hairdigi.app.cli.rig import appearance_lines
 
         print("appearance: " + "; ".join(appearance_lines(record.appearance)))
     for warning in estimate.warnings:
@@ -190,7 +190,7 @@ def cmd_estimate(args: argparse.Namespace) -> int:
 
 def evaluate_rig_command(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --rig``: the chain against the truth; prints the figures, writes table and plot."""
-    from hairdigi.app.evaluate_rig import RigSet, evaluate_rig
+    from hairdigi.app.evaluation.rig import RigSet, evaluate_rig
 
     s = evaluate_rig(args.out, RigSet(random=args.rig_random))
     r, e = s["refined"], s["encoder_alone"]
@@ -226,7 +226,7 @@ def _ship(path: Path, table: dict, what: str) -> None:
 
 def evaluate_appearance_command(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --appearance``: shine and fibre variation judged away from the rig."""
-    from hairdigi.app.evaluate_appearance import AppearanceSet, evaluate_appearance
+    from hairdigi.app.evaluation.appearance import AppearanceSet, evaluate_appearance
 
     s = evaluate_appearance(args.out, AppearanceSet(random=args.rig_random, variation=not args.no_variation))
     for mode in ("read", "no light frames"):
@@ -347,7 +347,7 @@ def evaluate_structures_command(args: argparse.Namespace) -> int:
 
 def evaluate_spectral_command(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --spectral``: hidden spectral hairs through a spectral rig, judged under three lights."""
-    from hairdigi.app.evaluate_spectral import ANSWERS, LIGHTS, VIEWS, SpectralSet, evaluate_spectral
+    from hairdigi.app.evaluation.spectral import ANSWERS, LIGHTS, VIEWS, SpectralSet, evaluate_spectral
 
     config = SpectralSet() if args.held_out is None else SpectralSet(seed=args.held_out, random=args.rig_random)
     s = evaluate_spectral(args.out, config)
@@ -378,7 +378,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
     _use_variant(args.variant)   # the held-out set's worker processes are given the same one
     if args.dye:
-        from hairdigi.app.dye_cli import cmd_evaluate_dye
+        from hairdigi.app.cli.dye import cmd_evaluate_dye
         return cmd_evaluate_dye(args)
     if args.rig:
         return evaluate_rig_command(args)
@@ -434,7 +434,7 @@ def cmd_rig(args: argparse.Namespace) -> int:
         boards = discover()
         print("light boards: " + (", ".join(f"{p} ({ident})" for p, ident in boards) or "none answered ID?"))
         return 0
-    from hairdigi.app.rig_cli import open_session, report_still, run_chain
+    from hairdigi.app.cli.rig import open_session, report_still, run_chain
 
     if args.still:
         return report_still(args.session, args.still)
@@ -478,7 +478,7 @@ def cmd_model_card(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from hairdigi.app.bench import BENCHES
+    from hairdigi.app.evaluation.bench import BENCHES
 
     return BENCHES[args.what](args)
 
@@ -491,7 +491,7 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from hairdigi.app import validation as v
+    from hairdigi.app.cli import validation as v
     from hairdigi.render.domain.bounds import (ENVIRONMENTS, MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH,
                                              MIN_SIZE, SCENE_NAMES)
     from hairdigi.render.domain.bounds import ILLUMINANTS as ILLUMINANT_NAMES
@@ -706,7 +706,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tour", help="calibrate and capture once, time it, save a screenshot in this folder, quit")
     p.set_defaults(func=cmd_app)
 
-    from hairdigi.app.dye_cli import add_dye_parser
+    from hairdigi.app.cli.dye import add_dye_parser
     add_dye_parser(sub)
 
     p = sub.add_parser("model-card", help="write the model card from a run and its evaluation")
@@ -721,7 +721,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="resources/models/encoder.md")
     p.set_defaults(func=cmd_model_card)
 
-    from hairdigi.app.bench import BENCH_OUT, BENCHES
+    from hairdigi.app.evaluation.bench import BENCH_OUT, BENCHES
 
     p = sub.add_parser("bench", help="speed against error tables and plots")
     p.add_argument("what", choices=tuple(BENCHES))
@@ -734,9 +734,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quick", action="store_true", help="a tiny sweep, for tests")
     p.set_defaults(func=cmd_bench)
 
-    from hairdigi.app import export_cli, library_cli   # issue 20: export, library
-    export_cli.add_parser(sub)
-    library_cli.add_parser(sub)
+    from hairdigi.app.cli import export, library
+    export.add_parser(sub)
+    library.add_parser(sub)
     return parser
 
 
@@ -748,7 +748,7 @@ def _prog(argv: list[str]) -> str:
 
 def _error_line(exc: BaseException) -> str:
     """What went wrong, on one line, for an expected failure."""
-    from hairdigi.app.validation import describe_os_error, one_line
+    from hairdigi.app.cli.validation import describe_os_error, one_line
 
     if isinstance(exc, MemoryError):
         return "not enough memory for this job; lower --size, --spp or the image size, or close other programs"
@@ -790,7 +790,7 @@ def main(argv: list[str] | None = None) -> int:
 
     # Run as a program, Ctrl-C while starting (native libraries load) ends at once, with one line;
     # once the command runs it raises KeyboardInterrupt, so that files and devices are closed.
-    program = signal.getsignal(signal.SIGINT) is _interrupted_at_start
+    program = signal.getsignal(signal.SIGINT) is interrupted_at_start
     start_up()   # the process's thread budget, before numpy's BLAS loads (render.domain.threads)
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv == ["--version"]:   # answered before build_parser loads Mitsuba, so it is instant
@@ -801,7 +801,7 @@ def main(argv: list[str] | None = None) -> int:
     prog = _prog(argv)
     try:
         args = build_parser().parse_args(argv)
-        from hairdigi.app.validation import check_args
+        from hairdigi.app.cli.validation import check_args
 
         if getattr(args, "model", "unset") is None:
             from hairdigi.inference.encoder import DEFAULT_MODEL
@@ -818,7 +818,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:
-        from hairdigi.app.validation import is_expected
+        from hairdigi.app.cli.validation import is_expected
 
         if _caused_by_interrupt(exc):   # native code (Mitsuba, drjit) wraps a Ctrl-C in its own error
             print(f"{prog}: interrupted", file=sys.stderr)
@@ -839,6 +839,3 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{prog}: error: {_error_line(exc)}", file=sys.stderr)
         return 2
 
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -93,7 +93,7 @@ def _gv_case(n: int) -> dict | None:
 
 def run_genicam_bench(out: Path, quick: bool = False) -> list[dict]:
     """Every case's frame rate and latency; writes ``genicam_bench.csv``, ``.json`` and ``.png``."""
-    from hairdigi.app.rig_session import RigSession
+    from hairdigi.app.session.rig_session import RigSession
     from hairdigi.hardware.genicam import FAKE_ID, GenICamCamera, GenICamSettings
     from hairdigi.render.domain.files import write_json_atomic
     from hairdigi.render.io.figures import save_table

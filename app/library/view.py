@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.library import Swatch
-from hairdigi.app.swatch_colour import ILLUMINANTS, delta_e, lab_hex
+from hairdigi.app.library.store import Swatch
+from hairdigi.app.library.swatch_colour import ILLUMINANTS, delta_e, lab_hex
 
 
 def chip_hex(swatch: Swatch, under: str = "daylight") -> str | None:

@@ -1,0 +1,1 @@
+"""Hair-dye development in the app: the Dye panel's model."""

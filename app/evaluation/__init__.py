@@ -1,0 +1,1 @@
+"""Evaluations of the whole chain against a hidden truth, and the benchmarks."""
