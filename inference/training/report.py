@@ -94,13 +94,24 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
     A hand-written ``<card>-notes.md`` beside the card (how to read the figures, known limits) is
     appended to it, so regenerating the card keeps them.
     """
+    history = json.loads((Path(run_dir) / "history.json").read_text())
+    card = _card_json(onnx_path, history, evaluation, variants, convergence, refine_bench, rig_set)
+    out_path = Path(out_path)
+    write_json_atomic(out_path.with_suffix(".json"), card)
+    lines = [*_model_lines(card, history), *_evaluation_lines(evaluation),
+             *_bench_lines(convergence, refine_bench, rig_set, variants)]
+    notes = out_path.with_name(f"{out_path.stem}-notes.md")
+    if notes.exists():
+        lines += ["", notes.read_text().rstrip()]
+    return write_text_atomic(out_path, "\n".join(lines) + "\n")
+
+
+def _card_json(onnx_path, history: dict, evaluation: dict, variants, convergence, refine_bench, rig_set) -> dict:
+    """The card's JSON twin: the model, how it was trained and on what, and every measurement."""
     from hairdigi.inference.encoder import sha256_file
 
-    history = json.loads((Path(run_dir) / "history.json").read_text())
-    datasets = history.get("datasets") or [history["dataset"]]
     last = history["epochs"][-1]
-    a = evaluation["buckets"]["all"]
-    card = {
+    return {
         "model": Path(onnx_path).name, "sha256": sha256_file(onnx_path), "date": time.strftime("%Y-%m-%d"),
         "hairdigi_version": version(),
         "architecture": {**history["encoder"], "parameters": history["parameters"],
@@ -108,28 +119,38 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
                                         "average pooling, MLP 64, sigmoid over 6 normalised parameters"},
         "training": {**history["train"], "epochs_run": last["epoch"], "final_val_mse": last["val_mse"],
                      "seconds": sum(e["seconds"] for e in history["epochs"])},
-        "datasets": datasets,
+        "datasets": _datasets(history),
         "preprocessing": "8-bit sRGB; swatch area found or given; central square (whole image for all-hair "
                          "crops, 70% of the area for rig frames); area-resize to the input size in linear "
                          "light; sRGB encoded, minus 0.5; 8 flips/quarter turns averaged at inference",
         "evaluation": evaluation, "variants": variants or [], "convergence": convergence or [],
         "refine_bench": refine_bench or [], "simulated_rig": rig_set or {},
     }
-    out_path = Path(out_path)
-    write_json_atomic(out_path.with_suffix(".json"), card)
 
-    def de(who: str, bucket: dict = a) -> str:
-        key = f"{who}_mean_colour_de2000"
-        if key not in bucket:
-            return "n/a"
-        d = bucket[key]
-        return f"{d['median']:.2f} / {d['p95']:.2f} / {d['max']:.2f}"
 
-    def mean(key: str) -> str:
-        return f"{a[key]['mean']:.3f}" if key in a else "n/a"
+def _datasets(history: dict) -> list[dict]:
+    """The datasets a run trained on (older runs name one)."""
+    return history.get("datasets") or [history["dataset"]]
 
-    judge = evaluation["judge"]
-    lines = [
+
+def _de(who: str, bucket: dict) -> str:
+    """A bucket's mean-colour ΔE2000 of ``who`` (encoder, refined, floor): median / p95 / worst."""
+    key = f"{who}_mean_colour_de2000"
+    if key not in bucket:
+        return "n/a"
+    d = bucket[key]
+    return f"{d['median']:.2f} / {d['p95']:.2f} / {d['max']:.2f}"
+
+
+def _mean(bucket: dict, key: str) -> str:
+    return f"{bucket[key]['mean']:.3f}" if key in bucket else "n/a"
+
+
+def _model_lines(card: dict, history: dict) -> list[str]:
+    """The card's head: the model, its architecture, training, datasets and preprocessing."""
+    datasets = _datasets(history)
+    last = history["epochs"][-1]
+    return [
         f"# Model card: {card['model']}", "",
         f"- sha256 `{card['sha256']}`, made {card['date']}",
         f"- hairdigi version {card['hairdigi_version']}",
@@ -155,20 +176,29 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
         f"crop framing (all hair), linear float16 radiance. {sum(ds['n_loaded'] for ds in datasets)} swatches "
         f"loaded; {100 * history['train']['val_fraction']:.0f}% held for validation.",
         f"- Preprocessing: {card['preprocessing']}.", "",
+    ]
+
+
+def _evaluation_lines(evaluation: dict) -> list[str]:
+    """The clean held-out evaluation: ΔE2000 and the paper's metrics, latency, hard cases, errors, intervals."""
+    a = evaluation["buckets"]["all"]
+    judge = evaluation["judge"]
+    lines = [
         f"## Evaluation on clean inputs (`hairdigi evaluate`, {evaluation['n']} held-out swatches, seed "
         f"{evaluation['seed']}, {evaluation['size']}² at {evaluation['spp']} spp, through the camera model)", "",
         "Each estimate and the truth are rendered with the swatch's camera and strand layout and one common new "
         f"sampler seed ({judge['size']}² at {judge['spp']} spp); the mean-colour ΔE2000 compares the two. The "
         "floor compares the input itself with the truth's render: what render noise and the camera leave.", "",
         "| mean-colour ΔE2000 | median / p95 / worst |", "|---|---|",
-        f"| encoder alone | {de('encoder')} |",
-        f"| encoder + refinement by synthesis | {de('refined')} |",
-        f"| floor (input vs truth render) | {de('floor')} |", "",
+        f"| encoder alone | {_de('encoder', a)} |",
+        f"| encoder + refinement by synthesis | {_de('refined', a)} |",
+        f"| floor (input vs truth render) | {_de('floor', a)} |", "",
         "| paper's metrics (judge render vs input) | encoder | refined | truth (floor) | paper (Table 2) |",
         "|---|---|---|---|---|",
-        f"| L1 (0–255) | {mean('encoder_l1')} | {mean('refined_l1')} | {mean('floor_l1')} | 7.08 ± 11.79 |",
-        f"| MS-SSIM (3 scales at 64²) | {mean('encoder_ms_ssim3')} | {mean('refined_ms_ssim3')} | "
-        f"{mean('floor_ms_ssim3')} | 0.20 ± 0.04 (as printed) |",
+        f"| L1 (0–255) | {_mean(a, 'encoder_l1')} | {_mean(a, 'refined_l1')} | {_mean(a, 'floor_l1')} | "
+        "7.08 ± 11.79 |",
+        f"| MS-SSIM (3 scales at 64²) | {_mean(a, 'encoder_ms_ssim3')} | {_mean(a, 'refined_ms_ssim3')} | "
+        f"{_mean(a, 'floor_ms_ssim3')} | 0.20 ± 0.04 (as printed) |",
         "| LPIPS | not computed: no package here ships the pretrained AlexNet/VGG weights | | | 0.12 ± 0.19 |", "",
         f"Encoder latency: {evaluation['latency_ms_median_1_thread']:.3f} ms median (ONNX, 1 thread, one view). "
         + (f"Refinement: {a['refine_s']['median']:.2f} s median once the pose's response curve is cached; "
@@ -178,7 +208,7 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
         "Hard cases, mean-colour ΔE2000 median / p95 / worst (encoder; refined):", "",
     ]
     for name, b in evaluation["buckets"].items():
-        lines.append(f"- {name} ({b['count']}): {de('encoder', b)}; {de('refined', b)}")
+        lines.append(f"- {name} ({b['count']}): {_de('encoder', b)}; {_de('refined', b)}")
     who = "refined" if "refined_abs_err" in a else "encoder"
     lines += ["", f"Mean absolute error per parameter ({who}): " + ", ".join(
         f"{k} {v:.3f}" for k, v in a[f"{who}_abs_err"].items()) + "."]
@@ -188,6 +218,12 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
     if "heldout_flagged_out_of_domain" in evaluation:
         lines += ["", f"Out-of-domain checks on the clean held-out set: {evaluation['heldout_flagged_out_of_domain']} "
                   f"of {evaluation['n']} flagged (false alarms)."]
+    return lines
+
+
+def _bench_lines(convergence, refine_bench, rig_set, variants) -> list[str]:
+    """The sections of the other measurements given: convergence, refinement, the simulated rig, variants."""
+    lines: list[str] = []
     if convergence:
         lines += ["", f"## By input convergence (`hairdigi evaluate --convergence`, first "
                   f"{int(convergence[0]['swatches'])} swatches)", "",
@@ -206,10 +242,7 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
                   "| model | input | parameters | latency ms | ΔE2000 median / p95 |", "|---|---|---|---|---|"]
         lines += [f"| {v['model']} | {int(v['input_size'])}² | {int(v['parameters']):,} | {v['latency_ms']:.3f} | "
                   f"{v['mean_colour_de2000_median']:.2f} / {v['mean_colour_de2000_p95']:.2f} |" for v in variants]
-    notes = out_path.with_name(f"{out_path.stem}-notes.md")
-    if notes.exists():
-        lines += ["", notes.read_text().rstrip()]
-    return write_text_atomic(out_path, "\n".join(lines) + "\n")
+    return lines
 
 
 def chain_section(summary: dict) -> list[str]:
