@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,8 +38,9 @@ def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int
                         cache: bool = True, pose: rig_geometry.CameraPose = rig_geometry.CameraPose(),
                         half_width: float = rig_geometry.RIG_HALF_WIDTH,
                         appearance: Appearance = DEFAULT_APPEARANCE, illuminant: str | None = None,
-                        sensitivities: str | None = None) -> np.ndarray:
-    """(3, H, W, 3) linear images of the rig lit by each light alone, seen by a camera at ``pose``
+                        sensitivities: str | None = None) -> tuple[np.ndarray, int]:
+    """(3, H, W, 3) linear images of the rig lit by each light alone, and the NaN or Inf values their renders
+    returned (replaced by 0; kept in the cache with them; a warning when any), seen by a camera at ``pose``
     around the rig's target (default: the bench camera), cached by their settings. ``hidden`` is
     Table 1 parameters or a median fibre's sigma_a (an absorption spectrum in a spectral rig);
     ``appearance`` its shine and fibre variation. ``illuminant`` (the LEDs' SPD) renders the rig
@@ -53,24 +55,30 @@ def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int
     hair = hidden.to_dict() if isinstance(hidden, HairParams) else [round(float(v), 6) for v in np.ravel(hidden)]
     key = hashlib.sha256(json.dumps([CACHE_VERSION, hair, list(size), spp, strand_seed, *view, *look],
                                     sort_keys=True).encode()).hexdigest()[:16]
-    path = cache_dir() / "sim-rig" / f"lights-{key}.npy"
+    path = cache_dir() / "sim-rig" / f"lights-{key}.npz"
     if cache and path.exists():
-        return np.load(path)
+        with np.load(path) as data:
+            return data["images"], int(data["nonfinite"])
     renderer = Renderer(max_cached=1)
     chart = tuple(map(tuple, colorchecker_reflectances()))
-    images = []
+    images, nonfinite = [], 0
     for i in range(rig_geometry.N_LIGHTS):
         lights = tuple(1.0 if j == i else 0.0 for j in range(rig_geometry.N_LIGHTS))
         spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET, camera=pose,
                          half_width=half_width, lights=lights, strand_seed=strand_seed,
                          appearance=None if appearance == DEFAULT_APPEARANCE else appearance,
                          illuminant=illuminant, sensitivities=sensitivities)
-        images.append(renderer.render(hidden, spec, size, spp, seed=17 + i).linear)
+        result = renderer.render(hidden, spec, size, spp, seed=17 + i)
+        images.append(result.linear)
+        nonfinite += result.nonfinite
+    if nonfinite:
+        warnings.warn(f"the simulated rig's light images held {nonfinite} NaN or Inf values, rendered as 0",
+                      RuntimeWarning, stacklevel=2)
     stack = np.stack([spread_glints(im) for im in images]).astype(np.float32)
     if cache:
-        with atomic_path(path, ".npy") as tmp:
-            np.save(tmp, stack)
-    return stack
+        with atomic_path(path, ".npz") as tmp:
+            np.savez(tmp, images=stack, nonfinite=nonfinite)
+    return stack, nonfinite
 
 
 def _content_key(name: str | None) -> str | None:
@@ -101,7 +109,8 @@ class SimRig:
     sensitivities: str | None = None     # a spectral rig's camera (render.spectra.CAMERAS or a CSV)
 
     def __post_init__(self) -> None:
-        self.light_images = render_light_images(self.hidden, self.size, self.spp, self.strand_seed, pose=self.pose,
+        #: ``nonfinite``: NaN or Inf values the light images' renders returned (replaced by 0)
+        self.light_images, self.nonfinite = render_light_images(self.hidden, self.size, self.spp, self.strand_seed, pose=self.pose,
                                                 half_width=self.half_width, appearance=self.appearance,
                                                 illuminant=self.illuminant, sensitivities=self.sensitivities)
         self.exposure_offset_ev = 0.0

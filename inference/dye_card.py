@@ -69,6 +69,7 @@ def card_rows(dye: DyeRecord, size: int = CARD_SIZE, spp: int = CARD_SPP, seed: 
                      "de2000": round(float(delta_e2000(mean_before, mean_after)), 2),
                      "under": under_lights(pred.sigma_a, curve),
                      "render_s": round(time.perf_counter() - start, 3),
+                     "nonfinite": before.nonfinite + after.nonfinite,   # NaN/Inf values rendered as 0
                      "_images": (before.srgb, after.srgb)})
     return rows
 

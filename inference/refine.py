@@ -94,6 +94,7 @@ class ResponseCurve:
     mean: np.ndarray     # (K,) decreasing
     seconds: float = 0.0     # what rendering it cost
     cached: bool = False     # read from the disk cache (so it cost nothing now)
+    nonfinite: int = 0       # NaN or Inf values its renders returned (replaced by 0), kept in the cache with it
 
     def __post_init__(self) -> None:
         # enforce monotonicity against residual render noise (a flat step would make the inverse ambiguous)
@@ -121,7 +122,8 @@ class ResponseCurve:
         return np.clip(sigma, 0.0, None), outside
 
     def to_dict(self) -> dict:
-        return {"sigma": self.sigma.tolist(), "mean": self.mean.tolist(), "seconds": self.seconds}
+        return {"sigma": self.sigma.tolist(), "mean": self.mean.tolist(), "seconds": self.seconds,
+                "nonfinite": self.nonfinite}
 
 
 def scene_for(view: View, settings: RefineSettings, appearance: Appearance | None = None,
@@ -153,7 +155,7 @@ def varied_curve(curve: ResponseCurve, appearance: Appearance) -> ResponseCurve:
     g = appearance.grey_fraction
     pigmented = np.mean([curve(curve.sigma * np.exp(appearance.fibre_spread * z)) for z in group_z(FIBRE_GROUPS)], 0)
     mean = (1 - g) * pigmented + g * curve(np.array([GREY_SIGMA_A]))[0]
-    return ResponseCurve(curve.sigma.copy(), mean, curve.seconds, curve.cached)
+    return ResponseCurve(curve.sigma.copy(), mean, curve.seconds, curve.cached, curve.nonfinite)
 
 
 def fitted_pixels(image: np.ndarray, view: View) -> np.ndarray:
@@ -209,7 +211,8 @@ def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool,
     if cache and path.exists():
         try:
             data = json.loads(path.read_text())
-            return ResponseCurve(np.array(data["sigma"]), np.array(data["mean"]), data.get("seconds", 0.0), True)
+            return ResponseCurve(np.array(data["sigma"]), np.array(data["mean"]), data.get("seconds", 0.0), True,
+                                 int(data.get("nonfinite", 0)))
         except (ValueError, KeyError, OSError):
             pass   # a damaged cache entry is rebuilt
     levels = np.asarray(settings.levels, float)
@@ -217,13 +220,15 @@ def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool,
         raise ValueError(f"the sigma ladder needs a multiple of 3 levels (one per channel), got {len(levels)}")
     start = time.perf_counter()
     means = np.empty_like(levels)
+    nonfinite = 0
     # interleave low and high levels in one render, so each render's noise spreads over the curve
     order = levels.reshape(3, -1).T
     for triple_idx, triple in enumerate(order):
         result = renderer.render(triple, spec, size, settings.spp, settings.seed)
         means[[triple_idx, triple_idx + len(order), triple_idx + 2 * len(order)]] = \
             result.linear.reshape(-1, 3).mean(0)
-    curve = ResponseCurve(levels, means, time.perf_counter() - start)
+        nonfinite += result.nonfinite
+    curve = ResponseCurve(levels, means, time.perf_counter() - start, nonfinite=nonfinite)
     if cache:
         from hairdigi.render.domain.files import write_json_atomic
 
@@ -246,7 +251,7 @@ class Refinement:
     curve_seconds: float               # what the response curve cost to render (now or when cached)
     curve_cached: bool = False
     history: list[float] = field(default_factory=list)   # residual ΔE2000 after each step
-    nonfinite: int = 0                 # NaN or Inf samples in its renders (counted, replaced by 0)
+    nonfinite: int = 0                 # NaN or Inf samples in its renders, the curve's too (counted, replaced by 0)
     region: dict = field(default_factory=dict)            # what it fitted and rendered
     curve: "ResponseCurve | None" = None   # the curve it inverted (the region's, at the swatch's appearance)
 
@@ -349,7 +354,7 @@ def refine(prior: HairParams, target: np.ndarray, view: View = CameraPose(),
     rendered = curve(sigma)          # with no iterations, the curve's own prediction
     history: list[float] = []
     spec, size = scene_for(view, settings, appearance, swatch_model)
-    nonfinite = 0
+    nonfinite = curve.nonfinite   # the curve's renders are this refinement's too (rendered now or when cached)
     # varied fibres: the mixture curve only approximates light passing between unlike fibres, so
     # the check renders may need two more corrections
     iterations = settings.iterations + (VARIED_EXTRA_ITERATIONS if appearance.varied else 0)

@@ -39,6 +39,7 @@ class ShineTables:
     sigma: np.ndarray           # (K,)
     means: np.ndarray           # (L, B, K)
     seconds: float = 0.0
+    nonfinite: int = 0          # NaN or Inf values its renders returned (replaced by 0), kept in the cache with it
 
     def curve(self, light: int, b: int) -> ResponseCurve:
         return ResponseCurve(self.sigma, self.means[light, b])
@@ -52,7 +53,7 @@ class ShineTables:
         """The all-lights response curve at ``beta``: the lights' tables summed (log-linear in beta)."""
         j, t = self._weights(beta)
         total = np.exp((1 - t) * np.log(self.means[:, j].sum(0)) + t * np.log(self.means[:, j + 1].sum(0)))
-        return ResponseCurve(self.sigma.copy(), total, self.seconds, True)
+        return ResponseCurve(self.sigma.copy(), total, self.seconds, True, self.nonfinite)
 
     def predict(self, sigma: np.ndarray, beta: float) -> np.ndarray:
         """(L, 3) single-light means of ``sigma`` (3,) at ``beta`` (linear in beta between grid points)."""
@@ -86,24 +87,28 @@ def _shine_tables(view: View, settings: RefineSettings, betas, renderer, cache: 
     path = cache_dir() / "response" / f"shine-{key}.npz"
     if cache and path.exists():
         data = np.load(path)
-        return ShineTables(data["betas"], data["sigma"], data["means"], float(data["seconds"]))
+        return ShineTables(data["betas"], data["sigma"], data["means"], float(data["seconds"]),
+                           int(data["nonfinite"]) if "nonfinite" in data.files else 0)
     start = time.perf_counter()
     levels = np.asarray(settings.levels, float)
     order = levels.reshape(3, -1).T          # three levels per render, one per channel (as refine does)
     means = np.empty((N_LIGHTS, len(betas), len(levels)))
+    nonfinite = 0
     for light in range(N_LIGHTS):
         lights = tuple(1.0 if i == light else 0.0 for i in range(N_LIGHTS))
         for b, beta in enumerate(betas):
             one = replace(spec, lights=lights, appearance=Appearance(float(beta)))
             for t, triple in enumerate(order):
-                mean = renderer.render(triple, one, size, settings.spp, settings.seed).linear.reshape(-1, 3).mean(0)
-                means[light, b, [t, t + len(order), t + 2 * len(order)]] = mean
-    tables = ShineTables(np.asarray(betas, float), levels, means, time.perf_counter() - start)
+                result = renderer.render(triple, one, size, settings.spp, settings.seed)
+                means[light, b, [t, t + len(order), t + 2 * len(order)]] = result.linear.reshape(-1, 3).mean(0)
+                nonfinite += result.nonfinite
+    tables = ShineTables(np.asarray(betas, float), levels, means, time.perf_counter() - start, nonfinite)
     if cache:
         from hairdigi.render.domain.files import atomic_path
 
         with atomic_path(path, ".npz") as tmp:
-            np.savez(tmp, betas=tables.betas, sigma=tables.sigma, means=tables.means, seconds=tables.seconds)
+            np.savez(tmp, betas=tables.betas, sigma=tables.sigma, means=tables.means, seconds=tables.seconds,
+                     nonfinite=tables.nonfinite)
     return tables
 
 

@@ -48,7 +48,7 @@ def _averaged(curves: list[ResponseCurve]) -> ResponseCurve:
     """The geometric mean of curves on one sigma ladder (a member's layouts, or the family's members)."""
     logs = np.mean([np.log(np.clip(c.mean, 1e-12, None)) for c in curves], axis=0)
     return ResponseCurve(curves[0].sigma.copy(), np.exp(logs), sum(c.seconds for c in curves),
-                         all(c.cached for c in curves))
+                         all(c.cached for c in curves), sum(c.nonfinite for c in curves))
 
 
 def family_curves(view: View, settings: RefineSettings = RefineSettings(), renderer=None,

@@ -125,29 +125,67 @@ def rig_for_blender(strands: Strands, pose: rg.CameraPose = rg.RIG_SWATCH_POSE, 
 
 def mitsuba_mean(look: HairLook, strands: Strands, pose: rg.CameraPose = rg.RIG_SWATCH_POSE,
                  framing: str = "crop", size: int = 64, spp: int = 256, max_depth: int = 32) -> tuple[np.ndarray, float]:
-    """hairdigi's twin of ``look`` on ``strands`` in the rig (Mitsuba): mean linear colour and seconds."""
+    """hairdigi's twin of ``look`` on ``strands`` in the rig (Mitsuba): mean linear colour and seconds. Rendered
+    on the renderer's one path (``renderer.render_scene``: its lock, its scene order, its NaN count)."""
     import time
 
-    import mitsuba as mi
-
     from hairdigi.render import scenes
-    from hairdigi.render.domain.interrupt import sigint_held
-    from hairdigi.render.renderer import RENDER_LOCK
+    from hairdigi.render.renderer import render_scene
     from hairdigi.render.variant import select_variant
 
     select_variant(None)
     bsdf = {"type": "hair", "sigma_a": {"type": "rgb", "value": list(look.sigma_a)},
             "longitudinal_roughness": look.longitudinal_roughness, "azimuthal_roughness": look.azimuthal_roughness,
             "scale_tilt": look.tilt_deg, "int_ior": look.ior}
-    with tempfile.TemporaryDirectory(prefix="hairdigi-twin-") as tmp, RENDER_LOCK:
+    with tempfile.TemporaryDirectory(prefix="hairdigi-twin-") as tmp:
         curve_file = Path(tmp) / "strands.txt"
         curve_file.write_text(strands.with_dummy().to_curve_text())
-        scene = mi.load_dict(scenes.swatch_scene(str(curve_file), bsdf, pose, size, framing=framing,
-                                                 max_depth=max_depth))
         start = time.perf_counter()
-        with sigint_held():   # render.domain.interrupt
-            image = np.array(mi.render(scene, spp=spp, seed=0))
+        image, _ = render_scene(scenes.swatch_scene(str(curve_file), bsdf, pose, size, framing=framing,
+                                                    max_depth=max_depth), size, spp, seed=0)
     return image.reshape(-1, 3).mean(0), time.perf_counter() - start
+
+
+@dataclass
+class CyclesRender:
+    """One Cycles render's output, checked as the renderer checks its own (``renderer.finite_image``)."""
+
+    mean_linear: tuple[float, float, float]   # of the image with its NaN and Inf values set to 0
+    seconds: float
+    spp: int
+    seed: int
+    nonfinite: int                  # NaN or Inf values in Cycles' image, replaced by 0
+    pixels: np.ndarray | None       # (H, W, 3) linear RGB, rows from the top, when asked for
+    blender: str                    # Blender's version
+
+
+def render_cycles(look: HairLook, rig: dict, spp: int, seed: int, threads: int = 0, pixels: bool = False,
+                  folder: Path | None = None) -> CyclesRender:
+    """The one way hairdigi renders in Cycles: ``look`` in ``rig`` (``rig_for_blender``) at ``spp`` and ``seed``.
+
+    What of ``renderer.Renderer``'s guarantees hold for a render in another process: its seed fixes its
+    image (the script sets ``cycles.seed`` and turns adaptive sampling and denoising off, so a seed and
+    spp give one image whatever the threads); its NaN and Inf values are counted and replaced by 0 here,
+    as ``renderer.finite_image`` does (the script returns its pixels for that), and the mean is then that
+    image's. ``renderer.RENDER_LOCK`` does not apply: it keeps two Dr.Jit renders of one process apart, and
+    Cycles runs in its own. ``folder`` keeps the script's files (default: a temporary folder).
+    """
+    from hairdigi.render.renderer import finite_image
+
+    with tempfile.TemporaryDirectory(prefix="hairdigi-cycles-") as tmp:
+        where = Path(folder) if folder is not None else Path(tmp)
+        script, rig_file, result = where / "hair.py", where / "rig.json", where / "out.json"
+        script.write_text(blender_script_text(look))
+        rig_file.write_text(json.dumps(rig))
+        run_script(script, ["--scene", str(rig_file), "--render", str(result), "--spp", str(int(spp)),
+                            "--seed", str(int(seed)), "--threads", str(int(threads)), "--pixels"])
+        out = json.loads(result.read_text())
+        Path(out["exr"]).unlink(missing_ok=True)
+    image, nonfinite = finite_image(np.asarray(out["pixels"], np.float32))
+    # Blender's own mean when every value is finite (as before); else the mean of the image with them at 0
+    mean = out["mean_linear"] if nonfinite == 0 else image.reshape(-1, 3).mean(0, dtype=np.float64)
+    return CyclesRender(tuple(float(v) for v in mean), float(out["seconds"]), int(out["spp"]), int(seed), nonfinite,
+                        image if pixels else None, str(out.get("blender", "")))
 
 
 def write_blend(look: HairLook, out: str | Path, size: int = 256) -> Path:
@@ -185,13 +223,7 @@ def cycles_check(look: HairLook, size: int = 48, spp: int = 64, mitsuba_spp: int
     from hairdigi.render.metrics import delta_e2000
 
     strands = layered_swatch()
-    with tempfile.TemporaryDirectory(prefix="hairdigi-cycles-") as tmp:
-        script, rig, result = Path(tmp) / "hair.py", Path(tmp) / "rig.json", Path(tmp) / "mean.json"
-        script.write_text(blender_script_text(look))
-        rig.write_text(json.dumps(rig_for_blender(strands, pose, "crop", size)))
-        run_script(script, ["--scene", str(rig), "--render", str(result), "--spp", str(spp),
-                            "--threads", str(threads)])
-        cycles = json.loads(result.read_text())
+    cycles = render_cycles(look, rig_for_blender(strands, pose, "crop", size), spp, seed=0, threads=threads)
     mitsuba, seconds = mitsuba_mean(look, strands, pose, "crop", size, mitsuba_spp)
-    return CyclesCheck(look.sigma_a, tuple(cycles["mean_linear"]), tuple(float(v) for v in mitsuba),
-                       float(delta_e2000(np.asarray(cycles["mean_linear"]), mitsuba)), cycles["seconds"], seconds)
+    return CyclesCheck(look.sigma_a, cycles.mean_linear, tuple(float(v) for v in mitsuba),
+                       float(delta_e2000(np.asarray(cycles.mean_linear), mitsuba)), cycles.seconds, seconds)

@@ -237,6 +237,19 @@ class _Loaded:
 RENDER_LOCK = threading.RLock()
 
 
+@dataclass
+class RenderTally:
+    """What the process's Mitsuba renders did, all of them (``trace`` counts under :data:`RENDER_LOCK`)."""
+
+    renders: int = 0     # calls of ``trace``: a render split in passes is one
+    nonfinite: int = 0   # NaN or Inf values they returned, each replaced by 0
+
+
+#: Every render of the process goes through ``trace``, which adds itself here: whatever drops a result's
+#: ``nonfinite`` (a table's mean, a light image), the process's count of NaN and Inf values keeps it.
+TALLY = RenderTally()
+
+
 class Renderer:
     """Holds loaded Mitsuba scenes and re-renders them with new hair parameters, cameras and lights.
 
@@ -354,7 +367,7 @@ class Renderer:
             start, cpu = time.perf_counter(), time.process_time()
             if spec.illuminant is None:
                 scene = self._scene_for(spec, size, params)
-                linear, nonfinite = finite_image(render_in_passes(scene, size, spp, int(seed)))
+                linear, nonfinite = trace(scene, size, spp, int(seed))
             else:
                 linear, nonfinite = self._render_spectral(params, spec, size, spp, int(seed))
             seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
@@ -385,7 +398,7 @@ class Renderer:
             finally:
                 for path in files:
                     path.unlink(missing_ok=True)
-            return finite_image(render_in_passes(scene, size, spp, seed))
+            return trace(scene, size, spp, seed)
 
     def render_aov(self, params: HairParams, spec: SceneSpec | str, aovs: str,
                    size: int | tuple[int, int] | None = None, spp: int = 1, seed: int = 3) -> RenderResult:
@@ -395,10 +408,7 @@ class Renderer:
         with RENDER_LOCK:
             start, cpu = time.perf_counter(), time.process_time()
             scene = self._scene_for(spec, size, params)
-            integrator = mi.load_dict({"type": "aov", "aovs": aovs})
-            with sigint_held():
-                image = mi.render(scene, integrator=integrator, spp=spp, seed=int(seed))
-            linear, nonfinite = finite_image(image)
+            linear, nonfinite = trace(scene, size, spp, int(seed), mi.load_dict({"type": "aov", "aovs": aovs}))
             seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
         return RenderResult(linear, linear_to_srgb8(linear[..., :3]), seconds, spp, cpu, nonfinite)
 
@@ -460,6 +470,30 @@ def render_in_passes(scene, size: int | tuple[int, int], spp: int, seed: int):
         total = image * n if total is None else total + image * n
         done, k = done + n, k + 1
     return (total / spp).astype(np.float32)
+
+
+def trace(scene, size: int | tuple[int, int], spp: int, seed: int, integrator=None) -> tuple[np.ndarray, int]:
+    """The one call of Mitsuba's path tracer in hairdigi: a loaded ``scene`` rendered under :data:`RENDER_LOCK`
+    (``render_in_passes``; with an ``integrator``, such as an AOV one, in one call), its NaN and Inf values
+    counted and replaced by 0 (``finite_image``) and added to :data:`TALLY`. The image and that count."""
+    with RENDER_LOCK:
+        if integrator is None:
+            image = render_in_passes(scene, size, spp, seed)
+        else:
+            with sigint_held():
+                image = mi.render(scene, integrator=integrator, spp=spp, seed=seed)
+        linear, nonfinite = finite_image(image)
+        TALLY.renders += 1
+        TALLY.nonfinite += nonfinite
+    return linear, nonfinite
+
+
+def render_scene(scene_dict: dict, size: int | tuple[int, int], spp: int, seed: int) -> tuple[np.ndarray, int]:
+    """A scene dict that ``SceneSpec`` cannot describe (the Blender check's Mitsuba twin: its own strands and
+    BSDF) on the one path: loaded in its dict's order (``variant.load_scene``: one image per seed) and
+    rendered by ``trace``, all under :data:`RENDER_LOCK`. The image and its NaN/Inf count."""
+    with RENDER_LOCK:
+        return trace(load_scene(scene_dict), size, spp, int(seed))
 
 
 def finite_image(image) -> tuple[np.ndarray, int]:

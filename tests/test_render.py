@@ -285,6 +285,39 @@ def test_two_renderers_render_from_two_threads():
     assert results == {"swatch": [0, 0, 0], "bob": [0, 0, 0]} and max(overlaps) == 1
 
 
+def test_a_table_and_the_sim_rig_render_on_the_one_path(tmp_path, monkeypatch):
+    """A response curve (the refinement's table) and the simulated rig's light images render through
+    ``renderer.trace``: while this thread holds the render lock neither renders (the process's tally stands
+    still), and once it lets go every one of their renders is counted there, NaN count included, which the
+    curve and the rig report as the tally saw it."""
+    import threading
+    import time
+
+    import hairdigi.render.renderer as rr
+    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, render_light_images
+    from hairdigi.inference.refine import RefineSettings, response_curve
+
+    monkeypatch.setenv("HAIRDIGI_CACHE", str(tmp_path))
+    settings = RefineSettings(size=8, spp=1)   # 12 levels: 4 renders
+    jobs = {"curve": lambda: response_curve(CameraPose(20, 30), settings, Renderer(max_cached=1), cache=False),
+            "rig": lambda: render_light_images(DEFAULT_HIDDEN, (16, 12), 1, cache=False)}   # one render a light
+    done = {}
+    threads = [threading.Thread(target=lambda k=k, job=job: done.__setitem__(k, job())) for k, job in jobs.items()]
+    with rr.RENDER_LOCK:
+        renders, nonfinite = rr.TALLY.renders, rr.TALLY.nonfinite
+        for t in threads:
+            t.start()
+        time.sleep(1.5)
+        assert rr.TALLY.renders == renders and not done and all(t.is_alive() for t in threads)
+    for t in threads:
+        t.join(300)
+    assert set(done) == {"curve", "rig"}
+    assert rr.TALLY.renders - renders == 4 + 3
+    images, rig_nonfinite = done["rig"]
+    assert images.shape == (3, 12, 16, 3) and np.isfinite(images).all()
+    assert done["curve"].nonfinite + rig_nonfinite == rr.TALLY.nonfinite - nonfinite
+
+
 def test_aov_render_and_build_count():
     r = Renderer(max_cached=2)
     spec = swatch(framing="crop")

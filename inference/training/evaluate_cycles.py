@@ -115,10 +115,11 @@ def cycles_render(sigma_a, strands: Strands, scene: str, config: CyclesSet, seed
                   pixels: bool = False, shine: float | None = None) -> dict:
     """One Cycles render of ``strands`` with absorption ``sigma_a`` and ``shine`` (None: the default):
     ``scene`` "rig" (the rig's swatch pose, its three lights), "light0".."light2" (one light alone) or
-    "transfer"; the mean linear colour (and the pixels) and the seconds."""
+    "transfer"; the mean linear colour (and the pixels), the seconds and the NaN/Inf count
+    (``blender_run.render_cycles``, the one Cycles path)."""
     from hairdigi.render.domain.absorption import LONGITUDINAL_ROUGHNESS
-    from hairdigi.render.blender_run import rig_for_blender, run_script
-    from hairdigi.render.interchange import HairLook, blender_script_text
+    from hairdigi.render.blender_run import render_cycles, rig_for_blender
+    from hairdigi.render.interchange import HairLook
     from hairdigi.render.scenes import KEY_SKY
 
     look = HairLook("hidden", tuple(float(v) for v in sigma_a),
@@ -131,14 +132,9 @@ def cycles_render(sigma_a, strands: Strands, scene: str, config: CyclesSet, seed
     else:
         rig = rig_for_blender(strands, TRANSFER_POSE, "crop", config.size, lights=(0.0, 0.0, 0.0), env=KEY_SKY,
                               bspline=False)
-    script, rig_file, result = folder / "hair.py", folder / "rig.json", folder / "out.json"
-    script.write_text(blender_script_text(look))
-    rig_file.write_text(json.dumps(rig))
-    run_script(script, ["--scene", str(rig_file), "--render", str(result), "--spp", str(config.spp),
-                        "--seed", str(seed), "--threads", str(config.threads)] + (["--pixels"] if pixels else []))
-    out = json.loads(result.read_text())
-    Path(out["exr"]).unlink(missing_ok=True)
-    return out
+    out = render_cycles(look, rig, config.spp, seed, config.threads, pixels=pixels, folder=folder)
+    return {"mean_linear": list(out.mean_linear), "seconds": out.seconds, "spp": out.spp, "nonfinite": out.nonfinite,
+            "blender": out.blender, **({"pixels": out.pixels} if pixels else {})}
 
 
 def _relative_error(sigma, truth) -> float:
