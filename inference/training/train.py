@@ -113,9 +113,6 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
     renders together). ``epochs_now`` stops after that many epochs in this call; calling again resumes.
     """
     import torch
-    from tqdm import tqdm
-
-    from hairdigi.inference.training.losses import appearance, encoder_loss
 
     from hairdigi.inference.training.model import EncoderConfig, HairEncoder, parameter_count
 
@@ -144,44 +141,14 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
     ckpt = out / "checkpoint.pt"
     start_epoch = 0
     if ckpt.exists():
-        state = _load_checkpoint(ckpt)
-        if state["encoder"] != encoder_config.to_dict() or state["train"] != asdict(config):
-            raise DatasetError(f"{ckpt} was made with other settings; use another output folder or the same settings")
-        model.load_state_dict(state["model"])
-        opt.load_state_dict(state["optimizer"])
-        sched.load_state_dict(state["scheduler"])
-        history = state["history"]
-        start_epoch = state["epoch"] + 1
+        history, start_epoch = _resume(ckpt, model, opt, sched, encoder_config, config)
     last_epoch = config.epochs if epochs_now is None else min(config.epochs, start_epoch + epochs_now)
     for epoch in range(start_epoch, last_epoch):
-        rng = np.random.default_rng([config.seed, epoch])
-        order = rng.permutation(train_idx)
-        model.train()
         t0 = time.perf_counter()
-        total = 0.0
-        bar = tqdm(range(steps_per_epoch), desc=f"epoch {epoch + 1}/{config.epochs}", disable=not progress,
-                   leave=False, dynamic_ncols=True)
-        for step in bar:
-            idx = order[step * config.batch_size:(step + 1) * config.batch_size]
-            x = torch.from_numpy(np.stack([augment(images[i], encoder_config.input_size, rng, config.crop_min,
-                                                   config.blur_max) for i in idx]))
-            x = x.contiguous(memory_format=torch.channels_last)
-            y = torch.from_numpy(params[idx])
-            pred, _ = model(x)
-            loss = encoder_loss(pred, y, config.appearance_weight)
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            opt.step()
-            sched.step()
-            total += loss.item() * len(idx)
-            bar.set_postfix(loss=f"{loss.item():.4f}")
-        model.eval()
-        with torch.no_grad():
-            val_pred = torch.cat([model(val_x[i:i + 256])[0] for i in range(0, len(val_x), 256)])
-        val_mse = float(((val_pred - val_y) ** 2).mean())
-        val_appearance = float(((appearance(val_pred) - appearance(val_y)) ** 2).mean())
-        val_mae = (val_pred - val_y).abs().mean(0).tolist()
-        row = {"epoch": epoch + 1, "train_loss": total / len(train_idx), "val_mse": val_mse,
+        train_loss = _train_epoch(model, opt, sched, images, params, train_idx, encoder_config, config, epoch,
+                                  progress)
+        val_mse, val_appearance, val_mae = _validate(model, val_x, val_y)
+        row = {"epoch": epoch + 1, "train_loss": train_loss, "val_mse": val_mse,
                "val_appearance_mse": val_appearance,
                "val_mae": val_mae, "seconds": time.perf_counter() - t0, "lr": sched.get_last_lr()[0]}
         history["epochs"].append(row)
@@ -197,6 +164,63 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
     write_json_atomic(out / "history.json", history)
     plot_history(history, out / "training_curve.png")
     return history
+
+
+def _resume(ckpt: Path, model, opt, sched, encoder_config, config: TrainConfig) -> tuple[dict, int]:
+    """Load a checkpoint made with the same settings into the model, optimiser and schedule: (history, next epoch)."""
+    state = _load_checkpoint(ckpt)
+    if state["encoder"] != encoder_config.to_dict() or state["train"] != asdict(config):
+        raise DatasetError(f"{ckpt} was made with other settings; use another output folder or the same settings")
+    model.load_state_dict(state["model"])
+    opt.load_state_dict(state["optimizer"])
+    sched.load_state_dict(state["scheduler"])
+    return state["history"], state["epoch"] + 1
+
+
+def _train_epoch(model, opt, sched, images: np.ndarray, params: np.ndarray, train_idx: np.ndarray, encoder_config,
+                 config: TrainConfig, epoch: int, progress: bool) -> float:
+    """One epoch over the training rows, augmented, in the epoch's seeded order: the mean training loss."""
+    import torch
+    from tqdm import tqdm
+
+    from hairdigi.inference.training.losses import encoder_loss
+
+    steps_per_epoch = math.ceil(len(train_idx) / config.batch_size)
+    rng = np.random.default_rng([config.seed, epoch])
+    order = rng.permutation(train_idx)
+    model.train()
+    total = 0.0
+    bar = tqdm(range(steps_per_epoch), desc=f"epoch {epoch + 1}/{config.epochs}", disable=not progress,
+               leave=False, dynamic_ncols=True)
+    for step in bar:
+        idx = order[step * config.batch_size:(step + 1) * config.batch_size]
+        x = torch.from_numpy(np.stack([augment(images[i], encoder_config.input_size, rng, config.crop_min,
+                                               config.blur_max) for i in idx]))
+        x = x.contiguous(memory_format=torch.channels_last)
+        y = torch.from_numpy(params[idx])
+        pred, _ = model(x)
+        loss = encoder_loss(pred, y, config.appearance_weight)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        sched.step()
+        total += loss.item() * len(idx)
+        bar.set_postfix(loss=f"{loss.item():.4f}")
+    return total / len(train_idx)
+
+
+def _validate(model, val_x, val_y) -> tuple[float, float, list[float]]:
+    """The validation rows' parameter MSE, fibre-colour MSE and per-parameter mean absolute error."""
+    import torch
+
+    from hairdigi.inference.training.losses import appearance
+
+    model.eval()
+    with torch.no_grad():
+        val_pred = torch.cat([model(val_x[i:i + 256])[0] for i in range(0, len(val_x), 256)])
+    val_mse = float(((val_pred - val_y) ** 2).mean())
+    val_appearance = float(((appearance(val_pred) - appearance(val_y)) ** 2).mean())
+    return val_mse, val_appearance, (val_pred - val_y).abs().mean(0).tolist()
 
 
 def _load_checkpoint(path: Path) -> dict:
