@@ -139,17 +139,32 @@ def evaluate_dye(encoder, out_dir: str | os.PathLike, config: DyeEvalConfig = Dy
     ``capture`` makes each record (default: :func:`clean_capture`); ``inputs`` says what it is."""
     from tqdm import tqdm
 
-    from hairdigi.render.domain.files import write_csv_atomic
-
     t_all = time.perf_counter()
     out = Path(out_dir)
-    records = out / "records"
-    records.mkdir(parents=True, exist_ok=True)
+    (out / "records").mkdir(parents=True, exist_ok=True)
     curve = rig_curve()
-    capture = capture or clean_capture(encoder, config)
     bases = {name: hair_sigma_a(natural_base(level)) for name, level in EVALUATION_LEVELS.items()}
     dyes = draw_dyes(config)
-    # --- captures, estimated -------------------------------------------------------------------
+    sample, truth, estimate_s = _captures(dyes, bases, capture or clean_capture(encoder, config), out / "records",
+                                          progress)
+    judge_truth = {key: _judge(sigma, config) for key, sigma in
+                   tqdm(truth.items(), desc="judge renders of the truth", disable=not progress)}
+    rows, one_rows, times = [], [], {"characterise_s": [], "apply_s": [], "dose_s": []}
+    for d in tqdm(dyes, desc="characterise + predict", disable=not progress):
+        rows += _two_pair_rows(d, bases, sample, truth, judge_truth, curve, config, times)
+        one_rows += _one_pair_rows(d, bases, sample, judge_truth, curve, config)
+    card_s = _timed_card(bases, sample, curve, out / "card-dye0.png")
+    summary = _summary(config, bases, rows, one_rows, estimate_s, times, card_s, inputs,
+                       total_s=time.perf_counter() - t_all)
+    summary["text"] = _text(summary)
+    _write(out, summary, rows, one_rows)
+    return summary
+
+
+def _captures(dyes: list[dict], bases: dict, capture: Capture, records: Path, progress: bool):
+    """Every base and dyed swatch captured and estimated: (samples by name, dyed truth by (dye, base), seconds)."""
+    from tqdm import tqdm
+
     jobs = [(f"base-{b}", natural_base(level)) for b, level in EVALUATION_LEVELS.items()]
     truth = {}
     for d in dyes:
@@ -162,61 +177,78 @@ def evaluate_dye(encoder, out_dir: str | os.PathLike, config: DyeEvalConfig = Dy
     for index, (name, hidden) in enumerate(tqdm(jobs, desc="capture + estimate", unit="swatch", disable=not progress)):
         estimate_s.append(capture(hidden, index, records / f"{name}.json"))
     sample = {name: load_sample(records / f"{name}.json") for name, _ in jobs}
-    judge_truth = {key: _judge(sigma, config) for key, sigma in
-                   tqdm(truth.items(), desc="judge renders of the truth", disable=not progress)}
-    # --- two-pair fits, predicted on the held-out base ---------------------------------------------
-    rows, one_rows, times = [], [], {"characterise_s": [], "apply_s": [], "dose_s": []}
-    for d in tqdm(dyes, desc="characterise + predict", disable=not progress):
-        k = d["dye"]
-        for held in bases:
-            train = [b for b in bases if b != held]
-            pairs = [(sample[f"base-{b}"], sample[f"dye{k:02d}-{b}"]) for b in train]
-            t0 = time.perf_counter()
-            dye = characterise(pairs, f"dye {k}", curve)
-            t1 = time.perf_counter()
-            pred = apply(dye, sample[f"base-{held}"], 1.0, curve)
-            t2 = time.perf_counter()
-            dose(dye, sample[f"base-{held}"], colour_of(truth[(k, held)], curve), curve)
-            t3 = time.perf_counter()
-            times["characterise_s"].append(t1 - t0)
-            times["apply_s"].append(t2 - t1)
-            times["dose_s"].append(t3 - t2)
-            de = float(delta_e2000(_judge(pred.sigma_a, config), judge_truth[(k, held)]))
-            # what the estimator alone misses on the same swatch: the held-out dyed capture's own estimate
-            floor = float(delta_e2000(_judge(sample[f"dye{k:02d}-{held}"].sigma_a, config), judge_truth[(k, held)]))
-            rows.append({"dye": k, "held_out": held, "fitted_on": "+".join(train), "true_lift": d["lift"],
-                         "lift": round(dye.lift, 4), "lift_low": round(dye.lift_low, 4), "lift_high": round(dye.lift_high, 4),
-                         "true_deposit": [round(float(v), 5) for v in d["deposit"]],
-                         "deposit": [round(float(v), 5) for v in dye.deposit_sigma_a],
-                         "fit_residual_de2000": round(dye.residual_de2000_max, 3),
-                         "prediction_de2000": round(de, 3), "estimate_floor_de2000": round(floor, 3),
-                         "prediction_de2000_curve": round(float(delta_e2000(
-                             colour_of(pred.sigma_a, curve), colour_of(truth[(k, held)], curve))), 3),
-                         "predicted_interval_de2000_p68": pred.record.uncertainty.get("mean_colour_de2000_p68")})
-        # one pair (lift assumed): the fitted lift against the truth, and the prediction on each other base
-        for b in bases:
-            dye1 = characterise([(sample[f"base-{b}"], sample[f"dye{k:02d}-{b}"])], f"dye {k} on {b}", curve)
-            for other in bases:
-                if other == b:
-                    continue
-                pred = apply(dye1, sample[f"base-{other}"], 1.0, curve)
-                de = float(delta_e2000(_judge(pred.sigma_a, config), judge_truth[(k, other)]))
-                one_rows.append({"dye": k, "fitted_on": b, "predicted": other, "true_lift": d["lift"],
-                                 "one_pair_lift": round(dye1.lift, 4), "lift_error": round(dye1.lift - d["lift"], 4),
-                                 "prediction_de2000": round(de, 3)})
-    # --- a shade card, timed -----------------------------------------------------------------------------
+    return sample, truth, estimate_s
+
+
+def _two_pair_rows(d: dict, bases: dict, sample: dict, truth: dict, judge_truth: dict, curve,
+                   config: DyeEvalConfig, times: dict[str, list]) -> list[dict]:
+    """One dye fitted on two bases, predicted on the third, for each base held out (timed into ``times``)."""
+    rows = []
+    k = d["dye"]
+    for held in bases:
+        train = [b for b in bases if b != held]
+        pairs = [(sample[f"base-{b}"], sample[f"dye{k:02d}-{b}"]) for b in train]
+        t0 = time.perf_counter()
+        dye = characterise(pairs, f"dye {k}", curve)
+        t1 = time.perf_counter()
+        pred = apply(dye, sample[f"base-{held}"], 1.0, curve)
+        t2 = time.perf_counter()
+        dose(dye, sample[f"base-{held}"], colour_of(truth[(k, held)], curve), curve)
+        t3 = time.perf_counter()
+        times["characterise_s"].append(t1 - t0)
+        times["apply_s"].append(t2 - t1)
+        times["dose_s"].append(t3 - t2)
+        de = float(delta_e2000(_judge(pred.sigma_a, config), judge_truth[(k, held)]))
+        # what the estimator alone misses on the same swatch: the held-out dyed capture's own estimate
+        floor = float(delta_e2000(_judge(sample[f"dye{k:02d}-{held}"].sigma_a, config), judge_truth[(k, held)]))
+        rows.append({"dye": k, "held_out": held, "fitted_on": "+".join(train), "true_lift": d["lift"],
+                     "lift": round(dye.lift, 4), "lift_low": round(dye.lift_low, 4), "lift_high": round(dye.lift_high, 4),
+                     "true_deposit": [round(float(v), 5) for v in d["deposit"]],
+                     "deposit": [round(float(v), 5) for v in dye.deposit_sigma_a],
+                     "fit_residual_de2000": round(dye.residual_de2000_max, 3),
+                     "prediction_de2000": round(de, 3), "estimate_floor_de2000": round(floor, 3),
+                     "prediction_de2000_curve": round(float(delta_e2000(
+                         colour_of(pred.sigma_a, curve), colour_of(truth[(k, held)], curve))), 3),
+                     "predicted_interval_de2000_p68": pred.record.uncertainty.get("mean_colour_de2000_p68")})
+    return rows
+
+
+def _one_pair_rows(d: dict, bases: dict, sample: dict, judge_truth: dict, curve, config: DyeEvalConfig) -> list[dict]:
+    """One dye fitted on one pair (lift assumed): the fitted lift against the truth, and the prediction on
+    each other base."""
+    rows = []
+    k = d["dye"]
+    for b in bases:
+        dye1 = characterise([(sample[f"base-{b}"], sample[f"dye{k:02d}-{b}"])], f"dye {k} on {b}", curve)
+        for other in bases:
+            if other == b:
+                continue
+            pred = apply(dye1, sample[f"base-{other}"], 1.0, curve)
+            de = float(delta_e2000(_judge(pred.sigma_a, config), judge_truth[(k, other)]))
+            rows.append({"dye": k, "fitted_on": b, "predicted": other, "true_lift": d["lift"],
+                         "one_pair_lift": round(dye1.lift, 4), "lift_error": round(dye1.lift - d["lift"], 4),
+                         "prediction_de2000": round(de, 3)})
+    return rows
+
+
+def _timed_card(bases: dict, sample: dict, curve, path: Path) -> float:
+    """The seconds a shade card of dye 0 (fitted on every base) takes to make."""
     from hairdigi.inference.dye_card import shade_card
 
     t0 = time.perf_counter()
     shade_card(characterise([(sample[f"base-{b}"], sample[f"dye00-{b}"]) for b in bases], "dye 0", curve),
-               out / "card-dye0.png", curve=curve)
-    card_s = time.perf_counter() - t0
-    # --- summary --------------------------------------------------------------------------------------------
+               path, curve=curve)
+    return time.perf_counter() - t0
+
+
+def _summary(config: DyeEvalConfig, bases: dict, rows: list[dict], one_rows: list[dict], estimate_s: list[float],
+             times: dict[str, list], card_s: float, inputs: str, total_s: float) -> dict:
+    """The protocol's figures: the predictions' ΔE2000 against the goal, the floor, the lifts, the timings."""
     de = [r["prediction_de2000"] for r in rows]
     one_de = [r["prediction_de2000"] for r in one_rows]
     lift_err = [abs(r["lift_error"]) for r in one_rows[::2]]       # one row per (dye, fitted base)
     two_lift_err = [abs(r["lift"] - r["true_lift"]) for r in rows]
-    summary = {
+    return {
         "config": asdict(config), "levels": EVALUATION_LEVELS, "date": time.strftime("%Y-%m-%d"),
         "prediction_de2000": _stats(de),
         "prediction_de2000_by_held_out": {b: _stats([r["prediction_de2000"] for r in rows if r["held_out"] == b])
@@ -229,16 +261,20 @@ def evaluate_dye(encoder, out_dir: str | os.PathLike, config: DyeEvalConfig = Dy
         "one_pair_prediction_de2000": _stats(one_de),
         "estimate_s": _stats(estimate_s),
         "seconds": {k: _stats(v) for k, v in times.items()} | {"card_s": card_s},
-        "total_s": time.perf_counter() - t_all,
+        "total_s": total_s,
         "inputs": inputs,
     }
-    summary["text"] = _text(summary)
+
+
+def _write(out: Path, summary: dict, rows: list[dict], one_rows: list[dict]) -> None:
+    """``dye_eval.json`` (the summary and every row), the two CSVs and the figure."""
+    from hairdigi.render.domain.files import write_csv_atomic
+
     write_json_atomic(out / "dye_eval.json", {**summary, "rows": rows, "one_pair_rows": one_rows})
     write_csv_atomic(out / "dye_eval.csv", [{k: (v if not isinstance(v, list) else " ".join(map(str, v)))
                                              for k, v in r.items()} for r in rows])
     write_csv_atomic(out / "dye_eval_one_pair.csv", one_rows)
     _plot(rows, one_rows, out / "dye_eval.png")
-    return summary
 
 
 def _text(s: dict) -> list[str]:
