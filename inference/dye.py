@@ -287,25 +287,8 @@ def characterise(pairs: list[tuple[HairSample, HairSample]], name: str, curve: R
     if not name or not name.strip():
         raise DyeError("a dye needs a name; give --name")
     curve = curve or rig_curve()
-    for base, dyed in pairs:
-        check_distinct_records(base, dyed)
-    warnings = check_calibrations(pairs, allow_mixed)
-    for base, dyed in pairs:
-        check_explainable(base, dyed, curve)
-        warnings += dyed_base_warnings(base)
-        for s in (base, dyed):
-            if not s.record.reliable:
-                warnings.append(f"unreliable record: {s.label} is flagged ({'; '.join(s.record.warning_messages())})")
-    # each distinct record once: a base dyed twice is one measurement, drawn once per Monte Carlo draw
-    samples: dict[str, HairSample] = {}
-    keys = []
-    for base, dyed in pairs:
-        pair_keys = []
-        for s in (base, dyed):
-            key = s.sha256 or f"{id(s)}"
-            samples.setdefault(key, s)
-            pair_keys.append(key)
-        keys.append(pair_keys)
+    warnings = _pair_warnings(pairs, curve, allow_mixed)
+    samples, keys = _distinct_samples(pairs)
     intervals = {k: interval_of(s, curve) for k, s in samples.items()}
     half = {k: np.maximum(0.5 * (hi - lo), 1e-4 + 0.01 * samples[k].sigma_a) for k, (lo, hi) in intervals.items()}
     bases = np.array([samples[b].sigma_a for b, _ in keys])
@@ -318,35 +301,10 @@ def characterise(pairs: list[tuple[HairSample, HairSample]], name: str, curve: R
                    f"set to {lift:.2f}, the least lift that explains a dyed hair lighter than its base")
         warnings.insert(0, f"one base: lift cannot be measured from one natural base, so it is {assumed}; "
                            f"characterise on two bases or more to measure it")
-    # intervals: refit over draws of every record within its interval
-    rng = np.random.default_rng(seed)
-    drawn = {k: _draw(samples[k].sigma_a, *intervals[k], rng, draws) for k in samples}
-    lifts, deposits = [], []
-    for j in range(draws):
-        b_j = np.array([drawn[b][j] for b, _ in keys])
-        d_j = np.array([drawn[d][j] for _, d in keys])
-        l_j, dep_j = fit(b_j, d_j, weights, measurable)
-        lifts.append(l_j)
-        deposits.append(dep_j)
-    dep_lo, dep_hi = np.percentile(deposits, [16, 84], axis=0)
-    # a bounded fit's draws can all fall on one side of the estimate: an interval always holds its estimate
-    dep_lo, dep_hi = np.minimum(dep_lo, deposit), np.maximum(dep_hi, deposit)
-    lift_lo, lift_hi = (min(float(np.percentile(lifts, 16)), lift), max(float(np.percentile(lifts, 84)), lift))
-    # residuals, in sigma_a and as the swatch's mean-colour ΔE2000
-    pair_records, residual_de = [], []
-    for (base, dyed_s), (bk, dk) in zip(pairs, keys):
-        fitted = predict_sigma(lift, deposit, base.sigma_a)
-        de = float(delta_e2000(colour_of(fitted, curve), colour_of(dyed_s.sigma_a, curve)))
-        residual_de.append(de)
-        pair_records.append(DyePairRecord(base.path, base.sha256, dyed_s.path, dyed_s.sha256,
-                                          tuple(base.sigma_a), tuple(dyed_s.sigma_a), base.calibration,
-                                          dyed_s.calibration, tuple(dyed_s.sigma_a - fitted), de))
-    if max(residual_de) > DISAGREE_DE:
-        warnings.append(f"the pairs disagree: one lift and deposit leave a pair {max(residual_de):.1f} ΔE2000 from "
-                        f"its dyed swatch; were they all dyed with this product, developer and time?")
-    elif (spread := same_base_spread(pairs, curve)) > DISAGREE_DE:
-        warnings.append(f"the pairs disagree: two dyed swatches of one base are {spread:.1f} ΔE2000 apart; were "
-                        f"they all dyed with this product, developer and time?")
+    (dep_lo, dep_hi), (lift_lo, lift_hi) = _fit_intervals(samples, keys, intervals, weights, measurable,
+                                                          (lift, deposit), draws, seed)
+    pair_records, residual_de = _pair_residuals(pairs, lift, deposit, curve)
+    warnings += _disagreement_warnings(pairs, residual_de, curve)
     sources = sorted({s.interval_source for s in samples.values()})
     return DyeRecord(
         name=name.strip(), deposit_sigma_a=tuple(float(v) for v in deposit), lift=lift, lift_measured=measurable,
@@ -364,6 +322,84 @@ def characterise(pairs: list[tuple[HairSample, HairSample]], name: str, curve: R
                     "model": "Kips et al. 2022 Table 1 absorption; deposit + lift of the melanin (d'Eon et al. 2011)",
                     "fit": "weighted bounded least squares" if measurable else "one base: lift assumed",
                     "lift_max": LIFT_MAX, "shine_change": "not measured: the records carry no shine"})
+
+
+def _pair_warnings(pairs: list[tuple[HairSample, HairSample]], curve: ResponseCurve, allow_mixed: bool) -> list[str]:
+    """Refuse pairs that cannot measure a dye (one record twice, a dyed hair no lift and deposit explain);
+    the warnings of the rest: mixed calibrations, dyed bases, unreliable records."""
+    for base, dyed in pairs:
+        check_distinct_records(base, dyed)
+    warnings = check_calibrations(pairs, allow_mixed)
+    for base, dyed in pairs:
+        check_explainable(base, dyed, curve)
+        warnings += dyed_base_warnings(base)
+        for s in (base, dyed):
+            if not s.record.reliable:
+                warnings.append(f"unreliable record: {s.label} is flagged ({'; '.join(s.record.warning_messages())})")
+    return warnings
+
+
+def _distinct_samples(pairs: list[tuple[HairSample, HairSample]]) -> tuple[dict[str, HairSample], list[list[str]]]:
+    """Each distinct record once (a base dyed twice is one measurement, drawn once per Monte Carlo draw):
+    (samples by key, each pair's [base key, dyed key])."""
+    samples: dict[str, HairSample] = {}
+    keys = []
+    for base, dyed in pairs:
+        pair_keys = []
+        for s in (base, dyed):
+            key = s.sha256 or f"{id(s)}"
+            samples.setdefault(key, s)
+            pair_keys.append(key)
+        keys.append(pair_keys)
+    return samples, keys
+
+
+def _fit_intervals(samples: dict[str, HairSample], keys: list[list[str]], intervals: dict, weights: np.ndarray,
+                   measurable: bool, estimate: tuple[float, np.ndarray], draws: int, seed: int):
+    """The deposit's and the lift's 68% intervals: the fit redone over draws of every record within its
+    interval, each widened to hold the estimate: ((deposit low, high), (lift low, high))."""
+    lift, deposit = estimate
+    rng = np.random.default_rng(seed)
+    drawn = {k: _draw(samples[k].sigma_a, *intervals[k], rng, draws) for k in samples}
+    lifts, deposits = [], []
+    for j in range(draws):
+        b_j = np.array([drawn[b][j] for b, _ in keys])
+        d_j = np.array([drawn[d][j] for _, d in keys])
+        l_j, dep_j = fit(b_j, d_j, weights, measurable)
+        lifts.append(l_j)
+        deposits.append(dep_j)
+    dep_lo, dep_hi = np.percentile(deposits, [16, 84], axis=0)
+    # a bounded fit's draws can all fall on one side of the estimate: an interval always holds its estimate
+    dep_lo, dep_hi = np.minimum(dep_lo, deposit), np.maximum(dep_hi, deposit)
+    lift_lo, lift_hi = (min(float(np.percentile(lifts, 16)), lift), max(float(np.percentile(lifts, 84)), lift))
+    return (dep_lo, dep_hi), (lift_lo, lift_hi)
+
+
+def _pair_residuals(pairs: list[tuple[HairSample, HairSample]], lift: float, deposit: np.ndarray,
+                    curve: ResponseCurve) -> tuple[list[DyePairRecord], list[float]]:
+    """Each pair's record with its residual, in sigma_a and as the swatch's mean-colour ΔE2000."""
+    pair_records, residual_de = [], []
+    for base, dyed_s in pairs:
+        fitted = predict_sigma(lift, deposit, base.sigma_a)
+        de = float(delta_e2000(colour_of(fitted, curve), colour_of(dyed_s.sigma_a, curve)))
+        residual_de.append(de)
+        pair_records.append(DyePairRecord(base.path, base.sha256, dyed_s.path, dyed_s.sha256,
+                                          tuple(base.sigma_a), tuple(dyed_s.sigma_a), base.calibration,
+                                          dyed_s.calibration, tuple(dyed_s.sigma_a - fitted), de))
+    return pair_records, residual_de
+
+
+def _disagreement_warnings(pairs: list[tuple[HairSample, HairSample]], residual_de: list[float],
+                           curve: ResponseCurve) -> list[str]:
+    """A warning when one lift and deposit leave a pair far from its dyed swatch, or two dyed swatches of
+    one base differ."""
+    if max(residual_de) > DISAGREE_DE:
+        return [f"the pairs disagree: one lift and deposit leave a pair {max(residual_de):.1f} ΔE2000 from "
+                f"its dyed swatch; were they all dyed with this product, developer and time?"]
+    if (spread := same_base_spread(pairs, curve)) > DISAGREE_DE:
+        return [f"the pairs disagree: two dyed swatches of one base are {spread:.1f} ΔE2000 apart; were "
+                f"they all dyed with this product, developer and time?"]
+    return []
 
 
 # --- prediction ----------------------------------------------------------------------------------------
