@@ -318,6 +318,37 @@ def test_a_table_and_the_sim_rig_render_on_the_one_path(tmp_path, monkeypatch):
     assert done["curve"].nonfinite + rig_nonfinite == rr.TALLY.nonfinite - nonfinite
 
 
+def test_a_cycles_render_is_checked_as_the_renderer_checks_its_own(tmp_path, monkeypatch):
+    """``blender_run.render_cycles``, the one Cycles path, gives Blender the seed and counts and zeroes the NaN
+    and Inf values of the image Blender returns, its mean then that image's. Blender is not needed: a stand-in
+    program answers as the exported script does, with an image holding a NaN and an Inf."""
+    import os
+    import sys
+
+    from hairdigi.render.blender_run import layered_swatch, render_cycles, rig_for_blender
+    from hairdigi.render.interchange import HairLook
+
+    stand_in = tmp_path / "python"
+    stand_in.write_text(f"""#!{sys.executable}
+import json, sys
+args = sys.argv[sys.argv.index("--") + 1:]
+out = args[args.index("--render") + 1]
+pixels = [[[float("nan"), 0.5, 0.5], [0.25, float("inf"), 0.5]], [[0.25, 0.5, 0.5], [0.25, 0.5, 0.5]]]
+mean = [sum(p[c] for row in pixels for p in row) / 4 for c in range(3)]
+json.dump({{"mean_linear": mean, "seconds": 0.1, "spp": int(args[args.index("--spp") + 1]), "exr": out + ".exr",
+           "blender": "seed " + args[args.index("--seed") + 1], **({{"pixels": pixels}} if "--pixels" in args else {{}})}},
+          open(out, "w"))
+""")
+    os.chmod(stand_in, 0o755)
+    monkeypatch.setenv("HAIRDIGI_BLENDER", str(stand_in))
+    look = HairLook("test", (0.3, 0.6, 1.2))
+    out = render_cycles(look, rig_for_blender(layered_swatch(), size=2), spp=4, seed=11, pixels=True)
+    assert out.nonfinite == 2 and out.blender == "seed 11" and out.spp == 4
+    assert np.isfinite(out.pixels).all() and out.pixels[0, 0, 0] == 0 and out.pixels[0, 1, 1] == 0
+    assert np.allclose(out.mean_linear, [0.1875, 0.375, 0.5])
+    assert render_cycles(look, rig_for_blender(layered_swatch(), size=2), spp=4, seed=11).pixels is None
+
+
 def test_aov_render_and_build_count():
     r = Renderer(max_cached=2)
     spec = swatch(framing="crop")
