@@ -1,4 +1,4 @@
-"""The app's part of issue 18: the light selector (each captured frame beside its twin lit the same
+"""The app's part of reading the appearance: the light selector (each captured frame beside its twin lit the same
 way), the appearance (shine, fibre spread, grey share) with its intervals in the parameters panel,
 and the twin and hairstyles rendered with the estimated appearance.
 

@@ -1,4 +1,4 @@
-"""Issue 18: the appearance record, fibre groups, one frame per light, the shine in the estimate, and
+"""The appearance record, fibre groups, one frame per light, the shine in the estimate, and
 ``estimate --lights``."""
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""The whole chain on the simulated rig against the hidden truth (issue 17): lights, camera model,
+"""The whole chain on the simulated rig against the hidden truth: lights, camera model,
 chart, CCM, the swatch area, the estimate; linear from the CCM to the estimate; intervals that say
 when they cannot hold."""
 import numpy as np

@@ -1,4 +1,4 @@
-"""Issue 28, input robustness: the swatch finder at grazing views, the unknown camera, RAW stills'
+"""Input robustness: the swatch finder at grazing views, the unknown camera, RAW stills'
 clipping on the sensor's data, and the domain checks on a real camera's view of fine fibres.
 
 Real components throughout: Mitsuba renders (small, fixed seeds), rawpy on a DNG written here.
@@ -146,7 +146,7 @@ def test_clipping_is_judged_on_the_sensor_where_its_data_is_given():
 
 @pytest.mark.slow
 def test_a_dark_raw_still_is_not_called_clipped(tmp_path):
-    """Issue 28: a 12-bit RAW still of black hair, exposed so that the chart's white patch sits at 80%,
+    """A 12-bit RAW still of black hair, exposed so that the chart's white patch sits at 80%,
     was called "clipped: 17.8% of the swatch area is at 0 or 255" (the zeros of the corrected image's
     8-bit encode). Judged on the sensor's counts, nothing there is clipped."""
     from hairdigi.hardware.sim_still import write_raw_still

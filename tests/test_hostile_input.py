@@ -1,4 +1,4 @@
-"""Careless and hostile input (issue 13), through the real command line, one process per case.
+"""Careless and hostile input, through the real command line, one process per case.
 
 Every case checks three things: the exit status; stderr (one line naming the problem, never a
 traceback; warnings for the cases that succeed); and that every file in the working folder, the

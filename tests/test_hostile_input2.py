@@ -1,4 +1,4 @@
-"""Careless and hostile input, second round (issue 22), through the real command line.
+"""Careless and hostile input, second round, through the real command line.
 
 One numbered class of the issue per section. As in ``test_hostile_input``: one process per case,
 one stderr line naming the problem (never a traceback), and every file of the working folder, a

@@ -1,4 +1,4 @@
-"""Typed records (issue 21): every record round-trips through its JSON, and the files today's main
+"""Typed records: every record round-trips through its JSON, and the files today's main
 (hairdigi 0.1.0, before these types) wrote are read and upgraded: ``tests/data/legacy-session`` is a
 simulated-rig session written by commit cb75f99 (a live capture and a RAW still's records)."""
 import json

@@ -1,12 +1,12 @@
 """``hairdigi evaluate --appearance``: shine and fibre variation through the whole chain, judged away
-from the rig (issue 18).
+from the rig.
 
 Each held-out hidden swatch has random Table 1 parameters, a random shine (0.12-0.5), fibre spread
 (0-0.5) and grey share (0-0.3), and a strand layout the estimate never uses. A few swatches of
 today's world (shine 0.3, uniform fibres) check that those do not get worse. Each is put under the
 simulated rig, calibrated and captured the way an operator does (``RigSession.calibrate`` and
 ``capture``: one frame per light, then all lights), and estimated twice: with the single-light
-frames (the default), and without them, as before issue 18 (the shine held at 0.3).
+frames (the default), and without them, as before the shine was read (held at 0.3).
 
 Every estimate is judged against the truth, both rendered with one strand layout and one sampler
 seed (``render.judge``), mean colours compared with CIEDE2000:

@@ -1,4 +1,4 @@
-"""``hairdigi bench memory``: peak memory and time of the largest inputs hairdigi accepts (issue 22).
+"""``hairdigi bench memory``: peak memory and time of the largest inputs hairdigi accepts.
 
 Three cases, each one ``hairdigi`` command in a process of its own, whose peak resident memory is
 read from ``getrusage(RUSAGE_CHILDREN)`` in a small parent that runs nothing else:

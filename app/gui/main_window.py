@@ -100,9 +100,9 @@ class MainWindow(QMainWindow):
         outer.addWidget(splitter, 1)
         self.setCentralWidget(central)
         self.resize(1500, 860)
-        from hairdigi.app.gui.dye_panel import add_dye_dock   # issue 19: the Dye panel, a dock
+        from hairdigi.app.gui.dye_panel import add_dye_dock   # the Dye panel, a dock
         self.dye_dock = add_dye_dock(self, self.session.folder)
-        from hairdigi.app.gui.library_panel import add_library_dock   # issue 20: the Library panel, a dock
+        from hairdigi.app.gui.library_panel import add_library_dock   # the Library panel, a dock
         self.library_dock = add_library_dock(self)
 
     def _rig_panel(self) -> QWidget:
@@ -210,7 +210,7 @@ class MainWindow(QMainWindow):
             self.param_labels[name] = label
             grid.addWidget(label, i % 3, 2 + i // 3)
         v.addLayout(grid)
-        appearance = QGridLayout()           # issue 18: shine, fibre spread, grey share, with their intervals
+        appearance = QGridLayout()           # shine, fibre spread, grey share, with their intervals
         title = QLabel("Appearance")
         title.setStyleSheet("font-weight:bold")
         title.setToolTip("shine (Mitsuba's β_m, lower is glossier), the spread of ln σa across fibres, and the "
