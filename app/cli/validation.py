@@ -9,6 +9,10 @@ because its output cannot be written:
 - an output must not resolve to an input or to another output, must end in its format's extension
   (.png, .exr, .json, ...), must not be an existing folder, and its folder must exist or be
   creatable, be writable, and have some space left.
+
+Why one module over 600 lines: each command's ``check_*`` applies these path rules, and a rule
+changed must be changed for every command at once; one module is where a new command's checks are
+written and reviewed beside the rules and every other command's use of them.
 """
 from __future__ import annotations
 

@@ -4,6 +4,11 @@ The window holds widgets and workers only. The review state and the work behind 
 app/review/model.py (``ReviewModel``, free of Qt): the window runs the model's works in its workers,
 hands what they yield and return back to ``model.apply`` on the UI thread, and redraws on the
 model's events, from the model's views (parameters, lights, feed rate, thumbnails).
+
+Why one module over 600 lines: the four panels are one ``QMainWindow``'s, and share its workers,
+its model connections and its banner; each panel's builder and the handlers that redraw it sit
+together, and the panels that stand alone (the Dye and Library docks) are already modules of their
+own (``dye_panel``, ``library_panel``).
 """
 from __future__ import annotations
 

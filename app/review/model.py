@@ -21,6 +21,13 @@ record; the refined estimate's twin renders until it is clean, and only then its
 take turns with it. The scenes are built by :meth:`ReviewModel.warm_work` when the window opens, so a
 capture only updates parameters. Every render in the process takes one lock
 (``render.renderer.RENDER_LOCK``).
+
+Why one module of about 1,100 lines: :class:`ReviewModel` (about 630 of them) is one state machine
+whose works and appliers read and change the same state, and its two rules (only ``apply`` changes
+state, on the model's thread; stale work is dropped by generation) hold only if every work and every
+applier is checked against them together. The records and view functions above it are its
+vocabulary, the words the window and the tests read it through; moved out, each would still be
+read only beside the class.
 """
 from __future__ import annotations
 

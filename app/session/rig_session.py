@@ -2,6 +2,10 @@
 
 The GUI and ``hairdigi rig`` both drive this; it calls ``hardware/``, ``inference/`` and ``render/``
 and holds no science of its own. Every capture is written to disk before anything reads it.
+
+Why one module over 600 lines: what a capture writes (``RigSession.capture``, ``import_still``,
+``_write_result``) and what reads a session folder back (``load_capture``, ``load_results``) are
+one contract on the folder's layout; kept in one module, a change to either is made beside the other.
 """
 from __future__ import annotations
 
