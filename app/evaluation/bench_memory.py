@@ -151,9 +151,9 @@ def run_cases(out_dir: Path, quick: bool = False) -> list[dict]:
 
 
 def _sample_params() -> Path:
-    from hairdigi.resources import SAMPLES
+    from hairdigi.resources import SAMPLE_PARAMS
 
-    return Path(str(SAMPLES / "auburn.json"))
+    return Path(str(SAMPLE_PARAMS))
 
 
 def _plot(rows: list[dict], path: Path) -> None:

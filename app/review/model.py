@@ -44,9 +44,9 @@ import numpy as np
 
 from hairdigi.app.session import rig_session as rs
 from hairdigi.app.review.events import EventGroup
-from hairdigi.app.review.previews import (HairstylePass, PassTag, PreviewSettings, Stage, TwinPreview, hair_colour_rgb8,
-                                   hairstyle_passes, orbit_pose, scalp_linear, scene_appearance, strand_colour,
-                                   twin_passes, twin_view)
+from hairdigi.app.review.previews import (HairstylePass, PassTag, PreviewSettings, Stage, TwinPreview,
+                                          hair_colour_rgb8, hairstyle_passes, orbit_pose, scalp_linear,
+                                          scene_appearance, strand_colour, twin_passes, twin_view)
 from hairdigi.render import denoise as dn
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance, AppearanceEstimate
 from hairdigi.render.domain.bounds import ILLUMINANTS
@@ -880,7 +880,7 @@ class ReviewModel:
 
     def open_hair_work(self, path: str | Path) -> Work:
         """Read, check and fit a ``.hair`` model; a bad file raises its one-line error (HairFileError)."""
-        from hairdigi.render.renderer import defaults_for
+        from hairdigi.render.domain.bounds import defaults_for
 
         n = self.settings.hairstyle_strands or defaults_for("hairstyle").strands
 

@@ -29,7 +29,7 @@ from hairdigi.render.domain.files import write_json_atomic
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.records import (CalibrationProfile, CaptureRecord, EstimateRecord, EstimateWarning,
-                                          RecordError, WarningKind, capture_profile, read_record, write_record)
+                                            RecordError, WarningKind, capture_profile, read_record, write_record)
 from hairdigi.render.domain.rig_geometry import RIG_HALF_WIDTH, CameraPose, RigRegion
 
 #: How much longer a single-light frame is exposed, where the camera can (``RigSession.light_frames``).
