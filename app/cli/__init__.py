@@ -41,8 +41,8 @@ def _cache_dir() -> Path:
 
 
 def _use_variant(name: str | None) -> str:
-    """Switch Mitsuba to ``--variant`` (``auto``: the GPU when there is one). Building the parser
-    imports the render modules, which set a variant; this runs before any scene is loaded."""
+    """Switch Mitsuba to ``--variant`` (``auto``: the GPU when there is one), loading it: the parser
+    loads no Mitsuba, so this runs in the command, before any scene is loaded."""
     from hairdigi.render.variant import select_variant
 
     return select_variant(name)
@@ -793,7 +793,7 @@ def main(argv: list[str] | None = None) -> int:
     program = signal.getsignal(signal.SIGINT) is interrupted_at_start
     start_up()   # the process's thread budget, before numpy's BLAS loads (render.domain.threads)
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv == ["--version"]:   # answered before build_parser loads Mitsuba, so it is instant
+    if argv == ["--version"]:   # answered before the parser is built, so it is instant
         print(f"hairdigi {version()}")
         return 0
     debug = "--debug" in argv
