@@ -82,7 +82,7 @@ def _loss_text(train: dict) -> str:
     if not weight:
         return "L2 on the normalised Table 1 vector"
     return (f"L2 on the normalised Table 1 vector + {weight:g} x L2 on the fibre colour it renders "
-            "(cube-rooted Chiang albedo of sigma_a; inference/losses.py)")
+            "(cube-rooted Chiang albedo of sigma_a; inference/training/losses.py)")
 
 
 def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluation: dict,

@@ -1,5 +1,5 @@
 """``hairdigi train``: fit the encoder to synthetic datasets with an L2 loss in parameter space, plus
-an L2 loss on the fibre colour those parameters render (``inference/losses.py``).
+an L2 loss on the fibre colour those parameters render (``inference/training/losses.py``).
 
 PyTorch on the CPU (the ``train`` extra). Start Python with ``OMP_WAIT_POLICY=PASSIVE``: on two
 cores, OpenMP's default spinning makes training 5-12x slower whenever another process takes a core.
@@ -33,7 +33,7 @@ class TrainConfig:
     seed: int = 0
     threads: int = 2
     crop_min: float = 0.45   # smallest random crop, as a share of the image side
-    appearance_weight: float = 4.0   # weight of the fibre-colour term (inference/losses.py); 0: plain L2
+    appearance_weight: float = 4.0   # weight of the fibre-colour term (inference/training/losses.py); 0: plain L2
     blur_max: float = 1.5    # largest Gaussian blur (px): stands in for sources of higher resolution
 
 

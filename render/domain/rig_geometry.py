@@ -2,7 +2,7 @@
 camera poses, and the mapping between rig-view pixels and the holder plane, both ways.
 
 What places a thing on the rig reads it here: the scene builders (``render.scenes``), the simulated
-rig, the chart targets' patch boxes (``render.chart``) and the twin's view (``app.rig_session``). The
+rig, the chart targets' patch boxes (``render.chart``) and the twin's view (``app.session.rig_session``). The
 chart and swatch finders work from the image alone. Importing it loads no Mitsuba.
 
 Coordinates: the holder is the z = 0 plane, its normal +z, strands along y; scene units are
