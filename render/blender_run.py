@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.render.domain import rig_geometry as rg
+from hairdigi.render.domain.bounds import Environment
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.interchange import HairLook, blender_script_text
 from hairdigi.render.strands import SWATCH_LENGTH, SWATCH_WIDTH, Strands
@@ -94,9 +95,9 @@ def layered_swatch(layers: int = CHECK_LAYERS, radius: float = CHECK_RADIUS, gap
     return Strands.from_grid(np.array(grid), radius)
 
 
-def rig_for_blender(strands: Strands, pose: rg.CameraPose = rg.RIG_SWATCH_POSE, framing: str = "crop",
+def rig_for_blender(strands: Strands, pose: rg.CameraPose = rg.RIG_SWATCH_POSE, framing: rg.Framing = rg.Framing.CROP,
                     size: int | tuple[int, int] = 64, max_depth: int = 32, lights=(1.0,) * rg.N_LIGHTS,
-                    env: str = "studio", bspline: bool = True) -> dict:
+                    env: Environment = Environment.STUDIO, bspline: bool = True) -> dict:
     """hairdigi's swatch rig as the Blender script builds it: ``strands`` as Mitsuba draws them (its
     B-splines sampled 4 times a segment; ``bspline=False``: the points as they are, for strands that
     are not Mitsuba's), the holder, the rig's lights at ``lights`` of full power and the camera at
@@ -115,8 +116,8 @@ def rig_for_blender(strands: Strands, pose: rg.CameraPose = rg.RIG_SWATCH_POSE, 
         "lights": [{"corners": rg.light_corners(i).tolist(), "radiance": scenes.LIGHT_RADIANCE * float(k)}
                    for i, k in enumerate(lights) if k > 0]
                   + ([{"corners": rg.square_corners(scenes.KEY_POSITION, scenes.KEY_SIZE).tolist(),
-                       "radiance": scenes.KEY_RADIANCE}] if env == scenes.KEY_SKY else []),
-        "sky": scenes.SKY_RADIANCE if env == scenes.KEY_SKY else 0.0,
+                       "radiance": scenes.KEY_RADIANCE}] if env == Environment.KEY_SKY else []),
+        "sky": scenes.SKY_RADIANCE if env == Environment.KEY_SKY else 0.0,
         "camera": {"origin": m[:3, 3].tolist(), "left": m[:3, 0].tolist(), "up": m[:3, 1].tolist(),
                    "forward": m[:3, 2].tolist(), "fov_deg": rg.framing_fov(framing, pose.distance)},
         "size": [width, height], "max_depth": max_depth,

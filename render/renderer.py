@@ -24,6 +24,8 @@ from hairdigi.render import scenes
 from hairdigi.render.domain.absorption import hair_bsdf, hair_sigma_a
 from hairdigi.render.hairfile import hair_model_strands
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance
+from hairdigi.render.domain.bounds import (ENVIRONMENTS, SWATCH_ENVIRONMENTS, Environment, SceneKind,
+                                           SwatchModel)
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.interrupt import sigint_held
 from hairdigi.render.domain.params import HairParams
@@ -31,18 +33,13 @@ from hairdigi.render.fibres import FIBRE_GROUPS, group_keys, group_sigma_a, spli
 from hairdigi.render.srgb import linear_to_srgb8
 from hairdigi.render.strands import (STYLES, Strands, hairstyle_strands, layered_radius,
                                      layered_swatch_strands, swatch_strands)
-from hairdigi.render.swatch_family import STRUCTURES, structure_strands
+from hairdigi.render.swatch_family import structure_strands
 from hairdigi.render.variant import is_jit, load_scene, mi, select_variant, spectral_variant
 
 #: The scene of a ``.hair`` model (``SceneSpec.hair_file``).
-HAIR_FILE_SCENE = "hairfile"
-#: The swatch's strand models (``SceneSpec.swatch_model``): "layered", ``layered_swatch_strands`` (no
-#: fibre meets another, optically thick: the default since issue 18); "today", ``swatch_strands`` (the
-#: first swatch: a few layers whose fibres pass through one another, 1.4-1.8 ΔE2000 lighter at equal
-#: sigma_a). resources/models/swatch-structure.md measures both. The others are ``render.swatch_family``'s
-#: physical structures (deposited, tilted layers, ...), which ``hairdigi evaluate --structures`` hides.
-SWATCH_MODELS = ("layered", "today") + tuple(k for k in STRUCTURES if k != "layered")
-DEFAULT_SWATCH_MODEL = "layered"
+HAIR_FILE_SCENE = SceneKind.HAIR_FILE.value
+#: The swatch's strand model when none is named (``render.domain.bounds.SwatchModel`` has them all).
+DEFAULT_SWATCH_MODEL = SwatchModel.LAYERED
 
 
 class SceneError(HairdigiError, ValueError):
@@ -57,13 +54,15 @@ class SceneSpec:
     ``name`` is ``"swatch"``, a hairstyle, or ``"hairfile"`` with ``hair_file`` the path of a Cem
     Yuksel ``.hair`` model (a ``name`` ending in ``.hair`` is taken as that path: ``SceneSpec("x.hair")``
     is ``SceneSpec("hairfile", hair_file="/abs/x.hair")``); the model is fitted to the head and cut to
-    ``strands`` strands (``hairfile.hair_model_strands``). ``framing`` (swatch only) is ``"crop"``, all hair, as in
+    ``strands`` strands (``hairfile.hair_model_strands``). ``kind`` is what ``name`` names (a
+    ``SceneKind``, parsed once: test it, not the name). ``framing`` (swatch only) is ``"crop"``, all hair, as in
     the training set, or ``"rig"``, the whole swatch on its holder. ``env`` lights hairstyles.
     ``strands``, ``max_depth`` None take the scene's defaults. ``lights`` scales the three rig lights.
     ``chart`` adds a colour chart of (24, 3) linear reflectances beside the swatch (swatch only), at
     ``chart_center`` on the holder (x, y; default ``rig_geometry.CHART_CENTER``). ``crop`` (swatch
     only) renders just that x, y, w, h window of the film (``rig_geometry.RigRegion.render_plan``).
-    ``swatch_model`` (swatch only) picks its strands from ``SWATCH_MODELS``. ``appearance``
+    ``swatch_model`` (swatch only) picks its strands (a ``SwatchModel``).
+    ``env``, ``framing`` and ``swatch_model`` are given as their enums or their text, and held as the enums. ``appearance``
     (``render.domain.appearance.Appearance``) is the hair's shine, fibre spread and grey share; a varied
     one is drawn as ``fibre_groups`` pigment groups and a grey group (``render.fibres``). A swatch's
     ``env`` ``"key-sky"`` adds a key light and a grey sky (the rig's lights set to 0: away from the rig).
@@ -76,10 +75,10 @@ class SceneSpec:
     band of unit area (``render.spectra.camera_bands``), neither white-balanced nor colour-corrected.
     """
 
-    name: str = "swatch"
+    name: str = SceneKind.SWATCH.value
     camera: rig_geometry.CameraPose | None = None
-    env: str = "studio"
-    framing: str = "crop"
+    env: Environment = Environment.STUDIO
+    framing: rig_geometry.Framing = rig_geometry.Framing.CROP
     strands: int | None = None
     strand_seed: int = 0
     max_depth: int | None = None
@@ -92,15 +91,18 @@ class SceneSpec:
     crop: tuple[int, int, int, int] | None = None   # swatch: render only this x, y, w, h of the film
     appearance: Appearance | None = None            # shine, fibre spread, greys; None: the default (uniform)
     fibre_groups: int | None = None                  # pigment groups of a varied appearance; None: FIBRE_GROUPS
-    swatch_model: str | None = None                  # swatch strands: one of SWATCH_MODELS; None: the default
+    swatch_model: SwatchModel | None = None          # swatch strands; None: the default
     illuminant: str | None = None                    # None: RGB; a light (render.spectra): rendered spectrally
     sensitivities: str | None = None                 # spectral: None, the CIE observer; a camera (render.spectra)
+    kind: SceneKind = field(init=False, repr=False, compare=False)   # what ``name`` names, parsed once
 
     def __post_init__(self) -> None:
         if isinstance(self.name, str) and self.name.lower().endswith(".hair") and self.hair_file is None:
             object.__setattr__(self, "hair_file", self.name)
-            object.__setattr__(self, "name", HAIR_FILE_SCENE)
-        if self.name == HAIR_FILE_SCENE:
+            object.__setattr__(self, "name", SceneKind.HAIR_FILE.value)
+        object.__setattr__(self, "kind", SceneKind.of(self.name))
+        swatch = self.kind is SceneKind.SWATCH
+        if self.kind is SceneKind.HAIR_FILE:
             path = Path(self.hair_file or "")
             if not self.hair_file or not path.is_file():
                 raise SceneError(f"hair model {self.hair_file!r}: no such file; give the path of a .hair file")
@@ -110,14 +112,17 @@ class SceneSpec:
         elif self.name not in SCENE_NAMES:
             raise SceneError(f"unknown scene {self.name!r}; choose one of {', '.join(SCENE_NAMES)} "
                              f"or the path of a .hair file")
-        if self.name != "swatch" and self.env not in scenes.ENVIRONMENTS:
-            raise SceneError(f"unknown environment {self.env!r}; choose one of {', '.join(scenes.ENVIRONMENTS)}")
-        if self.name == "swatch" and self.env not in ("studio", scenes.KEY_SKY):
+        if not swatch and self.env not in ENVIRONMENTS:
+            raise SceneError(f"unknown environment {self.env!r}; choose one of {', '.join(ENVIRONMENTS)}")
+        if swatch and self.env not in SWATCH_ENVIRONMENTS:
             raise SceneError(f"unknown swatch environment {self.env!r}; choose 'studio' (the rig) or "
-                             f"{scenes.KEY_SKY!r} (a key light and a grey sky)")
-        if self.name == "swatch" and self.framing not in rig_geometry.FRAMING_HALF_WIDTH:
+                             f"{Environment.KEY_SKY.value!r} (a key light and a grey sky)")
+        object.__setattr__(self, "env", Environment(self.env))
+        if self.framing in rig_geometry.Framing.names():
+            object.__setattr__(self, "framing", rig_geometry.Framing(self.framing))
+        elif swatch:
             raise SceneError(f"unknown framing {self.framing!r}; choose one of "
-                             f"{', '.join(rig_geometry.FRAMING_HALF_WIDTH)}")
+                             f"{', '.join(rig_geometry.Framing.names())}")
         if self.max_depth is not None and (not is_whole(self.max_depth)
                                            or not MIN_DEPTH <= self.max_depth <= MAX_DEPTH):
             raise SceneError(f"max_depth must be a whole number between {MIN_DEPTH} and {MAX_DEPTH} (depth 1 "
@@ -130,14 +135,15 @@ class SceneSpec:
             raise SceneError(f"fibre_groups must be a whole number between 1 and 64, got {self.fibre_groups!r}")
         if not all(np.isfinite(float(v)) and v >= 0 for v in self.lights):
             raise ValueError(f"lights {self.lights} must be finite scales >= 0")
-        if self.name == "swatch" and self.swatch_model is None:
+        if swatch and self.swatch_model is None:
             object.__setattr__(self, "swatch_model", DEFAULT_SWATCH_MODEL)
-        if (self.swatch_model is not None and self.swatch_model not in SWATCH_MODELS) or \
-                (self.swatch_model is not None and self.name != "swatch"):
-            raise SceneError(f"swatch_model {self.swatch_model!r}: choose one of {', '.join(SWATCH_MODELS)} "
-                             f"(it applies to the swatch scene only)")
+        if self.swatch_model is not None:
+            if self.swatch_model not in SwatchModel.names() or not swatch:
+                raise SceneError(f"swatch_model {self.swatch_model!r}: choose one of "
+                                 f"{', '.join(SwatchModel.names())} (it applies to the swatch scene only)")
+            object.__setattr__(self, "swatch_model", SwatchModel(self.swatch_model))
         if self.camera is not None:
-            check_camera(self.camera, self.name)
+            check_camera(self.camera, self.kind)
         if self.illuminant is not None:
             from hairdigi.render.spectra import illuminant_spd
 
@@ -151,11 +157,11 @@ class SceneSpec:
 
     @property
     def n_strands(self) -> int:
-        return self.strands if self.strands is not None else defaults_for(self.name).strands
+        return self.strands if self.strands is not None else defaults_for(self.kind).strands
 
     @property
     def depth(self) -> int:
-        return self.max_depth if self.max_depth is not None else defaults_for(self.name).max_depth
+        return self.max_depth if self.max_depth is not None else defaults_for(self.kind).max_depth
 
     @property
     def look(self) -> Appearance:
@@ -172,7 +178,7 @@ class SceneSpec:
     def pose(self) -> rig_geometry.CameraPose:
         if self.camera is not None:
             return self.camera
-        return rig_geometry.CameraPose() if self.name == "swatch" else scenes.PORTRAIT_CAMERA
+        return rig_geometry.CameraPose() if self.kind is SceneKind.SWATCH else scenes.PORTRAIT_CAMERA
 
 
 @dataclass
@@ -210,13 +216,13 @@ def spectral_absorption_of(hair: HairParams | np.ndarray) -> np.ndarray:
 
 
 def strands_for(spec: SceneSpec) -> Strands:
-    if spec.name == "swatch":
-        if spec.swatch_model == "layered":
+    if spec.kind is SceneKind.SWATCH:
+        if spec.swatch_model is SwatchModel.LAYERED:
             return layered_swatch_strands(spec.n_strands, seed=spec.strand_seed, radius=layered_radius(spec.n_strands))
-        if spec.swatch_model == "today":
+        if spec.swatch_model is SwatchModel.TODAY:
             return swatch_strands(spec.n_strands, seed=spec.strand_seed)
         return structure_strands(spec.swatch_model, spec.n_strands, seed=spec.strand_seed)
-    if spec.name == HAIR_FILE_SCENE:
+    if spec.kind is SceneKind.HAIR_FILE:
         return hair_model_strands(spec.hair_file, spec.n_strands, seed=spec.strand_seed)
     return hairstyle_strands(spec.name, spec.n_strands, seed=spec.strand_seed)
 
@@ -282,7 +288,7 @@ class Renderer:
         """The scene dict of ``spec`` and the curve files it reads (delete them once it is loaded)."""
         curve_file = Path(self._tmp.name) / f"curves-{len(self._cache)}-{time.monotonic_ns()}.txt"
         curve_file.write_text(strands_for(spec).with_dummy().to_curve_text())
-        if spec.name == "swatch":
+        if spec.kind is SceneKind.SWATCH:
             chart = None if spec.chart is None else np.asarray(spec.chart)
             moved = chart is not None and spec.chart_center is not None
             scene_dict = scenes.swatch_scene(str(curve_file), bsdf, spec.pose, size, spec.framing, spec.depth,
@@ -333,17 +339,17 @@ class Renderer:
             p[f"{key}.bsdf.longitudinal_roughness"] = float(look.longitudinal_roughness)
         if "scalp.bsdf.reflectance.value" in p:   # portraits: the scalp under the hair takes its colour
             p["scalp.bsdf.reflectance.value"] = mi.Color3f(*scenes.scalp_albedo(absorption_of(params)))
-        if spec.name == "swatch":
+        swatch = spec.kind is SceneKind.SWATCH
+        if swatch:
             for i, scale in enumerate(spec.lights):
                 p[f"light{i}.emitter.radiance.value"] = mi.Color3f([scenes.LIGHT_RADIANCE * float(scale)] * 3)
         if spec.pose != loaded.camera:
-            target = spec.target if spec.name == "swatch" else scenes.PORTRAIT_TARGET
-            position = (spec.pose.position(target) if spec.name == "swatch"
-                        else scenes.portrait_camera_position(spec.pose))
+            target = spec.target if swatch else scenes.PORTRAIT_TARGET
+            position = spec.pose.position(target) if swatch else scenes.portrait_camera_position(spec.pose)
             p["sensor.to_world"] = mi.AffineTransform4f(scenes.look_at(position, np.asarray(target)).matrix)
             # the field of view follows the distance (the framing is fixed at the holder)
             p["sensor.x_fov"] = (rig_geometry.framing_fov(spec.framing, spec.pose.distance, spec.half_width)
-                                 if spec.name == "swatch" else scenes.PORTRAIT_FOV)
+                                 if swatch else scenes.PORTRAIT_FOV)
             loaded.camera = spec.pose
         if spec.strand_seed != loaded.strand_seed and not spec.groups:   # groups: a new layout is a new scene
             strands = strands_for(spec).with_dummy()

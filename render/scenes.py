@@ -17,7 +17,8 @@ from hairdigi.render.variant import transform
 HOLDER_ALBEDO = 0.18          # mid grey, like a photographic grey card
 LIGHT_RADIANCE = 16.0
 
-from hairdigi.render.domain.bounds import ENVIRONMENTS  # noqa: E402  (the names, for the command line without Mitsuba)
+from hairdigi.render.domain.bounds import ENVIRONMENTS, Environment  # noqa: E402  (without Mitsuba, for the command line)
+from hairdigi.render.domain.rig_geometry import Framing  # noqa: E402
 SKIN_ALBEDO = (0.55, 0.38, 0.30)
 
 
@@ -97,12 +98,12 @@ def chart_patches(reflectances: np.ndarray, center=CHART_CENTER) -> dict:
 PORTRAIT_FOV = 36.0
 
 
-def swatch_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: int, framing: str = "crop",
+def swatch_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: int, framing: Framing = Framing.CROP,
                  max_depth: int = 16, lights=(1.0,) * N_LIGHTS, chart: np.ndarray | None = None,
                  target=(0.0, 0.0, 0.0), half_width: float | None = None,
-                 crop: tuple[int, int, int, int] | None = None, env: str = "studio") -> dict:
+                 crop: tuple[int, int, int, int] | None = None, env: Environment = Environment.STUDIO) -> dict:
     """The bench: holder, swatch, its lights and a camera on a sphere around the holder's normal;
-    ``env`` ``KEY_SKY`` adds a key light and a grey sky (set the rig's lights to 0 to see it alone)."""
+    ``env`` ``Environment.KEY_SKY`` adds a key light and a grey sky (set the rig's lights to 0 to see it alone)."""
     fov = framing_fov(framing, camera_pose.distance, half_width)
     scene = {
         "type": "scene",
@@ -118,14 +119,13 @@ def swatch_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: int
     }
     if chart is not None:
         scene.update(chart_patches(chart))
-    if env == KEY_SKY:
+    if env == Environment.KEY_SKY:
         scene.update(key_and_sky())
     return scene
 
 
-#: The swatch away from the rig (issue 18's transfer): one key light and a grey sky; the rig's lights
+#: The swatch away from the rig (``Environment.KEY_SKY``): one key light and a grey sky; the rig's lights
 #: are set to 0 by the scene spec.
-KEY_SKY = "key-sky"
 KEY_POSITION = (-1.6, -2.2, 2.6)      # low on the root side, across the fibres: unlike any rig light
 KEY_RADIANCE = 24.0
 KEY_SIZE = 0.6
@@ -142,7 +142,7 @@ def furnace_scene(curve_file: str, bsdf: dict, camera_pose: CameraPose, size: in
     return {
         "type": "scene",
         "integrator": {"type": "path", "max_depth": max_depth, "rr_depth": max_depth},
-        "sensor": sensor(camera_pose, (0, 0, 0), size, framing_fov("crop", camera_pose.distance)),
+        "sensor": sensor(camera_pose, (0, 0, 0), size, framing_fov(Framing.CROP, camera_pose.distance)),
         "hair": hair_shape(curve_file, bsdf),
         "env": {"type": "constant", "radiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}},
     }
@@ -157,10 +157,10 @@ def portrait_camera_position(pose: CameraPose) -> np.ndarray:
     return np.asarray(PORTRAIT_TARGET) + pose.distance * spherical_direction(pose.polar_deg, pose.azimuth_deg)
 
 
-def portrait_lights(env: str) -> dict:
+def portrait_lights(env: Environment) -> dict:
     if env not in ENVIRONMENTS:
         raise ValueError(f"unknown environment {env!r}; choose one of {', '.join(ENVIRONMENTS)}")
-    if env == "studio":  # three-point: key front-right-high, fill front-left, rim behind
+    if env == Environment.STUDIO:  # three-point: key front-right-high, fill front-left, rim behind
         return {
             "key": area_light(np.array([3.5, 3.0, 5.0]), PORTRAIT_TARGET, 2.0, 9.0),
             "fill": area_light(np.array([-5.0, 0.5, 4.0]), PORTRAIT_TARGET, 2.5, 2.5),
@@ -183,7 +183,7 @@ def scalp_albedo(sigma_a) -> list[float]:
 SCALP_SHADE = 0.5
 
 
-def portrait_scene(curve_file: str, bsdf: dict, size: int, env: str = "studio",
+def portrait_scene(curve_file: str, bsdf: dict, size: int, env: Environment = Environment.STUDIO,
                    camera_pose: CameraPose = PORTRAIT_CAMERA, max_depth: int = 16,
                    part_x: float | None = None) -> dict:
     """A hairstyle on the head (``head.py``'s bust), with the camera in front of the face.

@@ -16,7 +16,8 @@ from scipy.spatial import cKDTree
 from hairdigi.inference.training.evaluate_cycles import CASES, CyclesSet, _one, hidden_set, other_swatch
 from hairdigi.render.domain import rig_geometry as rg
 from hairdigi.render.blender_run import rig_for_blender
-from hairdigi.render.scenes import KEY_RADIANCE, KEY_SKY, LIGHT_RADIANCE, SKY_RADIANCE
+from hairdigi.render.domain.bounds import Environment
+from hairdigi.render.scenes import KEY_RADIANCE, LIGHT_RADIANCE, SKY_RADIANCE
 from hairdigi.render.strands import SWATCH_LENGTH
 
 
@@ -65,7 +66,7 @@ def test_the_blender_scene_has_the_rig_or_the_transfers_lights() -> None:
     rig = rig_for_blender(strands, bspline=False)
     assert [light["radiance"] for light in rig["lights"]] == [LIGHT_RADIANCE] * rg.N_LIGHTS and rig["sky"] == 0.0
     assert len(rig["strands"]["points"]) == strands.points.size          # the polylines as they are
-    away = rig_for_blender(strands, rg.TRANSFER_POSE, lights=(0.0,) * rg.N_LIGHTS, env=KEY_SKY, bspline=False)
+    away = rig_for_blender(strands, rg.TRANSFER_POSE, lights=(0.0,) * rg.N_LIGHTS, env=Environment.KEY_SKY, bspline=False)
     assert [light["radiance"] for light in away["lights"]] == [KEY_RADIANCE] and away["sky"] == SKY_RADIANCE
     corners = np.asarray(away["lights"][0]["corners"])
     assert np.allclose(np.linalg.norm(corners[0] - corners[1]), 0.6)       # the key light's size

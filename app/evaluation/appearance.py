@@ -13,7 +13,7 @@ seed (``render.judge``), mean colours compared with CIEDE2000:
 - **fit**: the rig's swatch area, all lights;
 - **each light**: the same, one light at a time;
 - **transfer**: a scene the estimate never saw: another camera (40° / 30°), one key light and a grey
-  sky (``render.scenes.KEY_SKY``), all hair in view;
+  sky (``Environment.KEY_SKY``, ``render.scenes.key_and_sky``), all hair in view;
 and the appearance's absolute errors. ``--ship`` writes the appearance's interval half-widths
 (``resources/models/appearance_uncertainty.json``) from them.
 """
@@ -68,14 +68,14 @@ def hidden_set(config: AppearanceSet) -> list[tuple[str, HairParams, Appearance,
 def _scenes(view) -> dict:
     """The judge's scenes: the rig's swatch area (all lights, each light), and the transfer."""
     from hairdigi.inference.refine import RefineSettings, scene_for
+    from hairdigi.render.domain.bounds import Environment
     from hairdigi.render.renderer import SceneSpec
-    from hairdigi.render.scenes import KEY_SKY
 
     rig, film = scene_for(view, RefineSettings(size=JUDGE_SIZE, spp=JUDGE_SPP))
     out = {"fit": (rig, film)}
     for i in range(N_LIGHTS):
         out[f"light{i}"] = (replace(rig, lights=tuple(1.0 if j == i else 0.0 for j in range(N_LIGHTS))), film)
-    out["transfer"] = (SceneSpec("swatch", env=KEY_SKY, lights=(0.0,) * N_LIGHTS, camera=TRANSFER_POSE,
+    out["transfer"] = (SceneSpec("swatch", env=Environment.KEY_SKY, lights=(0.0,) * N_LIGHTS, camera=TRANSFER_POSE,
                                  framing="crop"), JUDGE_SIZE)
     return out
 

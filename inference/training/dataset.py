@@ -24,12 +24,14 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance, sample_appearance
+from hairdigi.render.domain.bounds import SwatchModel
 from hairdigi.render.domain.appearance import FIELDS as APPEARANCE_FIELDS
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.files import atomic_path
 
 from hairdigi.render.domain.params import HairParams, sample_params
-from hairdigi.render.domain.rig_geometry import CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, light_blocks_view
+from hairdigi.render.domain.rig_geometry import (CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, Framing,
+                                                 light_blocks_view)
 
 MANIFEST = "manifest.json"
 STORES = ("linear16", "srgb8")
@@ -52,19 +54,22 @@ class DatasetConfig:
     distance_jitter: float = 0.1
     strands: int | None = None
     max_depth: int | None = None
-    framing: str = "crop"
+    framing: Framing = Framing.CROP
     shard_size: int = 100
     store: str = "linear16"   # "linear16": linear float16 radiance; "srgb8": 8-bit sRGB (older datasets)
-    swatch_model: str = "layered"   # render.renderer.SWATCH_MODELS
+    swatch_model: SwatchModel = SwatchModel.LAYERED
     appearance: str = "random"      # APPEARANCES
 
     def __post_init__(self) -> None:
-        from hairdigi.render.renderer import SWATCH_MODELS
-
         if self.store not in STORES:
             raise DatasetError(f"dataset store {self.store!r} is not one of {', '.join(STORES)}")
-        if self.swatch_model not in SWATCH_MODELS:
-            raise DatasetError(f"dataset swatch_model {self.swatch_model!r} is not one of {', '.join(SWATCH_MODELS)}")
+        if self.swatch_model not in SwatchModel.names():
+            raise DatasetError(f"dataset swatch_model {self.swatch_model!r} is not one of "
+                               f"{', '.join(SwatchModel.names())}")
+        if self.framing not in Framing.names():
+            raise DatasetError(f"dataset framing {self.framing!r} is not one of {', '.join(Framing.names())}")
+        object.__setattr__(self, "swatch_model", SwatchModel(self.swatch_model))
+        object.__setattr__(self, "framing", Framing(self.framing))
         if self.appearance not in APPEARANCES:
             raise DatasetError(f"dataset appearance {self.appearance!r} is not one of {', '.join(APPEARANCES)}")
         for name, low in (("size", 8), ("spp", 1), ("n", 1), ("shard_size", 1)):
@@ -109,12 +114,12 @@ def sample_spec(config: DatasetConfig, index: int) -> SampleSpec:
     return SampleSpec(index, params, camera, strand_seed, render_seed, look)
 
 
-def camera_is_clear(camera: CameraPose, framing: str = "crop") -> bool:
+def camera_is_clear(camera: CameraPose, framing: Framing = Framing.CROP) -> bool:
     """Whether the camera sees the framed swatch rather than the back of a rig light."""
-    return not light_blocks_view(camera, FRAMING_HALF_WIDTH.get(framing, FRAMING_HALF_WIDTH["crop"]))
+    return not light_blocks_view(camera, FRAMING_HALF_WIDTH.get(framing, FRAMING_HALF_WIDTH[Framing.CROP]))
 
 
-def usable(cameras: np.ndarray, framing: str = "crop") -> np.ndarray:
+def usable(cameras: np.ndarray, framing: Framing = Framing.CROP) -> np.ndarray:
     """Mask of stored samples (rows of polar°, azimuth°, distance) whose camera is clear of the lights.
 
     Datasets drawn before ``sample_spec`` redrew blocked cameras hold about 3% of them (black or part

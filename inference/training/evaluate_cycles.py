@@ -38,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.render.domain.bounds import Environment
 from hairdigi.render.domain.params import HairParams, sample_params
 from hairdigi.render.domain.rig_geometry import N_LIGHTS, RIG_SWATCH_POSE, TRANSFER_POSE
 from hairdigi.render.strands import SWATCH_LENGTH, SWATCH_WIDTH, Strands
@@ -120,7 +121,6 @@ def cycles_render(sigma_a, strands: Strands, scene: str, config: CyclesSet, seed
     from hairdigi.render.domain.absorption import LONGITUDINAL_ROUGHNESS
     from hairdigi.render.blender_run import render_cycles, rig_for_blender
     from hairdigi.render.interchange import HairLook
-    from hairdigi.render.scenes import KEY_SKY
 
     look = HairLook("hidden", tuple(float(v) for v in sigma_a),
                     longitudinal_roughness=LONGITUDINAL_ROUGHNESS if shine is None else float(shine))
@@ -130,7 +130,7 @@ def cycles_render(sigma_a, strands: Strands, scene: str, config: CyclesSet, seed
         alone = tuple(1.0 if f"light{i}" == scene else 0.0 for i in range(N_LIGHTS))
         rig = rig_for_blender(strands, RIG_SWATCH_POSE, "crop", config.size, lights=alone, bspline=False)
     else:
-        rig = rig_for_blender(strands, TRANSFER_POSE, "crop", config.size, lights=(0.0, 0.0, 0.0), env=KEY_SKY,
+        rig = rig_for_blender(strands, TRANSFER_POSE, "crop", config.size, lights=(0.0, 0.0, 0.0), env=Environment.KEY_SKY,
                               bspline=False)
     out = render_cycles(look, rig, config.spp, seed, config.threads, pixels=pixels, folder=folder)
     return {"mean_linear": list(out.mean_linear), "seconds": out.seconds, "spp": out.spp, "nonfinite": out.nonfinite,

@@ -34,6 +34,7 @@ import numpy as np
 
 from hairdigi.render.domain.params import HairParams, sample_params
 from hairdigi.inference.training.evaluate_cycles import CASES as CYCLES_CASES, LIGHT_EV, _relative_error
+from hairdigi.render.domain.bounds import Environment
 from hairdigi.render.domain.rig_geometry import N_LIGHTS, RIG_SWATCH_POSE, TRANSFER_POSE
 
 SEED = 2_026_1126
@@ -94,11 +95,10 @@ class _Mitsuba:
     def mean(self, sigma, structure: str, layout: int, scene: str, shine: float, pixels: bool = False):
         from hairdigi.render.domain.appearance import Appearance
         from hairdigi.render.renderer import SceneSpec
-        from hairdigi.render.scenes import KEY_SKY
 
         look = Appearance(longitudinal_roughness=float(shine))
         if scene == "transfer":
-            spec = SceneSpec("swatch", env=KEY_SKY, lights=(0.0,) * N_LIGHTS, camera=TRANSFER_POSE, framing="crop",
+            spec = SceneSpec("swatch", env=Environment.KEY_SKY, lights=(0.0,) * N_LIGHTS, camera=TRANSFER_POSE, framing="crop",
                              swatch_model=structure, strand_seed=layout, appearance=look)
         else:
             lights = (1.0,) * N_LIGHTS if scene == "rig" else tuple(

@@ -10,11 +10,57 @@ import numpy as np
 
 from hairdigi.render.domain import rig_geometry
 from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.text_enum import TextEnum
 
 
 class BoundsError(HairdigiError, ValueError):
     """A render setting (size, spp, camera) outside what a render can finish or show; the message names
     the setting and its range."""
+
+
+class SceneKind(TextEnum):
+    """What a scene shows: the rig's swatch, a built-in hairstyle on the head, or a ``.hair`` model on it."""
+
+    SWATCH = "swatch"
+    HAIRSTYLE = "hairstyle"
+    HAIR_FILE = "hairfile"
+
+    @classmethod
+    def of(cls, name: str) -> SceneKind:
+        """The kind of the scene named ``name``: the swatch, a hair model, else a hairstyle."""
+        return cls(name) if name in (cls.SWATCH, cls.HAIR_FILE) else cls.HAIRSTYLE
+
+    @property
+    def on_head(self) -> bool:
+        """Hair on the head (a hairstyle or a hair model): its defaults, camera and lighting are the portrait's."""
+        return self is not SceneKind.SWATCH
+
+
+class Environment(TextEnum):
+    """A scene's lighting: the hairstyles' "studio" or "soft" (``render.scenes.portrait_lights``); a swatch's
+    "studio" (the rig's three lights) or "key-sky" (a key light and a grey sky, away from the rig)."""
+
+    STUDIO = "studio"
+    SOFT = "soft"
+    KEY_SKY = "key-sky"
+
+
+class SwatchModel(TextEnum):
+    """The swatch's strand models (``SceneSpec.swatch_model``): "layered", ``layered_swatch_strands`` (no
+    fibre meets another, optically thick: the default); "today", ``swatch_strands`` (the first swatch: a
+    few layers whose fibres pass through one another, 1.4-1.8 ΔE2000 lighter at equal sigma_a).
+    resources/models/swatch-structure.md measures both. The others are ``render.swatch_family``'s
+    physical structures (deposited, tilted layers, ...), which ``hairdigi evaluate --structures`` hides."""
+
+    LAYERED = "layered"
+    TODAY = "today"
+    DEPOSITED = "deposited"
+    DEPOSITED_COARSE = "deposited-coarse"
+    SPREAD = "spread"
+    WAVY = "wavy"
+    TILTED = "tilted"
+    LOOSE = "loose"
+    THIN = "thin"
 
 
 # Bounds on what a render may ask for: outside them the image is black, or the job cannot finish.
@@ -27,7 +73,7 @@ MAX_DEPTH = 1024
 MAX_STRANDS = 200_000
 #: Camera distance from the target in scene units: nearer is inside or against the hair (the
 #: swatch's strands stand 0.04 above the holder; the head's radius is about 1), farther is a speck.
-MIN_CAMERA_DISTANCE = {"swatch": 0.5, "hairstyle": 2.5}
+MIN_CAMERA_DISTANCE = {SceneKind.SWATCH: 0.5, SceneKind.HAIRSTYLE: 2.5}
 MAX_CAMERA_DISTANCE = 100.0
 
 #: The built-in hairstyles (``render.strands``) and the scenes: the swatch rig, then the hairstyles.
@@ -44,9 +90,10 @@ ILLUMINANTS = {
     "FL2": "FL2", "FL11": "FL11", "shop-led": "LED-B3",
     **{f"LED-{k}": f"LED-{k}" for k in ("B1", "B2", "B3", "B4", "B5", "BH1", "RGB1", "V1", "V2")},
 }
-SCENE_NAMES = ("swatch",) + HAIRSTYLES
-#: The hairstyles' lighting (``render.scenes``).
-ENVIRONMENTS = ("studio", "soft")
+SCENE_NAMES = (SceneKind.SWATCH.value,) + HAIRSTYLES
+#: The hairstyles' lighting (``render.scenes``); a swatch's is ``SWATCH_ENVIRONMENTS``.
+ENVIRONMENTS = (Environment.STUDIO.value, Environment.SOFT.value)
+SWATCH_ENVIRONMENTS = (Environment.STUDIO.value, Environment.KEY_SKY.value)
 
 #: Mitsuba variants (``render.variant``): the ones that work without a GPU, in order of preference;
 #: what ``"auto"`` tries (the GPU when Mitsuba finds one first); the choices of ``--variant``.
@@ -69,14 +116,14 @@ class SceneDefaults:
 #: noise that matters.
 DEFAULTS = {
     # swatch: 8000 fibres in 20 layers, 2.3 mm thick at 5 cm a unit (resources/models/swatch-structure.md)
-    "swatch": SceneDefaults(strands=8000, spp=16, max_depth=32, size=128),
-    "hairstyle": SceneDefaults(strands=6000, spp=16, max_depth=24, size=512),   # strands: render/README.md
+    SceneKind.SWATCH: SceneDefaults(strands=8000, spp=16, max_depth=32, size=128),
+    SceneKind.HAIRSTYLE: SceneDefaults(strands=6000, spp=16, max_depth=24, size=512),   # strands: render/README.md
 }
 
 
 def defaults_for(name: str) -> SceneDefaults:
     """The defaults of the swatch, or of every hairstyle and hair model."""
-    return DEFAULTS["swatch" if name == "swatch" else "hairstyle"]
+    return DEFAULTS[SceneKind.HAIRSTYLE if SceneKind.of(name).on_head else SceneKind.SWATCH]
 
 
 def is_whole(value: object) -> bool:
@@ -103,7 +150,7 @@ def check_camera(pose: rig_geometry.CameraPose, scene: str = "swatch") -> None:
     values = (pose.polar_deg, pose.azimuth_deg, pose.distance)
     if not all(np.isfinite(float(v)) for v in values):
         raise BoundsError(f"camera {values} must be finite numbers (polar, azimuth, distance)")
-    low = MIN_CAMERA_DISTANCE["swatch" if scene == "swatch" else "hairstyle"]
+    low = MIN_CAMERA_DISTANCE[SceneKind.HAIRSTYLE if SceneKind.of(scene).on_head else SceneKind.SWATCH]
     if not low <= pose.distance <= MAX_CAMERA_DISTANCE:
         raise BoundsError(f"camera distance {pose.distance:g} must be between {low:g} (nearer is inside or "
                           f"against the hair) and {MAX_CAMERA_DISTANCE:g} scene units")

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.text_enum import TextEnum
 
 
 class GeometryError(HairdigiError, ValueError):
@@ -35,10 +36,19 @@ LIGHT_SIZE = 0.8
 
 # --- cameras ---------------------------------------------------------------------------------
 CAMERA_DISTANCE = 4.0
+
+
+class Framing(TextEnum):
+    """What a swatch render shows: "crop", only hair (as the training set); "rig", the whole swatch on its holder."""
+
+    CROP = "crop"
+    RIG = "rig"
+
+
 #: Half-width of the view at the holder for each framing. "crop" sees only hair, even at the
 #: steepest training camera (45°: 0.28 / cos 45° = 0.40 < 0.5, the swatch half-width);
 #: "rig" sees the whole swatch on its holder.
-FRAMING_HALF_WIDTH = {"crop": 0.28, "rig": 0.95}
+FRAMING_HALF_WIDTH = {Framing.CROP: 0.28, Framing.RIG: 0.95}
 
 
 @dataclass(frozen=True)
@@ -136,7 +146,7 @@ def light_corners(index: int) -> np.ndarray:
     return corners
 
 
-def light_blocks_view(pose: CameraPose, half_width: float = FRAMING_HALF_WIDTH["crop"],
+def light_blocks_view(pose: CameraPose, half_width: float = FRAMING_HALF_WIDTH[Framing.CROP],
                       target=(0.0, 0.0, 0.0), samples: int = 5) -> bool:
     """Whether a rig light stands between the camera and the framed square of the holder.
 
@@ -188,7 +198,7 @@ RIG_HALF_WIDTH = 1.375
 RIG_SWATCH_POSE = CameraPose(float(np.degrees(np.arctan2(RIG_TARGET[0], CAMERA_DISTANCE))), 0.0,
                              float(np.hypot(RIG_TARGET[0], CAMERA_DISTANCE)))
 #: Away from the rig (issue 18's transfer): another camera over the swatch, all hair in view; lit by
-#: ``scenes.KEY_SKY``'s key light and grey sky.
+#: ``Environment.KEY_SKY``'s key light and grey sky.
 TRANSFER_POSE = CameraPose(40.0, 30.0)
 
 
