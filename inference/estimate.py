@@ -17,15 +17,17 @@ from typing import Callable
 
 import numpy as np
 
-from hairdigi.inference.appearance import check_light_frames, read_appearance, unmeasured_variation
+from hairdigi.inference.appearance import (AppearanceReading, check_light_frames, read_appearance,
+                                           unmeasured_variation)
 from hairdigi.inference.domain import domain_stats, domain_warnings
 from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, crop_of, read_image, swatch_crop, to_linear
 from hairdigi.inference.refine import Refinement, RefineSettings, View, fitted_pixels, mean_linear, refine
 from hairdigi.inference.structure import READ_MEMBERS, STRUCTURE_TABLE, toward_family, with_structure
 from hairdigi.inference.uncertainty import intervals, load_table
+from hairdigi.inference.views import swatch_view
 from hairdigi.render.domain.version import version
-from hairdigi.render.domain.appearance import AppearanceEstimate
+from hairdigi.render.domain.appearance import Appearance, AppearanceEstimate
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import (CalibrationProfile, EstimateRecord, EstimateWarning, RefinementRecord,
                                             UNRELIABLE, WarningKind)
@@ -106,9 +108,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     saturated photosites per pixel (a RAW still's, ``Frame.clipped``): clipping is judged on them.
     """
     start = time.perf_counter()
-    if isinstance(view, RigRegion):
-        roi = Roi(*view.roi)
-    crop, roi = swatch_crop(image, roi)
+    seen = swatch_view(view)
+    crop, roi = swatch_crop(image, seen.roi(roi))
     est = encoder.estimate(image, roi)
     if on_encoder_estimate is not None:
         on_encoder_estimate(est.params)
@@ -120,66 +121,19 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     if light_images is not None:
         check_light_frames(light_images, image)
     if refine_colour:
-        fitted = fitted_pixels(image, view) if isinstance(view, RigRegion) else crop
-        singles = None if light_images is None else np.array(
-            [mean_linear(fitted_pixels(im, view) if isinstance(view, RigRegion) else swatch_crop(im, roi)[0])
-             for im in light_images])
-        # a rig view's single-light frames show the holder and the chart too: a light dark there is dead
-        levels = None if light_images is None or not isinstance(view, RigRegion) else np.array(
-            [mean_linear(im) for im in light_images])
-        texture = to_linear(fitted) if isinstance(view, RigRegion) else None
-        reading = read_appearance(singles, view, settings, renderer, texture_pixels=texture, frame_levels=levels,
-                                  structures=READ_MEMBERS if structure == "read" else None)
-        warnings += reading.warnings
-        appearance = reading.estimate
-        refinement = refine(est.params, mean_linear(fitted), view, settings, renderer, reading.value, reading.curve,
-                            swatch_model=reading.swatch_model)
-        if reading.value.varied and refinement.residual_de2000 > VARIATION_FIT_DE:
-            # the colour checks the texture's reading: if hair of the read variation renders the capture's
-            # colour worse than the chain's precision, and uniform fibres render it better, the reading is
-            # wrong for this swatch (black hair's glints read as greys), and is not reported as measured
-            uniform = refine(est.params, mean_linear(fitted), view, settings, renderer,
-                             replace(reading.value, fibre_spread=0.0, grey_fraction=0.0), reading.curve,
-                             swatch_model=reading.swatch_model)
-            if uniform.residual_de2000 < refinement.residual_de2000:
-                warnings += _warn(WarningKind.APPEARANCE, [
-                    f"appearance: with the grey share {reading.value.grey_fraction:.2f} read from the texture, no "
-                    f"hair renders this swatch's colour within ΔE2000 {VARIATION_FIT_DE} (residual "
-                    f"{refinement.residual_de2000:.2f}; uniform fibres {uniform.residual_de2000:.2f}): it is not "
-                    f"reported as measured"])
-                refinement, appearance = uniform, unmeasured_variation(reading.estimate)
-        if structure != "read" and singles is not None and refinement.residual_de2000 > UNREACHED_DE:
-            # no hair on the assumed swatch renders the capture's colour: the swatch is built another way.
-            # Its structure is read from the single-light frames and kept where it reaches the colour
-            reread = read_appearance(singles, view, settings, renderer, texture_pixels=texture, frame_levels=levels,
-                                     structures=READ_MEMBERS)
-            other = refine(est.params, mean_linear(fitted), view, settings, renderer, reread.value, reread.curve,
-                           swatch_model=reread.swatch_model)
-            if other.residual_de2000 < refinement.residual_de2000 / 2:
-                warnings += _warn(WarningKind.OTHER, [
-                    f"structure: no hair on hairdigi's layered swatch renders this swatch's colour (residual "
-                    f"ΔE2000 {refinement.residual_de2000:.2f}); its structure was read from the single-light "
-                    f"frames as {reread.swatch_model} (residual {other.residual_de2000:.2f}) and the estimate "
-                    f"made on it"])
-                warnings = [w for w in warnings if w.kind != WarningKind.APPEARANCE] + list(reread.warnings)
-                refinement, appearance, structure = other, reread.estimate, "read"
-        if structure == "family":
-            refinement = toward_family(refinement, est.params, view, settings, renderer)
+        fitted = seen.pixels(image, roi)
+        singles = None if light_images is None else np.array([mean_linear(seen.pixels(im, roi)) for im in light_images])
+        fit = _Fit(est.params, mean_linear(fitted), view, settings, renderer, singles, seen.texture(fitted),
+                   None if light_images is None else seen.frame_levels(light_images))
+        refinement, appearance, structure, found = _refined(fit, structure)
+        warnings += found
         params = refinement.params
-        if not refinement.reachable:
-            warnings += _warn(WarningKind.UNREACHABLE, [
-                f"unreachable: no Table 1 hair renders this swatch's colour (residual ΔE2000 "
-                f"{refinement.residual_de2000:.2f}); the parameters are the nearest colour"])
-        if refinement.nonfinite:
-            warnings += _warn(WarningKind.NONFINITE, [
-                f"render: the refinement's renders returned {refinement.nonfinite} NaN or Inf values (counted "
-                f"as 0); run again, and report it if it repeats"])
     if est.at_range_edge:
         warnings += _warn(WarningKind.RANGE_EDGE, [
             f"at the edge of the range: {', '.join(est.at_range_edge)} (the encoder pressed "
             "against the limit of what it was trained on)"])
     warnings += list(extra_warnings)
-    chain = load_table(CHAIN_TABLE) if isinstance(view, RigRegion) else None
+    chain = load_table(CHAIN_TABLE) if seen.rig else None
     uncertainty = intervals(params, load_table(UNCERTAINTY_TABLE), chain)
     if refinement is not None:   # a swatch's structure: read, or the default assumed (``inference.structure``)
         uncertainty = with_structure(uncertainty, load_table(STRUCTURE_TABLE), structure,
@@ -188,6 +142,76 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
         warnings += interval_warnings(refinement.residual_de2000, uncertainty)
     return EstimateResult(params, est, refinement, warnings, stats.to_dict(), uncertainty,
                           time.perf_counter() - start, appearance)
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """What one estimate's refinement works from: the encoder's parameters, the fitted pixels' mean colour,
+    the view, and (with single-light frames) their colours, the fitted texture and the frames' levels."""
+
+    start: HairParams
+    colour: np.ndarray
+    view: View
+    settings: RefineSettings
+    renderer: object
+    singles: np.ndarray | None
+    texture: np.ndarray | None
+    levels: np.ndarray | None
+
+    def read(self, structures: tuple[str, ...] | None = None) -> AppearanceReading:
+        """The appearance read from the frames (``inference.appearance.read_appearance``)."""
+        return read_appearance(self.singles, self.view, self.settings, self.renderer, texture_pixels=self.texture,
+                               frame_levels=self.levels, structures=structures)
+
+    def refine(self, reading: AppearanceReading, value: Appearance | None = None) -> Refinement:
+        """The refinement on ``reading``'s swatch and curve, with its appearance or ``value``."""
+        return refine(self.start, self.colour, self.view, self.settings, self.renderer,
+                      reading.value if value is None else value, reading.curve, swatch_model=reading.swatch_model)
+
+
+def _refined(fit: _Fit, structure: str) -> tuple[Refinement, AppearanceEstimate, str, list[EstimateWarning]]:
+    """The refinement of ``fit`` with the appearance read on the way, the structure it was made on (a
+    capture no hair on the assumed swatch reaches is read anew) and their warnings."""
+    reading = fit.read(READ_MEMBERS if structure == "read" else None)
+    warnings = list(reading.warnings)
+    appearance = reading.estimate
+    refinement = fit.refine(reading)
+    if reading.value.varied and refinement.residual_de2000 > VARIATION_FIT_DE:
+        # the colour checks the texture's reading: if hair of the read variation renders the capture's
+        # colour worse than the chain's precision, and uniform fibres render it better, the reading is
+        # wrong for this swatch (black hair's glints read as greys), and is not reported as measured
+        uniform = fit.refine(reading, replace(reading.value, fibre_spread=0.0, grey_fraction=0.0))
+        if uniform.residual_de2000 < refinement.residual_de2000:
+            warnings += _warn(WarningKind.APPEARANCE, [
+                f"appearance: with the grey share {reading.value.grey_fraction:.2f} read from the texture, no "
+                f"hair renders this swatch's colour within ΔE2000 {VARIATION_FIT_DE} (residual "
+                f"{refinement.residual_de2000:.2f}; uniform fibres {uniform.residual_de2000:.2f}): it is not "
+                f"reported as measured"])
+            refinement, appearance = uniform, unmeasured_variation(reading.estimate)
+    if structure != "read" and fit.singles is not None and refinement.residual_de2000 > UNREACHED_DE:
+        # no hair on the assumed swatch renders the capture's colour: the swatch is built another way.
+        # Its structure is read from the single-light frames and kept where it reaches the colour
+        reread = fit.read(READ_MEMBERS)
+        other = fit.refine(reread)
+        if other.residual_de2000 < refinement.residual_de2000 / 2:
+            warnings += _warn(WarningKind.OTHER, [
+                f"structure: no hair on hairdigi's layered swatch renders this swatch's colour (residual "
+                f"ΔE2000 {refinement.residual_de2000:.2f}); its structure was read from the single-light "
+                f"frames as {reread.swatch_model} (residual {other.residual_de2000:.2f}) and the estimate "
+                f"made on it"])
+            warnings = [w for w in warnings if w.kind != WarningKind.APPEARANCE] + list(reread.warnings)
+            refinement, appearance, structure = other, reread.estimate, "read"
+    if structure == "family":
+        refinement = toward_family(refinement, fit.start, fit.view, fit.settings, fit.renderer)
+    if not refinement.reachable:
+        warnings += _warn(WarningKind.UNREACHABLE, [
+            f"unreachable: no Table 1 hair renders this swatch's colour (residual ΔE2000 "
+            f"{refinement.residual_de2000:.2f}); the parameters are the nearest colour"])
+    if refinement.nonfinite:
+        warnings += _warn(WarningKind.NONFINITE, [
+            f"render: the refinement's renders returned {refinement.nonfinite} NaN or Inf values (counted "
+            f"as 0); run again, and report it if it repeats"])
+    return refinement, appearance, structure, warnings
 
 
 def record(result: EstimateResult, encoder: Encoder, image_bytes: bytes | None = None,
@@ -274,7 +298,7 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
     if rig_view:
         view = RigRegion((image.shape[1], image.shape[0]), (roi.x, roi.y, roi.w, roi.h))
     # without --camera, the swatch's outline (when one is in view) must agree with the assumed camera
-    assumed = view.pose.polar_deg if isinstance(view, RigRegion) else view.polar_deg
+    assumed = swatch_view(view).pose.polar_deg
     unknown_view = view_warning(outline, assumed, bool(rig_view)) if camera is None else None
     calibration, extra = None, []
     if calibration_path is not None:
