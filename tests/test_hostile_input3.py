@@ -823,19 +823,22 @@ def test_the_window_opens_the_library_off_the_ui_thread_and_shows_why_not(ws, qt
     from hairdigi.app.gui import library_panel
 
     opened_in = []
+    release = threading.Event()
     real = library_panel._open_or_reason
 
-    def slow():
+    def held():
         opened_in.append(threading.current_thread() is threading.main_thread())
-        time.sleep(1.0)
+        release.wait(20)                                   # the library opens only when the test says so
         return real()
 
-    monkeypatch.setattr(library_panel, "_open_or_reason", slow)
+    monkeypatch.setattr(library_panel, "_open_or_reason", held)
     window = QMainWindow()
     qtbot.addWidget(window)
-    start = time.perf_counter()
     dock = library_panel.add_library_dock(window)
-    assert time.perf_counter() - start < 0.5              # the window goes on while the library opens
+    # the window goes on while the library is still opening: the dock is there, the panel not yet
+    assert not isinstance(dock.widget(), library_panel.LibraryPanel)
+    qtbot.waitUntil(lambda: opened_in == [False], timeout=20_000)   # opening, off the UI thread
+    release.set()
     qtbot.waitUntil(lambda: isinstance(dock.widget(), library_panel.LibraryPanel), timeout=20_000)
     assert opened_in == [False]
     # a library that cannot be opened: the whole reason, wrapped, in the dock
