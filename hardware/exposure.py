@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.text_enum import TextEnum
 from hairdigi.render.srgb import srgb8_to_linear
 
 #: The white patch should sit in this 8-bit band: bright, with headroom before clipping.
@@ -35,13 +36,21 @@ def luminance8(img: np.ndarray) -> np.ndarray:
     return img[..., :3].astype(float) @ np.array([0.2126, 0.7152, 0.0722])
 
 
+class ExposureStatus(TextEnum):
+    """An area's exposure: within its band, or over (clipped or too bright) or under (too dark or crushed)."""
+
+    OK = "ok"
+    OVER = "over"
+    UNDER = "under"
+
+
 @dataclass
 class ExposureReport:
     region: str
     clipped: tuple[float, float, float]   # share of pixels at 254+ (or saturated on the sensor) per channel
     crushed: tuple[float, float, float]   # share of pixels at 1- per channel
     level: float                          # mean luminance, 8-bit
-    status: str                           # "ok", "over" or "under"
+    status: ExposureStatus
     suggested_ev: float                   # exposure change that would centre the level
     message: str
 
@@ -90,15 +99,15 @@ def check_region(img: np.ndarray, box: tuple[int, int, int, int], region: str,
     target = target_linear if target_linear is not None else float(_linear(np.mean(band)))
     ev = float(np.log2(target / max(float(_linear(level)), 1e-4)))
     if max(clipped) > clip_limit or level > band[1]:
-        status, msg = "over", (f"{region}: over-exposed ({100 * max(clipped):.1f}% clipped, level {level:.0f}); "
-                               f"lower the exposure by {abs(min(ev, -0.3)):.1f} EV")
+        status, msg = ExposureStatus.OVER, (f"{region}: over-exposed ({100 * max(clipped):.1f}% clipped, level {level:.0f}); "
+                                          f"lower the exposure by {abs(min(ev, -0.3)):.1f} EV")
         ev = min(ev, -0.3)
     elif level < band[0] or max(crushed) > 0.2:
-        status, msg = "under", (f"{region}: under-exposed (level {level:.0f}); raise the exposure by "
-                                f"{max(ev, 0.3):.1f} EV")
+        status, msg = ExposureStatus.UNDER, (f"{region}: under-exposed (level {level:.0f}); raise the exposure by "
+                                           f"{max(ev, 0.3):.1f} EV")
         ev = max(ev, 0.3)
     else:
-        status, msg = "ok", f"{region}: exposure ok (level {level:.0f}, {100 * max(clipped):.2f}% clipped)"
+        status, msg = ExposureStatus.OK, f"{region}: exposure ok (level {level:.0f}, {100 * max(clipped):.2f}% clipped)"
     return ExposureReport(region, clipped, crushed, level, status, ev, msg)
 
 

@@ -150,7 +150,7 @@ def test_uncalibrated_capture_is_kept_and_blocked(qtbot, tiny_model, tmp_path):
     with qtbot.waitSignal(win.captured, timeout=120000) as cap:
         win.capture_button.click()
     result = cap.args[0]
-    assert result.params is None and any("not calibrated" in r for r in result.blocked)
+    assert result.params is None and any("not calibrated" in b.message for b in result.blocked)
     assert result.image_path.exists()
     assert "blocked" in win.session_list.item(0).text()
     with pytest.raises(ValueError, match="nothing to export"):

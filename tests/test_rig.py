@@ -8,9 +8,10 @@ from hairdigi.render.judge import judge
 from hairdigi.render.srgb import linear_to_srgb8
 import pytest
 
+from hairdigi.app.session.blockers import BlockerKind
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.hardware.cameras import FileCamera
-from hairdigi.hardware.exposure import check_region
+from hairdigi.hardware.exposure import ExposureStatus, check_region
 from hairdigi.hardware.sim_rig import SIM_SIZE, SimRig
 from hairdigi.render.domain.rig_geometry import swatch_roi
 from hairdigi.render.camera_model import CameraModel
@@ -57,7 +58,7 @@ def test_exposure_check_flags_over_and_under_exposure():
     over = check_region(frame(CameraModel(exposure_ev=2.5)), roi, "swatch")
     under = check_region(frame(CameraModel(exposure_ev=-5.0)), roi, "swatch")
     fine = check_region(frame(), roi, "swatch")
-    assert over.status == "over" and over.suggested_ev < 0
+    assert over.status is ExposureStatus.OVER and over.status == "over" and over.suggested_ev < 0
     assert under.status == "under" and under.suggested_ev > 0
     assert fine.status == "ok"
 
@@ -95,9 +96,10 @@ def test_capture_is_saved_before_processing_and_blocked_when_uncalibrated(tmp_pa
         assert result.image_path.exists() and result.meta_path.exists()
         meta = json.loads(result.meta_path.read_text())
         assert meta["calibration_id"] is None and len(meta["image_sha256"]) == 64 and meta["lights"]
-        assert any("not calibrated" in r for r in result.blocked) and result.params is None
+        assert any(b.kind is BlockerKind.UNCALIBRATED and "not calibrated" in b.message for b in result.blocked)
+        assert result.params is None
         record = json.loads((result.image_path.parent / f"{result.capture_id}.result.json").read_text())
-        assert record["blocked"] == result.blocked
+        assert record["blocked"] == [b.message for b in result.blocked]
     finally:
         session.close()
 

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.app.session.blockers import messages
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
 
@@ -101,7 +102,7 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
     out["capture"] = str(result.image_path)
     say(f"capture: {result.image_path} (+ {result.meta_path.name}), saved before processing")
     if result.blocked:
-        say("estimate blocked: " + "; ".join(result.blocked))
+        say("estimate blocked: " + "; ".join(messages(result.blocked)))
     elif result.params is not None:
         p = result.params
         say(f"estimate in {1000 * result.seconds:.0f} ms from capture: {hair_line(p)}")
@@ -203,7 +204,7 @@ def report_still(session_folder: str | Path, still: str | Path, say=print) -> in
         say(f"calibrated on the still's own chart: ΔE2000 mean {profile.delta_e2000['before']['mean']:.2f} "
             f"-> {profile.delta_e2000['after']['mean']:.2f}")
     if result.blocked:
-        say("estimate blocked: " + "; ".join(result.blocked))
+        say("estimate blocked: " + "; ".join(messages(result.blocked)))
         return 2    # an input the still cannot serve (no chart, clipped), not a bug
     p = result.params
     say(f"estimate in {result.seconds:.1f} s: {hair_line(p)}")

@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.app.session.blockers import BlockerKind, messages
 from hairdigi.render.domain.appearance import APPEARANCE_DRAW, DEFAULT_APPEARANCE, FIELDS, Appearance
 from hairdigi.render.domain.files import write_json_atomic
 from hairdigi.render.io.figures import save_table
@@ -113,7 +114,7 @@ def _one(name: str, hidden: HairParams, look: Appearance, layout: int, folder: P
             result = session.capture(per_light=per_light)
             seconds = time.perf_counter() - start
             for _ in range(2):   # as the operator is told: lower the exposure by 0.5 EV, calibrate, capture again
-                if not any("over-exposed" in b for b in result.blocked):
+                if not any(b.kind is BlockerKind.OVER_EXPOSED for b in result.blocked):
                     break
                 session.camera.camera.exposure_ev -= 0.5
                 session.calibrate()
@@ -123,7 +124,7 @@ def _one(name: str, hidden: HairParams, look: Appearance, layout: int, folder: P
             row = {"hidden": name, "mode": mode, **{f"true_{k}": v for k, v in look.to_dict().items()},
                    "exposure_ev": session.camera.camera.exposure_ev,
                    "capture_frames_s": round(frames_s, 2), "capture_s": round(seconds, 2),
-                   "blocked": "; ".join(result.blocked)}
+                   "blocked": "; ".join(messages(result.blocked))}
             rec = result.record
             if rec is not None:
                 est = rec.appearance.value if rec.appearance is not None else DEFAULT_APPEARANCE

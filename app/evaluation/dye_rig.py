@@ -9,6 +9,7 @@ import os
 import time
 from pathlib import Path
 
+from hairdigi.app.session.blockers import messages
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import write_record
 
@@ -35,7 +36,7 @@ def rig_capture(folder: str | os.PathLike, encoder, cast=CAST, spp: int = SPP):
         finally:
             session.close()
         if result.record is None or result.blocked:
-            raise RuntimeError(f"the simulated capture of {path.stem} was blocked: {'; '.join(result.blocked)}")
+            raise RuntimeError(f"the simulated capture of {path.stem} was blocked: {'; '.join(messages(result.blocked))}")
         write_record(path, result.record)
         return seconds
 

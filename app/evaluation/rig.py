@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.app.session.blockers import messages
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE
 from hairdigi.render.io.figures import save_table
 from hairdigi.render.domain.params import HairParams, sample_params
@@ -74,7 +75,7 @@ def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, se
     from hairdigi.render.judge import judge
 
     row = {"hidden": name, "source": source, "cast": "/".join(f"{c:g}" for c in cast), "exposure_ev": ev,
-           "seconds": round(seconds, 2), "blocked": "; ".join(result.blocked)}
+           "seconds": round(seconds, 2), "blocked": "; ".join(messages(result.blocked))}
     if result.record is None:
         return row
     rec = result.record

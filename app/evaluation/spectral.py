@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.app.session.blockers import messages
 from hairdigi.render.io.figures import save_table
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.metrics import error_stats
@@ -185,7 +186,7 @@ def evaluate_spectral(out_dir: str | os.PathLike, config: SpectralSet = Spectral
                     session.close()
                 rec = None if "error" in row else result.record
                 if rec is None:
-                    row.setdefault("blocked", "; ".join(getattr(result, "blocked", []) or []))
+                    row.setdefault("blocked", "; ".join(messages(getattr(result, "blocked", []) or [])))
                     rows.append(row)
                     bar.update()
                     continue

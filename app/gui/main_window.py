@@ -27,8 +27,9 @@ from hairdigi.app.gui.images import DELTA_E_MAX, colour_scale, delta_e_colours, 
 from hairdigi.app.gui.workers import POOL, FrameFeed, Task, start
 from hairdigi.app.review.previews import Stage
 from hairdigi.app.review.model import HAIRSTYLE_LIGHTS
+from hairdigi.hardware.exposure import ExposureStatus
+from hairdigi.render.domain.bounds import ENVIRONMENTS
 from hairdigi.render.domain.params import VECTOR_FIELDS
-from hairdigi.render.scenes import ENVIRONMENTS
 from hairdigi.render.strands import HAIRSTYLES
 
 #: Window options beyond ``previews.PreviewSettings``' fields (which include the feed rates).
@@ -458,9 +459,9 @@ class MainWindow(QMainWindow):
 
     def _show_frame_check(self, check: review.FrameCheck) -> None:
         reports = check.exposure
-        worst = next((r for r in reports if r.status != "ok"), reports[0])
+        worst = next((r for r in reports if r.status is not ExposureStatus.OK), reports[0])
         self.exposure_label.setText("exposure: " + "; ".join(r.message for r in reports))
-        self.exposure_label.setStyleSheet(f"color:{'#2a2' if worst.status == 'ok' else '#c60'}")
+        self.exposure_label.setStyleSheet(f"color:{'#2a2' if worst.status is ExposureStatus.OK else '#c60'}")
 
     @staticmethod
     def _set_image(label: QLabel, rgb: np.ndarray | None) -> None:

@@ -19,7 +19,8 @@ import numpy as np
 
 from hairdigi.hardware.cameras import RAW_EXTENSIONS, read_raw
 from hairdigi.hardware.capture import save_capture
-from hairdigi.hardware.exposure import ExposureReport, check_exposure, dead_lights
+from hairdigi.app.session.blockers import Blocker, BlockerKind, messages
+from hairdigi.hardware.exposure import ExposureReport, ExposureStatus, check_exposure, dead_lights
 from hairdigi.hardware.frame_source import FrameSource
 from hairdigi.hardware.lights import N_LIGHTS, LightController, LightError
 from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, correction_warnings,
@@ -43,7 +44,7 @@ class CaptureResult:
     meta_path: Path
     params: HairParams | None = None
     record: EstimateRecord | None = None
-    blocked: list[str] = field(default_factory=list)   # why no estimate was made
+    blocked: list[Blocker] = field(default_factory=list)   # why no estimate was made
     corrected: np.ndarray | None = None                # the colour-corrected frame that was estimated (linear)
     seconds: float = 0.0
     curve: object | None = None                        # the response curve the refinement inverted
@@ -293,7 +294,7 @@ class RigSession:
                 self.lights.set_light(i, True, 255)
                 ev = LIGHT_FRAME_EV if adjustable and self.camera.set_exposure_offset(LIGHT_FRAME_EV) else 0.0
                 frame = self.frame()
-                if ev and check_exposure(frame.srgb, self._roi(frame.srgb))[0].status == "over":
+                if ev and check_exposure(frame.srgb, self._roi(frame.srgb))[0].status is ExposureStatus.OVER:
                     self.camera.set_exposure_offset(0.0)
                     ev, frame = 0.0, self.frame()
                 frames.append(frame)
@@ -426,14 +427,14 @@ class RigSession:
         reasons, chart = [], None
         status, why = self.calibration_status()
         if status == "uncalibrated":
-            reasons += why
+            reasons += [Blocker(BlockerKind.UNCALIBRATED, w) for w in why]
         try:
             chart = detect_chart(image)
         except CalibrationError as exc:
-            reasons.append(str(exc))
+            reasons.append(Blocker(BlockerKind.NO_CHART, str(exc)))
         swatch = check_exposure(image, self._roi(image))[0]
-        if swatch.status == "over":
-            reasons.append(swatch.message)
+        if swatch.status is ExposureStatus.OVER:
+            reasons.append(Blocker(BlockerKind.OVER_EXPOSED, swatch.message))
         return reasons, chart
 
 
@@ -455,7 +456,7 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
 
     encoder = encoder_or_reason() if callable(encoder_or_reason) else encoder_or_reason
     if isinstance(encoder, str):
-        result.blocked.append(encoder)
+        result.blocked.append(Blocker(BlockerKind.NO_MODEL, encoder))
         return
     source = image if linear is None else linear
     corrected = apply_profile(source, profile)
@@ -476,7 +477,7 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
 def _write_result(folder: Path, result: CaptureResult, roi) -> None:
     """The capture's result record: its estimate (when one was made), or why it was blocked."""
     base = result.record if result.record is not None else EstimateRecord(hair=None)
-    done = replace(base, capture=result.image_path.name, blocked=tuple(result.blocked),
+    done = replace(base, capture=result.image_path.name, blocked=messages(result.blocked),
                    swatch_roi=None if roi is None else tuple(int(v) for v in roi))
     result.record = done if result.record is not None else None
     write_record(Path(folder) / "captures" / f"{result.capture_id}.result.json", done)
@@ -513,7 +514,7 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
         profile = calibrate(still.srgb, settings={"camera": still.meta.get("camera"), "still": image_path.name},
                             linear=still.linear)
     except CalibrationError as exc:
-        result.blocked.append(f"the still cannot calibrate itself: {exc}")
+        result.blocked.append(Blocker(BlockerKind.STILL_UNCALIBRATED, f"the still cannot calibrate itself: {exc}"))
     roi = None
     if profile is not None:
         from hairdigi.inference.preprocess import find_swatch_roi
@@ -521,8 +522,8 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
         found = find_swatch_roi(still.srgb)
         roi = (found.x, found.y, found.w, found.h)
         swatch = check_exposure(still.srgb, roi, clipped_mask=still.clipped)[0]   # on the sensor's counts
-        if swatch.status == "over":
-            result.blocked.append(swatch.message)
+        if swatch.status is ExposureStatus.OVER:
+            result.blocked.append(Blocker(BlockerKind.OVER_EXPOSED, swatch.message))
         # the still's own profile belongs in its capture record, as a live capture's does
         capture = replace(capture, calibration=profile, swatch_roi=roi)
         write_record(meta_path, capture)
