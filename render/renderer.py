@@ -36,8 +36,6 @@ from hairdigi.render.strands import (STYLES, Strands, hairstyle_strands, layered
 from hairdigi.render.swatch_family import structure_strands
 from hairdigi.render.variant import is_jit, load_scene, mi, select_variant, spectral_variant
 
-#: The scene of a ``.hair`` model (``SceneSpec.hair_file``).
-HAIR_FILE_SCENE = SceneKind.HAIR_FILE.value
 #: The swatch's strand model when none is named (``render.domain.bounds.SwatchModel`` has them all).
 DEFAULT_SWATCH_MODEL = SwatchModel.LAYERED
 
@@ -108,7 +106,7 @@ class SceneSpec:
                 raise SceneError(f"hair model {self.hair_file!r}: no such file; give the path of a .hair file")
             object.__setattr__(self, "hair_file", str(path.resolve()))
         elif self.hair_file is not None:
-            raise SceneError(f"hair_file applies to the {HAIR_FILE_SCENE!r} scene, not {self.name!r}")
+            raise SceneError(f"hair_file applies to the {SceneKind.HAIR_FILE.value!r} scene, not {self.name!r}")
         elif self.name not in SCENE_NAMES:
             raise SceneError(f"unknown scene {self.name!r}; choose one of {', '.join(SCENE_NAMES)} "
                              f"or the path of a .hair file")

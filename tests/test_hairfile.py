@@ -18,7 +18,8 @@ from hairdigi.render.hairfile import (HAS_COLOR, HAS_POINTS, HAS_SEGMENTS, HAS_T
                                       hair_file_bytes, hair_model_strands, read_hair, read_hair_file, write_hair,
                                       write_hair_file)
 from hairdigi.render.domain.params import HairParams
-from hairdigi.render.renderer import HAIR_FILE_SCENE, Renderer, SceneSpec
+from hairdigi.render.domain.bounds import SceneKind
+from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.strands import Strands, hairstyle_strands
 
 SIZE, SPP, STRANDS = 24, 1, 60
@@ -81,7 +82,7 @@ def test_every_flag_combination_renders(flag_files):
     dark, light = HairParams((255, 255, 255), 0.0, 0.9, 0.9), HairParams((255, 255, 255), 0.0, 0.1, 0.2)
     for flags, path in flag_files.items():
         spec = SceneSpec(str(path), strands=STRANDS)
-        assert spec.name == HAIR_FILE_SCENE and spec.hair_file == str(path.resolve())
+        assert spec.name == "hairfile" and spec.kind is SceneKind.HAIR_FILE and spec.hair_file == str(path.resolve())
         image = renderer.render(dark, spec, SIZE, SPP, 0)
         assert image.nonfinite == 0 and image.linear.mean() > 0.005, flags
         assert renderer.render(light, spec, SIZE, SPP, 0).linear.mean() > image.linear.mean(), flags   # hair shows
@@ -203,11 +204,11 @@ def test_big_models_are_cut_to_the_budget_and_cached_per_modification(tmp_path):
 def test_scene_spec_names_a_hair_file(tmp_path):
     path = write_hair(tmp_path / "s.hair", Strands.from_grid(head_of_hair(10), 0.1))
     spec = SceneSpec(str(path), strands=50)
-    assert spec == SceneSpec(HAIR_FILE_SCENE, hair_file=str(path), strands=50) and hash(spec) == hash(
-        SceneSpec(HAIR_FILE_SCENE, hair_file=str(path), strands=50))
+    assert spec == SceneSpec(SceneKind.HAIR_FILE, hair_file=str(path), strands=50) and hash(spec) == hash(
+        SceneSpec("hairfile", hair_file=str(path), strands=50))
     with pytest.raises(ValueError, match="no such file"):
         SceneSpec(str(tmp_path / "missing.hair"))
     with pytest.raises(ValueError, match="no such file"):
-        SceneSpec(HAIR_FILE_SCENE)
+        SceneSpec(SceneKind.HAIR_FILE)
     with pytest.raises(ValueError, match="hair_file applies to"):
         SceneSpec("bob", hair_file=str(path))

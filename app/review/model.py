@@ -49,7 +49,7 @@ from hairdigi.app.review.previews import (HairstylePass, PassTag, PreviewSetting
                                           scene_appearance, strand_colour, twin_passes, twin_view)
 from hairdigi.render import denoise as dn
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance, AppearanceEstimate
-from hairdigi.render.domain.bounds import ILLUMINANTS
+from hairdigi.render.domain.bounds import ILLUMINANTS, SceneKind
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.params import VECTOR_FIELDS, HairParams
 from hairdigi.render.domain.records import CalibrationProfile, EstimateRecord, EstimateWarning, WarningKind
@@ -697,9 +697,7 @@ class ReviewModel:
         pose, strands = orbit_pose(*self.orbit), self.settings.hairstyle_strands
         look = scene_appearance(self.shown.appearance if self.shown is not None else None)
         if self.hair_file is not None:
-            from hairdigi.render.renderer import HAIR_FILE_SCENE
-
-            return SceneSpec(HAIR_FILE_SCENE, hair_file=str(self.hair_file), env=self.env, strands=strands,
+            return SceneSpec(SceneKind.HAIR_FILE, hair_file=str(self.hair_file), env=self.env, strands=strands,
                              camera=pose, appearance=look, illuminant=self.illuminant)
         return SceneSpec(self.style, env=self.env, strands=strands, camera=pose, appearance=look,
                          illuminant=self.illuminant)
