@@ -1,4 +1,4 @@
-"""Shine from the rig's three lights, one at a time (issue 18, first part: the measurement).
+"""Shine from the rig's three lights, one at a time: the measurement.
 
 The bench camera looks almost perpendicular to the fibres. Light 0 lies along them and reaches the
 camera only through the tail of the longitudinal lobe, so its share of the swatch's light measures
@@ -27,7 +27,7 @@ from hairdigi.inference.refine import (ResponseCurve, RefineSettings, View, cach
 from hairdigi.render.domain.files import cache_dir
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
 
-#: The beta_m grid of the tables: glossy virgin hair to rough, bleached hair (issue 18's 0.1-0.6).
+#: The beta_m grid of the tables: glossy virgin hair to rough, bleached hair (0.1-0.6).
 BETA_GRID = (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6)
 
 

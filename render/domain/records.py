@@ -380,7 +380,7 @@ class EstimateRecord:
     capture: str | None = None
     blocked: tuple[str, ...] = ()
     swatch_roi: tuple[int, int, int, int] | None = None
-    appearance: AppearanceEstimate | None = None   # shine and fibre variation (issue 18); None: not read
+    appearance: AppearanceEstimate | None = None   # shine and fibre variation; None: not read
     spectral: SpectralReading | None = None        # read in the camera's RGB; None: the rig's spectra unknown
     schema_version: int = SCHEMA_VERSION
 

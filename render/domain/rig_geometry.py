@@ -197,7 +197,7 @@ RIG_HALF_WIDTH = 1.375
 #: off the swatch's normal towards the chart. Refinement renders the swatch from this pose.
 RIG_SWATCH_POSE = CameraPose(float(np.degrees(np.arctan2(RIG_TARGET[0], CAMERA_DISTANCE))), 0.0,
                              float(np.hypot(RIG_TARGET[0], CAMERA_DISTANCE)))
-#: Away from the rig (issue 18's transfer): another camera over the swatch, all hair in view; lit by
+#: Away from the rig (the transfer check): another camera over the swatch, all hair in view; lit by
 #: ``Environment.KEY_SKY``'s key light and grey sky.
 TRANSFER_POSE = CameraPose(40.0, 30.0)
 
