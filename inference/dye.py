@@ -42,6 +42,7 @@ from hairdigi.render.domain.files import read_json
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import (EstimateRecord, EstimateWarning, RecordError, RefinementRecord,
                                             WarningKind, read_record, record_sha256)
+from hairdigi.render.domain.text_enum import TextEnum
 from hairdigi.render.domain.version import version
 from hairdigi.render.metrics import delta_e2000, linear_rgb_to_lab
 
@@ -104,6 +105,13 @@ def sigma_interval(sigma: np.ndarray, de68: float, curve: ResponseCurve) -> tupl
 
 
 # --- a hair record, as the dye reads it --------------------------------------------------------------
+class IntervalSource(TextEnum):
+    """Where a hair sample's colour interval comes from: its record's own, or ``DEFAULT_COLOUR_DE68`` assumed."""
+
+    RECORD = "record"
+    ASSUMED = "assumed"
+
+
 @dataclass(frozen=True)
 class HairSample:
     """One estimate (or parameter) record read for a dye: its ``sigma_a``, calibration and interval."""
@@ -114,7 +122,7 @@ class HairSample:
     sha256: str = ""
     calibration: str | None = None
     colour_de68: float = DEFAULT_COLOUR_DE68
-    interval_source: str = "assumed"      # "record": the record's own interval; "assumed": DEFAULT_COLOUR_DE68
+    interval_source: IntervalSource = IntervalSource.ASSUMED
     _intervals: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -137,9 +145,9 @@ def sample_of(record: EstimateRecord, path: str = "", sha256: str = "", calibrat
     if calibration is None:
         calibration = ((record.provenance or {}).get("calibration") or {}).get("id")
     de68 = (record.uncertainty or {}).get("mean_colour_de2000_p68")
-    source = "record" if isinstance(de68, (int, float)) and de68 > 0 else "assumed"
+    source = IntervalSource.RECORD if isinstance(de68, (int, float)) and de68 > 0 else IntervalSource.ASSUMED
     return HairSample(record, sigma_of(record), path, sha256, calibration,
-                      float(de68) if source == "record" else DEFAULT_COLOUR_DE68, source)
+                      float(de68) if source is IntervalSource.RECORD else DEFAULT_COLOUR_DE68, source)
 
 
 def load_sample(path: str | Path) -> HairSample:
@@ -305,7 +313,7 @@ def characterise(pairs: list[tuple[HairSample, HairSample]], name: str, curve: R
                                                           (lift, deposit), draws, seed)
     pair_records, residual_de = _pair_residuals(pairs, lift, deposit, curve)
     warnings += _disagreement_warnings(pairs, residual_de, curve)
-    sources = sorted({s.interval_source for s in samples.values()})
+    sources = {s.interval_source for s in samples.values()}
     return DyeRecord(
         name=name.strip(), deposit_sigma_a=tuple(float(v) for v in deposit), lift=lift, lift_measured=measurable,
         pairs=tuple(pair_records), deposit_low=tuple(dep_lo), deposit_high=tuple(dep_hi),
@@ -316,7 +324,7 @@ def characterise(pairs: list[tuple[HairSample, HairSample]], name: str, curve: R
         intervals={"coverage": 0.68, "method": "16th-84th percentiles of the fit over Monte Carlo draws of each "
                    "record's sigma_a within its interval (the record's mean-colour ΔE2000 p68 through the rig's "
                    "response curve)", "draws": draws, "seed": seed,
-                   "record_intervals": "the records' own" if sources == ["record"] else
+                   "record_intervals": "the records' own" if sources == {IntervalSource.RECORD} else
                    f"assumed ΔE2000 {DEFAULT_COLOUR_DE68} where a record carries none"},
         provenance={"hairdigi_version": version(), "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
                     "model": "Kips et al. 2022 Table 1 absorption; deposit + lift of the melanin (d'Eon et al. 2011)",

@@ -26,6 +26,7 @@ from hairdigi.inference.refine import Refinement, RefineSettings, View, fitted_p
 from hairdigi.inference.structure import READ_MEMBERS, STRUCTURE_TABLE, toward_family, with_structure
 from hairdigi.inference.uncertainty import intervals, load_table
 from hairdigi.inference.views import swatch_view
+from hairdigi.render.domain.bounds import StructureMode
 from hairdigi.render.domain.version import version
 from hairdigi.render.domain.appearance import Appearance, AppearanceEstimate
 from hairdigi.render.domain.params import HairParams
@@ -91,7 +92,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
                    settings: RefineSettings = RefineSettings(), extra_warnings: list[EstimateWarning] = (),
                    on_encoder_estimate: Callable[[HairParams], None] | None = None,
                    renderer=None, light_images: list[np.ndarray] | None = None,
-                   structure: str = "assumed",
+                   structure: StructureMode = StructureMode.ASSUMED,
                    sensor_clipped: np.ndarray | None = None) -> EstimateResult:
     """Estimate a colour-corrected image: linear float RGB (a corrected capture) or 8-bit sRGB; a rig
     frame or a crop that is all hair.
@@ -108,7 +109,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     saturated photosites per pixel (a RAW still's, ``Frame.clipped``): clipping is judged on them.
     """
     start = time.perf_counter()
-    seen = swatch_view(view)
+    seen, structure = swatch_view(view), StructureMode(structure)
     crop, roi = swatch_crop(image, seen.roi(roi))
     est = encoder.estimate(image, roi)
     if on_encoder_estimate is not None:
@@ -169,10 +170,11 @@ class _Fit:
                       reading.value if value is None else value, reading.curve, swatch_model=reading.swatch_model)
 
 
-def _refined(fit: _Fit, structure: str) -> tuple[Refinement, AppearanceEstimate, str, list[EstimateWarning]]:
+def _refined(fit: _Fit, structure: StructureMode
+             ) -> tuple[Refinement, AppearanceEstimate, StructureMode, list[EstimateWarning]]:
     """The refinement of ``fit`` with the appearance read on the way, the structure it was made on (a
     capture no hair on the assumed swatch reaches is read anew) and their warnings."""
-    reading = fit.read(READ_MEMBERS if structure == "read" else None)
+    reading = fit.read(READ_MEMBERS if structure is StructureMode.READ else None)
     warnings = list(reading.warnings)
     appearance = reading.estimate
     refinement = fit.refine(reading)
@@ -188,7 +190,7 @@ def _refined(fit: _Fit, structure: str) -> tuple[Refinement, AppearanceEstimate,
                 f"{refinement.residual_de2000:.2f}; uniform fibres {uniform.residual_de2000:.2f}): it is not "
                 f"reported as measured"])
             refinement, appearance = uniform, unmeasured_variation(reading.estimate)
-    if structure != "read" and fit.singles is not None and refinement.residual_de2000 > UNREACHED_DE:
+    if structure is not StructureMode.READ and fit.singles is not None and refinement.residual_de2000 > UNREACHED_DE:
         # no hair on the assumed swatch renders the capture's colour: the swatch is built another way.
         # Its structure is read from the single-light frames and kept where it reaches the colour
         reread = fit.read(READ_MEMBERS)
@@ -200,8 +202,8 @@ def _refined(fit: _Fit, structure: str) -> tuple[Refinement, AppearanceEstimate,
                 f"frames as {reread.swatch_model} (residual {other.residual_de2000:.2f}) and the estimate "
                 f"made on it"])
             warnings = [w for w in warnings if w.kind != WarningKind.APPEARANCE] + list(reread.warnings)
-            refinement, appearance, structure = other, reread.estimate, "read"
-    if structure == "family":
+            refinement, appearance, structure = other, reread.estimate, StructureMode.READ
+    if structure is StructureMode.FAMILY:
         refinement = toward_family(refinement, fit.start, fit.view, fit.settings, fit.renderer)
     if not refinement.reachable:
         warnings += _warn(WarningKind.UNREACHABLE, [
@@ -256,7 +258,7 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
                   calibration_path: str | os.PathLike | None = None, camera: CameraPose | None = None,
                   refine_colour: bool = True, settings: RefineSettings = RefineSettings(),
                   rig_view: bool | None = None, light_paths: list | None = None,
-                  light_exposures: list[float] | None = None, structure: str = "assumed"
+                  light_exposures: list[float] | None = None, structure: StructureMode = StructureMode.ASSUMED
                   ) -> tuple[EstimateResult, EstimateRecord, np.ndarray]:
     """Read, colour-correct (when a calibration profile is given) and estimate; returns the result,
     its record and the corrected image (linear float when corrected, else as read).
@@ -319,7 +321,8 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
         extra += _warn(WarningKind.OTHER, [unknown_view])
     result = estimate_image(image, encoder, roi=roi, view=view, refine_colour=refine_colour, settings=settings,
                             extra_warnings=extra, light_images=lights,
-                            structure=structure if lights is not None or structure != "read" else "assumed")
+                            structure=structure if lights is not None or structure != StructureMode.READ
+                            else StructureMode.ASSUMED)
     if unknown_view is not None:
         result.uncertainty = widened(result.uncertainty)
     return result, record(result, encoder, image_path.read_bytes(), image_path, calibration, view), image

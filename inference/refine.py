@@ -37,10 +37,11 @@ import numpy as np
 from hairdigi.render.domain.absorption import albedo_from_sigma_a, hair_sigma_a
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, GREY_SIGMA_A, Appearance
+from hairdigi.render.domain.bounds import SwatchModel
 from hairdigi.render.domain.files import cache_dir
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import RefinementRecord
-from hairdigi.render.domain.rig_geometry import CameraPose, RigRegion
+from hairdigi.render.domain.rig_geometry import CameraPose, Framing, RigRegion
 
 #: Where the refinement looks: a camera pose over the crop framing's centre (an all-hair image), or
 #: a region of a rig-view frame (``RigRegion``: the capture's swatch area, rendered exactly).
@@ -80,7 +81,7 @@ class RefineSettings:
     #: the spread is the captures' own (each answer fits its capture within 0.09-0.39), not the check's.
     check_layouts: int = 1
     tolerance_de: float = 0.05      # stop polishing once the residual ΔE2000 is below this
-    framing: str = "crop"
+    framing: Framing = Framing.CROP
     strand_seed: int = 0
     seed: int = 7
     levels: tuple[float, ...] = SIGMA_LEVELS
@@ -136,7 +137,7 @@ def scene_for(view: View, settings: RefineSettings, appearance: Appearance | Non
     look = None if appearance is None or appearance == DEFAULT_APPEARANCE else appearance
     if isinstance(view, RigRegion):
         film, crop, _ = view.render_plan(settings.size * settings.size)
-        return SceneSpec("swatch", camera=view.pose, framing="rig", target=view.target,
+        return SceneSpec("swatch", camera=view.pose, framing=Framing.RIG, target=view.target,
                          half_width=view.half_width, crop=crop, strand_seed=settings.strand_seed,
                          appearance=look, swatch_model=swatch_model), film
     return SceneSpec("swatch", camera=view, framing=settings.framing, strand_seed=settings.strand_seed,
@@ -196,7 +197,8 @@ def cache_key(head: list, spec, variant: str) -> str:
     """The disk-cache key of renders of ``spec``'s swatch: ``head`` (what the caller renders) with the
     swatch's strands, depth, the variant and its model (left out for the first swatch, "today", so
     its cached files keep their keys)."""
-    data = [*head, spec.n_strands, spec.depth, variant] + ([spec.swatch_model] if spec.swatch_model != "today" else [])
+    data = [*head, spec.n_strands, spec.depth, variant] + ([spec.swatch_model]
+                                                           if spec.swatch_model is not SwatchModel.TODAY else [])
     return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
 
 

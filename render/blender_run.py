@@ -125,7 +125,7 @@ def rig_for_blender(strands: Strands, pose: rg.CameraPose = rg.RIG_SWATCH_POSE, 
 
 
 def mitsuba_mean(look: HairLook, strands: Strands, pose: rg.CameraPose = rg.RIG_SWATCH_POSE,
-                 framing: str = "crop", size: int = 64, spp: int = 256, max_depth: int = 32) -> tuple[np.ndarray, float]:
+                 framing: rg.Framing = rg.Framing.CROP, size: int = 64, spp: int = 256, max_depth: int = 32) -> tuple[np.ndarray, float]:
     """hairdigi's twin of ``look`` on ``strands`` in the rig (Mitsuba): mean linear colour and seconds. Rendered
     on the renderer's one path (``renderer.render_scene``: its lock, its scene order, its NaN count)."""
     import time
@@ -224,7 +224,7 @@ def cycles_check(look: HairLook, size: int = 48, spp: int = 64, mitsuba_spp: int
     from hairdigi.render.metrics import delta_e2000
 
     strands = layered_swatch()
-    cycles = render_cycles(look, rig_for_blender(strands, pose, "crop", size), spp, seed=0, threads=threads)
-    mitsuba, seconds = mitsuba_mean(look, strands, pose, "crop", size, mitsuba_spp)
+    cycles = render_cycles(look, rig_for_blender(strands, pose, rg.Framing.CROP, size), spp, seed=0, threads=threads)
+    mitsuba, seconds = mitsuba_mean(look, strands, pose, rg.Framing.CROP, size, mitsuba_spp)
     return CyclesCheck(look.sigma_a, cycles.mean_linear, tuple(float(v) for v in mitsuba),
                        float(delta_e2000(np.asarray(cycles.mean_linear), mitsuba)), cycles.seconds, seconds)

@@ -78,10 +78,19 @@ MAX_CAMERA_DISTANCE = 100.0
 
 #: The built-in hairstyles (``render.strands``) and the scenes: the swatch rig, then the hairstyles.
 HAIRSTYLES = ("straight", "wavy", "curly", "bob", "ponytail", "afro")
-#: How an estimate treats the swatch's structure (``inference.structure``): "assumed" (hairdigi's layered
-#: swatch), "family" (mapped to the mean of ``render.swatch_family``'s structures), "read" (from the
-#: single-light frames).
-STRUCTURE_MODES = ("assumed", "family", "read")
+
+
+class StructureMode(TextEnum):
+    """How an estimate treats the swatch's structure (``inference.structure``): "assumed" (hairdigi's layered
+    swatch), "family" (mapped to the mean of ``render.swatch_family``'s structures), "read" (from the
+    single-light frames)."""
+
+    ASSUMED = "assumed"
+    FAMILY = "family"
+    READ = "read"
+
+
+STRUCTURE_MODES = StructureMode.names()
 #: Named cameras of the spectral world (``render.spectra``): name -> colour-science's ``MSDS_CAMERA_SENSITIVITIES`` key.
 CAMERAS = {"nikon-5100": "Nikon 5100 (NPL)", "sigma-sdmerill": "Sigma SDMerill (NPL)"}
 #: Named lights of the spectral world (``render.spectra``): name -> colour-science's ``SDS_ILLUMINANTS`` key.
