@@ -7,8 +7,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from hairdigi.render.domain.bounds import (BoundsError, Environment, SceneKind, SwatchModel, check_camera,
-                                           defaults_for)
+from hairdigi.render.domain.bounds import (STRUCTURE_MODES, BoundsError, Environment, SceneKind, StructureMode,
+                                           SwatchModel, check_camera, defaults_for)
 from hairdigi.render.domain.rig_geometry import CameraPose, Framing
 from hairdigi.render.renderer import SceneError, SceneSpec, strands_for
 from hairdigi.render.strands import hairstyle_strands, swatch_strands
@@ -20,6 +20,8 @@ def test_an_enum_is_its_text_in_json_messages_and_lookups() -> None:
     assert f"{SwatchModel.DEPOSITED_COARSE}" == str(SwatchModel.DEPOSITED_COARSE) == "deposited-coarse"
     assert {"crop": 1}[Framing.CROP] == 1 and Framing("rig") is Framing.RIG
     assert Environment.names() == ("studio", "soft", "key-sky")
+    # the command line's choices stay the text they were
+    assert STRUCTURE_MODES == ("assumed", "family", "read") and StructureMode("read") is StructureMode.READ
 
 
 def test_a_scene_name_is_parsed_once_into_its_kind() -> None:
