@@ -4,36 +4,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hairdigi.render.domain.records import EstimateRecord, read_record
-from hairdigi.render.interchange import FORMATS, HairLook, look_from_record, write_look
+from hairdigi.app.library.export import export_record
+from hairdigi.render.interchange import FORMATS
 
 SUFFIXES = {"materialx": ".mtlx", "blender": ".py"}
-
-
-def load_look(path: str | Path, name: str | None = None) -> HairLook:
-    """The look of an estimate record (or a dye prediction, which has the same layout)."""
-    path = Path(path)
-    record = read_record(path, EstimateRecord)
-    stem = path.name.removesuffix(".json").removesuffix(".result")
-    return look_from_record(record, name or stem, source=path.name)
-
-
-def export_record(record: str | Path, fmt: str, out: str | Path, blend: str | Path | None = None,
-                  name: str | None = None) -> list[Path]:
-    """Write the export (and, for Blender with ``blend``, a .blend with the swatch groom); the paths written."""
-    if fmt not in FORMATS:
-        raise ValueError(f"unknown export format {fmt!r}; choose one of {', '.join(FORMATS)}")
-    if blend and fmt != "blender":
-        from hairdigi.app.cli.validation import ArgumentError
-
-        raise ArgumentError("--blend goes with --format blender")
-    look = load_look(record, name)
-    written = [write_look(look, fmt, out)]
-    if blend:
-        from hairdigi.render.blender_run import write_blend
-
-        written.append(write_blend(look, blend))
-    return written
 
 
 def check_export_look(args: argparse.Namespace) -> str:
@@ -48,10 +22,12 @@ def check_export_look(args: argparse.Namespace) -> str:
     v.check_output_file(out, "--out", (SUFFIXES[args.format],), f"{args.format} ({SUFFIXES[args.format]})", inputs)
     if args.blend:
         v.check_output_file(args.blend, "--blend", (".blend",), "a Blender file", inputs)
+        if args.format != "blender":
+            raise v.ArgumentError("--blend goes with --format blender")
     return out
 
 
-def cmd_export_look(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     out = check_export_look(args)
     for path in export_record(args.record, args.format, out, args.blend, args.name):
         print(f"wrote {path}")
@@ -67,4 +43,4 @@ def add_parser(sub) -> None:
     p.add_argument("--blend", help="blender: also write a .blend with the material on a swatch groom "
                                    "(needs Blender: HAIRDIGI_BLENDER, a Python with bpy, or blender on the PATH)")
     p.add_argument("--name", help="material name (default: from the record's file name)")
-    p.set_defaults(func=cmd_export_look)
+    p.set_defaults(func=run)
