@@ -528,7 +528,7 @@ class MainWindow(QMainWindow):
     def refresh_calibration(self) -> None:
         status, text = self.model.calibration()
         self.calibration_label.setText(text)
-        self.calibration_label.setStyleSheet("color:#2a2" if status == "ok" else "color:#c60")
+        self.calibration_label.setStyleSheet("color:#2a2" if status is rs.CalibrationStatus.OK else "color:#c60")
 
     def calibrate(self) -> Task:
         self.calibrate_button.setEnabled(False)

@@ -1010,7 +1010,7 @@ class ReviewModel:
                  Lights: _apply_lights, Thumbnail: _apply_thumbnail}
 
     # -- what the window reads ---------------------------------------------------------------
-    def calibration(self) -> tuple[str, str]:
+    def calibration(self) -> tuple[rs.CalibrationStatus, str]:
         """(status, one line) of the session's calibration."""
         status, reasons = self.session.calibration_status()
         return status, calibration_text(as_profile(self.session.profile), status, reasons)

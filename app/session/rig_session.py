@@ -31,6 +31,7 @@ from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.records import (CalibrationProfile, CaptureRecord, EstimateRecord, EstimateWarning,
                                             RecordError, WarningKind, capture_profile, read_record, write_record)
+from hairdigi.render.domain.text_enum import TextEnum
 from hairdigi.render.domain.rig_geometry import RIG_HALF_WIDTH, CameraPose, RigRegion
 
 #: How much longer a single-light frame is exposed, where the camera can (``RigSession.light_frames``).
@@ -48,6 +49,14 @@ class CaptureResult:
     corrected: np.ndarray | None = None                # the colour-corrected frame that was estimated (linear)
     seconds: float = 0.0
     curve: object | None = None                        # the response curve the refinement inverted
+
+
+class CalibrationStatus(TextEnum):
+    """The rig's calibration: none yet, stale (the camera's settings or the profile's age say so), or ok."""
+
+    UNCALIBRATED = "uncalibrated"
+    STALE = "stale"
+    OK = "ok"
 
 
 @dataclass
@@ -272,11 +281,12 @@ class RigSession:
         save_profile(self.profile_path, self.profile)
         return self.profile
 
-    def calibration_status(self) -> tuple[str, list[str]]:
+    def calibration_status(self) -> tuple[CalibrationStatus, list[str]]:
+        """The calibration's status and the reasons behind it (none when it is ok)."""
         if self.profile is None:
-            return "uncalibrated", ["the rig is not calibrated: press Calibrate with the chart in view"]
+            return CalibrationStatus.UNCALIBRATED, ["the rig is not calibrated: press Calibrate with the chart in view"]
         reasons = staleness(self.profile, self.settings())
-        return ("stale" if reasons else "ok"), reasons
+        return (CalibrationStatus.STALE if reasons else CalibrationStatus.OK), reasons
 
     # -- capture -----------------------------------------------------------------------------
     def light_frames(self) -> tuple[list, list[float]]:
@@ -426,7 +436,7 @@ class RigSession:
         """The reasons not to estimate from this frame, and its chart detection (None if not found)."""
         reasons, chart = [], None
         status, why = self.calibration_status()
-        if status == "uncalibrated":
+        if status is CalibrationStatus.UNCALIBRATED:
             reasons += [Blocker(BlockerKind.UNCALIBRATED, w) for w in why]
         try:
             chart = detect_chart(image)
