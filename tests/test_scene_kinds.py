@@ -27,6 +27,7 @@ def test_an_enum_is_its_text_in_json_messages_and_lookups() -> None:
 def test_a_scene_name_is_parsed_once_into_its_kind() -> None:
     assert SceneKind.of("swatch") is SceneKind.SWATCH and SceneKind.of("afro") is SceneKind.HAIRSTYLE
     assert SceneKind.of("hairfile") is SceneKind.HAIR_FILE and SceneKind.HAIR_FILE.on_head
+    assert SceneKind.of("models/Straight.HAIR") is SceneKind.HAIR_FILE and not SceneKind.SWATCH.on_head
     swatch = SceneSpec("swatch", env="key-sky", framing="rig", swatch_model="today")
     assert swatch.kind is SceneKind.SWATCH and swatch.name == "swatch"
     assert swatch.env is Environment.KEY_SKY and swatch.framing is Framing.RIG and swatch.swatch_model is SwatchModel.TODAY

@@ -271,7 +271,7 @@ def illuminant(text: str) -> str:
 
 def check_render(args: argparse.Namespace) -> None:
     """``hairdigi render``: the parameter file, the outputs, and size x spp, depth and camera together."""
-    from hairdigi.render.domain.bounds import BoundsError, check_camera, check_size_spp, defaults_for
+    from hairdigi.render.domain.bounds import BoundsError, SceneKind, check_camera, check_size_spp, defaults_for
     from hairdigi.render.scenes import PORTRAIT_CAMERA
     from hairdigi.render.domain.rig_geometry import CAMERA_DISTANCE, CameraPose, GeometryError
 
@@ -298,7 +298,7 @@ def check_render(args: argparse.Namespace) -> None:
     except BoundsError as exc:
         raise ArgumentError(f"--size {size} --spp {spp}: {exc}") from None
     if args.camera:
-        distance = CAMERA_DISTANCE if args.scene == "swatch" else PORTRAIT_CAMERA.distance
+        distance = PORTRAIT_CAMERA.distance if SceneKind.of(args.scene).on_head else CAMERA_DISTANCE
         try:
             check_camera(CameraPose.parse(args.camera, distance), args.scene)
         except (GeometryError, BoundsError) as exc:

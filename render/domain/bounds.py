@@ -27,7 +27,10 @@ class SceneKind(TextEnum):
 
     @classmethod
     def of(cls, name: str) -> SceneKind:
-        """The kind of the scene named ``name``: the swatch, a hair model, else a hairstyle."""
+        """The kind of the scene named ``name``: the swatch, a hair model (or a ``.hair`` file's path), else a
+        hairstyle."""
+        if isinstance(name, str) and name.lower().endswith(".hair"):
+            return cls.HAIR_FILE
         return cls(name) if name in (cls.SWATCH, cls.HAIR_FILE) else cls.HAIRSTYLE
 
     @property
