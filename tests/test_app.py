@@ -38,18 +38,40 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output, monkey
     folder = tmp_path / "session"
     win, session = open_window(qtbot, folder, onnx_path)
     board = session._board
+    _toggle_a_light(qtbot, win, board)
+    profile = _calibrate(qtbot, win)
+    result, varied = _capture(qtbot, win)
+    _check_the_twin_views(win, tmp_path)
+    _orbit_and_open_hair_models(qtbot, win, tmp_path, varied)
+    _check_a_new_selection_cancels_the_stale_render(qtbot, win)
+    _check_the_export(win, tmp_path, onnx_path, session)
+    shot = win.grab()
+    shot.save(str(test_output / "app_after_capture.png"))
+    assert pixmap_array(shot).std() > 10               # not a blank window
+    _unplug_the_board(qtbot, win, board, folder, result)
+    win.close()
+    session.close()
+    _check_the_restart(qtbot, folder, onnx_path, profile, monkeypatch)
 
+
+def _toggle_a_light(qtbot, win, board) -> None:
     qtbot.waitUntil(lambda: win.light_buttons[1].isChecked(), timeout=10000)
     win.light_buttons[1].click()                       # light 1 off
     qtbot.waitUntil(lambda: not board.state.on[1], timeout=10000)
     win.light_buttons[1].click()                       # and on again
     qtbot.waitUntil(lambda: board.state.on[1], timeout=10000)
 
+
+def _calibrate(qtbot, win):
     with qtbot.waitSignal(win.calibrated, timeout=120000) as cal:
         win.calibrate_button.click()
     assert cal.args[0].delta_e2000["after"]["mean"] < cal.args[0].delta_e2000["before"]["mean"]
     assert "ΔE2000" in win.calibration_label.text()
+    return cal.args[0]
 
+
+def _capture(qtbot, win):
+    """The capture, its estimate, twin and hairstyle passes: (the capture's result, whether the hair is varied)."""
     # the first capture of a session reads the shine against the view's per-light tables: the warm-up
     # renders them (96 small renders), and the capture waits for them the first time
     with qtbot.waitSignal(win.captured, timeout=400000) as cap:
@@ -65,6 +87,10 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output, monkey
     # (a grey share read makes fibre groups: a new structure, built once more at each scale)
     varied = int(win.model.shown.record.appearance.value.varied)
     assert (win.model.twin_renderer.builds, win.model.style_renderer.builds) == (2 + 2 * varied, 1 + varied)
+    return result, varied
+
+
+def _check_the_twin_views(win, tmp_path) -> None:
     # the chips: the estimated hair colour (the twin's mean) and the dye, each labelled
     assert win.chip.text() == "hair" and win.dye_chip.text() == "dye"
     assert win.chip.styleSheet() != win.dye_chip.styleSheet()
@@ -76,6 +102,8 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output, monkey
     saved = win.model.save_render("twin", tmp_path / "twin.png")
     assert [p.suffix for p in saved] == [".png", ".exr"] and all(p.stat().st_size > 0 for p in saved)
 
+
+def _orbit_and_open_hair_models(qtbot, win, tmp_path, varied: int) -> None:
     # the camera orbits: the hairstyle re-renders from the warm scene
     win.orbit_sliders[0].setValue(30)
     with qtbot.waitSignal(win.hairstyle_done, timeout=120000):
@@ -96,8 +124,9 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output, monkey
     win.style_box.setCurrentText("straight")
     assert win.model.hair_file is None
 
-    # a new selection cancels the stale render and starts another (no event is processed in between:
-    # the job started for "straight" is still the window's)
+
+def _check_a_new_selection_cancels_the_stale_render(qtbot, win) -> None:
+    # no event is processed in between: the job started for "straight" is still the window's
     old = win.render_task
     assert old is not None and not old.is_cancelled
     win.style_box.setCurrentText("curly")
@@ -105,6 +134,8 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output, monkey
     with qtbot.waitSignal(win.hairstyle_done, timeout=120000):
         pass
 
+
+def _check_the_export(win, tmp_path, onnx_path, session) -> None:
     exported = win.export(tmp_path / "all.json")
     record = json.loads(exported.read_text())
     assert record["hair"]["dye_rgb"] and record["provenance"]["model"]["sha256"] == Encoder(onnx_path).sha256
@@ -113,26 +144,24 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output, monkey
     assert record["refinement"]["ran"] and record["refinement"]["residual_de2000"] >= 0
     assert isinstance(record["warnings"], list) and "residual ΔE2000" in win.result_info.text()
 
-    shot = win.grab()
-    shot.save(str(test_output / "app_after_capture.png"))
-    assert pixmap_array(shot).std() > 10               # not a blank window
 
+def _unplug_the_board(qtbot, win, board, folder, result) -> None:
     # the light board vanishes: a banner, and nothing captured is lost
     board.unplug()
     win.light_buttons[0].click()
     qtbot.waitUntil(lambda: win.banner.isVisible(), timeout=20000)
     assert "light board" in win.banner.text() and str(folder) in win.banner.text()
     assert result.image_path.exists()
-    win.close()
-    session.close()
 
+
+def _check_the_restart(qtbot, folder, onnx_path, profile, monkeypatch) -> None:
     # restart: the session, its calibration and its capture come back
     on_ui_thread = []                 # per thumbnail read from disk: was it the UI thread that read it?
     read = review.read_thumbnail
     monkeypatch.setattr(review, "read_thumbnail", lambda *a, **k: on_ui_thread.append(
         threading.current_thread() is threading.main_thread()) or read(*a, **k))
     win2, session2 = open_window(qtbot, folder, onnx_path)
-    assert win2.session_list.count() == 1 and session2.profile.id == cal.args[0].id
+    assert win2.session_list.count() == 1 and session2.profile.id == profile.id
     assert "blocked" not in win2.session_list.item(0).text()
     # its thumbnail comes from a worker, not from a disk read on the UI thread, and the icon shows it
     qtbot.waitUntil(lambda: not win2.session_list.item(0).icon().isNull(), timeout=20000)
