@@ -24,7 +24,8 @@ import numpy as np
 
 from hairdigi.inference.preprocess import to_linear
 from hairdigi.render.domain.errors import HairdigiError
-from hairdigi.render.domain.records import CalibrationProfile, CaptureRecord, RecordError, read_record, write_record
+from hairdigi.render.domain.record_fields import RecordError
+from hairdigi.render.domain.records import CalibrationProfile, CaptureRecord, read_record, write_record
 from hairdigi.render.chart import WHITE_PATCH, colorchecker_reflectances, rig_chart_targets
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.srgb import srgb8_to_linear

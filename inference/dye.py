@@ -38,10 +38,12 @@ from hairdigi.inference.refine import ResponseCurve, params_for_sigma
 from hairdigi.render.domain.absorption import MELANIN_REMAP, albedo_from_sigma_a, melanin_quantity
 from hairdigi.render.domain.dye_record import DyePairRecord, DyeRecord
 from hairdigi.render.domain.errors import HairdigiError
-from hairdigi.render.domain.files import read_json
 from hairdigi.render.domain.params import HairParams
-from hairdigi.render.domain.records import (EstimateRecord, EstimateWarning, RecordError, RefinementRecord,
+from hairdigi.render.domain.estimate_parts import Provenance, Region, Uncertainty
+from hairdigi.render.domain.record_fields import RecordError
+from hairdigi.render.domain.records import (CaptureRecord, EstimateRecord, EstimateWarning, RefinementRecord,
                                             WarningKind, read_record, record_sha256)
+from hairdigi.render.domain.session_folder import capture_record_beside, is_result_record
 from hairdigi.render.domain.text_enum import TextEnum
 from hairdigi.render.domain.version import version
 from hairdigi.render.metrics import delta_e2000, linear_rgb_to_lab
@@ -143,8 +145,8 @@ def sample_of(record: EstimateRecord, path: str = "", sha256: str = "", calibrat
         why = "; ".join(record.blocked) or "no estimate was made"
         raise DyeError(f"{path or 'the record'}: the capture has no estimate ({why}); choose an estimated capture")
     if calibration is None:
-        calibration = ((record.provenance or {}).get("calibration") or {}).get("id")
-    de68 = (record.uncertainty or {}).get("mean_colour_de2000_p68")
+        calibration = record.provenance.calibration_id
+    de68 = record.uncertainty.mean_colour_de2000_p68
     source = IntervalSource.RECORD if isinstance(de68, (int, float)) and de68 > 0 else IntervalSource.ASSUMED
     return HairSample(record, sigma_of(record), path, sha256, calibration,
                       float(de68) if source is IntervalSource.RECORD else DEFAULT_COLOUR_DE68, source)
@@ -157,13 +159,13 @@ def load_sample(path: str | Path) -> HairSample:
         record = read_record(path, EstimateRecord)
     except RecordError as exc:
         raise DyeError(str(exc)) from None
-    calibration = ((record.provenance or {}).get("calibration") or {}).get("id")
-    if calibration is None and path.name.endswith(".result.json"):     # a session capture: its own record
-        meta = path.with_name(path.name[: -len(".result.json")] + ".json")
+    calibration = record.provenance.calibration_id
+    if calibration is None and is_result_record(path):     # a session capture: its capture record's
+        meta = capture_record_beside(path)
         if meta.exists():
             try:
-                calibration = read_json(meta, ValueError, "missing", "unreadable ({exc})").get("calibration_id")
-            except (ValueError, AttributeError):
+                calibration = read_record(meta, CaptureRecord).calibration_id
+            except RecordError:
                 calibration = None
     return sample_of(record, str(path), record_sha256(path), calibration)
 
@@ -221,7 +223,7 @@ DYED_BASE_CONCENTRATION = 0.3
 def dyed_base_warnings(base: HairSample) -> list[str]:
     """Warn when a base is a dye prediction or reads as dyed: the model takes all its absorption as melanin."""
     record = base.record
-    if (record.provenance or {}).get("prediction"):
+    if record.provenance.prediction:
         return [f"dyed base: {base.label} is a dye prediction, not natural hair; the model reads all its absorption "
                 f"as melanin, so the result is a second dye on top of the first"]
     hair = record.hair
@@ -481,19 +483,19 @@ def apply(dye: DyeRecord, base: HairSample, dose: float = 1.0, curve: ResponseCu
                                         "sigma_a; the hair block is the nearest, refinement.sigma_a the prediction"))
     refinement = RefinementRecord(ran=True, sigma_a=tuple(float(v) for v in sigma), residual_de2000=0.0,
                                   iterations=0, reachable=exact, rendered_linear_rgb=tuple(float(v) for v in colour),
-                                  region={"source": "dye prediction: sigma_a from the dye model, colour from the "
-                                                    "rig's response curve; nothing was captured or rendered"})
-    provenance = {"hairdigi_version": version(), "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-                  "prediction": {"dye": dye.name, "dye_file": dye_path, "dye_sha256": dye_sha256,
-                                 "base": base.path, "base_sha256": base.sha256, "dose": dose, "lift": dye.lift,
-                                 "lift_measured": dye.lift_measured,
-                                 "deposit_sigma_a": [round(v, 6) for v in dye.deposit_sigma_a],
-                                 "melanin_concentration_left": round(prior.melanin_concentration, 6)},
-                  "calibration": (base.record.provenance or {}).get("calibration"),
-                  "camera": (base.record.provenance or {}).get("camera")}
-    uncertainty = {"method": "Monte Carlo over the dye's intervals and the base's", "coverage": 0.68,
-                   "sigma_a_low": [round(float(v), 6) for v in s_lo], "sigma_a_high": [round(float(v), 6) for v in s_hi],
-                   "mean_colour_de2000_p68": round(de68, 3)}
+                                  region=Region(source="dye prediction: sigma_a from the dye model, colour from the "
+                                                       "rig's response curve; nothing was captured or rendered"))
+    provenance = Provenance(
+        hairdigi_version=version(), time=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        prediction={"dye": dye.name, "dye_file": dye_path, "dye_sha256": dye_sha256, "base": base.path,
+                    "base_sha256": base.sha256, "dose": dose, "lift": dye.lift, "lift_measured": dye.lift_measured,
+                    "deposit_sigma_a": [round(v, 6) for v in dye.deposit_sigma_a],
+                    "melanin_concentration_left": round(prior.melanin_concentration, 6)},
+        calibration=base.record.provenance.calibration, camera=base.record.provenance.camera)
+    uncertainty = Uncertainty(method="Monte Carlo over the dye's intervals and the base's", coverage=0.68,
+                              sigma_a_low=tuple(round(float(v), 6) for v in s_lo),
+                              sigma_a_high=tuple(round(float(v), 6) for v in s_hi),
+                              mean_colour_de2000_p68=round(de68, 3))
     record = EstimateRecord(hair=params, warnings=tuple(warnings), uncertainty=uncertainty, refinement=refinement,
                             provenance=provenance, appearance=base.record.appearance)
     return Prediction(sigma, params, colour, record, exact)

@@ -29,6 +29,7 @@ from hairdigi.inference.views import swatch_view
 from hairdigi.render.domain.bounds import StructureMode
 from hairdigi.render.domain.version import version
 from hairdigi.render.domain.appearance import Appearance, AppearanceEstimate
+from hairdigi.render.domain.estimate_parts import EncoderReading, Provenance, Uncertainty
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import (CalibrationProfile, EstimateRecord, EstimateWarning, RefinementRecord,
                                             UNRELIABLE, WarningKind)
@@ -62,7 +63,7 @@ class EstimateResult:
     refinement: Refinement | None
     warnings: list[EstimateWarning] = field(default_factory=list)
     domain: dict = field(default_factory=dict)
-    uncertainty: dict = field(default_factory=dict)
+    uncertainty: Uncertainty = field(default_factory=Uncertainty)
     seconds: float = 0.0
     appearance: AppearanceEstimate | None = None   # shine and fibre variation (None: refinement did not run)
 
@@ -76,10 +77,10 @@ def _warn(kind: WarningKind, messages) -> list[EstimateWarning]:
     return [EstimateWarning(kind, m) for m in messages]
 
 
-def interval_warnings(residual_de2000: float, uncertainty: dict) -> list[EstimateWarning]:
+def interval_warnings(residual_de2000: float, uncertainty: Uncertainty) -> list[EstimateWarning]:
     """A warning when the twin misses the capture itself by more than the stated 68% colour interval:
     the truth cannot be expected inside it then."""
-    stated = uncertainty.get("mean_colour_de2000_p68")
+    stated = uncertainty.mean_colour_de2000_p68
     if stated is None or residual_de2000 <= stated:
         return []
     return _warn(WarningKind.INTERVAL, [
@@ -138,7 +139,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     uncertainty = intervals(params, load_table(UNCERTAINTY_TABLE), chain)
     if refinement is not None:   # a swatch's structure: read, or the default assumed (``inference.structure``)
         uncertainty = with_structure(uncertainty, load_table(STRUCTURE_TABLE), structure,
-                                     refinement.region.get("swatch_model"))
+                                     refinement.region.swatch_model)
     if refinement is not None:
         warnings += interval_warnings(refinement.residual_de2000, uncertainty)
     return EstimateResult(params, est, refinement, warnings, stats.to_dict(), uncertainty,
@@ -218,30 +219,22 @@ def _refined(fit: _Fit, structure: StructureMode
 
 def record(result: EstimateResult, encoder: Encoder, image_bytes: bytes | None = None,
            image_path: str | os.PathLike | None = None, calibration: dict | None = None,
-           view: View = RIG_SWATCH_POSE, **extra) -> EstimateRecord:
+           view: View = RIG_SWATCH_POSE) -> EstimateRecord:
     """The record of an estimate: parameters, warnings, intervals and provenance."""
     est = result.encoder
-    pose = view.pose if isinstance(view, RigRegion) else view
-    provenance = {
-        "hairdigi_version": version(),
-        "model": {"path": str(encoder.path), "sha256": encoder.sha256, "input_size": encoder.input_size},
-        "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-        "roi": None if est.roi is None else [est.roi.x, est.roi.y, est.roi.w, est.roi.h],
-        "camera": {"polar_deg": pose.polar_deg, "azimuth_deg": pose.azimuth_deg, "distance": pose.distance},
-        "view": view.to_dict() if isinstance(view, RigRegion) else "crop",
-        "encoder_ms": round(est.seconds * 1000.0, 3),
-        "seconds": round(result.seconds, 3),
-        "calibration": calibration,
-        "domain": result.domain,
-    }
-    if image_path is not None:
-        provenance["image"] = str(image_path)
-    if image_bytes is not None:
-        provenance["image_sha256"] = hashlib.sha256(image_bytes).hexdigest()
-    provenance.update(extra)
+    provenance = Provenance(
+        hairdigi_version=version(), time=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        model={"path": str(encoder.path), "sha256": encoder.sha256, "input_size": encoder.input_size},
+        roi=None if est.roi is None else (est.roi.x, est.roi.y, est.roi.w, est.roi.h),
+        camera=view.pose if isinstance(view, RigRegion) else view,
+        view=view if isinstance(view, RigRegion) else "crop",
+        encoder_ms=round(est.seconds * 1000.0, 3), seconds=round(result.seconds, 3),
+        calibration=calibration, domain=result.domain,
+        image=None if image_path is None else str(image_path),
+        image_sha256=None if image_bytes is None else hashlib.sha256(image_bytes).hexdigest())
     return EstimateRecord(
         hair=result.params, warnings=tuple(result.warnings), uncertainty=result.uncertainty,
-        encoder={"hair": est.params.to_dict(), "at_range_edge": est.at_range_edge, "view_spread": est.view_spread},
+        encoder=EncoderReading(est.params, tuple(est.at_range_edge), dict(est.view_spread)),
         refinement=result.refinement.to_record() if result.refinement else RefinementRecord(),
         provenance=provenance, appearance=result.appearance)
 
@@ -331,7 +324,8 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
 def _recorded_exposures(image_path: Path, light_paths: list) -> list[float] | None:
     """The single-light frames' exposures from the rig's capture record beside the image, when it
     names exactly these frames (a capture re-estimated from its folder)."""
-    from hairdigi.render.domain.records import CaptureRecord, RecordError, read_record
+    from hairdigi.render.domain.record_fields import RecordError
+    from hairdigi.render.domain.records import CaptureRecord, read_record
 
     meta = image_path.with_suffix(".json")
     try:

@@ -40,6 +40,7 @@ from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, GREY_SIGMA_A, 
 from hairdigi.render.domain.bounds import SwatchModel
 from hairdigi.render.domain.files import cache_dir
 from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.estimate_parts import Region
 from hairdigi.render.domain.records import RefinementRecord
 from hairdigi.render.domain.rig_geometry import CameraPose, Framing, RigRegion
 
@@ -254,7 +255,7 @@ class Refinement:
     curve_cached: bool = False
     history: list[float] = field(default_factory=list)   # residual ΔE2000 after each step
     nonfinite: int = 0                 # NaN or Inf samples in its renders, the curve's too (counted, replaced by 0)
-    region: dict = field(default_factory=dict)            # what it fitted and rendered
+    region: Region = field(default_factory=Region)        # what it fitted and rendered
     curve: "ResponseCurve | None" = None   # the curve it inverted (the region's, at the swatch's appearance)
 
     @property
@@ -376,5 +377,6 @@ def refine(prior: HairParams, target: np.ndarray, view: View = CameraPose(),
     residual = float(delta_e2000(np.clip(final, 1e-9, None), target))
     return Refinement(params, hair_sigma_a(params), target, np.asarray(final, float), residual, len(history),
                       residual < REACHABLE_DE, time.perf_counter() - start, curve.seconds, curve.cached, history,
-                      nonfinite, {**(view.to_dict() if isinstance(view, RigRegion) else {"crop_pose": asdict(view)}),
-                                  "swatch_model": spec.swatch_model}, curve)
+                      nonfinite, Region(rig=view if isinstance(view, RigRegion) else None,
+                                        crop_pose=None if isinstance(view, RigRegion) else view,
+                                        swatch_model=spec.swatch_model), curve)

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.render.domain.estimate_parts import SpectralInterval, Uncertainty
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import SpectralReading
 from hairdigi.inference.uncertainty import load_table, widen_colour
@@ -137,7 +138,7 @@ def spectrum_name(name: str | None) -> str:
     return Path(name).name if str(name).lower().endswith(".csv") else str(name)
 
 
-def with_spectral(uncertainty: dict, table: dict | None, camera: str) -> dict:
+def with_spectral(uncertainty: Uncertainty, table: dict | None, camera: str) -> Uncertainty:
     """``uncertainty`` with the spectral world's colour interval for ``camera`` (a declared camera's
     ``spectrum_name``, or "unknown" where the rig declares none): the camera answer's where the table
     measured that camera, the widest camera's for a camera it did not, and for "unknown" the metamerism
@@ -152,10 +153,8 @@ def with_spectral(uncertainty: dict, table: dict | None, camera: str) -> dict:
         return uncertainty
     out = widen_colour(uncertainty, measured["p68"], measured["p95"],
                        f"{table.get('source', 'hairdigi evaluate --spectral')} ({camera} camera)")
-    out["spectral"] = {"camera": camera, "answer": measured["answer"], "holds_for": measured["holds_for"],
-                       "mean_colour_de2000_p68": measured["p68"], "mean_colour_de2000_p95": measured["p95"],
-                       "source": table.get("source", "")}
-    return out
+    return replace(out, spectral=SpectralInterval(camera, measured["answer"], measured["holds_for"], measured["p68"],
+                                                  measured["p95"], table.get("source", "")))
 
 
 #: The chart's neutral patches used for the camera's gains: neutral 8 to neutral 3.5 (the white may

@@ -22,6 +22,7 @@ import numpy as np
 
 from hairdigi.inference.refine import RefineSettings, ResponseCurve, View, response_curve
 from hairdigi.inference.uncertainty import widen_colour
+from hairdigi.render.domain.estimate_parts import StructureInterval, Uncertainty
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.swatch_family import FAMILY
 from hairdigi.resources import MODELS
@@ -143,8 +144,8 @@ STRUCTURE_TABLE = MODELS / "structure_uncertainty.json"
 _TABLE_KEYS = {"assumed": "shipped", "family": "family", "read": "read"}
 
 
-def with_structure(uncertainty: dict, table: dict | None, mode: str = "assumed",
-                   swatch_model: str | None = None) -> dict:
+def with_structure(uncertainty: Uncertainty, table: dict | None, mode: str = "assumed",
+                   swatch_model: str | None = None) -> Uncertainty:
     """``uncertainty`` (``inference.uncertainty.intervals``) with its colour interval widened to what
     swatches of other structures measured for ``mode`` (the larger of the two, per level), and a
     ``structure`` entry naming the mode and the structure rendered."""
@@ -154,9 +155,8 @@ def with_structure(uncertainty: dict, table: dict | None, mode: str = "assumed",
     measured = table[key]
     out = widen_colour(uncertainty, measured["p68"], measured["p95"],
                        f"{table.get('source', 'hairdigi evaluate --structures')} (--structure {mode})")
-    out["structure"] = {"mode": mode, "rendered": swatch_model, "mean_colour_de2000_p68": round(measured["p68"], 3),
-                        "mean_colour_de2000_p95": round(measured["p95"], 3), "source": table.get("source", "")}
-    return out
+    return replace(out, structure=StructureInterval(mode, swatch_model, round(measured["p68"], 3),
+                                                    round(measured["p95"], 3), table.get("source", "")))
 
 
 def toward_family(refinement, prior, view: View, settings: RefineSettings = RefineSettings(), renderer=None):
@@ -174,4 +174,5 @@ def toward_family(refinement, prior, view: View, settings: RefineSettings = Refi
     params, _ = params_for_sigma(to_family(refinement.sigma_a, family), prior)
     return replaced(refinement, params=params, sigma_a=hair_sigma_a(params),
                     seconds=refinement.seconds + time.perf_counter() - start,
-                    region={**refinement.region, "structure": "mapped to the family's mean: " + ", ".join(family.members)})
+                    region=replaced(refinement.region,
+                                    structure="mapped to the family's mean: " + ", ".join(family.members)))

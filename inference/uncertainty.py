@@ -11,10 +11,12 @@ a parameter's range is reported as undetermined rather than as a number with a s
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from hairdigi.render.domain.estimate_parts import ParameterInterval, Uncertainty
 from hairdigi.render.domain.params import VECTOR_FIELDS, HairParams
 
 COVERAGE = 0.68
@@ -66,45 +68,42 @@ def load_table(path: str | Path) -> dict | None:
         return None
 
 
-def widen_colour(uncertainty: dict, p68: float, p95: float, source: str) -> dict:
+def widen_colour(uncertainty: Uncertainty, p68: float, p95: float, source: str) -> Uncertainty:
     """``uncertainty`` with its colour interval widened to a measured (``p68``, ``p95``) ΔE2000, the larger
-    per level; where that widens the 68%, ``source`` becomes the interval's source."""
-    out = dict(uncertainty)
-    if out.get("mean_colour_de2000_p68", float("inf")) < p68:
-        out["mean_colour_source"] = source
-    for level, value in (("p68", p68), ("p95", p95)):
-        name = f"mean_colour_de2000_{level}"
-        if name in out:
-            out[name] = round(max(out[name], value), 3)
-    return out
+    per level (a level it does not state stays unstated); where that widens the 68%, ``source`` becomes
+    the interval's source."""
+    u68, u95 = uncertainty.mean_colour_de2000_p68, uncertainty.mean_colour_de2000_p95
+    return replace(uncertainty,
+                   mean_colour_source=source if u68 is not None and u68 < p68 else uncertainty.mean_colour_source,
+                   mean_colour_de2000_p68=None if u68 is None else round(max(u68, p68), 3),
+                   mean_colour_de2000_p95=None if u95 is None else round(max(u95, p95), 3))
 
 
-def intervals(params: HairParams, table: dict | None, colour_table: dict | None = None) -> dict:
+def intervals(params: HairParams, table: dict | None, colour_table: dict | None = None) -> Uncertainty:
     """Each parameter with its measured 68% interval, or flagged undetermined; and the colour's ΔE.
 
     ``colour_table`` (``chain_uncertainty.json``, from ``hairdigi evaluate --rig``) gives the colour's
     ΔE2000 for a capture through the whole rig chain; without it the colour's figure is the crop
     renders' (``table``)."""
-    values = params.to_dict()
     flat = {"dye_r": params.dye_rgb[0], "dye_g": params.dye_rgb[1], "dye_b": params.dye_rgb[2],
             "dye_concentration": params.dye_concentration,
             "melanin_concentration": params.melanin_concentration, "melanin_ratio": params.melanin_ratio}
     if table is None:
-        return {"note": "no interval table shipped with this model (resources/models/uncertainty.json)",
-                "values": values}
+        return Uncertainty(note="no interval table shipped with this model (resources/models/uncertainty.json)",
+                           values=params)
     b = band(params.melanin_concentration)
-    out: dict = {"coverage": table["coverage"], "method": "held-out absolute error quantile per melanin band",
-                 "parameters": {}}
+    parameters = {}
     for (name, lo, hi) in VECTOR_FIELDS:
         w = table["half_width"][name][b]
         v = flat[name]
-        entry = {"value": round(v, 4), "low": round(max(lo, v - w), 4), "high": round(min(hi, v + w), 4),
-                 "half_width": round(w, 4)}
-        entry["determined"] = bool(w <= UNDETERMINED_SHARE * (hi - lo))
-        out["parameters"][name] = entry
+        parameters[name] = ParameterInterval(value=round(v, 4), low=round(max(lo, v - w), 4),
+                                             high=round(min(hi, v + w), 4), half_width=round(w, 4),
+                                             determined=bool(w <= UNDETERMINED_SHARE * (hi - lo)))
+    out = Uncertainty(coverage=table["coverage"], method="held-out absolute error quantile per melanin band",
+                      parameters=parameters)
     colour = colour_table if colour_table and "mean_colour_de2000" in colour_table else table
     if "mean_colour_de2000" in colour:
-        out["mean_colour_de2000_p68"] = round(colour["mean_colour_de2000"]["p68"], 3)
-        out["mean_colour_de2000_p95"] = round(colour["mean_colour_de2000"]["p95"], 3)
-        out["mean_colour_source"] = colour.get("source", "held-out clean crop renders (hairdigi evaluate)")
+        out = replace(out, mean_colour_de2000_p68=round(colour["mean_colour_de2000"]["p68"], 3),
+                      mean_colour_de2000_p95=round(colour["mean_colour_de2000"]["p95"], 3),
+                      mean_colour_source=colour.get("source", "held-out clean crop renders (hairdigi evaluate)"))
     return out

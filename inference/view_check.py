@@ -13,9 +13,11 @@ unknown cameras measured.
 from __future__ import annotations
 
 import functools
+from dataclasses import replace
 
 import numpy as np
 
+from hairdigi.render.domain.estimate_parts import Uncertainty
 from hairdigi.render.domain.rig_geometry import SWATCH_HALF, SWATCH_VISIBLE_HALF_LENGTH
 
 
@@ -90,13 +92,12 @@ def view_warning(outline: np.ndarray | None, assumed_tilt: float, rig_view: bool
             f"widened to an unknown camera's: pass --camera POLAR,AZIMUTH")
 
 
-def widened(uncertainty: dict, de: tuple[float, float] | None = None) -> dict:
+def widened(uncertainty: Uncertainty, de: tuple[float, float] | None = None) -> Uncertainty:
     """The record's colour interval widened to an unknown camera's (``UNKNOWN_VIEW_DE``)."""
     p68, p95 = de or UNKNOWN_VIEW_DE
-    out = dict(uncertainty)
-    out["mean_colour_de2000_p68"] = round(max(float(out.get("mean_colour_de2000_p68") or 0.0), p68), 3)
-    out["mean_colour_de2000_p95"] = round(max(float(out.get("mean_colour_de2000_p95") or 0.0), p95), 3)
-    out["mean_colour_source"] = (f"{out.get('mean_colour_source', '')}; widened: the camera is not known to be the "
-                                 f"assumed one (rig-framed swatches from 20-30° estimated without --camera, "
-                                 f"evaluate_views --no-camera)")
-    return out
+    return replace(uncertainty,
+                   mean_colour_de2000_p68=round(max(uncertainty.mean_colour_de2000_p68 or 0.0, p68), 3),
+                   mean_colour_de2000_p95=round(max(uncertainty.mean_colour_de2000_p95 or 0.0, p95), 3),
+                   mean_colour_source=f"{uncertainty.mean_colour_source or ''}; widened: the camera is not known to "
+                                      f"be the assumed one (rig-framed swatches from 20-30° estimated without "
+                                      f"--camera, evaluate_views --no-camera)")

@@ -29,7 +29,8 @@ import numpy as np
 
 from hairdigi.render.domain.absorption import AZIMUTHAL_ROUGHNESS, LONGITUDINAL_ROUGHNESS
 from hairdigi.render.domain.files import write_text_atomic
-from hairdigi.render.domain.records import EstimateRecord, RecordError
+from hairdigi.render.domain.record_fields import RecordError
+from hairdigi.render.domain.records import EstimateRecord
 
 #: Mitsuba's ``hair`` defaults, which hairdigi renders with (render/scenes.py sets neither).
 SCALE_TILT_DEG = 2.0

@@ -37,7 +37,7 @@ def test_a_simulated_capture_of_a_known_swatch_is_right_against_the_truth(tmp_pa
     region = rig_region((result.corrected.shape[1], result.corrected.shape[0]), session.swatch_roi)
     target = mean_linear(fitted_pixels(result.corrected, region))
     assert np.allclose(result.record.refinement.target_linear_rgb, target, rtol=1e-5, atol=1e-7)
-    assert result.record.refinement.region["roi"] == list(session.swatch_roi)
+    assert result.record.refinement.region.rig.roi == tuple(session.swatch_roi)
     # the twin as the estimate renders it: its median fibre's sigma_a with the appearance it read (a grey
     # share read where there is none darkens that median fibre, and the twin with its greys makes up)
     verdict = judge(hidden, result.record.refinement.sigma_a, looks=(None, result.record.appearance.value))

@@ -81,9 +81,9 @@ def test_an_estimate_without_camera_of_a_swatch_on_its_holder_is_warned_and_wide
     result, record, _ = estimate_file(path, Encoder(), refine_colour=False)
     camera = [w.message for w in record.warnings if w.message.startswith("camera:")]
     assert len(camera) == 1 and "--camera" in camera[0] and "\n" not in camera[0], record.warnings
-    assert record.uncertainty["mean_colour_de2000_p68"] >= UNKNOWN_VIEW_DE[0]
-    assert record.uncertainty["mean_colour_de2000_p95"] >= UNKNOWN_VIEW_DE[1]
-    assert "widened" in record.uncertainty["mean_colour_source"]
+    assert record.uncertainty.mean_colour_de2000_p68 >= UNKNOWN_VIEW_DE[0]
+    assert record.uncertainty.mean_colour_de2000_p95 >= UNKNOWN_VIEW_DE[1]
+    assert "widened" in record.uncertainty.mean_colour_source
 
 
 @pytest.mark.slow
@@ -168,8 +168,8 @@ def test_a_dark_raw_still_is_not_called_clipped(tmp_path):
         session.close()
     assert not result.blocked and result.record is not None
     assert not [w for w in result.record.warnings if w.message.startswith("clipped")], result.record.warnings
-    assert result.record.provenance["domain"]["clipped_on"] == "sensor"
-    assert result.record.provenance["domain"]["clipped_share"] == 0.0
+    assert result.record.provenance.domain["clipped_on"] == "sensor"
+    assert result.record.provenance.domain["clipped_share"] == 0.0
 
 
 # --- 4. domain checks: a real camera's view of fine fibres -------------------------------------

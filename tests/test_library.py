@@ -20,6 +20,7 @@ from hairdigi.app.cli import main
 from hairdigi.app.library.store import SCHEMA_VERSION, Library, LibraryError
 from hairdigi.app.library.swatch_colour import hex_lab, lab_hex, rendered_linear, swatch_labs
 from hairdigi.render.domain.absorption import hair_sigma_a
+from hairdigi.render.domain.estimate_parts import Provenance
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import CaptureRecord, EstimateRecord, RefinementRecord, write_record
 from hairdigi.render.metrics import delta_e2000
@@ -169,7 +170,7 @@ def test_lone_estimates_and_dye_predictions_are_swatches_too(tmp_path, lib_env):
     estimate = write_record(tmp_path / "violet.json", EstimateRecord(hair=hair))
     prediction = write_record(tmp_path / "violet-on-blonde.json", EstimateRecord(
         hair=hair, refinement=RefinementRecord(ran=True, sigma_a=(0.2, 0.5, 0.1)),
-        provenance={"prediction": {"dye": "violet", "dose": 1.0}}))
+        provenance=Provenance(prediction={"dye": "violet", "dose": 1.0})))
     with Library() as lib:
         assert import_paths(lib, [estimate, prediction], progress=lambda line: None) == 2
         kinds = {s.record_path: s.kind for s in lib.all()}

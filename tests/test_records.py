@@ -7,7 +7,10 @@ from pathlib import Path
 
 import pytest
 
+from hairdigi.render.domain.estimate_parts import (EncoderReading, ParameterInterval, Provenance, Region,
+                                                   SpectralInterval, StructureInterval, Uncertainty)
 from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.rig_geometry import CameraPose, RigRegion
 from hairdigi.render.domain.records import (SCHEMA_VERSION, CalibrationProfile, CaptureRecord, EstimateRecord,
                                             EstimateWarning, RecordError, RefinementRecord, WarningKind,
                                             capture_profile, read_record, write_record)
@@ -33,8 +36,17 @@ def test_every_record_round_trips_through_its_json():
         warnings=(EstimateWarning(WarningKind.CALIBRATION, "calibration: stale"),
                   EstimateWarning(WarningKind.OUT_OF_DOMAIN, "out of domain: noise")),
         refinement=RefinementRecord(ran=True, sigma_a=(0.3, 0.6, 1.2), residual_de2000=0.1, iterations=2,
-                                    residual_history=(0.3, 0.1), nonfinite=0, region={"roi": [1, 2, 30, 40]}),
-        provenance={"model": {"sha256": "x"}}, capture="c1.png", blocked=(), swatch_roi=(1, 2, 30, 40))
+                                    residual_history=(0.3, 0.1), nonfinite=0,
+                                    region=Region(rig=RigRegion((320, 240), (1, 2, 30, 40)), swatch_model="layered")),
+        uncertainty=Uncertainty(coverage=0.68, method="m", parameters={"dye_r": ParameterInterval(120.0, 80.0, 160.0, 40.0)},
+                                mean_colour_de2000_p68=0.5, mean_colour_de2000_p95=0.9, mean_colour_source="chain",
+                                structure=StructureInterval("assumed", "layered", 2.0, 2.9, "s"),
+                                spectral=SpectralInterval("nikon-5100", "camera", "every light", 1.2, 5.3, "t")),
+        encoder=EncoderReading(HairParams(), ("dye_r",), {"dye_r": 0.01}),
+        provenance=Provenance(hairdigi_version="0.3", time="t", model={"sha256": "x"}, roi=(1, 2, 30, 40),
+                              camera=CameraPose(10.0), view=RigRegion((320, 240), (1, 2, 30, 40)),
+                              calibration={"id": "abc"}, domain={"std": 1.0}),
+        capture="c1.png", blocked=(), swatch_roi=(1, 2, 30, 40))
     for record in (profile, capture, estimate, RefinementRecord(), EstimateRecord(hair=None, capture="c.png",
                                                                                    blocked=("no chart",))):
         data = json.loads(json.dumps(record.to_json()))
@@ -62,6 +74,59 @@ def test_files_of_the_previous_layout_are_read_and_upgraded(tmp_path):
         path = write_record(tmp_path / f"{cls.KIND}.json", record)
         assert json.loads(path.read_text())["schema_version"] == SCHEMA_VERSION
         assert read_record(path, cls) == record
+
+
+def test_an_estimates_parts_are_typed_and_write_the_json_they_were_read_from():
+    """The legacy records' intervals, encoder reading, provenance and refinement read as types, and
+    write back exactly the dicts they were read from."""
+    for name in (f"{LIVE}.result.json", f"{STILL}.result.json"):
+        data = _legacy(name)
+        record = EstimateRecord.from_json(data)
+        assert record.uncertainty.parameters["dye_b"].determined is False
+        assert record.uncertainty.mean_colour_de2000_p68 == data["uncertainty"]["mean_colour_de2000_p68"]
+        assert record.encoder.hair == HairParams.from_dict(data["encoder"]["hair"])
+        assert record.provenance.camera.polar_deg == data["provenance"]["camera"]["polar_deg"]
+        assert record.provenance.calibration_id == data["provenance"]["calibration"]["id"]
+        out = record.to_json()
+        for key in ("uncertainty", "encoder", "provenance"):
+            assert out[key] == data[key], key
+
+
+def test_the_dicts_that_were_written_before_the_types_read_and_write_alike():
+    """What an estimate without a table, a dye prediction and a crop's refinement wrote as plain dicts."""
+    untabled = {"note": "no interval table shipped", "values": HairParams().to_dict()}
+    prediction = {"method": "Monte Carlo", "coverage": 0.68, "sigma_a_low": [0.1, 0.2, 0.3],
+                  "sigma_a_high": [0.2, 0.3, 0.4], "mean_colour_de2000_p68": 0.8}
+    for data in (untabled, prediction, {}):
+        assert Uncertainty.from_json(data).to_json() == data
+    crop = {"crop_pose": {"polar_deg": 10.0, "azimuth_deg": 0.0, "distance": 4.0}, "swatch_model": "layered",
+            "structure": "mapped to the family's mean: a, b"}
+    rig = {**RigRegion((320, 240), (1, 2, 30, 40)).to_dict(), "swatch_model": "ring"}
+    for data in (crop, rig, {"source": "dye prediction"}):
+        assert Region.from_json(json.loads(json.dumps(data))).to_json() == data
+    dyed = {"hairdigi_version": "0.3", "time": "t", "prediction": {"dye": "copper"}, "calibration": None,
+            "camera": None}
+    later = {"hairdigi_version": "0.3", "time": "t", "written_by_a_later_hairdigi": 1}
+    for data in (dyed, later):
+        assert Provenance.from_json(data).to_json() == data
+    assert Provenance.from_json(dyed).prediction == {"dye": "copper"}
+    assert EstimateRecord.from_json({"hair": HairParams().to_dict(), "encoder": {}}).encoder is None
+
+
+@pytest.mark.parametrize("part, data, field", [
+    ("uncertainty", {"mean_colour_de2000_p68": "wide"}, "mean_colour_de2000_p68"),
+    ("uncertainty", {"parameters": {"dye_r": {"value": 1, "low": 3, "high": 2, "half_width": 1}}}, "inverted"),
+    ("uncertainty", {"spectral": {"camera": "nikon-5100", "answer": "camera"}}, "holds_for"),
+    ("encoder", {"at_range_edge": []}, "'hair' is missing"),
+    ("provenance", {"roi": [1, 2, "x", 4]}, "'roi'"),
+    ("provenance", {"camera": {"polar_deg": 95.0, "azimuth_deg": 0.0, "distance": 4.0}}, "camera pose"),
+    ("refinement", {"ran": True, "region": {"roi": [300, 2, 30, 40], "frame_size": [320, 240], "pose": [0, 0, 4],
+                                            "target": [0, 0, 0], "half_width": 1.0}}, "region"),
+])
+def test_a_bad_part_of_an_estimate_is_refused_in_one_line_naming_it(part, data, field):
+    with pytest.raises(RecordError, match=field) as exc:
+        EstimateRecord.from_json({"hair": HairParams().to_dict(), part: data})
+    assert "\n" not in str(exc.value) and part in str(exc.value)
 
 
 def test_a_legacy_session_opens_and_reviews_with_its_own_calibration(tmp_path):

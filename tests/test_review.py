@@ -11,6 +11,7 @@ import pytest
 from hairdigi.app.review import model as review
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.inference.encoder import Encoder
+from hairdigi.render.domain.estimate_parts import ParameterInterval, SpectralInterval, Uncertainty
 from hairdigi.render.metrics import delta_e2000, delta_e_map
 
 SMALL = review.PreviewSettings(twin_passes=((0.5, 1), (1.0, 1)), twin_clean_spp=((0.5, 1), (1.0, 1)), hairstyle_size=48, hairstyle_strands=200,
@@ -148,7 +149,8 @@ def test_a_pass_with_nonfinite_values_becomes_a_warning_of_the_shown_capture():
     model = review.ReviewModel(session=None)
     seen = []
     model.events.warnings.connect(seen.append)
-    rec = EstimateRecord(hair=HairParams(), uncertainty={"parameters": {"dye_r": {"determined": False}}})
+    rec = EstimateRecord(hair=HairParams(), uncertainty=Uncertainty(parameters={"dye_r": ParameterInterval(
+        120.0, 0.0, 255.0, 200.0, determined=False)}))
     model.shown = review.Shown("c1", np.zeros((8, 8, 3), np.uint8), (0, 0, 8, 8), (8, 8), rec.hair,
                                review.Stage.REFINED, rec, key=7)
     raw = np.zeros((8, 8, 3), np.float32)
@@ -203,14 +205,13 @@ def test_the_window_says_a_records_colour_under_other_lights_and_its_spectral_in
     assert spectral_lines(EstimateRecord(hair=HairParams())) == []
     reading = SpectralReading(HairParams(), "LED-B4", "nikon-5100", 0.01,
                               {"D65": (40.0, 20.0, 20.0), "A": (40.0, 26.0, 24.0)})
-    stated = {"camera": "nikon-5100", "answer": "camera", "holds_for": "every light",
-              "mean_colour_de2000_p68": 1.21, "mean_colour_de2000_p95": 5.3}
-    lines = spectral_lines(EstimateRecord(hair=HairParams(), spectral=reading, uncertainty={"spectral": stated}))
+    stated = SpectralInterval("nikon-5100", "camera", "every light", 1.21, 5.3)
+    lines = spectral_lines(EstimateRecord(hair=HairParams(), spectral=reading, uncertainty=Uncertainty(spectral=stated)))
     assert lines[0].startswith("read in the camera's RGB (nikon-5100 under LED-B4)")
     assert "daylight L* 40" in lines[0] and "tungsten L* 40 (ΔE2000 3.1 from daylight)" in lines[0]
     assert "within ΔE2000 1.21 in 68%" in lines[1]
-    undeclared = {**stated, "camera": "unknown"}
-    assert spectral_lines(EstimateRecord(hair=HairParams(), uncertainty={"spectral": undeclared})) == [
+    undeclared = dataclasses.replace(stated, camera="unknown")
+    assert spectral_lines(EstimateRecord(hair=HairParams(), uncertainty=Uncertainty(spectral=undeclared))) == [
         "spectral world (unknown camera): within ΔE2000 1.21 in 68% for every light"]
 
 

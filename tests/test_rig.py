@@ -235,7 +235,7 @@ def test_a_raw_still_of_the_rig_is_a_capture_calibrated_on_its_own_chart(tmp_pat
         session.close()
     assert result.image_path.read_bytes() == still.read_bytes()          # kept as shot, before processing
     assert not result.blocked and result.params is not None
-    assert result.record.provenance["calibration"]["delta_e2000_after"]["mean"] < 1.5
+    assert result.record.provenance.calibration["delta_e2000_after"]["mean"] < 1.5
     # the same swatch as the live capture (each renders its own swatch area): the same hair, judged
     # at the rig's swatch pose
     looks = (result.record.appearance.value, live.record.appearance.value)   # each with the greys it read

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hairdigi.render.domain.estimate_parts import Uncertainty
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import EstimateRecord, read_record
 
@@ -53,7 +54,7 @@ def test_a_spectral_rig_capture_is_read_in_the_camera_and_carries_to_tungsten(tm
     assert reading is not None and (reading.camera, reading.led) == ("nikon-5100", "LED-B4")
     assert set(reading.under) == {"D65", "A", "shop-led"}
     saved = read_record(session.folder / "captures" / f"{result.capture_id}.result.json", EstimateRecord)
-    assert saved.spectral.to_json() == reading.to_json() and saved.uncertainty["spectral"]["camera"] == "nikon-5100"
+    assert saved.spectral.to_json() == reading.to_json() and saved.uncertainty.spectral.camera == "nikon-5100"
     found = answers(result.record, profile, "LED-B4", "nikon-5100")
     verdict = _judge(hidden, found, replace(SpectralSet(), judge_size=32, judge_spp=64))
     # measured (rig at 8 spp, judge 32² at 64 spp): camera 1.1-1.3 at the rig under every light; the RGB
@@ -63,8 +64,8 @@ def test_a_spectral_rig_capture_is_read_in_the_camera_and_carries_to_tungsten(tm
     assert verdict["camera_rig_A"] < 0.5 * verdict["rgb_rig_A"], verdict
     assert found["camera_residual"] < 0.5
     # what the record states holds for this capture, under every light
-    stated = saved.uncertainty["mean_colour_de2000_p95"]
-    assert stated >= saved.uncertainty["spectral"]["mean_colour_de2000_p95"]
+    stated = saved.uncertainty.mean_colour_de2000_p95
+    assert stated >= saved.uncertainty.spectral.mean_colour_de2000_p95
     assert all(verdict[f"camera_rig_{light}"] <= stated for light in ("D65", "A", "shop-led")), (verdict, stated)
 
 
@@ -75,18 +76,18 @@ def test_a_record_is_widened_by_metamerism_unless_its_rig_declares_its_camera():
         "nikon-5100": {"answer": "camera", "holds_for": "every light", "p68": 1.2, "p95": 5.3},
         "sigma-sdmerill": {"answer": "camera", "holds_for": "every light", "p68": 4.8, "p95": 9.1},
         "unknown": {"answer": "rgb", "holds_for": "daylight", "p68": 2.7, "p95": 7.2}}}
-    base = {"mean_colour_de2000_p68": 0.5, "mean_colour_de2000_p95": 6.0}
+    base = Uncertainty(mean_colour_de2000_p68=0.5, mean_colour_de2000_p95=6.0)
     nikon = with_spectral(base, table, "nikon-5100")
-    assert (nikon["mean_colour_de2000_p68"], nikon["mean_colour_de2000_p95"]) == (1.2, 6.0)   # the larger, per level
-    assert nikon["spectral"]["answer"] == "camera"
-    assert with_spectral(base, table, "lab-camera.csv")["spectral"]["mean_colour_de2000_p95"] == 9.1   # the widest
-    assert with_spectral(base, table, "unknown")["spectral"]["answer"] == "rgb"
+    assert (nikon.mean_colour_de2000_p68, nikon.mean_colour_de2000_p95) == (1.2, 6.0)   # the larger, per level
+    assert nikon.spectral.answer == "camera"
+    assert with_spectral(base, table, "lab-camera.csv").spectral.mean_colour_de2000_p95 == 9.1   # the widest
+    assert with_spectral(base, table, "unknown").spectral.answer == "rgb"
     assert with_spectral(base, None, "nikon-5100") == base
     record = EstimateRecord(hair=HairParams(), uncertainty=base)
     undeclared = spectral_record(record, None, np.eye(3), table=table)
-    assert undeclared.spectral is None and undeclared.uncertainty["mean_colour_de2000_p95"] == 7.2
+    assert undeclared.spectral is None and undeclared.uncertainty.mean_colour_de2000_p95 == 7.2
     polynomial = spectral_record(record, RigSpectra("LED-B4", "nikon-5100"), np.eye(3, 9), table=table)
-    assert polynomial.spectral is None and polynomial.uncertainty["spectral"]["camera"] == "unknown"
+    assert polynomial.spectral is None and polynomial.uncertainty.spectral.camera == "unknown"
 
 
 def test_a_spectral_reading_survives_its_file_and_a_damaged_one_is_named():
@@ -132,7 +133,7 @@ def test_a_real_rigs_record_carries_metamerism_unless_the_rig_declares_its_spect
     from hairdigi.inference.uncertainty import load_table
 
     record = EstimateRecord(hair=HairParams((120, 60, 40), 0.4, 0.5, 0.6),
-                            uncertainty={"mean_colour_de2000_p68": 0.49, "mean_colour_de2000_p95": 0.71})
+                            uncertainty=Uncertainty(mean_colour_de2000_p68=0.49, mean_colour_de2000_p95=0.71))
     table = load_table(SPECTRAL_TABLE)["cameras"]
     camera = OpenCVCamera(str(write_video(tmp_path / "feed.avi", size=(96, 64))))
     try:
@@ -143,10 +144,10 @@ def test_a_real_rigs_record_carries_metamerism_unless_the_rig_declares_its_spect
     finally:
         camera.close()
     assert undeclared.spectral is None
-    assert undeclared.uncertainty["spectral"]["camera"] == "unknown"
-    assert undeclared.uncertainty["mean_colour_de2000_p95"] == table["unknown"]["p95"] > 0.71
+    assert undeclared.uncertainty.spectral.camera == "unknown"
+    assert undeclared.uncertainty.mean_colour_de2000_p95 == table["unknown"]["p95"] > 0.71
     assert read.spectral is not None and read.spectral.camera == "nikon-5100"
-    assert read.uncertainty["mean_colour_de2000_p95"] == max(0.71, table["nikon-5100"]["p95"])
+    assert read.uncertainty.mean_colour_de2000_p95 == max(0.71, table["nikon-5100"]["p95"])
 
 
 def _identity_profile():

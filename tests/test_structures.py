@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -52,15 +53,16 @@ def test_a_records_colour_interval_carries_the_unknown_structure() -> None:
     """The colour interval is widened to the structure mode's measured one where that is wider, its source
     says so, and a narrower one (family) leaves a wider chain interval as it was."""
     from hairdigi.inference.structure import with_structure
+    from hairdigi.render.domain.estimate_parts import Uncertainty
 
     table = {"source": "evaluate --structures", "shipped": {"p68": 2.0, "p95": 2.9}, "family": {"p68": 1.0, "p95": 1.4}}
-    chain = {"mean_colour_de2000_p68": 0.49, "mean_colour_de2000_p95": 0.71, "mean_colour_source": "the chain"}
+    chain = Uncertainty(mean_colour_de2000_p68=0.49, mean_colour_de2000_p95=0.71, mean_colour_source="the chain")
     assumed = with_structure(chain, table, "assumed", "layered")
-    assert (assumed["mean_colour_de2000_p68"], assumed["mean_colour_de2000_p95"]) == (2.0, 2.9)
-    assert "--structure assumed" in assumed["mean_colour_source"] and assumed["structure"]["mode"] == "assumed"
-    wide = {**chain, "mean_colour_de2000_p68": 3.38, "mean_colour_de2000_p95": 5.11}   # an unknown camera's
+    assert (assumed.mean_colour_de2000_p68, assumed.mean_colour_de2000_p95) == (2.0, 2.9)
+    assert "--structure assumed" in assumed.mean_colour_source and assumed.structure.mode == "assumed"
+    wide = replace(chain, mean_colour_de2000_p68=3.38, mean_colour_de2000_p95=5.11)   # an unknown camera's
     family = with_structure(wide, table, "family")
-    assert (family["mean_colour_de2000_p68"], family["mean_colour_source"]) == (3.38, "the chain")
+    assert (family.mean_colour_de2000_p68, family.mean_colour_source) == (3.38, "the chain")
     assert with_structure(chain, None, "assumed") == chain                 # no table shipped: unchanged
 
 
@@ -164,8 +166,8 @@ def test_a_deposited_swatch_is_estimated_within_the_goal_mapped_to_the_family() 
         intervals[mode] = result.uncertainty
     assert errors["family"] < 1.0, errors
     assert errors["family"] < errors["assumed"], errors
-    assert intervals["family"]["structure"]["mode"] == "family"
-    assert intervals["assumed"]["mean_colour_de2000_p68"] > intervals["family"]["mean_colour_de2000_p68"]
+    assert intervals["family"].structure.mode == "family"
+    assert intervals["assumed"].mean_colour_de2000_p68 > intervals["family"].mean_colour_de2000_p68
 
 
 @pytest.mark.slow
@@ -291,9 +293,9 @@ def test_a_swatch_out_of_the_layered_swatchs_reach_is_estimated_on_its_structure
     result = estimate_image(frame, Encoder(), light_images=singles)
     said = [w.message for w in result.warnings if w.message.startswith("structure:")]
     assert said and "read from the single-light frames" in said[0], [w.message for w in result.warnings]
-    assert result.refinement.region["swatch_model"] != "layered"
+    assert result.refinement.region.swatch_model != "layered"
     assert result.refinement.residual_de2000 < UNREACHED_DE / 2
-    assert result.uncertainty["structure"]["mode"] == "read"
+    assert result.uncertainty.structure.mode == "read"
     goal = shot(truth, spp=128).reshape(-1, 3).mean(0)
     back = shot(result.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0)
     assert delta_e2000(back, goal) < 1.0

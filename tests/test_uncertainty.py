@@ -32,8 +32,8 @@ def test_intervals_say_undetermined_instead_of_a_small_plus_minus():
     dark = intervals(HairParams((120, 100, 90), 0.4, 0.9, 0.8), table)
     pale = intervals(HairParams((120, 100, 90), 0.4, 0.1, 0.8), table)
     assert band(0.9) == 2 and band(0.1) == 0
-    assert dark["parameters"]["dye_r"]["determined"] is False
-    assert pale["parameters"]["dye_r"]["determined"] is True
-    p = pale["parameters"]["dye_r"]
-    assert p["low"] <= p["value"] <= p["high"] and 0 <= p["low"] and p["high"] <= 255
-    assert intervals(HairParams(), None)["note"].startswith("no interval table")
+    assert dark.parameters["dye_r"].determined is False
+    assert pale.parameters["dye_r"].determined is True
+    p = pale.parameters["dye_r"]
+    assert p.low <= p.value <= p.high and 0 <= p.low and p.high <= 255
+    assert intervals(HairParams(), None).note.startswith("no interval table")

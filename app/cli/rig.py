@@ -166,13 +166,13 @@ def say_record(record, say=print) -> None:
             f"in {refinement.seconds:.2f} s (six parameters reach the image through three absorption "
             "values, so other parameters can render the same colour: compare colours, not parameters)")
     u = record.uncertainty
-    if "mean_colour_de2000_p68" in u:
-        say(f"stated colour interval: within ΔE2000 {u['mean_colour_de2000_p68']:.2f} of the truth in 68% and "
-            f"{u['mean_colour_de2000_p95']:.2f} in 95% of held-out captures ({u.get('mean_colour_source', '')})")
-    spectral = u.get("spectral")
-    if spectral:
-        say(f"in the spectral world ({spectral['camera']} camera): within ΔE2000 {spectral['mean_colour_de2000_p68']:.2f} "
-            f"in 68% and {spectral['mean_colour_de2000_p95']:.2f} in 95%, for {spectral['holds_for']}")
+    if u.mean_colour_de2000_p68 is not None:
+        say(f"stated colour interval: within ΔE2000 {u.mean_colour_de2000_p68:.2f} of the truth in 68% and "
+            f"{u.mean_colour_de2000_p95:.2f} in 95% of held-out captures ({u.mean_colour_source or ''})")
+    spectral = u.spectral
+    if spectral is not None:
+        say(f"in the spectral world ({spectral.camera} camera): within ΔE2000 {spectral.mean_colour_de2000_p68:.2f} "
+            f"in 68% and {spectral.mean_colour_de2000_p95:.2f} in 95%, for {spectral.holds_for}")
     if record.spectral is not None:
         r = record.spectral
         say(f"read in the camera's RGB ({r.camera} under {r.led}, residual {r.residual:.2f}, {r.seconds:.1f} s): "

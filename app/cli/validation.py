@@ -398,7 +398,9 @@ def check_rig(args: argparse.Namespace) -> None:
 def check_session_folder(path: str | os.PathLike, flag: str) -> Path:
     """A session folder: usable as an output folder, its ``captures`` a folder and its calibration a file."""
     p = check_output_dir(path, flag)
-    captures, calibration = p / "captures", p / "calibration.json"
+    from hairdigi.render.domain.session_folder import SessionFolder
+
+    captures, calibration = SessionFolder(p).captures, SessionFolder(p).calibration
     if captures.exists() and not captures.is_dir():
         raise ArgumentError(f"{flag} {p}: {captures} is a file, where the session keeps its captures folder; "
                             f"move that file away or choose another session folder")

@@ -17,6 +17,7 @@ from hairdigi.app.review.events import EventGroup
 from hairdigi.app.review.panel_model import PanelModel, Status
 from hairdigi.app.review.model import Work
 from hairdigi.render.domain.dye_record import DyeRecord
+from hairdigi.render.domain.session_folder import SessionFolder, capture_id_of
 
 __all__ = ["DyeModel", "DyeSettings", "Events", "Listing", "Characterised", "CaptureCrop", "PreviewPass",
            "HairstylePass", "Card", "dye_path", "session_records", "capture_crop"]
@@ -42,7 +43,8 @@ def _slug(name: str) -> str:
 
 def _saved_name(path: Path) -> str | None:
     """The name of the dye saved at ``path`` (None: no such file, or not a dye record)."""
-    from hairdigi.render.domain.records import RecordError, read_record
+    from hairdigi.render.domain.record_fields import RecordError
+    from hairdigi.render.domain.records import read_record
 
     try:
         return read_record(path, DyeRecord).name if path.exists() else None
@@ -65,16 +67,17 @@ def dye_path(folder: Path, name: str) -> Path:
 
 
 def session_records(folder: Path) -> list[Path]:
-    """The session's captures that hold an estimate (``captures/<id>.result.json`` with ``hair``)."""
-    from hairdigi.render.domain.files import read_json
+    """The session's captures whose result record holds an estimate (``hair``)."""
+    from hairdigi.render.domain.record_fields import RecordError
+    from hairdigi.render.domain.records import EstimateRecord, read_record
 
     found = []
-    for path in sorted((folder / "captures").glob("*.result.json")):
+    for path in SessionFolder(folder).result_records():
         try:   # a regular file of bounded size (a FIFO among the captures never hangs the panel)
-            data = read_json(path, ValueError, "missing", "unreadable ({exc})")
-        except ValueError:
+            record = read_record(path, EstimateRecord)
+        except RecordError:
             continue
-        if isinstance(data, dict) and data.get("hair") is not None:
+        if record.hair is not None:
             found.append(path)
     return found
 
@@ -90,17 +93,18 @@ def capture_crop(record_path: Path) -> np.ndarray | None:
     """The captured swatch (8-bit sRGB) of a session capture's record, cropped to its swatch area."""
     import cv2
 
-    from hairdigi.render.domain.files import read_json
+    from hairdigi.render.domain.record_fields import RecordError
+    from hairdigi.render.domain.records import EstimateRecord, read_record
 
     try:
-        data = read_json(record_path, ValueError, "missing", "unreadable ({exc})")
-        image_path = record_path.with_name(data["capture"])
-        image = cv2.imread(str(image_path)) if image_path.is_file() else None
-    except (OSError, ValueError, KeyError, TypeError):
+        record = read_record(record_path, EstimateRecord)
+        image_path = record_path.with_name(record.capture) if record.capture else None
+        image = cv2.imread(str(image_path)) if image_path is not None and image_path.is_file() else None
+    except (OSError, RecordError):
         return None
     if image is None:
         return None
-    x, y, w, h = data.get("swatch_roi") or (0, 0, image.shape[1], image.shape[0])
+    x, y, w, h = record.swatch_roi or (0, 0, image.shape[1], image.shape[0])
     return np.ascontiguousarray(image[y:y + h, x:x + w, ::-1])
 
 
@@ -190,7 +194,7 @@ class DyeModel(PanelModel):
     def __init__(self, folder: str | Path, settings: DyeSettings | None = None) -> None:
         super().__init__()
         self.folder = Path(folder)
-        self.dyes_folder = self.folder / "dyes"
+        self.dyes_folder = SessionFolder(self.folder).dyes
         self.settings = settings or DyeSettings()
         self.extra: list[Path] = []              # records from other sessions, added by the user
         self.records: list[Path] = []
@@ -205,7 +209,7 @@ class DyeModel(PanelModel):
     def name(self, path: Path) -> str:
         """A record's name in the lists: its capture id, with its session's name when of another session."""
         path = Path(path)
-        stem = path.name.removesuffix(".result.json").removesuffix(".json")
+        stem = capture_id_of(path)
         return stem if self.folder in path.parents else f"{path.parent.parent.name}/{stem}"
 
     # -- the records and dyes ------------------------------------------------------------------
@@ -305,7 +309,8 @@ class DyeModel(PanelModel):
 
         def run():
             from hairdigi.inference.dye import DyeError, apply, describe_colour, load_sample
-            from hairdigi.render.domain.records import RecordError, read_record
+            from hairdigi.render.domain.record_fields import RecordError
+            from hairdigi.render.domain.records import read_record
             from hairdigi.render.renderer import SceneSpec, default_renderer
 
             yield CaptureCrop(generation, capture_crop(target))
@@ -358,7 +363,8 @@ class DyeModel(PanelModel):
             import cv2
 
             from hairdigi.inference.dye_card import shade_card
-            from hairdigi.render.domain.records import RecordError, read_record
+            from hairdigi.render.domain.record_fields import RecordError
+            from hairdigi.render.domain.records import read_record
 
             try:
                 record = read_record(dye, DyeRecord)

@@ -81,11 +81,11 @@ def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, se
     rec = result.record
     look = None if rec.appearance is None or rec.appearance.value == DEFAULT_APPEARANCE else rec.appearance.value
     refined = judge(hidden, rec.refinement.sigma_a if rec.refinement.sigma_a else rec.hair, looks=(None, look))
-    encoder = judge(hidden, HairParams.from_dict(rec.encoder["hair"]))
+    encoder = judge(hidden, rec.encoder.hair)
     row.update(de2000=refined.de2000, encoder_de2000=encoder.de2000,
                residual_de2000=rec.refinement.residual_de2000, refine_seconds=rec.refinement.seconds,
-               stated_p68=rec.uncertainty.get("mean_colour_de2000_p68"),
-               stated_p95=rec.uncertainty.get("mean_colour_de2000_p95"),
+               stated_p68=rec.uncertainty.mean_colour_de2000_p68,
+               stated_p95=rec.uncertainty.mean_colour_de2000_p95,
                warnings=" | ".join(w.kind.value for w in rec.warnings),
                shine=None if rec.appearance is None else rec.appearance.value.longitudinal_roughness,
                grey_share=None if rec.appearance is None else rec.appearance.value.grey_fraction,

@@ -10,8 +10,9 @@ import numpy as np
 
 from hairdigi.app.library.store import Library, LibraryError, SwatchRow
 from hairdigi.app.library.swatch_colour import swatch_labs
-from hairdigi.render.domain.files import read_json
-from hairdigi.render.domain.records import CaptureRecord, EstimateRecord, RecordError, record_sha256
+from hairdigi.render.domain.record_fields import RecordError
+from hairdigi.render.domain.records import EstimateRecord, read_record, read_session_capture, record_sha256
+from hairdigi.render.domain.session_folder import SessionFolder, capture_id_of
 
 FIRST_RUN_KEY = "first_run_import"
 
@@ -37,30 +38,22 @@ def _with_colours(rows: list[SwatchRow]) -> list[SwatchRow]:
 def capture_rows(folder: str | Path) -> list[SwatchRow]:
     """One row per capture of a session folder (``captures/<id>.json`` and its ``.result.json``)."""
     folder = Path(folder).resolve()
-    captures = folder / "captures"
-    if not captures.is_dir():
+    session = SessionFolder(folder)
+    if not session.is_session():
         raise LibraryError(f"{folder}: not a session folder (no captures/ in it)")
     rows = []
-    for meta_path in sorted(captures.glob("*.json")):
-        if meta_path.name.endswith(".result.json") or meta_path.name.startswith("."):
-            continue
-        capture_id = meta_path.stem
-        result_path = captures / f"{capture_id}.result.json"
-        result_data = read_json(result_path, RecordError, "no result", "not a result record ({exc})") \
-            if result_path.exists() else None
-        meta = read_json(meta_path, RecordError, "no capture record", "not a capture record ({exc})")
-        try:
-            capture = CaptureRecord.from_json({"id": capture_id, "image": f"{capture_id}.png", **meta},
-                                              legacy_profile=(result_data or {}).get("calibration_profile"))
-            estimate = None if result_data is None else EstimateRecord.from_json(result_data)
-        except RecordError as exc:
-            raise LibraryError(f"{meta_path}: {exc}") from None
+    for meta_path in session.capture_records():
+        capture_id = capture_id_of(meta_path)
+        read = read_session_capture(session, capture_id)
+        if read.problems:
+            raise LibraryError(read.problems[0])
+        capture, estimate, result_path = read.capture, read.result, session.result_record(capture_id)
         identity = capture.image_sha256 or f"{folder}/{capture_id}"
         rows.append(SwatchRow(
             id="c" + _short(identity)[:15], kind="capture", session=str(folder), capture_id=capture_id,
-            captured=capture.captured or None, image_path=str(captures / capture.image),
-            record_path=str(result_path if result_data is not None else meta_path),
-            record_sha256=record_sha256(result_path) if result_data is not None else None,
+            captured=capture.captured or None, image_path=str(session.image(capture.image)),
+            record_path=str(result_path if estimate is not None else meta_path),
+            record_sha256=record_sha256(result_path) if estimate is not None else None,
             reliable=bool(estimate and estimate.reliable),
             hair=None if estimate is None or estimate.hair is None else estimate.hair.to_dict(),
             sigma_a=_sigma(estimate),
@@ -71,14 +64,13 @@ def capture_rows(folder: str | Path) -> list[SwatchRow]:
 def record_row(path: str | Path) -> SwatchRow:
     """A lone estimate record (``hairdigi estimate --out``) or a dye prediction."""
     path = Path(path).resolve()
-    data = read_json(path, RecordError, "no such record", "not a record ({exc})")
     try:
-        record = EstimateRecord.from_json(data)
+        record = read_record(path, EstimateRecord)
     except RecordError as exc:
-        raise LibraryError(f"{path}: {exc}") from None
-    kind = "dye" if (record.provenance or {}).get("prediction") else "estimate"   # hairdigi dye apply --out
+        raise LibraryError(str(exc)) from None
+    kind = "dye" if record.provenance.prediction else "estimate"   # hairdigi dye apply --out
     sha = record_sha256(path)
-    when = (record.provenance or {}).get("time")
+    when = record.provenance.time
     row = SwatchRow(id=("d" if kind == "dye" else "e") + sha[:15], kind=kind, captured=str(when) if when else None,
                     record_path=str(path), record_sha256=sha, reliable=record.reliable,
                     hair=None if record.hair is None else record.hair.to_dict(), sigma_a=_sigma(record),
@@ -110,10 +102,10 @@ def first_run_sessions() -> list[Path]:
         else [Path.home() / "hairdigi-sessions"]
     found = []
     for root in candidates:
-        if (root / "captures").is_dir():
+        if SessionFolder(root).is_session():
             found.append(root)
         elif root.is_dir():
-            found += sorted(p for p in root.iterdir() if (p / "captures").is_dir())
+            found += sorted(p for p in root.iterdir() if SessionFolder(p).is_session())
     return found
 
 

@@ -37,18 +37,17 @@ def capture_image(swatch: Swatch) -> np.ndarray | None:
     bgr = cv2.imread(swatch.image_path)
     if bgr is None:
         return None
-    record = {}
+    roi = None
     if swatch.record_path and Path(swatch.record_path).is_file():
-        from hairdigi.render.domain.files import read_json
+        from hairdigi.render.domain.record_fields import RecordError
+        from hairdigi.render.domain.records import read_swatch_record
 
         try:   # a regular file of bounded size
-            record = read_json(swatch.record_path, ValueError, "missing", "unreadable ({exc})")
-        except ValueError:
-            record = {}
-        record = record if isinstance(record, dict) else {}
-    roi = record.get("swatch_roi")
-    if roi and len(roi) == 4:
-        x, y, w, h = (int(v) for v in roi)
+            roi = read_swatch_record(swatch.record_path).swatch_roi
+        except RecordError:
+            roi = None
+    if roi:
+        x, y, w, h = roi
         bgr = bgr[y:y + h, x:x + w] if w > 0 and h > 0 else bgr
     return np.ascontiguousarray(bgr[..., ::-1])
 

@@ -51,9 +51,11 @@ from hairdigi.render import denoise as dn
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance, AppearanceEstimate
 from hairdigi.render.domain.bounds import ILLUMINANTS, SceneKind
 from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.estimate_parts import Uncertainty
 from hairdigi.render.domain.params import VECTOR_FIELDS, HairParams
 from hairdigi.render.domain.records import CalibrationProfile, EstimateRecord, EstimateWarning, WarningKind
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
+from hairdigi.render.domain.session_folder import SessionFolder
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.srgb import linear_to_srgb8
 
@@ -284,19 +286,19 @@ def calibration_text(profile: CalibrationProfile | None, status: str, reasons: l
     return text
 
 
-def parameter_lines(params: HairParams, uncertainty: dict) -> tuple[tuple[str, str], ...]:
+def parameter_lines(params: HairParams, uncertainty: Uncertainty | None) -> tuple[tuple[str, str], ...]:
     """Each Table 1 parameter with its measured 68% interval ("± w"), or "(undetermined)"."""
-    intervals = (uncertainty or {}).get("parameters", {})
+    intervals = {} if uncertainty is None else uncertainty.parameters
     values = dict(zip([f[0] for f in VECTOR_FIELDS], [*params.dye_rgb, params.dye_concentration,
                                                       params.melanin_concentration, params.melanin_ratio]))
     lines = []
     for name, _, _ in VECTOR_FIELDS:
         fmt = "{:.0f}" if name.startswith("dye_") and name[-1] in "rgb" else "{:.2f}"
         iv = intervals.get(name)
-        if iv and not iv.get("determined", True):
+        if iv and not iv.determined:
             u = " (undetermined)"
         elif iv:
-            u = f" ± {fmt.format(iv['half_width'])}"
+            u = f" ± {fmt.format(iv.half_width)}"
         else:
             u = ""
         lines.append((name, f"{name}: {fmt.format(values[name])}{u}"))
@@ -340,22 +342,20 @@ def parameter_view(shown: Shown, extra: tuple[EstimateWarning, ...] = ()) -> Par
         reasons = list(rec.blocked) if rec is not None and rec.blocked else ["none saved"]
         return ParameterView((), None, "", "no estimate: " + "; ".join(reasons))
     p = shown.params
-    lines = parameter_lines(p, rec.uncertainty if rec is not None else {})
+    lines = parameter_lines(p, rec.uncertainty if rec is not None else None)
     tooltip = f"dye colour alone, at concentration {p.dye_concentration:.2f}"
     if shown.stage == Stage.ENCODER or rec is None:
         return ParameterView(lines, tuple(int(v) for v in p.dye_rgb), tooltip,
                              "encoder's estimate; refining by synthesis…", appearance_lines(None, pending=True))
-    prov = rec.provenance
-    info = [f"model {(prov.get('model') or {}).get('sha256', '')[:12]}, calibration "
-            f"{(prov.get('calibration') or {}).get('id')}"]
+    info = [f"model {rec.provenance.model_sha256[:12]}, calibration {rec.provenance.calibration_id}"]
     if rec.refinement.ran:
         residual = rec.refinement.residual_de2000   # None in a record written without it
         info.append(f"refined in {rec.refinement.seconds:.1f} s: residual ΔE2000 "
                     + ("not recorded" if residual is None else f"{residual:.2f}"))
-    colour = rec.uncertainty.get("mean_colour_de2000_p68")
+    colour = rec.uncertainty.mean_colour_de2000_p68
     if colour is not None:
         info.append(f"colour within ΔE2000 {colour:.2f} of the truth in 68% of held-out captures "
-                    f"({rec.uncertainty.get('mean_colour_source', 'held-out clean crop renders')})")
+                    f"({rec.uncertainty.mean_colour_source or 'held-out clean crop renders'})")
     info += spectral_lines(rec)
     info += [f"⚠ {w.message}" for w in (*rec.warnings, *extra)]
     return ParameterView(lines, tuple(int(v) for v in p.dye_rgb), tooltip, "\n".join(info),
@@ -371,7 +371,7 @@ def spectral_lines(rec: EstimateRecord) -> list[str]:
     camera's RGB) and how far it moves from daylight, or the metamerism an undeclared camera leaves."""
     import colour
 
-    stated = rec.uncertainty.get("spectral")
+    stated = rec.uncertainty.spectral
     lines = []
     if rec.spectral is not None:
         under = rec.spectral.under
@@ -380,9 +380,9 @@ def spectral_lines(rec: EstimateRecord) -> list[str]:
                  f" (ΔE2000 {float(colour.delta_E(day, lab, method='CIE 2000')):.1f} from daylight)" if day is not None and light != "D65" else "")
                  for light, lab in under.items()]
         lines.append(f"read in the camera's RGB ({rec.spectral.camera} under {rec.spectral.led}): " + "; ".join(cells))
-    if stated:
-        lines.append(f"spectral world ({stated['camera']} camera): within ΔE2000 {stated['mean_colour_de2000_p68']:.2f} "
-                     f"in 68% for {stated['holds_for']}")
+    if stated is not None:
+        lines.append(f"spectral world ({stated.camera} camera): within ΔE2000 {stated.mean_colour_de2000_p68:.2f} "
+                     f"in 68% for {stated.holds_for}")
     return lines
 
 
@@ -421,7 +421,7 @@ def read_thumbnail(folder: Path, entry: Entry, size=(64, 48)) -> np.ndarray | No
     """A small RGB picture of a capture, or None when its image is missing."""
     import cv2
 
-    path = Path(folder) / "captures" / (entry.record.capture or "")
+    path = SessionFolder(folder).image(entry.record.capture or "")
     img = cv2.imread(str(path)) if path.is_file() else None
     return None if img is None else cv2.resize(img[..., ::-1], size)
 

@@ -29,8 +29,10 @@ from hairdigi.inference.calibration import (CalibrationError, apply_profile, cal
 from hairdigi.render.domain.files import write_json_atomic
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.record_fields import RecordError
 from hairdigi.render.domain.records import (CalibrationProfile, CaptureRecord, EstimateRecord, EstimateWarning,
-                                            RecordError, WarningKind, capture_profile, read_record, write_record)
+                                            WarningKind, read_record, read_session_capture, write_record)
+from hairdigi.render.domain.session_folder import SessionFolder, capture_id_of
 from hairdigi.render.domain.text_enum import TextEnum
 from hairdigi.render.domain.rig_geometry import RIG_HALF_WIDTH, CameraPose, RigRegion
 
@@ -118,7 +120,7 @@ class RigSession:
         self.simulated = simulated
         #: where the camera stands around the rig's target, and what its view shows there
         self.pose, self.half_width = getattr(camera, "pose", CameraPose()), getattr(camera, "half_width", RIG_HALF_WIDTH)
-        self.profile_path = self.folder / "calibration.json"
+        self.profile_path = SessionFolder(self.folder).calibration
         self.notices: list[str] = []     # what the session set aside on opening, for the operator
         self.profile = self._load_profile()
         self.last_frame = None
@@ -332,7 +334,7 @@ class RigSession:
         frame = self.frame()
         roi = self._roi(frame.srgb)
         image_path, meta_path, capture = save_capture(
-            self.folder / "captures", frame.srgb, lights=self.settings().get("lights"), frame_meta=frame.meta,
+            SessionFolder(self.folder).captures, frame.srgb, lights=self.settings().get("lights"), frame_meta=frame.meta,
             calibration=self.profile, simulated=self.simulated, swatch_roi=roi,
             light_frames=[f.srgb for f in singles], light_exposures=tuple(factors),
             mosaic=None if frame.mosaic is None else (frame.mosaic, frame.meta["bayer"]))
@@ -367,28 +369,10 @@ class RigSession:
         capture record that cannot be read is named in ``problems``, and the frame is still shown."""
         import cv2
 
-        folder = self.folder / "captures"
-        problems: list[str] = []
-        result_path = folder / f"{capture_id}.result.json"
-        result_data, record = None, None
-        if result_path.exists():
-            try:
-                from hairdigi.render.domain.files import read_json
-
-                result_data = read_json(result_path, RecordError, "missing", "not a result record ({exc})")
-                record = EstimateRecord.from_json(result_data)
-            except RecordError as exc:
-                problems.append(f"{result_path.name}: {exc}")
-                result_data = result_data if isinstance(result_data, dict) else None
-        meta_path = folder / f"{capture_id}.json"
-        capture = None
-        if meta_path.exists():
-            try:
-                legacy = capture_profile(None, result_data)
-                capture = read_record(meta_path, CaptureRecord, legacy_profile=legacy)
-            except RecordError as exc:
-                problems.append(str(exc))
-        image = folder / ((capture.image if capture else "") or f"{capture_id}.png")
+        session = SessionFolder(self.folder)
+        read = read_session_capture(session, capture_id)
+        record, capture, profile, problems = read.result, read.capture, read.profile, list(read.problems)
+        image = session.image((capture.image if capture else "") or f"{capture_id}.png")
         linear = None
         if not image.is_file():      # missing, or a FIFO or device that would hang the reader
             raise FileNotFoundError(f"{image}: the capture's image is missing or not a regular file")
@@ -400,18 +384,11 @@ class RigSession:
             if bgr is None:
                 raise FileNotFoundError(f"{image}: the capture's image is missing or not one OpenCV reads")
             rgb = bgr[..., ::-1].copy()
-        profile = capture.calibration if capture else None
-        if profile is None and capture is None and result_data is not None:
-            try:
-                legacy = capture_profile(None, result_data)
-                profile = None if legacy is None else CalibrationProfile.from_json(legacy)
-            except RecordError as exc:
-                problems.append(f"{result_path.name}: {exc}")
         roi = ((record.swatch_roi if record else None) or (capture.swatch_roi if capture else None)
                or self.swatch_roi or (0, 0, rgb.shape[1], rgb.shape[0]))
         lights = []
         for i, name in enumerate(capture.light_images if capture else ()):
-            bgr = cv2.imread(str(folder / name)) if (folder / name).is_file() else None
+            bgr = cv2.imread(str(session.image(name))) if session.image(name).is_file() else None
             if bgr is None:
                 problems.append(f"{name}: light {i}'s own frame is missing or unreadable; the capture's shine "
                                 f"cannot be re-read (its all-lights frame and result are intact)")
@@ -490,7 +467,7 @@ def _write_result(folder: Path, result: CaptureResult, roi) -> None:
     done = replace(base, capture=result.image_path.name, blocked=messages(result.blocked),
                    swatch_roi=None if roi is None else tuple(int(v) for v in roi))
     result.record = done if result.record is not None else None
-    write_record(Path(folder) / "captures" / f"{result.capture_id}.result.json", done)
+    write_record(SessionFolder(folder).result_record(result.capture_id), done)
 
 
 class StillError(HairdigiError, ValueError):
@@ -515,7 +492,7 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
                          "open images and videos with hairdigi estimate")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such RAW file")
-    image_path, meta_path, capture = save_capture(Path(folder) / "captures", raw_path=path, source="raw still",
+    image_path, meta_path, capture = save_capture(SessionFolder(folder).captures, raw_path=path, source="raw still",
                                                   original=path.name)
     result = CaptureResult(capture.id, image_path, meta_path)
     still = read_raw(image_path)
@@ -610,8 +587,8 @@ def load_results(folder: str | os.PathLike) -> list[tuple[str, EstimateRecord | 
     """Every capture's result record in a session folder, oldest first, as (capture id, record); a
     record that cannot be read comes as (id, the one-line reason), so one bad file hides nothing else."""
     out: list[tuple[str, EstimateRecord | str]] = []
-    for path in sorted((Path(folder) / "captures").glob("*.result.json")):
-        capture_id = path.name.split(".")[0]
+    for path in SessionFolder(folder).result_records():
+        capture_id = capture_id_of(path)
         try:
             out.append((capture_id, read_record(path, EstimateRecord)))
         except RecordError as exc:

@@ -209,7 +209,7 @@ def _two_pair_rows(d: dict, bases: dict, sample: dict, truth: dict, judge_truth:
                      "prediction_de2000": round(de, 3), "estimate_floor_de2000": round(floor, 3),
                      "prediction_de2000_curve": round(float(delta_e2000(
                          colour_of(pred.sigma_a, curve), colour_of(truth[(k, held)], curve))), 3),
-                     "predicted_interval_de2000_p68": pred.record.uncertainty.get("mean_colour_de2000_p68")})
+                     "predicted_interval_de2000_p68": pred.record.uncertainty.mean_colour_de2000_p68})
     return rows
 
 

@@ -157,7 +157,7 @@ def _estimate(render, truth, structure: str, layout: int, shine: float, encoder,
         raise RuntimeError("no refinement")
     sigma = np.asarray(result.refinement.sigma_a, float)
     misfits = read_structure(np.array([mean_linear(im) for im in lights]), RIG_SWATCH_POSE).misfits
-    switched = result.refinement.region.get("swatch_model") not in (None, "layered")   # read: out of reach
+    switched = result.refinement.region.swatch_model not in (None, "layered")   # read: out of reach
     return result, read, {"shipped": sigma, "family": sigma if switched else to_family(sigma, family),
                           "read": np.asarray(read.refinement.sigma_a, float)}, misfits
 
@@ -181,7 +181,7 @@ def _one(name: str, hidden: HairParams, shine: float, structure: str, layout: in
     truth_away = render.mean(truth, structure, layout, "transfer", shine)
     row.update({"estimate_s": round(result.seconds, 2), "read_estimate_s": round(read.seconds, 2),
                 "est_shine": shines["shipped"], "read_shine": shines["read"],
-                "read_structure": read.refinement.region.get("swatch_model"), "misfits": misfits,
+                "read_structure": read.refinement.region.swatch_model, "misfits": misfits,
                 "twin_residual": round(result.refinement.residual_de2000, 3),
                 "read_twin_residual": round(read.refinement.residual_de2000, 3),
                 "warnings": " | ".join(w.kind.value for w in result.warnings),

@@ -18,7 +18,7 @@ import numpy as np
 
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.rig_geometry import (FRAMING_HALF_WIDTH, SWATCH_HALF, SWATCH_VISIBLE_HALF_LENGTH,
-                                                 CameraPose, project)
+                                                 CameraPose, Framing, project)
 
 #: Hidden hairs: the hard cases of ``hairdigi evaluate --rig`` (black, platinum, a saturated red, copper)
 #: and a mid brown.
@@ -33,7 +33,7 @@ def swatch_outline(pose: CameraPose, size: int = SIZE) -> np.ndarray:
     """(4, 2) pixel corners of the swatch's visible area in a rig-framed render from ``pose``."""
     hx, hy = SWATCH_HALF[0], SWATCH_VISIBLE_HALF_LENGTH
     corners = np.array([(-hx, hy, 0.0), (hx, hy, 0.0), (hx, -hy, 0.0), (-hx, -hy, 0.0)])
-    return project(corners, pose, (0.0, 0.0, 0.0), FRAMING_HALF_WIDTH["rig"], (size, size))
+    return project(corners, pose, (0.0, 0.0, 0.0), FRAMING_HALF_WIDTH[Framing.RIG], (size, size))
 
 
 def share_on_swatch(box: tuple[int, int, int, int], outline: np.ndarray, size: int = SIZE) -> float:
@@ -87,7 +87,7 @@ def view_row(name: str, hair: HairParams, pose: CameraPose, encoder, renderer, c
             "de2000": judge(hair, result.params, renderer=renderer).de2000,
             "residual_de2000": result.refinement.residual_de2000,
             "warnings": [w.message for w in result.warnings if w.kind.value != "appearance"],
-            "interval_p68": result.uncertainty.get("mean_colour_de2000_p68")}
+            "interval_p68": result.uncertainty.mean_colour_de2000_p68}
     return row
 
 

@@ -16,7 +16,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from hairdigi.render.domain.records import RecordError, check_interval, check_sigma_a
+from hairdigi.render.domain.record_fields import RecordError, check_interval, check_sigma_a
 
 #: The layout written today (1: the first dye record, hairdigi 0.2).
 DYE_SCHEMA_VERSION = 1

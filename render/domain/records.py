@@ -4,7 +4,9 @@ Each record is a frozen dataclass with ``to_json()`` (a plain dict for ``json.du
 ``from_json(data)`` (checks the fields, upgrades older layouts, raises :class:`RecordError` naming
 the file's problem). ``SCHEMA_VERSION`` is written into every record; a file without it is a record
 of the first layout (hairdigi 0.1.0, before these types) and is upgraded on read. :func:`read_record`
-is the one reader of record files.
+is the one reader of record files. An estimate's parts (its intervals, encoder reading, provenance
+and refinement region) are typed in ``estimate_parts``; the field checks and :class:`RecordError` live
+in ``record_fields``.
 
 Where a capture keeps its calibration profile is decided here, once: in the capture record
 (``CaptureRecord.calibration``), for live frames and RAW stills alike. Files of the first layout
@@ -18,53 +20,20 @@ from __future__ import annotations
 import enum
 import hashlib
 import json
-import math
 import os
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
 
 from hairdigi.render.domain.absorption import hair_sigma_a
 from hairdigi.render.domain.appearance import AppearanceError, AppearanceEstimate
-from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.estimate_parts import EncoderReading, Provenance, Region, Uncertainty
 from hairdigi.render.domain.files import MAX_JSON_BYTES, read_json, sha256_file, write_json_atomic
 from hairdigi.render.domain.params import HairParams, HairParamsError
-
-#: The largest absorption (per fibre radius) a record may hold: Table 1's darkest hair is under 10; a fibre
-#: at 100 passes e^-200 of the light, black to any renderer (MaterialX and Cycles refuse far larger values).
-SIGMA_A_MAX = 100.0
+from hairdigi.render.domain.record_fields import RecordError, check_sigma_a, floats, need, real
+from hairdigi.render.domain.session_folder import SessionFolder
 
 #: The layout written today. 1: hairdigi 0.1.0's dicts (no ``schema_version``); 2: the typed records.
 SCHEMA_VERSION = 2
-
-
-class RecordError(HairdigiError, ValueError):
-    """A record file or dict is not what it claims; the message names the field and the fix."""
-
-
-def _real(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _need(data: dict, key: str, kind, what: str, default=None, required: bool = True):
-    if key not in data or data[key] is None:
-        if required:
-            raise RecordError(f"the {what}'s {key!r} is missing")
-        return default
-    value = data[key]
-    if kind is float:
-        if not _real(value):
-            raise RecordError(f"the {what}'s {key!r} is {value!r}, not a finite number")
-        return float(value)
-    if kind is int:
-        if not isinstance(value, int) or isinstance(value, bool):
-            raise RecordError(f"the {what}'s {key!r} is {value!r}, not a whole number")
-        return value
-    if not isinstance(value, kind):
-        names = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
-        shown = repr(value) if len(repr(value)) <= 40 else f"a {type(value).__name__}"
-        raise RecordError(f"the {what}'s {key!r} is {shown}, not {names}")
-    return value
 
 
 def _version(data: dict, what: str) -> int:
@@ -77,13 +46,6 @@ def _version(data: dict, what: str) -> int:
         raise RecordError(f"the {what} has schema_version {version}, newer than this hairdigi reads "
                           f"({SCHEMA_VERSION}); update hairdigi")
     return version
-
-
-def _floats(value, n: int | None, key: str, what: str) -> tuple[float, ...]:
-    if not isinstance(value, (list, tuple)) or (n is not None and len(value) != n) or not all(map(_real, value)):
-        size = f"{n} " if n is not None else ""
-        raise RecordError(f"the {what}'s {key!r} is {value!r}, not a list of {size}finite numbers")
-    return tuple(float(v) for v in value)
 
 
 # --- warnings ----------------------------------------------------------------------------------
@@ -131,7 +93,7 @@ class EstimateWarning:
         except ValueError:
             raise RecordError(f"a warning's 'kind' is {data.get('kind')!r}, not one of "
                               f"{', '.join(k.value for k in WarningKind)}") from None
-        return cls(kind, _need(data, "message", str, "warning"))
+        return cls(kind, need(data, "message", str, "warning"))
 
 
 def warnings_from_json(items, what: str) -> tuple[EstimateWarning, ...]:
@@ -182,23 +144,23 @@ class CalibrationProfile:
         if not (isinstance(matrix, list) and len(matrix) == 3 and all(isinstance(r, list) for r in matrix)
                 and len({len(r) for r in matrix}) == 1):
             raise RecordError(f"the {what}'s 'matrix' is not 3 rows of finite numbers")
-        rows = tuple(_floats(r, None, "matrix", what) for r in matrix)
-        degree = _need(data, "degree", int, what, 1, required=False)
+        rows = tuple(floats(r, None, "matrix", what) for r in matrix)
+        degree = need(data, "degree", int, what, 1, required=False)
         if not 1 <= degree <= 4:
             raise RecordError(f"the {what}'s 'degree' is {degree!r}, not a whole number from 1 to 4")
-        time_ = _need(data, "time", float, what)
+        time_ = need(data, "time", float, what)
         if time_ <= 0:
             raise RecordError(f"the {what}'s 'time' is {time_!r}, not a time in seconds since 1970")
         box = data.get("chart_box")
         cost = data.get("detection_cost")
-        return cls(id=_need(data, "id", str, what, "", required=False) or _legacy_id(data),
-                   method=_need(data, "method", str, what), matrix=rows, time=time_, degree=degree,
-                   delta_e2000=_need(data, "delta_e2000", dict, what, {}, required=False),
-                   targets=_need(data, "targets", str, what, "", required=False),
-                   settings=_need(data, "settings", dict, what, {}, required=False),
-                   chart_box=None if box is None else tuple(_floats(c, 2, "chart_box", what) for c in box),
-                   detection_cost=float(cost) if _real(cost) else None,
-                   time_iso=_need(data, "time_iso", str, what, "", required=False))
+        return cls(id=need(data, "id", str, what, "", required=False) or _legacy_id(data),
+                   method=need(data, "method", str, what), matrix=rows, time=time_, degree=degree,
+                   delta_e2000=need(data, "delta_e2000", dict, what, {}, required=False),
+                   targets=need(data, "targets", str, what, "", required=False),
+                   settings=need(data, "settings", dict, what, {}, required=False),
+                   chart_box=None if box is None else tuple(floats(c, 2, "chart_box", what) for c in box),
+                   detection_cost=float(cost) if real(cost) else None,
+                   time_iso=need(data, "time_iso", str, what, "", required=False))
 
 
 def _legacy_id(data: dict) -> str:
@@ -249,19 +211,19 @@ class CaptureRecord:
         profile = data.get("calibration") or legacy_profile
         roi = data.get("swatch_roi")
         lights = data.get("lights")
-        return cls(id=_need(data, "id", str, what, "", required=False),
-                   image=_need(data, "image", str, what, "", required=False),
-                   image_sha256=_need(data, "image_sha256", str, what, "", required=False),
-                   captured=_need(data, "captured", str, what, "", required=False),
+        return cls(id=need(data, "id", str, what, "", required=False),
+                   image=need(data, "image", str, what, "", required=False),
+                   image_sha256=need(data, "image_sha256", str, what, "", required=False),
+                   captured=need(data, "captured", str, what, "", required=False),
                    lights=lights if lights is None or isinstance(lights, list) else _bad(what, "lights", lights),
-                   frame_meta=_need(data, "frame_meta", dict, what, {}, required=False),
+                   frame_meta=need(data, "frame_meta", dict, what, {}, required=False),
                    calibration=None if profile is None else CalibrationProfile.from_json(profile),
                    simulated=bool(data.get("simulated", False)),
                    swatch_roi=None if roi is None else _roi(roi, what),
-                   source=_need(data, "source", str, what, "live", required=False),
-                   original=_need(data, "original", str, what, None, required=False),
-                   light_images=tuple(str(n) for n in _need(data, "light_images", list, what, [], required=False)),
-                   light_exposures=_floats(data.get("light_exposures") or [], None, "light_exposures", what))
+                   source=need(data, "source", str, what, "live", required=False),
+                   original=need(data, "original", str, what, None, required=False),
+                   light_images=tuple(str(n) for n in need(data, "light_images", list, what, [], required=False)),
+                   light_exposures=floats(data.get("light_exposures") or [], None, "light_exposures", what))
 
 
 def _bad(what: str, key: str, value):
@@ -292,7 +254,7 @@ class RefinementRecord:
     rendered_linear_rgb: tuple[float, ...] | None = None
     residual_history: tuple[float, ...] = ()
     nonfinite: int = 0
-    region: dict | None = None            # what was fitted and rendered (the same region)
+    region: Region | None = None          # what was fitted and rendered (the same region)
 
     def to_json(self) -> dict:
         if not self.ran:
@@ -301,6 +263,7 @@ class RefinementRecord:
         for key in ("sigma_a", "target_linear_rgb", "rendered_linear_rgb", "residual_history"):
             if out[key] is not None:
                 out[key] = list(out[key])
+        out["region"] = None if self.region is None else self.region.to_json()
         return out
 
     @classmethod
@@ -310,19 +273,19 @@ class RefinementRecord:
             raise RecordError(f"a {what} is an object, not {type(data).__name__}")
         if not data.get("ran"):
             return cls()
-        vec = {k: (None if data.get(k) is None else _floats(data[k], 3, k, what))
+        vec = {k: (None if data.get(k) is None else floats(data[k], 3, k, what))
                for k in ("sigma_a", "target_linear_rgb", "rendered_linear_rgb")}
         check_sigma_a(vec["sigma_a"], f"the {what}'s 'sigma_a'")
         return cls(ran=True, **vec,
-                   residual_de2000=_need(data, "residual_de2000", float, what, None, required=False),
-                   iterations=_need(data, "iterations", int, what, 0, required=False),
+                   residual_de2000=need(data, "residual_de2000", float, what, None, required=False),
+                   iterations=need(data, "iterations", int, what, 0, required=False),
                    reachable=bool(data.get("reachable", True)),
-                   seconds=_need(data, "seconds", float, what, 0.0, required=False),
-                   curve_seconds=_need(data, "curve_seconds", float, what, 0.0, required=False),
+                   seconds=need(data, "seconds", float, what, 0.0, required=False),
+                   curve_seconds=need(data, "curve_seconds", float, what, 0.0, required=False),
                    curve_cached=bool(data.get("curve_cached", False)),
-                   residual_history=_floats(data.get("residual_history") or [], None, "residual_history", what),
-                   nonfinite=_need(data, "nonfinite", int, what, 0, required=False),
-                   region=_need(data, "region", dict, what, None, required=False))
+                   residual_history=floats(data.get("residual_history") or [], None, "residual_history", what),
+                   nonfinite=need(data, "nonfinite", int, what, 0, required=False),
+                   region=None if data.get("region") is None else _part(Region, data["region"], what, "region"))
 
 
 @dataclass(frozen=True)
@@ -353,14 +316,14 @@ class SpectralReading:
         if not isinstance(data, dict):
             raise RecordError(f"a {what} is an object, not {type(data).__name__}")
         try:
-            hair = HairParams.from_dict(_need(data, "hair", dict, what))
+            hair = HairParams.from_dict(need(data, "hair", dict, what))
         except (HairParamsError, TypeError, AttributeError) as exc:
             raise RecordError(f"the {what}'s 'hair' is not Table 1 parameters: {exc}") from None
-        under = _need(data, "under", dict, what, {}, required=False)
-        return cls(hair=hair, led=_need(data, "led", str, what), camera=_need(data, "camera", str, what),
-                   residual=_need(data, "residual", float, what),
-                   under={str(k): _floats(v, 3, f"under {k}", what) for k, v in under.items()},
-                   seconds=_need(data, "seconds", float, what, 0.0, required=False))
+        under = need(data, "under", dict, what, {}, required=False)
+        return cls(hair=hair, led=need(data, "led", str, what), camera=need(data, "camera", str, what),
+                   residual=need(data, "residual", float, what),
+                   under={str(k): floats(v, 3, f"under {k}", what) for k, v in under.items()},
+                   seconds=need(data, "seconds", float, what, 0.0, required=False))
 
 
 @dataclass(frozen=True)
@@ -373,10 +336,10 @@ class EstimateRecord:
 
     hair: HairParams | None
     warnings: tuple[EstimateWarning, ...] = ()
-    uncertainty: dict = field(default_factory=dict)
-    encoder: dict = field(default_factory=dict)
+    uncertainty: Uncertainty = field(default_factory=Uncertainty)
+    encoder: EncoderReading | None = None          # None: no encoder ran (a dye prediction)
     refinement: RefinementRecord = field(default_factory=RefinementRecord)
-    provenance: dict = field(default_factory=dict)
+    provenance: Provenance = field(default_factory=Provenance)
     capture: str | None = None
     blocked: tuple[str, ...] = ()
     swatch_roi: tuple[int, int, int, int] | None = None
@@ -410,9 +373,9 @@ class EstimateRecord:
                         "swatch_roi": None if self.swatch_roi is None else list(self.swatch_roi)})
         if self.hair is not None:
             out.update({"hair": self.hair.to_dict(), "reliable": self.reliable,
-                        "warnings": [w.to_json() for w in self.warnings], "uncertainty": self.uncertainty,
-                        "encoder": self.encoder, "refinement": self.refinement.to_json(),
-                        "provenance": self.provenance})
+                        "warnings": [w.to_json() for w in self.warnings], "uncertainty": self.uncertainty.to_json(),
+                        "encoder": {} if self.encoder is None else self.encoder.to_json(),
+                        "refinement": self.refinement.to_json(), "provenance": self.provenance.to_json()})
             if self.appearance is not None:
                 out["appearance"] = self.appearance.to_json()
             if self.spectral is not None:
@@ -430,41 +393,26 @@ class EstimateRecord:
                 hair = HairParams.from_dict(hair)
             except (HairParamsError, TypeError, AttributeError) as exc:
                 raise RecordError(f"the {what}'s 'hair' is not Table 1 parameters: {exc}") from None
-        blocked = _need(data, "blocked", list, what, [], required=False)
+        blocked = need(data, "blocked", list, what, [], required=False)
         roi = data.get("swatch_roi")
         return cls(hair=hair, warnings=warnings_from_json(data.get("warnings"), what),
-                   uncertainty=_check_uncertainty(_need(data, "uncertainty", dict, what, {}, required=False), what),
-                   encoder=_need(data, "encoder", dict, what, {}, required=False),
+                   uncertainty=_part(Uncertainty, data.get("uncertainty") or {}, what, "uncertainty"),
+                   encoder=_part(EncoderReading, data["encoder"], what, "encoder") if data.get("encoder") else None,
                    refinement=RefinementRecord.from_json(data.get("refinement") or {"ran": False}),
-                   provenance=_need(data, "provenance", dict, what, {}, required=False),
-                   capture=_need(data, "capture", str, what, None, required=False),
+                   provenance=_part(Provenance, data.get("provenance") or {}, what, "provenance"),
+                   capture=need(data, "capture", str, what, None, required=False),
                    blocked=tuple(str(b) for b in blocked),
                    swatch_roi=None if roi is None else _roi(roi, what),
                    appearance=_appearance(data.get("appearance"), what),
                    spectral=None if data.get("spectral") is None else _spectral(data["spectral"], what))
 
 
-def check_sigma_a(sigma, what: str) -> None:
-    """An absorption is three numbers from 0 to ``SIGMA_A_MAX``; else RecordError naming ``what``."""
-    if sigma is not None and not all(0.0 <= float(s) <= SIGMA_A_MAX for s in sigma):
-        raise RecordError(f"{what} {[float(s) for s in sigma]} is outside 0 to {SIGMA_A_MAX:g} per fibre radius "
-                          f"(no hair absorbs a negative or such an amount); the record is damaged: estimate again")
-
-
-def check_interval(low, high, what: str) -> None:
-    """An interval's low end must not lie above its high end."""
-    if _real(low) and _real(high) and low > high:
-        raise RecordError(f"{what}'s interval is inverted (low {low} above high {high}); the record is damaged: "
-                          f"estimate again")
-
-
-def _check_uncertainty(uncertainty: dict, what: str) -> dict:
-    """Per-parameter intervals hold low <= high."""
-    params = uncertainty.get("parameters")
-    for name, entry in (params.items() if isinstance(params, dict) else ()):
-        if isinstance(entry, dict):
-            check_interval(entry.get("low"), entry.get("high"), f"the {what}'s {name!r}")
-    return uncertainty
+def _part(cls, data, what: str, key: str):
+    """``cls.from_json(data)``, its RecordError prefixed with where the part sits."""
+    try:
+        return cls.from_json(data)
+    except RecordError as exc:
+        raise RecordError(f"the {what}'s {key!r}: {exc}") from None
 
 
 def _check_kind(data: dict, kind: str, what: str) -> None:
@@ -508,6 +456,19 @@ def read_record(path: str | os.PathLike, cls, **kwargs):
         raise RecordError(f"{path}: {exc}") from None
 
 
+def read_swatch_record(path: str | os.PathLike) -> CaptureRecord | EstimateRecord:
+    """The record a library swatch points at: a capture's result record, its capture record where no
+    result was written, or a lone estimate record; told apart by its ``kind`` (or, in the first layout,
+    by the capture record's ``image_sha256``)."""
+    data = read_json(Path(path), RecordError, "no such record", "not a record ({exc})")
+    capture = isinstance(data, dict) and (data.get("kind") == CaptureRecord.KIND
+                                          or ("kind" not in data and "image_sha256" in data))
+    try:
+        return (CaptureRecord if capture else EstimateRecord).from_json(data)
+    except RecordError as exc:
+        raise RecordError(f"{path}: {exc}") from None
+
+
 def write_record(path: str | os.PathLike, record) -> Path:
     """Write a record atomically, in today's layout."""
     return write_json_atomic(path, record.to_json())
@@ -521,3 +482,48 @@ def record_sha256(path: str | os.PathLike) -> str:
 def capture_profile(capture: dict | None, result: dict | None) -> dict | None:
     """The profile a capture was corrected with, from its files' dicts in either layout."""
     return (capture or {}).get("calibration") or (result or {}).get("calibration_profile")
+
+
+@dataclass(frozen=True)
+class SessionCapture:
+    """A session capture's records as read back; a file that could not be read is None here and named
+    in ``problems`` (one line each), so one bad file hides nothing else."""
+
+    id: str
+    capture: CaptureRecord | None                 # None: no capture record, or unreadable
+    result: EstimateRecord | None                 # None: no result written, or unreadable
+    profile: CalibrationProfile | None            # the profile it was corrected with (either layout)
+    problems: tuple[str, ...] = ()
+    result_written: bool = False                  # a result record file exists (readable or not)
+
+
+def read_session_capture(folder: SessionFolder, capture_id: str) -> SessionCapture:
+    """A capture's record and its result record from a session folder. A first-layout capture record
+    without its own ``id`` or ``image`` takes the capture's id and ``<id>.png``; a first-layout still's
+    profile, kept in its result record, is read into its capture record (or stands alone when the
+    capture record cannot be read)."""
+    problems = []
+    result_path, meta_path = folder.result_record(capture_id), folder.capture_record(capture_id)
+    data, result = None, None
+    if result_path.exists():
+        try:
+            data = read_json(result_path, RecordError, "missing", "not a result record ({exc})")
+            result = EstimateRecord.from_json(data)
+        except RecordError as exc:
+            problems.append(f"{result_path.name}: {exc}")
+        data = data if isinstance(data, dict) else None
+    legacy, capture = capture_profile(None, data), None
+    if meta_path.exists():
+        try:
+            meta = read_json(meta_path, RecordError, "missing", "not a capture record ({exc})")
+            meta = {"id": capture_id, "image": f"{capture_id}.png", **meta} if isinstance(meta, dict) else meta
+            capture = CaptureRecord.from_json(meta, legacy_profile=legacy)
+        except RecordError as exc:
+            problems.append(f"{meta_path}: {exc}")
+    profile = capture.calibration if capture is not None else None
+    if capture is None and legacy is not None:
+        try:
+            profile = CalibrationProfile.from_json(legacy)
+        except RecordError as exc:
+            problems.append(f"{result_path.name}: {exc}")
+    return SessionCapture(capture_id, capture, result, profile, tuple(problems), result_path.exists())
