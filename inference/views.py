@@ -4,7 +4,7 @@ then asks it, instead of testing which it is."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import ClassVar, Protocol
 
 import numpy as np
 
@@ -16,8 +16,8 @@ from hairdigi.render.domain.rig_geometry import CameraPose, RigRegion
 class SwatchView(Protocol):
     """How an estimate reads its image: the swatch's pixels, and what else the view shows."""
 
-    view: View               # what the refinement renders and fits
-    rig: bool                # a rig-view frame: the whole chain's colour interval applies
+    view: View                   # what the refinement renders and fits
+    rig: ClassVar[bool]          # a rig-view frame: the whole chain's colour interval applies
 
     @property
     def pose(self) -> CameraPose:
@@ -42,7 +42,7 @@ class CropView:
     """An all-hair crop seen from ``view``, a camera pose: its pixels are the swatch crop."""
 
     view: CameraPose
-    rig: bool = False
+    rig: ClassVar[bool] = False
 
     @property
     def pose(self) -> CameraPose:
@@ -66,7 +66,7 @@ class RigView:
     """A rig-view frame's swatch region (``view``): fitted and rendered exactly as the rig sees it."""
 
     view: RigRegion
-    rig: bool = True
+    rig: ClassVar[bool] = True
 
     @property
     def pose(self) -> CameraPose:
