@@ -221,13 +221,12 @@ def record(result: EstimateResult, encoder: Encoder, image_bytes: bytes | None =
            image_path: str | os.PathLike | None = None, calibration: dict | None = None,
            view: View = RIG_SWATCH_POSE) -> EstimateRecord:
     """The record of an estimate: parameters, warnings, intervals and provenance."""
-    est = result.encoder
+    est, seen = result.encoder, swatch_view(view)
     provenance = Provenance(
         hairdigi_version=version(), time=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
         model={"path": str(encoder.path), "sha256": encoder.sha256, "input_size": encoder.input_size},
         roi=None if est.roi is None else (est.roi.x, est.roi.y, est.roi.w, est.roi.h),
-        camera=view.pose if isinstance(view, RigRegion) else view,
-        view=view if isinstance(view, RigRegion) else "crop",
+        camera=seen.pose, view=seen.recorded(),
         encoder_ms=round(est.seconds * 1000.0, 3), seconds=round(result.seconds, 3),
         calibration=calibration, domain=result.domain,
         image=None if image_path is None else str(image_path),

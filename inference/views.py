@@ -36,6 +36,9 @@ class SwatchView(Protocol):
         """Each single-light frame's mean linear colour where it shows more than hair (the holder, the
         chart: a light dark there is dead), else None."""
 
+    def recorded(self) -> RigRegion | str:
+        """What an estimate's record says it saw (``Provenance.view``): the rig region, or "crop"."""
+
 
 @dataclass(frozen=True)
 class CropView:
@@ -60,6 +63,9 @@ class CropView:
     def frame_levels(self, images: list[np.ndarray]) -> None:
         return None
 
+    def recorded(self) -> str:
+        return "crop"
+
 
 @dataclass(frozen=True)
 class RigView:
@@ -83,6 +89,9 @@ class RigView:
 
     def frame_levels(self, images: list[np.ndarray]) -> np.ndarray:
         return np.array([mean_linear(im) for im in images])
+
+    def recorded(self) -> RigRegion:
+        return self.view
 
 
 def swatch_view(view: View) -> SwatchView:

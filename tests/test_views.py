@@ -22,6 +22,7 @@ def test_a_camera_pose_is_a_crop_view() -> None:
     pixels = seen.pixels(image, roi)
     assert pixels.shape[0] == pixels.shape[1] <= 160            # the swatch crop's central square
     assert seen.texture(pixels) is None and seen.frame_levels([image]) is None
+    assert seen.recorded() == "crop"
 
 
 def test_a_rig_region_is_a_rig_view_with_its_own_roi_and_levels() -> None:
@@ -35,4 +36,5 @@ def test_a_rig_region_is_a_rig_view_with_its_own_roi_and_levels() -> None:
     assert texture.dtype.kind == "f" and texture.max() <= 1.0
     levels = seen.frame_levels([image, image // 2])
     assert levels.shape == (2, 3) and np.all(levels[0] > levels[1])
+    assert seen.recorded() is region
     assert swatch_view(RIG_SWATCH_POSE).pose == RIG_SWATCH_POSE
