@@ -18,8 +18,9 @@ from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.files import PACKAGE_PARTS
 
 ROOT = Path(__file__).resolve().parent.parent
-#: Modules that cannot be imported outside their own program: the Blender-side script needs bpy.
-NOT_IMPORTABLE = ("hairdigi.render.blender_hair",)
+#: Modules that cannot be imported outside their own program: the Blender-side script needs bpy;
+#: ``python -m hairdigi.app.cli``'s ``__main__`` runs the command line as it is imported.
+NOT_IMPORTABLE = ("hairdigi.render.blender_hair", "hairdigi.app.cli.__main__")
 #: Optional extras: their modules are skipped where the extra is not installed (the desktop build).
 EXTRAS = ("torch", "onnx", "ray", "gi", "bpy")
 

@@ -203,7 +203,7 @@ def test_a_dye_on_a_dyed_base_is_said_to_be(curve):
 def test_evaluate_dye_takes_size_and_spp_and_judges_no_goal_on_a_few(monkeypatch, capsys):
     import argparse
 
-    from hairdigi.app.cli import dye as dye_cli
+    from hairdigi.app.evaluation import modes
     from hairdigi.inference.training import evaluate_dye
 
     seen = {}
@@ -216,7 +216,7 @@ def test_evaluate_dye_takes_size_and_spp_and_judges_no_goal_on_a_few(monkeypatch
     monkeypatch.setattr(evaluate_dye, "evaluate_dye", fake)
     monkeypatch.setattr("hairdigi.inference.encoder.Encoder", lambda model: None)
     args = argparse.Namespace(n=1, size=32, spp=8, model=None, out="x", rig=False)
-    assert dye_cli.cmd_evaluate_dye(args) == 0
+    assert modes.dye(args) == 0
     assert (seen["config"].size, seen["config"].spp, seen["config"].dyes) == (32, 8, 1)
     out = capsys.readouterr().out
     assert "met)" not in out and "too few" in out

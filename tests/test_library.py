@@ -181,7 +181,7 @@ def test_lone_estimates_and_dye_predictions_are_swatches_too(tmp_path, lib_env):
 
 def test_find_through_the_lightness_index_is_exact(lib_env):
     """``find`` reads a band of L* only; it must rank exactly as a scan of every swatch does."""
-    from hairdigi.app.cli.library import synthetic_rows
+    from hairdigi.app.evaluation.bench_library import synthetic_rows
     from hairdigi.app.library.swatch_colour import delta_e
 
     with Library() as lib:

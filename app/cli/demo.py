@@ -1,18 +1,30 @@
 """The headless demo: the whole chain on the simulated rig, then renders of the estimate."""
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
-from hairdigi.app.cli.rig import run_chain
-from hairdigi.app.session.rig_session import RigSession
-from hairdigi.render.io.images import save_png
-from hairdigi.render.renderer import SceneSpec, render
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("demo", help="headless demo: render the sample swatch and hairstyles")
+    p.add_argument("--out", default="out/demo")
+    p.add_argument("--quick", action="store_true", help="tiny sizes, for tests")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    run_demo(Path(args.out), quick=args.quick)
+    return 0
 
 
 def run_demo(out: Path, quick: bool = False) -> list[Path]:
     """Lights, exposure, calibration and a capture on the simulated rig; estimate; render the
     estimate as a rig swatch and two hairstyles. Returns the written images."""
+    from hairdigi.app.cli.rig import run_chain
+    from hairdigi.app.session.rig_session import RigSession
     from hairdigi.render.camera_model import CameraModel
+    from hairdigi.render.io.images import save_png
+    from hairdigi.render.renderer import SceneSpec, render
 
     out = Path(out)
     session = RigSession.simulated_rig(out / "session", camera_model=CameraModel(cast=(1.2, 1.0, 0.8)),

@@ -1,5 +1,5 @@
 """``hairdigi dye``: characterise a dye from swatch pairs, apply it to a base, dose it to a target, print
-its shade card; and ``hairdigi evaluate --dye``. The science is ``inference/dye.py``."""
+its shade card (``hairdigi evaluate --dye`` is ``app.evaluation.modes.dye``). The science is ``inference/dye.py``."""
 from __future__ import annotations
 
 import argparse
@@ -11,8 +11,6 @@ from hairdigi.app.cli import validation as v
 
 HAIRSTYLE_SIZE, HAIRSTYLE_SPP = 384, 16
 MAX_NAME = 200
-#: Fewer predictions than this give no p95 to judge ``evaluate --dye``'s goal by.
-MIN_GOAL_PREDICTIONS = 20
 
 
 def dye_name(text: str) -> str:
@@ -26,7 +24,7 @@ def dye_name(text: str) -> str:
     return text
 
 
-def add_dye_parser(sub) -> None:
+def add_parser(sub) -> None:
     """Register ``hairdigi dye`` and its four actions on the main parser's subparsers."""
     from hairdigi.render.strands import HAIRSTYLES
 
@@ -63,7 +61,7 @@ def add_dye_parser(sub) -> None:
     a.add_argument("--dose", type=v.float_in(0.0, 10.0), default=1.0)
     a.add_argument("--size", type=v.int_in(16, 512), default=64, help="swatch side in pixels")
     a.add_argument("--spp", type=v.int_in(1, 4096), default=16)
-    p.set_defaults(func=cmd_dye)
+    p.set_defaults(func=run)
 
 
 def _check(args: argparse.Namespace) -> None:
@@ -106,7 +104,7 @@ def _read_dye(path: str):
     return read_record(path, DyeRecord), record_sha256(path)
 
 
-def cmd_dye(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     _check(args)
     return {"characterise": _characterise, "apply": _apply, "dose": _dose, "card": _card}[args.dye_action](args)
 
@@ -203,25 +201,4 @@ def _card(args: argparse.Namespace) -> int:
         print(f"level {r['level']:2d} {r['base']['srgb']} -> {r['result']['srgb']} L*a*b* "
               f"{' '.join(f'{x:.1f}' for x in r['result']['lab'])}, ΔE2000 {r['de2000']:.1f}")
     print(f"wrote {png}, {pdf} and {table}")
-    return 0
-
-
-def cmd_evaluate_dye(args: argparse.Namespace) -> int:
-    """``hairdigi evaluate --dye [--rig]``: the dye held-out protocol (``inference/training/evaluate_dye.py``),
-    on clean renders or (``--rig``) on simulated-rig captures (``app/evaluation/dye_rig.py``)."""
-    from hairdigi.inference.encoder import Encoder
-    from hairdigi.inference.training.evaluate_dye import DyeEvalConfig, evaluate_dye
-
-    config = DyeEvalConfig(dyes=args.n if args.n != 300 else DyeEvalConfig.dyes, size=args.size, spp=args.spp)
-    if getattr(args, "rig", False):        # --dye --rig: the captures are the simulated rig's
-        from hairdigi.app.evaluation.dye_rig import evaluate_dye_rig
-
-        summary = evaluate_dye_rig(Encoder(args.model), args.out, config)
-    else:
-        summary = evaluate_dye(Encoder(args.model), args.out, config)
-    n = summary.get("prediction_de2000", {}).get("n", 0)
-    for line in summary["text"]:
-        if n < MIN_GOAL_PREDICTIONS and line.endswith(("met)", "NOT met)")):   # a p95 of a few is no p95
-            line = line[:line.rindex(":")] + f": not judged, {n} predictions are too few (under {MIN_GOAL_PREDICTIONS}); raise --n)"
-        print(line)
     return 0

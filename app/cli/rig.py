@@ -1,14 +1,18 @@
 """``hairdigi rig``: the capture chain without a window: lights, exposure, calibration, capture, estimate."""
 from __future__ import annotations
 
+import argparse
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
+from hairdigi.app.cli import validation as v
+from hairdigi.app.cli.arguments import SPP
 from hairdigi.app.session.blockers import messages
-from hairdigi.app.session.rig_session import RigSession
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
+
+if TYPE_CHECKING:
+    from hairdigi.app.session.rig_session import RigSession
 
 
 def check_dead_lights(dead) -> set[int]:
@@ -71,19 +75,7 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
     """Toggle the lights, check each one and the exposure, calibrate, capture; returns the figures."""
     out: dict = {}
     if session.lights is not None:
-        say(f"light board: {session.lights.identify()} on {session.lights.port_name}")
-        levels = []
-        for i in range(N_LIGHTS):
-            session.lights.all_off()
-            session.set_light(i, True)
-            levels.append(float(session.frame().srgb.mean()))
-        session.set_all(True)
-        all_on = float(session.frame().srgb.mean())
-        say("lights alone -> mean level: " + ", ".join(f"L{i} {v:.1f}" for i, v in enumerate(levels))
-            + f"; all on {all_on:.1f}")
-        dead = session.check_lights()
-        out["dead_lights"] = dead
-        say("light check: " + ("all three light the scene" if not dead else f"DEAD: light(s) {dead}"))
+        out["dead_lights"] = _light_check(session, say)
     t0 = time.perf_counter()
     n = 30
     for _ in range(n):
@@ -108,47 +100,70 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
         say(f"estimate in {1000 * result.seconds:.0f} ms from capture: {hair_line(p)}")
         out["params"] = p.to_dict()
         say_record(result.record, say)
-        hidden = getattr(session.camera, "hidden", None)
-        if hidden is not None and getattr(session.camera, "illuminant", None) is not None:
-            from hairdigi.app.evaluation.spectral import LIGHTS, judge_record
-
-            where = judge_record(hidden, result.record, session.profile, session.camera.illuminant,
-                                 session.camera.sensitivities)
-            out["truth_de2000_spectral"] = where
-            for answer, what in (("rgb", "the RGB answer (its colour times each light's)"),
-                                 ("spectral", "the spectral answer (refitted, rendered spectrally)"),
-                                 ("camera", "the camera answer (read in the camera's RGB, rendered spectrally)")):
-                if f"{answer}_rig_D65" not in where:
-                    continue
-                say(f"spectral rig, against the hidden hair seen by the CIE observer adapted to each light, "
-                    f"{what}: " + "; ".join(f"{view} " + ", ".join(f"{light} {where[f'{answer}_{view}_{light}']:.2f}"
-                                                                for light in LIGHTS) for view in ("rig", "away")))
-            return out
-        if hidden is not None:
-            say(f"hidden truth of the simulated swatch:  {hair_line(hidden)}")
-            from hairdigi.render.judge import judge
-
-            look = session.camera.appearance
-            if result.record.appearance is not None:
-                from hairdigi.app.evaluation.appearance import judge_everywhere
-
-                read = result.record.appearance.value
-                say(f"hidden appearance: shine {look.longitudinal_roughness:.2f}, fibre spread {look.fibre_spread:.2f}, "
-                    f"greys {look.grey_fraction:.2f}; read: shine {read.longitudinal_roughness:.2f}, grey share "
-                    f"{read.grey_fraction:.2f}")
-                where = judge_everywhere((hidden, look), (result.record.sigma_a, read),
-                                         session.region(session.frame().srgb))
-                out["truth_de2000_everywhere"] = where
-                say("against the hidden truth, mean-colour ΔE2000: " + ", ".join(
-                    f"{name} {de:.2f}" for name, de in where.items()) + " (transfer: another camera, a key light "
-                    "and a grey sky)")
-            read = result.record.appearance
-            verdict = judge(hidden, result.record.refinement.sigma_a or p,
-                            looks=(session.camera.appearance, None if read is None else read.value))
-            out["truth_de2000"] = verdict.de2000
-            say(f"against the hidden truth (both rendered at the rig's swatch pose, {verdict.spp} spp, common "
-                f"seed): mean-colour ΔE2000 {verdict.de2000:.2f}")
+        _judge_hidden(session, result, out, say)
     return out
+
+
+def _light_check(session: RigSession, say) -> list:
+    """Each light alone and all on, as the camera sees them; the dead lights."""
+    say(f"light board: {session.lights.identify()} on {session.lights.port_name}")
+    levels = []
+    for i in range(N_LIGHTS):
+        session.lights.all_off()
+        session.set_light(i, True)
+        levels.append(float(session.frame().srgb.mean()))
+    session.set_all(True)
+    all_on = float(session.frame().srgb.mean())
+    say("lights alone -> mean level: " + ", ".join(f"L{i} {v:.1f}" for i, v in enumerate(levels))
+        + f"; all on {all_on:.1f}")
+    dead = session.check_lights()
+    say("light check: " + ("all three light the scene" if not dead else f"DEAD: light(s) {dead}"))
+    return dead
+
+
+def _judge_hidden(session: RigSession, result, out: dict, say) -> None:
+    """On a simulated rig, the estimate against the swatch's hidden truth (under three lights on a spectral rig)."""
+    hidden = getattr(session.camera, "hidden", None)
+    if hidden is None:
+        return
+    if getattr(session.camera, "illuminant", None) is not None:
+        from hairdigi.app.evaluation.spectral import LIGHTS, judge_record
+
+        where = judge_record(hidden, result.record, session.profile, session.camera.illuminant,
+                             session.camera.sensitivities)
+        out["truth_de2000_spectral"] = where
+        for answer, what in (("rgb", "the RGB answer (its colour times each light's)"),
+                             ("spectral", "the spectral answer (refitted, rendered spectrally)"),
+                             ("camera", "the camera answer (read in the camera's RGB, rendered spectrally)")):
+            if f"{answer}_rig_D65" not in where:
+                continue
+            say(f"spectral rig, against the hidden hair seen by the CIE observer adapted to each light, "
+                f"{what}: " + "; ".join(f"{view} " + ", ".join(f"{light} {where[f'{answer}_{view}_{light}']:.2f}"
+                                                            for light in LIGHTS) for view in ("rig", "away")))
+        return
+    say(f"hidden truth of the simulated swatch:  {hair_line(hidden)}")
+    from hairdigi.render.judge import judge
+
+    look = session.camera.appearance
+    if result.record.appearance is not None:
+        from hairdigi.app.evaluation.appearance import judge_everywhere
+
+        read = result.record.appearance.value
+        say(f"hidden appearance: shine {look.longitudinal_roughness:.2f}, fibre spread {look.fibre_spread:.2f}, "
+            f"greys {look.grey_fraction:.2f}; read: shine {read.longitudinal_roughness:.2f}, grey share "
+            f"{read.grey_fraction:.2f}")
+        where = judge_everywhere((hidden, look), (result.record.sigma_a, read),
+                                 session.region(session.frame().srgb))
+        out["truth_de2000_everywhere"] = where
+        say("against the hidden truth, mean-colour ΔE2000: " + ", ".join(
+            f"{name} {de:.2f}" for name, de in where.items()) + " (transfer: another camera, a key light "
+            "and a grey sky)")
+    read = result.record.appearance
+    verdict = judge(hidden, result.record.refinement.sigma_a or result.params,
+                    looks=(session.camera.appearance, None if read is None else read.value))
+    out["truth_de2000"] = verdict.de2000
+    say(f"against the hidden truth (both rendered at the rig's swatch pose, {verdict.spp} spp, common "
+        f"seed): mean-colour ΔE2000 {verdict.de2000:.2f}")
 
 
 def hair_line(p) -> str:
@@ -212,51 +227,6 @@ def report_still(session_folder: str | Path, still: str | Path, say=print) -> in
     return 0
 
 
-def detection_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16) -> list[dict]:
-    """``hairdigi bench rig``: chart detection and CCM ΔE over camera poses x noise x casts, and feed fps."""
-    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
-    from hairdigi.render.camera_model import CameraModel, sensor_response
-    from hairdigi.inference.calibration import CalibrationError, calibrate
-    from hairdigi.render.domain import rig_geometry
-    from hairdigi.render.domain.files import write_csv_atomic
-    from hairdigi.render.chart import colorchecker_reflectances
-    from hairdigi.render.renderer import Renderer, SceneSpec
-    from tqdm import tqdm
-
-    renderer = Renderer(max_cached=1)
-    chart = tuple(map(tuple, colorchecker_reflectances()))
-    rows = []
-    poses = [(0, 0), (10, 30), (20, 120), (30, 250)]
-    noises = [(0.0005, 0.001), (0.0015, 0.002), (0.006, 0.006)]
-    casts = [(1.0, 1.0, 1.0), (1.3, 1.0, 0.7), (0.8, 1.0, 1.25)]
-    exposures = [-0.7, 0.0]
-    rng = np.random.default_rng(0)
-    for polar, azimuth in tqdm(poses, desc="rig poses", unit="pose"):
-        spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET,
-                         half_width=rig_geometry.RIG_HALF_WIDTH * 1.1,
-                         camera=rig_geometry.CameraPose(polar, azimuth))
-        linear = renderer.render(DEFAULT_HIDDEN, spec, size, spp, seed=polar).linear
-        for shot, read in noises:
-            for cast in casts:
-                for ev in exposures:
-                    img = sensor_response(linear, CameraModel(ev, 1.0, cast, shot, read), rng)
-                    row = {"polar": polar, "azimuth": azimuth, "shot_noise": shot, "read_noise": read,
-                           "cast": "/".join(map(str, cast)), "exposure_ev": ev}
-                    try:
-                        p = calibrate(img)
-                        row.update(detected=1, de_before=p["delta_e2000"]["before"]["mean"],
-                                   de_after=p["delta_e2000"]["after"]["mean"],
-                                   de_after_max=p["delta_e2000"]["after"]["max"])
-                    except CalibrationError:
-                        row.update(detected=0, de_before=float("nan"), de_after=float("nan"),
-                                   de_after_max=float("nan"))
-                    rows.append(row)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    write_csv_atomic(out / "rig_bench.csv", rows)
-    return rows
-
-
 def appearance_lines(estimate) -> list[str]:
     """Each appearance field with its 68% interval, or "not measured" (an ``AppearanceEstimate``)."""
     names = {"longitudinal_roughness": "shine", "fibre_spread": "fibre spread", "grey_fraction": "grey share"}
@@ -268,3 +238,60 @@ def appearance_lines(estimate) -> list[str]:
         else:
             lines.append(f"{label} {value:.2f}" + estimate.interval_text(key))
     return lines
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("rig", help="the capture chain without a window (use --sim without hardware)")
+    p.add_argument("--sim", action="store_true", help="the simulated rig: a pty light board and rendered frames")
+    p.add_argument("--camera", default="0", help="OpenCV camera index or URL (real rig)")
+    p.add_argument("--genicam", nargs="?", const="", metavar="ID", help="a GenICam camera through Aravis (the first "
+                   "found, or its ID: arv-tool-0.8 lists them); with --sim, the simulated rig through Aravis's fake camera")
+    p.add_argument("--port", help="serial port of the light board (real rig); see --list-ports")
+    p.add_argument("--roi", help="swatch area x,y,w,h in the camera frame (real rig; default: found)")
+    p.add_argument("--list-ports", action="store_true", help="list serial ports and light boards, then exit")
+    p.add_argument("--session", default="out/session", help="session folder: captures, calibration, results")
+    p.add_argument("--cast", type=v.float_in(0.0, v.MAX_CAST, low_open=True), nargs=3, default=(1.25, 1.0, 0.8),
+                   metavar=("R", "G", "B"), help="simulated white-balance error")
+    p.add_argument("--exposure", type=v.float_in(-v.MAX_EXPOSURE_EV, v.MAX_EXPOSURE_EV), default=0.0,
+                   help="simulated exposure error in EV")
+    p.add_argument("--dead", type=v.int_in(0, N_LIGHTS - 1), nargs="*",
+                   help="simulated dead light(s), numbered from 0")
+    p.add_argument("--spp", type=SPP, default=32, help="samples per pixel of the simulated rig's light renders")
+    p.add_argument("--hidden", metavar="PARAMS.json",
+                   help="the simulated swatch's hidden parameters (Table 1, as render --params reads them, and "
+                        "optionally an \"appearance\" block: longitudinal_roughness, fibre_spread, grey_fraction); "
+                        "the chain's estimate is then judged against them, at the rig and away from it")
+    p.add_argument("--still", help="import a RAW still of the rig (DNG, CR2, NEF, ...; the chart in view) into "
+                                   "the session and estimate it; needs no camera or light board")
+    p.add_argument("--spectral", action="store_true", help="with --sim: a spectral rig: white LEDs of an SPD "
+                   "(--led), the ColorChecker's measured spectra, spectral hair, seen through a camera's "
+                   "sensitivities (--sensor)")
+    p.add_argument("--led", type=v.illuminant, default=None, help="the rig's LEDs, a named light or a CSV of "
+                   "wavelength (nm), power: with --sim --spectral, the simulated LEDs (default LED-B4, a 5109 K "
+                   "phosphor LED); on a real rig, with --sensor, its declared LEDs (each record then carries the "
+                   "estimate read in the camera's RGB and its colour under daylight, tungsten and a shop LED)")
+    p.add_argument("--sensor", type=v.camera_sensitivities, default=None, help="the camera's sensitivities: "
+                   "nikon-5100, sigma-sdmerill, cie (the CIE observer, an ideal camera), or a CSV of wavelength (nm), "
+                   "r, g, b: with --sim --spectral, the simulated camera (default nikon-5100); on a real rig, with "
+                   "--led, its declared camera")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.list_ports:
+        from hairdigi.hardware.lights import discover
+        import serial.tools.list_ports
+
+        ports = list(serial.tools.list_ports.comports())
+        print(f"{len(ports)} serial port(s): " + ", ".join(p.device for p in ports))
+        boards = discover()
+        print("light boards: " + (", ".join(f"{p} ({ident})" for p, ident in boards) or "none answered ID?"))
+        return 0
+    if args.still:
+        return report_still(args.session, args.still)
+    session = open_session(args)
+    try:
+        run_chain(session)
+    finally:
+        session.close()
+    return 0

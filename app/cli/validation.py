@@ -23,6 +23,7 @@ import shutil
 from pathlib import Path
 from typing import Callable, Iterable
 
+from hairdigi.app.evaluation.registry import EVALUATIONS
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.files import cache_dir
 
@@ -509,7 +510,7 @@ def check_export(args: argparse.Namespace) -> None:
 
 
 #: ``evaluate``'s modes: at most one runs (``--dye --rig`` is the dye protocol on the simulated rig).
-EVALUATE_MODES = ("dye", "rig", "appearance", "cycles", "structures", "spectral", "convergence", "prepare_only")
+EVALUATE_MODES = tuple(EVALUATIONS)
 #: Flags that go with one mode only.
 EVALUATE_MODE_FLAGS = {"ship": ("rig", "appearance", "structures", "spectral"), "no_variation": ("appearance",),
                        "default_shine": ("cycles",), "blender": ("structures",), "hidden_structures": ("structures",),

@@ -1,29 +1,13 @@
-"""``hairdigi bench NAME``: the benchmarks, one registry (``BENCHES``: name -> function(args) -> exit code).
-
-Each entry prints its summary and writes its table and plot; the work itself lives with what it
-measures (``render.bench``, ``render.bench_previews``, ``inference.training.bench_*``, ``app.cli.rig``,
-``app.cli.library``, ``app.evaluation.bench_memory``), imported when the benchmark runs, so the command line's
-parser loads none of them.
+"""``hairdigi bench NAME``'s benchmarks (``registry.BENCHES`` names them): each prints its summary and
+writes its table and plot; the work itself lives with what it measures (``render.bench``,
+``render.bench_previews``, ``inference.training.bench_*``, ``app.evaluation.bench_*``).
 """
 from __future__ import annotations
 
 import argparse
-import importlib
 from pathlib import Path
-from typing import Callable
 
-Bench = Callable[[argparse.Namespace], int]
-
-#: Where results go by default (``--out``).
-BENCH_OUT = "out/bench"
-
-
-def _elsewhere(module: str, name: str) -> Bench:
-    """A benchmark whose command-line function lives in ``module`` (imported when it runs)."""
-    def run(args: argparse.Namespace) -> int:
-        return getattr(importlib.import_module(module), name)(args)
-    run.__doc__ = f"{module}.{name}"
-    return run
+from hairdigi.app.evaluation.registry import BENCH_OUT
 
 
 def bench_render(args: argparse.Namespace) -> int:
@@ -40,7 +24,7 @@ def bench_rig(args: argparse.Namespace) -> int:
     """Chart detection and ΔE2000 over simulated poses, noise and casts."""
     import numpy as np
 
-    from hairdigi.app.cli.rig import detection_sweep
+    from hairdigi.app.evaluation.bench_rig import detection_sweep
 
     out = Path(args.out)
     rows = detection_sweep(out)
@@ -222,7 +206,7 @@ def bench_structure(args: argparse.Namespace) -> int:
 
 
 def bench_family(args: argparse.Namespace) -> int:
-    """Every physical swatch structure at equal sigma_a, against the layered swatch (issue 28)."""
+    """Every physical swatch structure at equal sigma_a, against the layered swatch."""
     from hairdigi.inference.training.bench_structure import FAMILY_HAIRS, family
 
     out = Path("packaging/bench/family") if args.out == BENCH_OUT else Path(args.out)
@@ -259,25 +243,3 @@ def bench_spectral(args: argparse.Namespace) -> int:
               f"{r['spectral_seconds']:.2f} s, RGB {r['rgb_seconds']:.2f} s")
     print(f"wrote {out / 'spectral_bench.csv'} and {out / 'spectral_bench.png'}")
     return 0
-
-
-#: Every benchmark of ``hairdigi bench``, by name.
-BENCHES: dict[str, Bench] = {
-    "render": bench_render,
-    "rig": bench_rig,
-    "encoder": bench_encoder,
-    "refine": bench_refine,
-    "check-spp": bench_check_spp,                                           # the refinement's check renders at the rig
-    "layouts": bench_layouts,                                               # check renders over strand layouts
-    "dataset": bench_dataset,
-    "previews": bench_previews,
-    "library": _elsewhere("hairdigi.app.cli.library", "bench_library"),    # issue 20: find in a library of --n swatches
-    "memory": _elsewhere("hairdigi.app.evaluation.bench_memory", "bench_memory"),     # issue 22: peak memory of the largest inputs
-    "shine": bench_shine,                                                   # issue 18: shine from the three lights
-    "spread": bench_spread,                                                 # issue 18: can the lights read a spread?
-    "fibres": bench_fibres,                                                 # issue 18: how many fibre groups
-    "family": bench_family,                                                 # issue 28: the family of swatch structures
-    "structure": bench_structure,                                           # issue 18: the swatch's fibre structure
-    "spectral": bench_spectral,                                             # the RGB fast path against spectral renders
-    "genicam": _elsewhere("hairdigi.app.evaluation.bench_genicam", "bench_genicam"),   # issue 32: frame rate, capture latency
-}

@@ -1,0 +1,20 @@
+"""``hairdigi app``: the desktop app."""
+from __future__ import annotations
+
+import argparse
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("app", help="the desktop app")
+    p.add_argument("--sim", action="store_true", help="use the simulated rig")
+    p.add_argument("--genicam", nargs="?", const="", metavar="ID", help="a GenICam camera (as rig --genicam)")
+    p.add_argument("--session", default=None, help="session folder (default: from the settings)")
+    p.add_argument("--tour", help="calibrate and capture once, time it, save a screenshot in this folder, quit")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from hairdigi.app.gui.main import run_app
+
+    camera = None if args.genicam is None else f"genicam:{args.genicam}"
+    return run_app(sim=args.sim, session=args.session, tour=args.tour, camera=camera)

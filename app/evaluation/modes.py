@@ -1,0 +1,275 @@
+"""``hairdigi evaluate``'s modes (``registry.EVALUATIONS``): each runs its evaluation, prints its
+figures and, with ``--ship``, writes the table it measured into the model's resources."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from hairdigi.render.domain.errors import HairdigiError
+
+#: Fewer predictions than this give no p95 to judge ``evaluate --dye``'s goal by.
+MIN_GOAL_PREDICTIONS = 20
+
+
+class EvaluationError(HairdigiError):
+    """An evaluation that ran but judged nothing: one line, exit status 2."""
+
+
+def held_out_folder(args: argparse.Namespace) -> Path:
+    """``--data``, or the cached held-out set of ``--size`` and ``--spp``."""
+    from hairdigi.render.domain.files import cache_dir
+    from hairdigi.render.renderer import DEFAULT_SWATCH_MODEL
+
+    return Path(args.data) if args.data else cache_dir() / "datasets" / (
+        f"heldout-s1000003-{args.size}px-{args.spp}spp-linear16-{DEFAULT_SWATCH_MODEL}")
+
+
+def prepare_held_out(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --prepare-only``: the held-out set and the truth's judge renders, no model."""
+    from hairdigi.inference.training.evaluate import prepare_heldout
+
+    root = prepare_heldout(held_out_folder(args), args.n, args.size, args.spp, args.workers)
+    print(f"held-out swatches and the truth's judge renders ready in {root}")
+    return 0
+
+
+def convergence(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --convergence SPP,...``: the estimate from inputs rendered at each spp."""
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.inference.training.convergence import convergence_sweep
+    from hairdigi.inference.training.evaluate import prepare_heldout
+
+    encoder, data = Encoder(args.model), held_out_folder(args)
+    prepare_heldout(data, args.n, args.size, args.spp, args.workers)
+    spps = [int(v) for v in args.convergence.split(",")]
+    for r in convergence_sweep(encoder, data, args.out, spps, args.sweep_n):
+        print(f"input {r['spp']:4d} spp ({r['render_s']:.2f} s/render): mean-colour ΔE2000 median encoder "
+              f"{r['encoder_de_median']:.2f}, refined {r['refined_de_median']:.2f} (p95 "
+              f"{r['encoder_de_p95']:.2f} / {r['refined_de_p95']:.2f})")
+    print(f"convergence.csv and convergence.png in {args.out}")
+    return 0
+
+
+def held_out(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate``: the encoder and the refinement on clean held-out swatches."""
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.inference.training.evaluate import evaluate
+
+    summary = evaluate(Encoder(args.model), args.out, n=args.n, size=args.size, spp=args.spp, workers=args.workers,
+                       data_root=held_out_folder(args), refine_colour=not args.no_refine)
+    a = summary["buckets"]["all"]
+    for who in ("encoder", "refined"):
+        if f"{who}_mean_colour_de2000" in a:
+            de = a[f"{who}_mean_colour_de2000"]
+            print(f"{who}: mean-colour ΔE2000 median {de['median']:.2f}, p95 {de['p95']:.2f}, worst {de['max']:.2f}; "
+                  f"L1 {a[f'{who}_l1']['mean']:.2f}")
+    print(f"{summary['n']} held-out swatches (floor ΔE2000 median {a['floor_mean_colour_de2000']['median']:.2f}, "
+          f"L1 {a['floor_l1']['mean']:.2f}); encoder {summary['latency_ms_median_1_thread']:.3f} ms; "
+          f"68% interval coverage {summary['coverage']}; report in {args.out}")
+    return 0
+
+
+def ship(path: Path, table: dict, what: str) -> None:
+    """Write a measured table into the model's resources (``evaluate --ship``)."""
+    from hairdigi.render.domain.files import write_json_atomic
+
+    write_json_atomic(path, table)
+    print(f"shipped {what}: {path}")
+
+
+def rig(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --rig``: the chain against the truth; prints the figures, writes table and plot."""
+    from hairdigi.app.evaluation.rig import RigSet, evaluate_rig
+
+    s = evaluate_rig(args.out, RigSet(random=args.rig_random))
+    r, e = s["refined"], s["encoder_alone"]
+    print(f"{s['estimated']} of {s['captures']} captures estimated; against the hidden truth, mean-colour ΔE2000 "
+          f"median {r['median']:.2f}, p95 {r['p95']:.2f}, worst {r['worst']:.2f} (encoder alone {e['median']:.2f} / "
+          f"{e['p95']:.2f} / {e['worst']:.2f})")
+    for source, st in s["by_source"].items():
+        if st["n"]:
+            print(f"  {source}: median {st['median']:.2f}, p95 {st['p95']:.2f}, worst {st['worst']:.2f} ({st['n']})")
+    for case, st in s["by_case"].items():
+        if st["n"]:
+            print(f"  {case}: median {st['median']:.2f}, worst {st['worst']:.2f}")
+    c = s["coverage_held_out"]
+    print(f"colour interval fitted on half the hidden swatches holds on the other half: 68% -> {c['p68']:.0%}, "
+          f"95% -> {c['p95']:.0%}")
+    for line in s["blocked"]:
+        print(f"blocked: {line}")
+    if args.ship:
+        from hairdigi.inference.estimate import CHAIN_TABLE
+
+        ship(CHAIN_TABLE, s["table"], "the chain's colour interval")
+    print(f"rig_evaluation.csv, .json and .png in {args.out}")
+    return 0
+
+
+def appearance(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --appearance``: shine and fibre variation judged away from the rig."""
+    from hairdigi.app.evaluation.appearance import AppearanceSet, evaluate_appearance
+
+    s = evaluate_appearance(args.out, AppearanceSet(random=args.rig_random, variation=not args.no_variation))
+    for mode in ("read", "no light frames"):
+        m = s[mode]
+        print(f"{mode} ({m['swatches']} swatches), mean-colour ΔE2000 against the truth, median / p95 / worst:")
+        for key, label in (("fit", "fit, rig view"), ("each_light", "each light alone"),
+                           ("transfer", "transfer: another camera, key light, grey sky"),
+                           ("today_fit", "today's world, fit"), ("today_transfer", "today's world, transfer")):
+            st = m[key]
+            if st["n"]:
+                print(f"  {label}: {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}")
+        for key, label in (("shine_abs_error", "shine"), ("spread_abs_error", "fibre spread"),
+                           ("grey_abs_error", "grey share")):
+            st = m[key]
+            if st["n"]:
+                print(f"  {label} absolute error: {st['median']:.3f} / {st['p95']:.3f} / {st['worst']:.3f}")
+        print(f"  capture (4 frames) {m['capture_frames_s']['median']:.2f} s; capture and estimate "
+              f"{m['capture_s']['median']:.2f} s (medians)")
+    for line in s["errors"] + s["blocked"]:
+        print(f"not estimated: {line}")
+    if args.ship:
+        from hairdigi.inference.appearance import UNCERTAINTY
+
+        ship(UNCERTAINTY, s["table"], "the appearance's intervals")
+    print(f"appearance_evaluation.csv, .json and .png in {args.out}")
+    return 0
+
+
+def cycles(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --cycles``: swatches rendered in Blender Cycles, estimated, rendered back in Cycles."""
+    from hairdigi.inference.training.evaluate_cycles import CyclesSet, evaluate_cycles
+    from hairdigi.render.blender_run import BlenderError, blender_command, probe_blender
+
+    try:
+        if blender_command() is None:
+            raise BlenderError("no Blender found: set HAIRDIGI_BLENDER to a Python that has bpy (python3.11 -m venv "
+                               "VENV && VENV/bin/pip install bpy==5.0.1) or to a blender executable")
+        probe_blender()   # a Blender that does not run stops here, before any swatch is made
+    except BlenderError as exc:
+        print(f"hairdigi evaluate --cycles: error: {exc}", file=sys.stderr)
+        return 2
+    s = evaluate_cycles(args.out, CyclesSet(random=args.rig_random, size=args.size, spp=args.spp,
+                                            shine=not args.default_shine))
+    print(f"{s['judged']} of {s['swatches']} Cycles swatches judged; mean-colour ΔE2000 against the truth, "
+          f"median / p95 / worst:")
+    for mode in ("read", "no light frames"):
+        if mode not in s:
+            continue
+        print(f"  {mode}:")
+        for key, label in (("twin_residual", "hairdigi's Mitsuba twin against the input"),
+                           ("fit", "the estimate rendered back in Cycles, rig view"),
+                           ("transfer", "the same, another camera, a key light and a grey sky"),
+                           ("sigma_rel_error", "σa relative error (median channel)")):
+            st = s[mode][key]
+            if st["n"]:
+                print(f"    {label}: {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}")
+    for key, label in (("shine_abs_error", "shine absolute error"),
+                       ("encoder_sigma_rel_error", "σa relative error, encoder alone")):
+        st = s[key]
+        if st["n"]:
+            print(f"  {label}: {st['median']:.3f} / {st['p95']:.3f} / {st['worst']:.3f}")
+    for line in s["errors"]:
+        print(f"not judged: {line}")
+    print(f"cycles_evaluation.csv, .json and .png in {args.out}")
+    if not s["judged"]:
+        raise EvaluationError(f"none of the {s['swatches']} Cycles swatches was judged (first error: "
+                       f"{(s['errors'] or ['none given'])[0]}); the figures above are empty")
+    return 0
+
+
+def structures(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --structures``: hidden hairs in every physical swatch structure, judged on their strands."""
+    from hairdigi.inference.training.evaluate_structures import MODES, StructureSet, evaluate_structures
+    from hairdigi.render.swatch_family import STRUCTURES
+
+    if args.blender:
+        from hairdigi.render.blender_run import BlenderError, blender_command
+
+        try:
+            if blender_command() is None:
+                raise BlenderError("no Blender found: set HAIRDIGI_BLENDER to a Python that has bpy")
+        except BlenderError as exc:
+            print(f"hairdigi evaluate --structures --blender: {exc}", file=sys.stderr)
+            return 2
+    hidden = tuple(args.hidden_structures.split(",")) if args.hidden_structures else StructureSet.structures
+    unknown = [name for name in hidden if name not in STRUCTURES]
+    if unknown:
+        print(f"hairdigi evaluate --structures: unknown structure {unknown[0]!r}; choose among "
+              f"{', '.join(STRUCTURES)}", file=sys.stderr)
+        return 2
+    s = evaluate_structures(args.out, StructureSet(random=args.rig_random, size=min(args.size, 64), spp=args.spp,
+                                                   blender=args.blender, structures=hidden, seed=args.held_out))
+    print(f"{s['judged']} of {s['swatches']} hidden swatches judged ({s['renderer']}); mean-colour ΔE2000 against "
+          f"the truth on the hidden strands, median / p95 / worst:")
+    for mode in MODES:
+        for group, st in s[mode].items():
+            if group in ("by_structure", "layout_nuisance"):
+                continue
+            fit, away = st["fit"], st["transfer"]
+            if fit["n"]:
+                print(f"  {mode:8s} {group:14s} fit {fit['median']:.2f} / {fit['p95']:.2f} / {fit['worst']:.2f}, "
+                      f"transfer {away['median']:.2f} / {away['p95']:.2f} / {away['worst']:.2f}")
+        nuisance = s[mode]["layout_nuisance"]
+        if nuisance["n"]:
+            print(f"  {mode:8s} layout nuisance {nuisance['median']:.2f} / {nuisance['p95']:.2f} / {nuisance['worst']:.2f}")
+    for line in s["errors"]:
+        print(f"not judged: {line}")
+    if s["judged"] == 0:
+        print("hairdigi evaluate --structures: no swatch was judged; see the errors above", file=sys.stderr)
+        return 1
+    if args.ship:
+        from hairdigi.inference.structure import STRUCTURE_TABLE
+
+        ship(STRUCTURE_TABLE, s["table"], "the colour interval of a swatch of unknown structure")
+    print(f"structures_evaluation.csv, .json and .png in {args.out}")
+    return 0
+
+
+def spectral(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --spectral``: hidden spectral hairs through a spectral rig, judged under three lights."""
+    from hairdigi.app.evaluation.spectral import ANSWERS, LIGHTS, VIEWS, SpectralSet, evaluate_spectral
+
+    config = SpectralSet() if args.held_out is None else SpectralSet(seed=args.held_out, random=args.rig_random)
+    s = evaluate_spectral(args.out, config)
+    print(f"{s['estimated']} of {s['captures']} spectral-rig captures estimated; mean-colour ΔE2000 against the "
+          f"spectral truth (median / p95 / worst), an observer adapted to each light:")
+    for answer in ANSWERS:
+        for view in VIEWS:
+            if answer not in s:
+                continue
+            cells = [f"{light} {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}"
+                     for light in LIGHTS for st in [s[answer][f"{view} {light}"]] if st["n"]]
+            print(f"  {answer:8s} answer, {view:4s}: " + "; ".join(cells))
+    for answer, held in s.get("stated_p95_held", {}).items():
+        print(f"  the record's stated 95% interval held for the {answer} answer in {100 * held:.0f}% of its cases")
+    for line in s["errors"]:
+        print(f"not estimated: {line}")
+    if args.ship and s.get("table", {}).get("cameras"):
+        from hairdigi.inference.spectral import SPECTRAL_TABLE
+
+        ship(SPECTRAL_TABLE, s["table"], "the spectral world's colour intervals")
+    print(f"spectral_evaluation.csv, .json and .png in {args.out}")
+    return 0
+
+
+def dye(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --dye [--rig]``: the dye held-out protocol (``inference/training/evaluate_dye.py``),
+    on clean renders or (``--rig``) on simulated-rig captures (``app/evaluation/dye_rig.py``)."""
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.inference.training.evaluate_dye import DyeEvalConfig, evaluate_dye
+
+    config = DyeEvalConfig(dyes=args.n if args.n != 300 else DyeEvalConfig.dyes, size=args.size, spp=args.spp)
+    if getattr(args, "rig", False):        # --dye --rig: the captures are the simulated rig's
+        from hairdigi.app.evaluation.dye_rig import evaluate_dye_rig
+
+        summary = evaluate_dye_rig(Encoder(args.model), args.out, config)
+    else:
+        summary = evaluate_dye(Encoder(args.model), args.out, config)
+    n = summary.get("prediction_de2000", {}).get("n", 0)
+    for line in summary["text"]:
+        if n < MIN_GOAL_PREDICTIONS and line.endswith(("met)", "NOT met)")):   # a p95 of a few is no p95
+            line = line[:line.rindex(":")] + f": not judged, {n} predictions are too few (under {MIN_GOAL_PREDICTIONS}); raise --n)"
+        print(line)
+    return 0
