@@ -237,3 +237,25 @@ def test_a_table_with_a_failed_row_is_written_whole(tmp_path):
         read = list(csv.DictReader(f))
     assert list(read[0]) == ["hidden", "fit", "error"]
     assert read[0]["error"] == "" and read[1]["fit"] == "" and read[1]["error"] == "ImageError: too small"
+
+
+def test_a_session_folder_names_every_file_of_its_layout_and_reads_a_capture_back(tmp_path):
+    """One place knows the layout: a capture's two records, its image, the calibration and the dyes; a
+    result record names its capture record; a written session's captures folder is known as one."""
+    from hairdigi.render.domain.records import read_session_capture
+    from hairdigi.render.domain.session_folder import SessionFolder, capture_id_of, capture_record_beside
+
+    shutil.copytree(LEGACY, tmp_path / "s")
+    session = SessionFolder(tmp_path / "s")
+    assert session.result_record(LIVE) == tmp_path / "s" / "captures" / f"{LIVE}.result.json"
+    assert session.capture_record(LIVE).name == f"{LIVE}.json" and session.calibration.name == "calibration.json"
+    assert [capture_id_of(p) for p in session.result_records()] == [LIVE, STILL]
+    assert [capture_id_of(p) for p in session.capture_records()] == [LIVE, STILL]
+    assert capture_record_beside(session.result_record(STILL)) == session.capture_record(STILL)
+    assert SessionFolder.of_captures(session.captures) == session and SessionFolder.of_captures(tmp_path) is None
+    still = read_session_capture(session, STILL)     # a first-layout still: its profile in its result record
+    assert still.problems == () and still.capture.calibration == still.profile is not None
+    assert still.result.capture == f"{STILL}.dng" and still.capture.image == f"{STILL}.dng"
+    session.result_record(LIVE).write_text("[1, 2]")
+    live = read_session_capture(session, LIVE)
+    assert live.result is None and live.capture is not None and "JSON object" in live.problems[0]

@@ -225,14 +225,15 @@ def check_output_dir(path: str | os.PathLike, flag: str,
 
 def _not_a_protected_folder(p: Path, flag: str, dataset_ok: bool) -> None:
     """An output folder must not be the package's, a session's captures, or (but for ``dataset``) a dataset."""
-    from hairdigi.render.domain.files import _checkout_protected, _is_session, _within, package_folders
+    from hairdigi.render.domain.files import _checkout_protected, _within, package_folders
+    from hairdigi.render.domain.session_folder import SessionFolder
 
     real = p.resolve()
     folders = package_folders()
     if any(_within(real, f) for f in folders + _checkout_protected(folders)[0]):
         raise ArgumentError(f"{flag} {p} is inside the hairdigi package (its code, tests or resources); "
                             f"writing there is refused: choose another folder")
-    if real.name == "captures" and _is_session(real.parent) or real.parent.name == "captures" and _is_session(real.parent.parent):
+    if SessionFolder.of_captures(real) is not None or SessionFolder.of_captures(real.parent) is not None:
         raise ArgumentError(f"{flag} {p} is the captures folder of the rig session {real.parent}; writing there "
                             f"is refused: choose another folder")
     if not dataset_ok and (real / "manifest.json").is_file():

@@ -14,6 +14,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
 
+from hairdigi.render.domain.session_folder import SessionFolder
+
 
 def _umask() -> int:
     mask = os.umask(0)
@@ -263,12 +265,6 @@ def _within(path: Path, folder: Path) -> bool:
     return path == folder or folder in path.parents
 
 
-def _is_session(folder: Path) -> bool:
-    """A rig session folder: its calibration, or captures with their records."""
-    captures = folder / "captures"
-    return (folder / "calibration.json").is_file() or (captures.is_dir() and any(captures.glob("*.json")))
-
-
 def _record_kind(path: Path) -> str | None:
     """What hairdigi record an existing JSON file is (calibration profile, capture record, manifest)."""
     try:
@@ -315,9 +311,9 @@ def protected_reason(path: str | os.PathLike, allow: tuple = ()) -> str | None:
         real = given
     for p in dict.fromkeys((given, real)):
         parent = p.parent
-        if parent.name == "captures" and _is_session(parent.parent):
+        if SessionFolder.of_captures(parent) is not None:
             return f"is part of the rig session {parent.parent} (its captures)"
-        if p.name == "calibration.json" and (p.exists() or _is_session(parent)):
+        if p == SessionFolder(parent).calibration and (p.exists() or SessionFolder(parent).holds_records()):
             return f"is the calibration of the rig session {parent}"
         if (parent / "manifest.json").is_file() and (p.name == "manifest.json" or re.match(r"shard-\d+\.npz$", p.name)):
             return f"is part of the dataset {parent}"

@@ -63,6 +63,17 @@ class SessionFolder:
         """Whether the folder holds a ``captures`` folder (a session's, perhaps with no capture yet)."""
         return self.captures.is_dir()
 
+    def holds_records(self) -> bool:
+        """Whether a session was written here: its calibration, or captures with their records."""
+        return self.calibration.is_file() or (self.captures.is_dir() and any(self.captures.glob("*.json")))
+
+    @classmethod
+    def of_captures(cls, folder: str | os.PathLike) -> "SessionFolder | None":
+        """The written session whose captures folder ``folder`` is, else None."""
+        folder = Path(folder)
+        session = cls(folder.parent)
+        return session if folder == session.captures and session.holds_records() else None
+
 
 def capture_id_of(path: str | os.PathLike) -> str:
     """The capture's id from its capture record's or result record's file name."""
