@@ -51,22 +51,25 @@ def site(wheel, tmp_path_factory) -> Path:
 def test_import_contracts_hold_on_the_built_package(site):
     result = lint_imports(site)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-2000:]
-    assert "4 kept, 0 broken" in result.stdout
+    assert "5 kept, 0 broken" in result.stdout
     assert "Analyzed 0 files" not in result.stdout
 
 
 def test_a_stray_import_breaks_the_contracts(site, tmp_path):
-    """The contracts are rules: a copy of the package with an ``app.review.model -> PySide6`` and a
-    ``render -> inference`` import (modules no contract lists) fails them."""
+    """The contracts are rules: a copy of the package with an ``app.review.model -> PySide6``, a
+    ``render -> inference`` and an ``app.gui -> app.cli`` import (modules no contract lists) fails them."""
     shutil.copytree(site / "hairdigi", tmp_path / "hairdigi")
     with open(tmp_path / "hairdigi" / "app" / "review" / "model.py", "a") as f:
         f.write("\nimport PySide6  # stray\n")
     with open(tmp_path / "hairdigi" / "render" / "metrics.py", "a") as f:
         f.write("\nfrom hairdigi.inference import estimate  # stray\n")
+    with open(tmp_path / "hairdigi" / "app" / "gui" / "images.py", "a") as f:
+        f.write("\nimport hairdigi.app.cli  # stray\n")
     result = lint_imports(tmp_path)
-    assert result.returncode != 0 and "2 broken" in result.stdout, result.stdout[-3000:]
+    assert result.returncode != 0 and "3 broken" in result.stdout, result.stdout[-3000:]
     assert "hairdigi.app.review.model -> PySide6" in result.stdout
     assert "hairdigi.render.metrics -> hairdigi.inference.estimate" in result.stdout
+    assert "hairdigi.app.gui.images -> hairdigi.app.cli" in result.stdout
 
 
 def domain_imports(site: Path) -> dict[str, list[str]]:
