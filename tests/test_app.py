@@ -6,7 +6,7 @@ import threading
 import numpy as np
 import pytest
 
-from hairdigi.app.review import model as review
+from hairdigi.app.review import thumbnails
 from hairdigi.app.gui.main_window import MainWindow
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.inference.encoder import Encoder
@@ -157,11 +157,12 @@ def _unplug_the_board(qtbot, win, board, folder, result) -> None:
 def _check_the_restart(qtbot, folder, onnx_path, profile, monkeypatch) -> None:
     # restart: the session, its calibration and its capture come back
     on_ui_thread = []                 # per thumbnail read from disk: was it the UI thread that read it?
-    read = review.read_thumbnail
-    monkeypatch.setattr(review, "read_thumbnail", lambda *a, **k: on_ui_thread.append(
+    read = thumbnails.read_thumbnail
+    monkeypatch.setattr(thumbnails, "read_thumbnail", lambda *a, **k: on_ui_thread.append(
         threading.current_thread() is threading.main_thread()) or read(*a, **k))
     win2, session2 = open_window(qtbot, folder, onnx_path)
-    assert win2.session_list.count() == 1 and session2.profile.id == profile.id
+    qtbot.waitUntil(lambda: win2.session_list.count() == 1, timeout=20000)     # the records are read in a worker
+    assert session2.profile.id == profile.id
     assert "blocked" not in win2.session_list.item(0).text()
     # its thumbnail comes from a worker, not from a disk read on the UI thread, and the icon shows it
     qtbot.waitUntil(lambda: not win2.session_list.item(0).icon().isNull(), timeout=20000)

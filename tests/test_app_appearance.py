@@ -6,11 +6,15 @@ One simulated session serves the module: an older capture without single-light f
 not measured" kind), then a capture with them (the first renders the view's per-light tables once).
 """
 import dataclasses
+import threading
 
 import numpy as np
 import pytest
 
 from hairdigi.app.review import model as review
+from hairdigi.app.review.events import LightView
+from hairdigi.app.review.previews import PreviewSettings
+from hairdigi.app.review.work import run_now
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.inference.calibration import apply_profile
 from hairdigi.inference.encoder import Encoder
@@ -19,9 +23,9 @@ from hairdigi.render.domain.records import WarningKind
 from hairdigi.render.metrics import mean_colour_delta_e
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
 
-SMALL = review.PreviewSettings(twin_passes=((1.0, 2),), twin_clean_spp=((1.0, 1),), hairstyle_size=48,
-                               hairstyle_strands=200, hairstyle_passes=(1,), hairstyle_clean_spp=1, view_strands=100,
-                               warm=False, denoise=False)
+SMALL = PreviewSettings(twin_passes=((1.0, 2),), twin_clean_spp=((1.0, 1),), hairstyle_size=48,
+                        hairstyle_strands=200, hairstyle_passes=(1,), hairstyle_clean_spp=1, view_strands=100,
+                        warm=False, denoise=False)
 
 
 @pytest.fixture(scope="module")
@@ -39,9 +43,45 @@ def captured(tmp_path_factory, tiny_model):
 
 def model_on(session, capture_id):
     model = review.ReviewModel(session, SMALL)
-    model.reload()
-    model.select(capture_id)
+    run_now(model.reload_work(), model.apply)
+    run_now(model.select_work(capture_id), model.apply)
     return model
+
+
+def test_a_newer_selection_wins_over_an_older_read_that_comes_back_later(captured):
+    session, old, new = captured
+    model = review.ReviewModel(session, SMALL)
+    run_now(model.reload_work(), model.apply)
+    assert {e.id for e in model.records} == {old, new}
+    older, newer = model.select_work(old), model.select_work(new)
+    late = run_now(older, lambda value: None)           # read, but back after the newer one
+    run_now(newer, model.apply)
+    model.apply(late)
+    assert late.capture_id == old and model.shown.capture_id == new
+
+
+def test_the_window_reads_records_and_captures_off_the_ui_thread(qtbot, captured, monkeypatch):
+    """Which thread read the records and a capture back is recorded in the real readers, which still run."""
+    from hairdigi.app.gui.main_window import MainWindow
+    from hairdigi.app.session import rig_session as rs
+
+    session, old, new = captured
+    records_in, captures_in = [], []
+    load_results, load_capture = rs.load_results, session.load_capture
+    monkeypatch.setattr(rs, "load_results",
+                        lambda folder: records_in.append(threading.get_ident()) or load_results(folder))
+    monkeypatch.setattr(session, "load_capture",
+                        lambda capture_id: captures_in.append((threading.get_ident(), capture_id)) or load_capture(capture_id))
+    ui = threading.get_ident()
+    win = MainWindow(session, {**dataclasses.asdict(SMALL), "feed_fps": 5}, strand_view=False)
+    qtbot.addWidget(win)
+    qtbot.waitUntil(lambda: win.model.shown is not None and win.model.shown.capture_id == new, timeout=20000)
+    assert win.session_list.count() == 2 and win.session_list.currentItem().text().startswith(new)
+    win.session_list.setCurrentRow([e.id for e in win.model.records].index(old))
+    qtbot.waitUntil(lambda: win.model.shown.capture_id == old, timeout=20000)
+    assert records_in and {new, old} <= {capture_id for _, capture_id in captures_in}      # the work was seen
+    assert ui not in records_in and ui not in [thread for thread, _ in captures_in]
+    win.close()
 
 
 def test_light_1_shows_its_frame_beside_the_twin_lit_by_light_1_alone(captured):
@@ -53,7 +93,7 @@ def test_light_1_shows_its_frame_beside_the_twin_lit_by_light_1_alone(captured):
     model.events.light_view.connect(seen.append)
 
     model.set_light_view(1)
-    assert seen == [1] and model.light == 1
+    assert seen == [LightView(1)] and model.light == 1
     spec, _ = model.twin_scene(1.0)
     assert spec.lights == (0.0, 1.0, 0.0)
     # the captured side is light 1's own frame, corrected with the capture's profile, on the all-lights scale
@@ -64,7 +104,7 @@ def test_light_1_shows_its_frame_beside_the_twin_lit_by_light_1_alone(captured):
     assert not np.array_equal(model.captured_image(), model.shown.real)
     assert not np.array_equal(model.captured_image(), model.shown.light_frames[0])
 
-    review.run_now(model.twin_work(), model.apply)
+    run_now(model.twin_work(), model.apply)
     lit_1 = model.twin
     assert lit_1.light == 1 and lit_1.final
     # the twin lit by light 1 alone matches light 1's frame (not the all-lights one) in colour
@@ -75,7 +115,7 @@ def test_light_1_shows_its_frame_beside_the_twin_lit_by_light_1_alone(captured):
     model.set_light_view(None)
     assert model.twin_scene(1.0)[0].lights == (1.0, 1.0, 1.0)
     np.testing.assert_array_equal(model.captured_image(), model.shown.real)
-    review.run_now(model.twin_work(), model.apply)
+    run_now(model.twin_work(), model.apply)
     assert model.twin.light is None
     assert model.twin.raw.mean() > 1.5 * lit_1.raw.mean()      # one light of three: about a third
     with pytest.raises(ValueError, match="lights 0 to 2"):
@@ -147,6 +187,7 @@ def test_the_window_shows_the_shine_with_its_interval_and_the_light_selector(qtb
 
     ids = [e.id for e in win.model.records]
     win.session_list.setCurrentRow(ids.index(old))             # an old capture, light 1 still chosen
+    qtbot.waitUntil(lambda: win.model.shown.capture_id == old, timeout=20000)   # read back in a worker
     assert win.real_label.text() == "no frame for light 1 in this capture"
     assert "not measured" in win.appearance_labels["longitudinal_roughness"].text()
     assert "shine not measured" in win.result_info.text()

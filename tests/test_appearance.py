@@ -172,7 +172,7 @@ def test_a_grey_share_is_reported_only_when_its_95_percent_interval_excludes_non
 def test_a_share_reported_as_none_says_it_was_not_told_from_none():
     """A grey share set to 0 by the 95% rule while its 68% interval excludes 0 is not shown as
     "0.00 (68%: 0.02-0.16)", which reads as a contradiction, but as not told from none."""
-    from hairdigi.app.review.model import appearance_lines
+    from hairdigi.app.review.text import appearance_lines
     from hairdigi.app.cli.rig import appearance_lines as cli_lines
     from hairdigi.render.domain.appearance import AppearanceEstimate
 

@@ -231,7 +231,7 @@ def test_the_dye_dock_offers_a_new_capture_once_the_window_has_saved_it(tmp_path
 # --- the models without Qt -----------------------------------------------------------------------------
 from hairdigi.app.dye import model as dm  # noqa: E402
 from hairdigi.app.library import model as lm  # noqa: E402
-from hairdigi.app.review.model import run_now  # noqa: E402
+from hairdigi.app.review.work import run_now  # noqa: E402
 
 SMALL = dm.DyeSettings(preview_size=24, preview_spp=2, hairstyle_size=24, hairstyle_spp=1, card_size=16, card_spp=2)
 
@@ -257,7 +257,7 @@ def _saved_dye(folder: Path, paths) -> Path:
 def recorder(model) -> list[tuple[str, object]]:
     """(event name, value) of every event the model emits, in order."""
     seen = []
-    for name in model.Events.NAMES:
+    for name in model.Events.EVENTS:
         getattr(model.events, name).connect(lambda value, name=name: seen.append((name, value)))
     return seen
 

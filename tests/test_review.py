@@ -9,12 +9,15 @@ import numpy as np
 import pytest
 
 from hairdigi.app.review import model as review
+from hairdigi.app.review.events import Captured, Events, Shown, Status
+from hairdigi.app.review.previews import PreviewSettings, Stage, TwinPreview
+from hairdigi.app.review.work import run_now
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.inference.encoder import Encoder
 from hairdigi.render.domain.estimate_parts import ParameterInterval, SpectralInterval, Uncertainty
 from hairdigi.render.metrics import delta_e2000, delta_e_map
 
-SMALL = review.PreviewSettings(twin_passes=((0.5, 1), (1.0, 1)), twin_clean_spp=((0.5, 1), (1.0, 1)), hairstyle_size=48, hairstyle_strands=200,
+SMALL = PreviewSettings(twin_passes=((0.5, 1), (1.0, 1)), twin_clean_spp=((0.5, 1), (1.0, 1)), hairstyle_size=48, hairstyle_strands=200,
                                hairstyle_passes=(1, 1), hairstyle_clean_spp=2, view_strands=100)
 
 
@@ -33,19 +36,22 @@ def test_the_model_imports_without_qt():
     assert out.stdout.strip() == "[]"
 
 
-def test_events_call_their_subscribers_in_order():
-    events, seen = review.Events(), []
-    first = events.twin.connect(lambda v: seen.append(("a", v)))
-    events.twin.connect(lambda v: seen.append(("b", v)))
-    events.twin.emit(1)
-    events.twin.disconnect(first)
-    events.twin.emit(2)
-    assert seen == [("a", 1), ("b", 1), ("b", 2)]
+def test_events_call_their_subscribers_in_order_with_their_declared_payload_only():
+    events, seen = Events(), []
+    first = events.status.connect(lambda v: seen.append(("a", v.text)))
+    events.status.connect(lambda v: seen.append(("b", v.text)))
+    events.status.emit(Status("1"))
+    events.status.disconnect(first)
+    events.status.emit(Status("2"))
+    assert seen == [("a", "1"), ("b", "1"), ("b", "2")]
+    with pytest.raises(TypeError, match="status"):
+        events.status.emit("3")                 # a payload of another type is refused, and no one is called
+    assert seen[-1] == ("b", "2")
 
 
 def test_a_capture_shows_the_encoder_first_then_the_refined_estimate_in_warm_scenes(calibrated, tmp_path):
     model = review.ReviewModel(calibrated, SMALL)
-    warmed = review.run_now(model.warm_work(), model.apply)
+    warmed = run_now(model.warm_work(), model.apply)
     assert {"twin", "hairstyle"} <= set(warmed.seconds)
     assert (model.twin_renderer.builds, model.style_renderer.builds) == (2, 1)   # the twin at 2 scales
 
@@ -54,9 +60,9 @@ def test_a_capture_shows_the_encoder_first_then_the_refined_estimate_in_warm_sce
     model.events.parameters.connect(lambda shown: run_previews(model))
     model.events.twin.connect(twins.append)
     model.events.hairstyle.connect(passes.append)
-    captured = review.run_now(model.capture_work(), model.apply)
+    captured = run_now(model.capture_work(), model.apply)
 
-    assert stages == [review.Stage.ENCODER, review.Stage.REFINED]
+    assert stages == [Stage.ENCODER, Stage.REFINED]
     assert model.shown.capture_id == captured.result.capture_id and model.shown.record.refinement.ran
     # the encoder's look renders one pass; the refined estimate its whole schedule
     # half resolution first, then full; the first look is one pass, rendered by the capture worker
@@ -77,7 +83,7 @@ def test_a_capture_shows_the_encoder_first_then_the_refined_estimate_in_warm_sce
     # the orbit moves the camera of the warm scene: no rebuild
     model.set_view(orbit=(30, 10))
     before = model.hairstyle.raw.copy()
-    review.run_now(model.hairstyle_work(), model.apply)
+    run_now(model.hairstyle_work(), model.apply)
     assert model.style_renderer.builds == 1 + varied and not np.allclose(model.hairstyle.raw, before)
 
     written = model.save_render("hairstyle", tmp_path / "look")
@@ -87,14 +93,14 @@ def test_a_capture_shows_the_encoder_first_then_the_refined_estimate_in_warm_sce
 def run_previews(model):
     """What the window does on ``parameters``: the twin's and the hairstyle's passes (here, in turn)."""
     for work in (model.twin_work(), model.hairstyle_work()):
-        review.run_now(work, model.apply)
+        run_now(work, model.apply)
 
 
 def test_a_new_capture_cancels_stale_renders(calibrated):
     model = review.ReviewModel(calibrated, dataclasses.replace(SMALL, hairstyle_passes=(1,) * 40, warm=False))
-    review.run_now(model.capture_work(), model.apply)
+    run_now(model.capture_work(), model.apply)
     first = model.shown.capture_id
-    review.run_now(model.twin_work(), model.apply)                  # the twin goes first, as in the window
+    run_now(model.twin_work(), model.apply)                  # the twin goes first, as in the window
     reported, started = [], threading.Event()
 
     def worker(work):                                               # a worker thread: it yields, the model applies
@@ -105,13 +111,13 @@ def test_a_new_capture_cancels_stale_renders(calibrated):
     thread.start()
     assert started.wait(120)
     kept = []                                                       # a new capture, while the render runs
-    captured = review.run_now(model.capture_work(), lambda x: kept.append(x) if isinstance(x, review.Captured)
+    captured = run_now(model.capture_work(), lambda x: kept.append(x) if isinstance(x, Captured)
                               else model.apply(x))
     thread.join(120)
     assert not thread.is_alive() and 1 <= len(reported) < 40        # it stopped at its next pass
     for stale in reported:                                          # and what it reported late is dropped
         model.apply(stale)
-    assert model.hairstyle.stage == review.Stage.ENCODER and model.hairstyle.key == model.shown.key   # the new first look
+    assert model.hairstyle.stage == Stage.ENCODER and model.hairstyle.key == model.shown.key   # the new first look
     assert all(stale.key != model.shown.key for stale in reported)
     model.apply(captured)
     assert model.shown.capture_id != first and model.hairstyle.key == model.shown.key
@@ -151,13 +157,13 @@ def test_a_pass_with_nonfinite_values_becomes_a_warning_of_the_shown_capture():
     model.events.warnings.connect(seen.append)
     rec = EstimateRecord(hair=HairParams(), uncertainty=Uncertainty(parameters={"dye_r": ParameterInterval(
         120.0, 0.0, 255.0, 200.0, determined=False)}))
-    model.shown = review.Shown("c1", np.zeros((8, 8, 3), np.uint8), (0, 0, 8, 8), (8, 8), rec.hair,
-                               review.Stage.REFINED, rec, key=7)
+    model.shown = Shown("c1", np.zeros((8, 8, 3), np.uint8), (0, 0, 8, 8), (8, 8), rec.hair, Stage.REFINED, rec,
+                        key=7)
     raw = np.zeros((8, 8, 3), np.float32)
     for n in (3, 5):
-        model.apply(review.TwinPreview(model._generation["twin"], raw, None, 1, False, False, 0.0, raw[..., 0],
-                                       raw[0, 0], review.Stage.REFINED, 0.1, 7, 1.0, nonfinite=n))
-    assert [[w.kind for w in ws] for ws in seen] == [[WarningKind.NONFINITE]]
+        model.apply(TwinPreview(model._generation["twin"], raw, None, 1, False, False, 0.0, raw[..., 0],
+                                raw[0, 0], Stage.REFINED, 0.1, 7, 1.0, nonfinite=n))
+    assert [[w.kind for w in ws.items] for ws in seen] == [[WarningKind.NONFINITE]]
     view = model.parameter_view()
     assert "3 NaN or Inf" in view.info and dict(view.lines)["dye_r"].endswith("(undetermined)")
 
@@ -179,12 +185,12 @@ def test_model_state_changes_on_its_own_thread_only():
 
 def test_a_hairstyle_under_another_light_renders_spectrally_and_is_shown_adapted(calibrated):
     model = review.ReviewModel(calibrated, dataclasses.replace(SMALL, warm=False))
-    review.run_now(model.capture_work(), model.apply)
+    run_now(model.capture_work(), model.apply)
     looks = {}
     for light in (None, "A", "D65"):
         model.set_view(illuminant=light)
         assert model.hairstyle_spec().illuminant == light and (light is None or light in model.view_label())
-        review.run_now(model.hairstyle_work(), model.apply)
+        run_now(model.hairstyle_work(), model.apply)
         looks[light] = model.hairstyle.raw.reshape(-1, 3).mean(0)
     # the adapted eye: tungsten is not orange (the scalp and hair keep their hue), and D65 is the RGB world's
     shift = (looks["A"][0] / looks["A"][2]) / (looks[None][0] / looks[None][2])
@@ -198,7 +204,7 @@ def test_a_hairstyle_under_another_light_renders_spectrally_and_is_shown_adapted
 
 
 def test_the_window_says_a_records_colour_under_other_lights_and_its_spectral_interval():
-    from hairdigi.app.review.model import spectral_lines
+    from hairdigi.app.review.text import spectral_lines
     from hairdigi.render.domain.params import HairParams
     from hairdigi.render.domain.records import EstimateRecord, SpectralReading
 
@@ -217,7 +223,7 @@ def test_the_window_says_a_records_colour_under_other_lights_and_its_spectral_in
 
 def test_a_record_whose_refinement_has_no_residual_is_shown_not_crashed():
     """A record file may hold a refinement without its residual (an older or a hand-made one)."""
-    from hairdigi.app.review.model import Shown, Stage, parameter_view
+    from hairdigi.app.review.text import parameter_view
     from hairdigi.app.cli.rig import say_record
     from hairdigi.render.domain.params import HairParams
     from hairdigi.render.domain.records import EstimateRecord

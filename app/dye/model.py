@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.review.events import EventGroup
-from hairdigi.app.review.panel_model import PanelModel, Status
-from hairdigi.app.review.model import Work
+from hairdigi.app.review.events import EventGroup, Status
+from hairdigi.app.review.panel_model import PanelModel
+from hairdigi.app.review.work import Work
 from hairdigi.render.domain.dye_record import DyeRecord
 from hairdigi.render.domain.session_folder import SessionFolder, capture_id_of
 
@@ -109,20 +109,6 @@ def capture_crop(record_path: Path) -> np.ndarray | None:
 
 
 # --- events and payloads -----------------------------------------------------------------------------
-class Events(EventGroup):
-    """The model's events; each carries the new value of the state it names."""
-
-    NAMES = ("records",        # list[Path]: the estimated captures offered (the session's, then other sessions')
-             "dyes",           # list[Path]: the saved dyes
-             "pairs",          # list[tuple[Path, Path]]: the (natural base, dyed) pairs to characterise
-             "characterised",  # Characterised: a dye measured and saved (records and dyes already updated)
-             "capture",        # CaptureCrop: the capture a dye is previewed on, cropped to its swatch
-             "preview",        # PreviewPass: the predicted twin, its colour and its Table 1 parameters
-             "hairstyle",      # HairstylePass: the predicted hairstyle
-             "card",           # Card: a shade card, written and read back
-             "status")         # str: one line (what runs now, or what went wrong and the fix)
-
-
 @dataclass(frozen=True)
 class Listing:
     """The estimated captures and saved dyes, read off the model's thread."""
@@ -183,6 +169,20 @@ class Card:
     generation: int
     path: Path
     rgb: np.ndarray | None     # the PNG as written, read back off the model's thread
+
+
+class Events(EventGroup):
+    """The model's events; each carries the new value of the state it names."""
+
+    EVENTS = {"records": list,                    # of Path: the estimated captures offered (the session's, then others')
+              "dyes": list,                       # of Path: the saved dyes
+              "pairs": list,                      # of (natural base, dyed) Paths to characterise
+              "characterised": Characterised,     # a dye measured and saved (records and dyes already updated)
+              "capture": CaptureCrop,             # the capture a dye is previewed on, cropped to its swatch
+              "preview": PreviewPass,             # the predicted twin, its colour and its Table 1 parameters
+              "hairstyle": HairstylePass,
+              "card": Card,                       # a shade card, written and read back
+              "status": str}                      # one line (what runs now, or what went wrong and the fix)
 
 
 # --- the model -----------------------------------------------------------------------------------------

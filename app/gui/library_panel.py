@@ -241,7 +241,7 @@ class LibraryPanel(QWidget):
         s = chosen[0]
         session = getattr(getattr(self.window_, "session", None), "folder", None)
         if s.session and session is not None and Path(s.session) == Path(session).resolve() and s.capture_id:
-            self.window_.model.select(s.capture_id)
+            self.window_.select_capture(s.capture_id)
             return
         dialog = QDialog(self)
         dialog.setWindowTitle(f"hairdigi — {s.capture_id or s.id}")

@@ -22,11 +22,15 @@ from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QFileDialog, 
                                QSplitter, QVBoxLayout, QWidget)
 
 from hairdigi.app.review import model as review, previews
+from hairdigi.app.review.events import (Calibrated, Captured, FrameCheck, HairModel, LightView, Lights, Records,
+                                        Shown, StrandPreview, Thumbnail)
 from hairdigi.app.session import rig_session as rs
 from hairdigi.app.gui.images import DELTA_E_MAX, colour_scale, delta_e_colours, overlay, to_pixmap
 from hairdigi.app.gui.workers import POOL, FrameFeed, Task, start
-from hairdigi.app.review.previews import Stage
+from hairdigi.app.review.previews import HairstylePass, Stage, TwinPreview, hair_colour_rgb8
 from hairdigi.app.review.model import HAIRSTYLE_LIGHTS
+from hairdigi.app.review.text import APPEARANCE_LABELS, light_name
+from hairdigi.app.review.work import Work
 from hairdigi.hardware.exposure import ExposureStatus
 from hairdigi.render.domain.bounds import ENVIRONMENTS
 from hairdigi.render.domain.params import VECTOR_FIELDS
@@ -88,7 +92,7 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(f"{source}; session {session.folder}")
         if self.model.settings.warm:   # the preview scenes are built before the first capture needs them
             self.run_task(self.model.warm_work())
-        self.model.reload()
+        self.run_task(self.model.reload_work())
 
     # -- layout ------------------------------------------------------------------------------
     def _build(self, with_strand_view: bool) -> None:
@@ -223,8 +227,8 @@ class MainWindow(QMainWindow):
                          "share of grey fibres, each with its 68% interval; the twin and hairstyles render them")
         appearance.addWidget(title, 0, 0)
         self.appearance_labels = {}
-        for i, name in enumerate(review.APPEARANCE_LABELS):
-            label = QLabel(f"{review.APPEARANCE_LABELS[name][0]}: –")
+        for i, name in enumerate(APPEARANCE_LABELS):
+            label = QLabel(f"{APPEARANCE_LABELS[name][0]}: –")
             self.appearance_labels[name] = label
             appearance.addWidget(label, i, 1)
         appearance.setColumnStretch(1, 1)
@@ -338,8 +342,9 @@ class MainWindow(QMainWindow):
             (ev.frame_check, self._show_frame_check), (ev.calibration, self._on_calibrated),
             (ev.lights, self._show_lights), (ev.thumbnail, self._show_thumbnail),
             (ev.warnings, lambda _: self._show_parameters()),
-            (ev.feed_fps, lambda fps: setattr(self.session.frames, "period", 1.0 / fps)),
-            (ev.status, lambda text: self.statusBar().showMessage(text)), (ev.error, self.show_banner),
+            (ev.feed_fps, lambda rate: setattr(self.session.frames, "period", 1.0 / rate.fps)),
+            (ev.status, lambda status: self.statusBar().showMessage(status.text)),
+            (ev.error, lambda problem: self.show_banner(problem.text)),
             (ev.hair_model, self._on_hair_model), (ev.light_view, self._show_light_view)]
         for event, callback in self._subscriptions:
             event.connect(callback)
@@ -349,8 +354,8 @@ class MainWindow(QMainWindow):
         for event, callback in self._subscriptions:
             event.disconnect(callback)
 
-    def _show_records(self, records: list[review.Entry]) -> None:
-        shown = self.model.shown
+    def _show_records(self, listing: Records) -> None:
+        records, shown = listing.entries, self.model.shown
         select = shown.capture_id if shown is not None else None
         self.session_list.blockSignals(True)
         self.session_list.clear()
@@ -367,14 +372,18 @@ class MainWindow(QMainWindow):
             self.session_list.setCurrentRow(row)
         self.run_job("thumbnails", self.model.thumbnail_work())
 
-    def _show_thumbnail(self, thumb: review.Thumbnail) -> None:
+    def _show_thumbnail(self, thumb: Thumbnail) -> None:
         ids = [e.id for e in self.model.records]
         if thumb.rgb is not None and thumb.capture_id in ids:
             self.session_list.item(ids.index(thumb.capture_id)).setIcon(to_pixmap(thumb.rgb))
 
     def _on_select(self, row: int) -> None:
         if 0 <= row < len(self.model.records):
-            self.model.select(self.model.records[row].id)
+            self.select_capture(self.model.records[row].id)
+
+    def select_capture(self, capture_id: str) -> Task | None:
+        """Review a saved capture: read back in a worker, then shown (a newer selection replaces it)."""
+        return self.run_job("select", self.model.select_work(capture_id))
 
     def _show_captured_side(self) -> bool:
         """The captured swatch under the chosen light, or why there is none; True when there is one."""
@@ -387,9 +396,9 @@ class MainWindow(QMainWindow):
         self.real_label.setToolTip(self.model.captured_text())
         return True
 
-    def _show_light_view(self, light: int | None) -> None:
-        """The capture and its twin under ``light`` alone (None: all lights)."""
-        button = self.light_view_buttons.get(light)
+    def _show_light_view(self, view: LightView) -> None:
+        """The capture and its twin under one light alone (or all lights)."""
+        button = self.light_view_buttons.get(view.light)
         if button is not None and not button.isChecked():
             button.setChecked(True)
         if not self._show_captured_side():
@@ -403,7 +412,7 @@ class MainWindow(QMainWindow):
             self.synth_label.setText("rendering…")
             self.run_job("twin", self.model.twin_work())
 
-    def _show_capture(self, shown: review.Shown) -> None:
+    def _show_capture(self, shown: Shown) -> None:
         has_image = self._show_captured_side()     # False: no frame of this capture under the chosen light
         if self.model.twin is None or not has_image:   # the first look's twin stays up until the refined one comes
             for label, text in ((self.synth_label, "rendering…"), (self.diff_label, "ΔE2000")):
@@ -423,27 +432,27 @@ class MainWindow(QMainWindow):
             label.setText(texts.get(name, f"{name}: –"))
         texts = dict(view.appearance)
         for name, label in self.appearance_labels.items():
-            label.setText(texts.get(name, f"{review.APPEARANCE_LABELS[name][0]}: –"))
+            label.setText(texts.get(name, f"{APPEARANCE_LABELS[name][0]}: –"))
         if view.dye_rgb8 is not None:
             self.dye_chip.setText("dye")
             self.dye_chip.setStyleSheet(chip_style(view.dye_rgb8))
             self.dye_chip.setToolTip(view.dye_tooltip)
         self.result_info.setText(view.info)
 
-    def _show_twin(self, t: review.TwinPreview) -> None:
+    def _show_twin(self, t: TwinPreview) -> None:
         self._set_image(self.synth_label, self.model.twin_image(t))
         self._set_image(self.diff_label, delta_e_colours(t.delta_e_map))
         shown = "denoised" if self.model.show_denoised and t.clean is not None else "raw"
         scale = "" if t.scale == 1 else " at ½ resolution" if t.scale == 0.5 else f" at {t.scale:g}x"
-        self.twin_info.setText(f"twin, {review.light_name(t.light)}: {t.spp} spp{scale}, {shown}; "
+        self.twin_info.setText(f"twin, {light_name(t.light)}: {t.spp} spp{scale}, {shown}; "
                                f"map mean ΔE {float(t.delta_e_map.mean()):.2f}")
         stage = "encoder's estimate" if t.stage == Stage.ENCODER else "refined estimate"
         self.match_label.setText(f"real vs synthetic: mean-colour ΔE2000 {t.delta_e:.2f} ({stage})")
         self.chip.setText("hair")
-        self.chip.setStyleSheet(chip_style(review.hair_colour_rgb8(t.hair_linear)))
+        self.chip.setStyleSheet(chip_style(hair_colour_rgb8(t.hair_linear)))
         self.preview_ready.emit(t.delta_e)
 
-    def _show_hairstyle(self, p: review.HairstylePass) -> None:
+    def _show_hairstyle(self, p: HairstylePass) -> None:
         self._set_image(self.style_label, self.model.hairstyle_image(p))
         self.render_progress.setRange(0, p.passes)
         self.render_progress.setValue(p.index)
@@ -453,11 +462,11 @@ class MainWindow(QMainWindow):
         if p.final:
             self.hairstyle_done.emit()
 
-    def _show_strands(self, s: review.StrandPreview) -> None:
+    def _show_strands(self, s: StrandPreview) -> None:
         if self.strand_view is not None:
             self.strand_view.show_strands(s.strands, s.colour_rgb8, scalp_linear=s.scalp_linear)
 
-    def _show_frame_check(self, check: review.FrameCheck) -> None:
+    def _show_frame_check(self, check: FrameCheck) -> None:
         reports = check.exposure
         worst = next((r for r in reports if r.status is not ExposureStatus.OK), reports[0])
         self.exposure_label.setText("exposure: " + "; ".join(r.message for r in reports))
@@ -470,7 +479,7 @@ class MainWindow(QMainWindow):
                                                   Qt.TransformationMode.SmoothTransformation))
 
     # -- tasks -------------------------------------------------------------------------------
-    def run_task(self, work: review.Work, on_done=None, on_progress=None) -> Task:
+    def run_task(self, work: Work, on_done=None, on_progress=None) -> Task:
         """Run the model's ``work`` in a worker; what it yields and returns goes to the model by default,
         and its ``ended`` runs here on the UI thread when it is over."""
         task = Task(work.run, work.name)
@@ -483,7 +492,7 @@ class MainWindow(QMainWindow):
         self.tasks.append(task)
         return start(task, POOL)
 
-    def run_job(self, name: str, work: review.Work | None) -> Task | None:
+    def run_job(self, name: str, work: Work | None) -> Task | None:
         """Run the model's ``work`` as the one job called ``name``; the previous one is cancelled."""
         old = self.jobs.pop(name, None)
         if old is not None:
@@ -513,7 +522,7 @@ class MainWindow(QMainWindow):
     def refresh_lights(self) -> Task:
         return self.run_task(self.model.lights_work())
 
-    def _show_lights(self, lights: review.Lights) -> None:
+    def _show_lights(self, lights: Lights) -> None:
         for b, on in zip(self.light_buttons, lights.on):
             b.setChecked(on)
         self.link_label.setText(f"light board: {lights.identity} on {lights.port} — linked")
@@ -536,9 +545,9 @@ class MainWindow(QMainWindow):
         task.signals.finished.connect(lambda: self.calibrate_button.setEnabled(True))
         return task
 
-    def _on_calibrated(self, profile) -> None:
+    def _on_calibrated(self, calibrated: Calibrated) -> None:
         self.refresh_calibration()
-        self.calibrated.emit(profile)
+        self.calibrated.emit(calibrated.profile)
 
     # -- capture and previews ----------------------------------------------------------------
     def capture(self) -> Task:
@@ -547,7 +556,7 @@ class MainWindow(QMainWindow):
         for name in ("twin", "hairstyle"):        # stale renders stop now (the model's generation moved too)
             self.run_job(name, None)
 
-        def done(captured: review.Captured) -> None:
+        def done(captured: Captured) -> None:
             self.model.apply(captured)
             self.captured.emit(captured.result)
         task = self.run_task(self.model.capture_work(), done)
@@ -574,7 +583,7 @@ class MainWindow(QMainWindow):
     def import_still(self, path: str | Path) -> Task:
         """A RAW still of the rig as a capture: copied into the session first, calibrated on the chart
         in the still, estimated, then shown like a live capture."""
-        def done(captured: review.Captured) -> None:
+        def done(captured: Captured) -> None:
             self.model.apply(captured)
             self.captured.emit(captured.result)
         return self.run_task(self.model.import_still_work(path), done)
@@ -598,7 +607,7 @@ class MainWindow(QMainWindow):
         if path:
             self.open_hair_model(path)
 
-    def _on_hair_model(self, hair: review.HairModel) -> None:
+    def _on_hair_model(self, hair: HairModel) -> None:
         """The opened model joins the style list, selected (a built-in style there closes it)."""
         label = hair.path.name
         self.hair_models[label] = hair.path

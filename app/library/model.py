@@ -19,10 +19,10 @@ from typing import Iterator
 import numpy as np
 
 from hairdigi.app.library import view
-from hairdigi.app.review.events import EventGroup
+from hairdigi.app.review.events import EventGroup, Status
 from hairdigi.app.library.store import Library, Swatch, redact
-from hairdigi.app.review.panel_model import PanelModel, Status
-from hairdigi.app.review.model import Work
+from hairdigi.app.review.panel_model import PanelModel
+from hairdigi.app.review.work import Work
 from hairdigi.app.library.swatch_colour import ILLUMINANTS, hex_lab
 
 __all__ = ["LibraryModel", "Query", "Rows", "Selection", "SwatchImage", "Imported", "Exported", "Events",
@@ -31,17 +31,6 @@ __all__ = ["LibraryModel", "Query", "Rows", "Selection", "SwatchImage", "Importe
 ORDERS = ("captured", "colour")   # newest first; by colour (lightness under daylight, light to dark)
 MAX_ROWS = 500    # rows a query returns; search or find near a colour to reach the rest
 NEAR_K = 200      # the nearest swatches a colour search returns
-
-
-class Events(EventGroup):
-    """The model's events; each carries the new value of the state it names."""
-
-    NAMES = ("rows",       # Rows: what the last query found (a newer query's, never an older one's)
-             "selection",  # Selection: the chosen swatches (up to two) and their comparison
-             "image",      # SwatchImage: a swatch's captured image, read off the model's thread
-             "changed",    # int: swatches were imported: query again
-             "exported",   # Exported: files written
-             "status")     # str: one line (the library and what it shows, or what went wrong)
 
 
 @dataclass(frozen=True)
@@ -92,6 +81,17 @@ class Imported:
 @dataclass(frozen=True)
 class Exported:
     paths: tuple[Path, ...]
+
+
+class Events(EventGroup):
+    """The model's events; each carries the new value of the state it names."""
+
+    EVENTS = {"rows": Rows,               # what the last query found (a newer query's, never an older one's)
+              "selection": Selection,     # the chosen swatches (up to two) and their comparison
+              "image": SwatchImage,       # a swatch's captured image, read off the model's thread
+              "changed": int,             # swatches were imported (how many): query again
+              "exported": Exported,       # files written
+              "status": str}              # one line (the library and what it shows, or what went wrong)
 
 
 def run_query(library: Library, query: Query) -> tuple[list[Swatch], dict[str, float]]:

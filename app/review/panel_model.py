@@ -1,9 +1,9 @@
 """What the Dye and Library panels' models share, free of Qt: events, one owner thread, and generations.
 
-A panel's model holds its state and hands out its slow work as :class:`hairdigi.app.review.model.Work` (a
+A panel's model holds its state and hands out its slow work as :class:`hairdigi.app.review.work.Work` (a
 generator function: its yields are progress, its return the result). A worker runs the work and hands
 each value to :meth:`PanelModel.apply` on the model's thread, the only thread that changes the
-model's state; :func:`hairdigi.app.review.model.run_now` does the same in the calling thread (tests,
+model's state; :func:`hairdigi.app.review.work.run_now` does the same in the calling thread (tests,
 headless use). Each kind of work has a generation: asking again bumps it, so the older work stops at
 its next pass and whatever it still hands back is dropped (a stale result never overwrites a newer one).
 """
@@ -11,19 +11,10 @@ from __future__ import annotations
 
 import threading
 from collections import defaultdict
-from dataclasses import dataclass
 from typing import Callable
 
-from hairdigi.app.review.events import EventGroup
-
-Cancelled = Callable[[], bool]
-
-
-@dataclass(frozen=True)
-class Status:
-    """One line for the panel's status: what a work is doing, or why it could not (the user's to fix)."""
-
-    text: str
+from hairdigi.app.review.events import EventGroup, Status
+from hairdigi.app.review.work import Cancelled
 
 
 class PanelModel:
