@@ -9,7 +9,6 @@ path-traced image, and ``nonfinite`` counts the NaN or Inf values the path trace
 from __future__ import annotations
 
 import dataclasses
-import enum
 import itertools
 from dataclasses import dataclass
 from typing import Callable, Iterator
@@ -24,11 +23,12 @@ from hairdigi.render.domain.rig_geometry import CameraPose
 from hairdigi.render.metrics import delta_e_map, mean_colour_delta_e
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
+from hairdigi.render.domain.text_enum import TextEnum
 
 Cancelled = Callable[[], bool]
 
 
-class Stage(str, enum.Enum):
+class Stage(TextEnum):
     """Where the shown parameters come from."""
 
     ENCODER = "encoder"      # the encoder's first look, before refinement

@@ -17,7 +17,6 @@ numpy and the standard library only: ``hardware``, ``inference`` and ``app`` all
 """
 from __future__ import annotations
 
-import enum
 import hashlib
 import json
 import os
@@ -31,6 +30,7 @@ from hairdigi.render.domain.files import MAX_JSON_BYTES, read_json, sha256_file,
 from hairdigi.render.domain.params import HairParams, HairParamsError
 from hairdigi.render.domain.record_fields import RecordError, check_sigma_a, floats, need, real
 from hairdigi.render.domain.session_folder import SessionFolder
+from hairdigi.render.domain.text_enum import TextEnum
 
 #: The layout written today. 1: hairdigi 0.1.0's dicts (no ``schema_version``); 2: the typed records.
 SCHEMA_VERSION = 2
@@ -49,7 +49,7 @@ def _version(data: dict, what: str) -> int:
 
 
 # --- warnings ----------------------------------------------------------------------------------
-class WarningKind(str, enum.Enum):
+class WarningKind(TextEnum):
     """What a warning is about. Kinds in :data:`UNRELIABLE` make an estimate unreliable."""
 
     OUT_OF_DOMAIN = "out_of_domain"          # not a swatch the encoder knows
@@ -168,6 +168,13 @@ def _legacy_id(data: dict) -> str:
 
 
 # --- capture -------------------------------------------------------------------------------------
+class CaptureSource(TextEnum):
+    """How a capture was taken: a frame of the bench camera's feed, or a RAW still imported."""
+
+    LIVE = "live"
+    RAW_STILL = "raw still"
+
+
 @dataclass(frozen=True)
 class CaptureRecord:
     """What the rig wrote beside a capture's image, before anything processed it."""
@@ -181,13 +188,16 @@ class CaptureRecord:
     calibration: CalibrationProfile | None = None   # the profile it is corrected with (live or still)
     simulated: bool = False
     swatch_roi: tuple[int, int, int, int] | None = None
-    source: str = "live"                        # "live" or "raw still"
+    source: CaptureSource = CaptureSource.LIVE
     original: str | None = None                 # a still's original file name
     light_images: tuple[str, ...] = ()          # one frame per light alone, when the capture took them
     light_exposures: tuple[float, ...] = ()     # each light frame's exposure over the all-lights frame's
     schema_version: int = SCHEMA_VERSION
 
     KIND = "capture"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "source", CaptureSource(self.source))   # given as its text too
 
     @property
     def calibration_id(self) -> str | None:
@@ -220,7 +230,7 @@ class CaptureRecord:
                    calibration=None if profile is None else CalibrationProfile.from_json(profile),
                    simulated=bool(data.get("simulated", False)),
                    swatch_roi=None if roi is None else _roi(roi, what),
-                   source=need(data, "source", str, what, "live", required=False),
+                   source=_source(need(data, "source", str, what, "live", required=False), what),
                    original=need(data, "original", str, what, None, required=False),
                    light_images=tuple(str(n) for n in need(data, "light_images", list, what, [], required=False)),
                    light_exposures=floats(data.get("light_exposures") or [], None, "light_exposures", what))
@@ -228,6 +238,12 @@ class CaptureRecord:
 
 def _bad(what: str, key: str, value):
     raise RecordError(f"the {what}'s {key!r} is {value!r}, not a list")
+
+
+def _source(value: str, what: str) -> CaptureSource:
+    if value not in CaptureSource.names():
+        raise RecordError(f"the {what}'s 'source' is {value!r}, not one of {', '.join(CaptureSource.names())}")
+    return CaptureSource(value)
 
 
 def _roi(value, what: str) -> tuple[int, int, int, int]:

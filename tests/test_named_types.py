@@ -1,4 +1,5 @@
-"""Scene kinds, environments, framings and swatch models are enums inside and their text at the edges."""
+"""Names that carry meaning (scene kinds, environments, framings, swatch models, structure modes, capture
+sources) are enums inside and their text at the edges."""
 from __future__ import annotations
 
 import json
@@ -9,6 +10,8 @@ import pytest
 
 from hairdigi.render.domain.bounds import (STRUCTURE_MODES, BoundsError, Environment, SceneKind, StructureMode,
                                            SwatchModel, check_camera, defaults_for)
+from hairdigi.render.domain.record_fields import RecordError
+from hairdigi.render.domain.records import CaptureRecord, CaptureSource
 from hairdigi.render.domain.rig_geometry import CameraPose, Framing
 from hairdigi.render.renderer import SceneError, SceneSpec, strands_for
 from hairdigi.render.strands import hairstyle_strands, swatch_strands
@@ -22,6 +25,15 @@ def test_an_enum_is_its_text_in_json_messages_and_lookups() -> None:
     assert Environment.names() == ("studio", "soft", "key-sky")
     # the command line's choices stay the text they were
     assert STRUCTURE_MODES == ("assumed", "family", "read") and StructureMode("read") is StructureMode.READ
+
+
+def test_a_capture_records_its_source_as_a_type_and_writes_its_text(tmp_path) -> None:
+    capture = CaptureRecord("c1", "c1.png", "0" * 64, "2026-01-01T00:00:00+0000", source="raw still")
+    assert capture.source is CaptureSource.RAW_STILL and capture.to_json()["source"] == "raw still"
+    assert CaptureRecord.from_json(capture.to_json()) == capture
+    assert CaptureRecord("c2", "c2.png", "0" * 64, "").source is CaptureSource.LIVE
+    with pytest.raises(RecordError, match="'source' is 'scanner', not one of live, raw still"):
+        CaptureRecord.from_json({**capture.to_json(), "source": "scanner"})
 
 
 def test_a_scene_name_is_parsed_once_into_its_kind() -> None:
