@@ -5,7 +5,8 @@ import pytest
 
 from hairdigi.render.domain.appearance import Appearance, AppearanceError, AppearanceEstimate
 from hairdigi.render.domain.params import HairParams
-from hairdigi.render.domain.records import EstimateRecord, RecordError, WarningKind
+from hairdigi.render.domain.record_fields import RecordError
+from hairdigi.render.domain.records import EstimateRecord, WarningKind
 from hairdigi.render.fibres import FIBRE_GROUPS, group_sigma_a, group_z, split_strands
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.strands import swatch_strands

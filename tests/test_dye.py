@@ -17,8 +17,10 @@ from hairdigi.inference.levels import EVALUATION_LEVELS, LEVELS, natural_base
 from hairdigi.inference.refine import fibre_appearance
 from hairdigi.render.domain.absorption import dye_sigma_a, hair_sigma_a
 from hairdigi.render.domain.dye_record import DyeRecord
+from hairdigi.render.domain.estimate_parts import Provenance
 from hairdigi.render.domain.params import load_params
-from hairdigi.render.domain.records import EstimateRecord, RecordError, RefinementRecord, read_record, write_record
+from hairdigi.render.domain.record_fields import RecordError
+from hairdigi.render.domain.records import EstimateRecord, RefinementRecord, read_record, write_record
 
 DEPOSIT = dye_sigma_a((190.0, 70.0, 40.0), 0.55)   # a copper dye's absorption
 LIFT = 0.35
@@ -31,7 +33,7 @@ def curve():
 
 def _record(sigma, level: int, calibration: str | None = None) -> EstimateRecord:
     """An estimate record whose refinement found ``sigma`` (the Table 1 hair: the natural level's)."""
-    provenance = {"calibration": {"id": calibration}} if calibration else {}
+    provenance = Provenance(calibration={"id": calibration} if calibration else None)
     return EstimateRecord(hair=natural_base(level), refinement=RefinementRecord(ran=True, sigma_a=tuple(map(float, sigma))),
                           provenance=provenance)
 

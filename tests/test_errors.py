@@ -118,7 +118,7 @@ BUILTIN_BASES = {
     "render.hairfile.HairFileError": ValueError, "render.blender_run.BlenderError": RuntimeError,
     "render.denoise.DenoiserMissing": RuntimeError, "render.spectra.SpectrumError": ValueError,
     "render.variant.VariantError": RuntimeError, "render.domain.params.HairParamsError": ValueError,
-    "render.domain.records.RecordError": ValueError, "render.domain.appearance.AppearanceError": ValueError,
+    "render.domain.record_fields.RecordError": ValueError, "render.domain.appearance.AppearanceError": ValueError,
 }
 
 
@@ -132,7 +132,7 @@ def test_each_error_keeps_its_builtin_base(name):
 # --- (c) the user's errors stay one line and exit status 2 -----------------------------------
 def test_a_hairdigi_error_or_a_full_disk_in_a_command_is_one_line(record, tmp_path, monkeypatch, capsys):
     from hairdigi.app.cli import export as export_cli
-    from hairdigi.render.domain.records import RecordError
+    from hairdigi.render.domain.record_fields import RecordError
 
     args = ["export", str(record), "--format", "materialx", "--out", str(tmp_path / "look.mtlx")]
 

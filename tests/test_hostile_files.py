@@ -135,7 +135,8 @@ def test_device_files_are_refused_before_a_byte_is_read(ws, capsys, args):
 def test_device_file_as_a_dye_target_or_record_is_refused(ws, capsys):
     from hairdigi.inference.dye import DyeError, target_colour
     from hairdigi.render.domain.files import read_json
-    from hairdigi.render.domain.records import RecordError, read_record, record_sha256
+    from hairdigi.render.domain.record_fields import RecordError
+    from hairdigi.render.domain.records import read_record, record_sha256
 
     with pytest.raises(DyeError, match="not a regular file"):
         target_colour("/dev/zero", curve=object())
@@ -310,7 +311,8 @@ def test_impossible_absorption_is_refused_everywhere(ws, capsys, sigma):
     one_line(main(["library", "import", "bad.json"]), capsys, "outside 0 to")
     (ws / "dye.json").write_text(json.dumps(dye_record_json(deposit=(1e300, 0.1, 0.1))))
     from hairdigi.render.domain.dye_record import DyeRecord
-    from hairdigi.render.domain.records import RecordError, read_record
+    from hairdigi.render.domain.record_fields import RecordError
+    from hairdigi.render.domain.records import read_record
 
     with pytest.raises(RecordError, match="outside 0 to"):
         read_record(ws / "dye.json", DyeRecord)
@@ -319,7 +321,7 @@ def test_impossible_absorption_is_refused_everywhere(ws, capsys, sigma):
 
 def test_inverted_intervals_are_refused(ws):
     from hairdigi.render.domain.dye_record import DyeRecord
-    from hairdigi.render.domain.records import RecordError
+    from hairdigi.render.domain.record_fields import RecordError
 
     data = estimate_record().to_json()
     data["uncertainty"] = {"parameters": {"melanin_ratio": {"value": 0.4, "low": 0.6, "high": 0.2}}}

@@ -91,7 +91,8 @@ def test_a_record_is_widened_by_metamerism_unless_its_rig_declares_its_camera():
 
 
 def test_a_spectral_reading_survives_its_file_and_a_damaged_one_is_named():
-    from hairdigi.render.domain.records import RecordError, SpectralReading
+    from hairdigi.render.domain.record_fields import RecordError
+    from hairdigi.render.domain.records import SpectralReading
 
     reading = SpectralReading(HairParams((200, 40, 40), 0.8, 0.2, 0.4), "LED-B4", "nikon-5100", 0.013,
                               {"D65": (36.6, 7.7, 21.7), "A": (37.5, 9.9, 22.4)}, 1.9)
