@@ -159,6 +159,7 @@ def calibrate(image: np.ndarray, method: str = DEFAULT_METHOD, degree: int = 1,
                         "patch_shift_max": float(shift.max())},
         "targets": source, "chart_box": detection.box.tolist(), "detection_cost": detection.cost,
         "time": time.time(), "time_iso": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "settings": settings or {},
+        "patches": np.asarray(measured, float).round(7).tolist(),
     }
     data["id"] = hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:12]
     return CalibrationProfile.from_json(data)
@@ -172,14 +173,18 @@ def apply_profile(image: np.ndarray, profile: CalibrationProfile) -> np.ndarray:
     """Colour-correct an image (8-bit sRGB, or linear float) with a profile: linear float32 RGB out.
 
     The result stays linear and unquantised all the way to the estimate: hair is dark (linear
-    0.02-0.2), where 8-bit sRGB codes are coarse (in row chunks, to bound memory).
+    0.02-0.2), where 8-bit sRGB codes are coarse (in row chunks, to bound memory). It is **not clipped
+    at 0**: a camera whose bands overlap has a CCM with large negative coefficients (the Sigma SD
+    Merrill's reach -7), which turns a dark pixel's noise into negative values; clipping them biased a
+    dark swatch's mean up by 20-45% in blue (``hairdigi evaluate --spectral``). Means are taken on the
+    unclipped values; what shows or encodes an image clips there.
     """
     ccm = np.asarray(profile.matrix)
     out = np.empty(image.shape, np.float32)
     rows = max(1, APPLY_CHUNK_PIXELS // max(1, image.shape[1]))
     for y in range(0, image.shape[0], rows):
         out[y:y + rows] = correct_linear(to_linear(image[y:y + rows]), ccm, profile.method, profile.degree)
-    return np.clip(out, 0.0, None)
+    return out
 
 
 def correction_warnings(profile: CalibrationProfile, raw_linear: np.ndarray, corrected_linear: np.ndarray,

@@ -56,14 +56,19 @@ def spectral_answer(rgb_answer: HairParams, target_linear: np.ndarray, curve) ->
 
 
 def camera_answer(rgb_answer: HairParams, target_linear: np.ndarray, curve, ccm: np.ndarray, led: str,
-                  sensitivities: str, chart_targets: np.ndarray) -> tuple[HairParams, float]:
+                  sensitivities: str, chart_targets: np.ndarray,
+                  patches: np.ndarray | None = None) -> tuple[HairParams, float]:
     """The Table 1 hair nearest ``rgb_answer`` read in the camera's own RGB, where the rig's LEDs and the
     camera's sensitivities are known: its raw RGB under the LEDs (the curve read per wavelength), through
     the chart's linear correction ``ccm`` (a 3 x 3, as ``colour.apply_matrix_colour_correction`` applies
     it), matches the corrected capture ``target_linear``. So no colour-correction matrix stands between the
     hair and its model: the chart fixes exposure and white balance only. The camera's channel gains come
     from the chart's neutral patches (their measured spectra, ``render.chart``), seen through the same
-    correction. Returns the hair and its residual (CIELAB ΔE76 in the corrected space)."""
+    correction, or better, where the profile kept them, from what the camera measured of those patches
+    (``patches``, the chart's linear patch means before correction): the correction is fitted over all
+    24 patches and misses a neutral by up to 5-18% in one channel through the Sigma SD Merrill, where a
+    gain 0.7% off moves the answer 2.7 ΔE2000. Returns the hair and its residual (CIELAB ΔE76 in the
+    corrected space)."""
     from hairdigi.render.chart import colorchecker_spectra
     from hairdigi.render.spectra import rgb_projection, swatch_colour
 
@@ -72,7 +77,8 @@ def camera_answer(rgb_answer: HairParams, target_linear: np.ndarray, curve, ccm:
         raise ValueError(f"a camera answer needs a linear 3 x 3 correction, got a {ccm.shape} matrix")
     spectra = colorchecker_spectra()[list(NEUTRALS)]
     targets = np.asarray(chart_targets, float)[list(NEUTRALS)]
-    raw_measured = np.linalg.solve(ccm, targets.T).T                       # what the camera read
+    raw_measured = (np.linalg.solve(ccm, targets.T).T if patches is None     # what the camera read
+                    else np.asarray(patches, float)[list(NEUTRALS)])
     irradiance = (targets / rgb_projection(spectra)).mean(1, keepdims=True)
     raw_model = irradiance * swatch_colour(spectra, led, sensitivities)
     gains = np.median(raw_measured / raw_model, axis=0)
@@ -89,13 +95,15 @@ class RigSpectra:
     sensitivities: str | None = None
 
 
-def spectral_record(record, spectra: RigSpectra | None, ccm, curve=None, table: dict | None = None):
+def spectral_record(record, spectra: RigSpectra | None, ccm, curve=None, table: dict | None = None,
+                    patches=None):
     """``record`` (an ``EstimateRecord``) in the spectral world: with the rig's ``spectra`` declared and a
     linear chart correction ``ccm``, its :class:`SpectralReading` and that camera's colour interval; with
     none declared, its colour interval widened by the metamerism an undeclared camera leaves. ``curve``:
     the response curve the record's refinement inverted (the capture's region, at its appearance), so
     that the colour read and its model agree; default, the rig's swatch crop's. A camera whose bands
-    overlap (the Sigma's CCM has coefficients to 7.5) amplifies any disagreement between the two."""
+    overlap (the Sigma's CCM has coefficients to 7.5) amplifies any disagreement between the two.
+    ``patches``: the profile's measured chart patches (``CalibrationProfile.patches``), for the gains."""
     table = load_table(SPECTRAL_TABLE) if table is None else table
     if record.hair is None:
         return record
@@ -111,20 +119,20 @@ def spectral_record(record, spectra: RigSpectra | None, ccm, curve=None, table: 
         sigma = np.asarray(record.sigma_a, float)
         measured = curve(sigma)
     reading = read_spectral(record.hair, np.asarray(measured, float), curve, np.asarray(ccm, float), spectra.led,
-                            spectra.sensitivities, rig_chart_targets()[0])
+                            spectra.sensitivities, rig_chart_targets()[0], patches)
     return replace(record, spectral=reading,
                    uncertainty=with_spectral(record.uncertainty, table, reading.camera))
 
 
 def read_spectral(rgb_answer: HairParams, target_linear: np.ndarray, curve, ccm: np.ndarray, led: str,
-                  sensitivities: str | None, chart_targets: np.ndarray) -> SpectralReading:
+                  sensitivities: str | None, chart_targets: np.ndarray, patches=None) -> SpectralReading:
     """The record's spectral reading: :func:`camera_answer` (the CIE observer where ``sensitivities`` is
     None) and its colour under each of ``UNDER``, as an observer adapted to that light sees it."""
     from hairdigi.render.metrics import linear_rgb_to_lab
     from hairdigi.render.spectra import balanced
 
     start = time.perf_counter()
-    hair, residual = camera_answer(rgb_answer, target_linear, curve, ccm, led, sensitivities, chart_targets)
+    hair, residual = camera_answer(rgb_answer, target_linear, curve, ccm, led, sensitivities, chart_targets, patches)
     under = {light: tuple(float(v) for v in linear_rgb_to_lab(np.maximum(
         balanced(colour_under(curve, hair, light), light), 1e-9))) for light in UNDER}
     return SpectralReading(hair, led=spectrum_name(led), camera=spectrum_name(sensitivities), residual=residual,

@@ -361,7 +361,8 @@ class RigSession:
         from hairdigi.inference.spectral import spectral_record
 
         profile = profile or self.profile
-        return spectral_record(record, self.spectra, None if profile is None else profile.matrix, curve)
+        return spectral_record(record, self.spectra, None if profile is None else profile.matrix, curve,
+                               patches=None if profile is None else profile.patches)
 
     def load_capture(self, capture_id: str) -> "LoadedCapture":
         """A saved capture with what reviewing it needs: the frame, its swatch area, its result record,

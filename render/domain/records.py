@@ -121,6 +121,7 @@ class CalibrationProfile:
     detection_cost: float | None = None
     time_iso: str = ""
     schema_version: int = SCHEMA_VERSION
+    patches: tuple | None = None      # (24, 3) the chart's measured linear patch means, before correction
 
     KIND = "calibration"
 
@@ -134,7 +135,8 @@ class CalibrationProfile:
                 "degree": self.degree, "matrix": [list(r) for r in self.matrix], "time": self.time,
                 "time_iso": self.time_iso, "delta_e2000": self.delta_e2000, "targets": self.targets,
                 "settings": self.settings, "chart_box": None if self.chart_box is None else [list(c) for c in self.chart_box],
-                "detection_cost": self.detection_cost}
+                "detection_cost": self.detection_cost,
+                "patches": None if self.patches is None else [list(p) for p in self.patches]}
 
     @classmethod
     def from_json(cls, data) -> "CalibrationProfile":
@@ -153,6 +155,10 @@ class CalibrationProfile:
             raise RecordError(f"the {what}'s 'time' is {time_!r}, not a time in seconds since 1970")
         box = data.get("chart_box")
         cost = data.get("detection_cost")
+        patches = data.get("patches")
+        if patches is not None and not (isinstance(patches, list) and len(patches) == 24):
+            raise RecordError(f"the {what}'s 'patches' is not the chart's 24 measured patches "
+                              f"(calibrate again to record them)")
         return cls(id=need(data, "id", str, what, "", required=False) or _legacy_id(data),
                    method=need(data, "method", str, what), matrix=rows, time=time_, degree=degree,
                    delta_e2000=need(data, "delta_e2000", dict, what, {}, required=False),
@@ -160,7 +166,8 @@ class CalibrationProfile:
                    settings=need(data, "settings", dict, what, {}, required=False),
                    chart_box=None if box is None else tuple(floats(c, 2, "chart_box", what) for c in box),
                    detection_cost=float(cost) if real(cost) else None,
-                   time_iso=need(data, "time_iso", str, what, "", required=False))
+                   time_iso=need(data, "time_iso", str, what, "", required=False),
+                   patches=None if patches is None else tuple(floats(p, 3, "patches", what) for p in patches))
 
 
 def _legacy_id(data: dict) -> str:
