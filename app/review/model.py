@@ -43,7 +43,7 @@ from hairdigi.app.review.thumbnails import thumbnail_work
 from hairdigi.app.review.work import Cancelled, Work, returns
 from hairdigi.app.session import rig_session as rs
 from hairdigi.render import denoise as dn
-from hairdigi.render.domain.bounds import ILLUMINANTS, SceneKind
+from hairdigi.render.domain.bounds import ENVIRONMENTS, HAIRSTYLES, ILLUMINANTS, SceneKind
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import EstimateWarning
@@ -68,9 +68,6 @@ class ReviewModel:
     """The review state of one rig session, and the work that updates it (see the module's note)."""
 
     def __init__(self, session: rs.RigSession, settings: PreviewSettings | None = None) -> None:
-        from hairdigi.render.scenes import ENVIRONMENTS
-        from hairdigi.render.strands import HAIRSTYLES
-
         self.session = session
         self.settings = settings or PreviewSettings()
         self.events = Events()
