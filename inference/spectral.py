@@ -26,7 +26,7 @@ import numpy as np
 
 from hairdigi.render.domain.estimate_parts import SpectralInterval, Uncertainty
 from hairdigi.render.domain.params import HairParams
-from hairdigi.render.domain.records import SpectralReading
+from hairdigi.render.domain.records import EstimateWarning, SpectralReading, WarningKind
 from hairdigi.inference.uncertainty import load_table, widen_colour
 from hairdigi.resources import MODELS
 
@@ -95,6 +95,13 @@ class RigSpectra:
     sensitivities: str | None = None
 
 
+#: A declared rig's record whose chart correction cannot carry the camera answer.
+NOT_LINEAR = ("spectral: the camera answer needs a linear 3x3 chart correction, and this calibration's has more "
+              "terms (a root-polynomial of degree 2 or more, or a Vandermonde), so the colour is read as an undeclared "
+              "camera's, its interval widened for metamerism; recalibrate at degree 1 (the rig's calibration, "
+              "Finlayson 2015 at degree 1: hairdigi rig, or Calibrate in hairdigi app)")
+
+
 def spectral_record(record, spectra: RigSpectra | None, ccm, curve=None, table: dict | None = None,
                     patches=None):
     """``record`` (an ``EstimateRecord``) in the spectral world: with the rig's ``spectra`` declared and a
@@ -103,12 +110,17 @@ def spectral_record(record, spectra: RigSpectra | None, ccm, curve=None, table: 
     the response curve the record's refinement inverted (the capture's region, at its appearance), so
     that the colour read and its model agree; default, the rig's swatch crop's. A camera whose bands
     overlap (the Sigma's CCM has coefficients to 7.5) amplifies any disagreement between the two.
-    ``patches``: the profile's measured chart patches (``CalibrationProfile.patches``), for the gains."""
+    ``patches``: the profile's measured chart patches (``CalibrationProfile.patches``), for the gains.
+    A declared rig whose chart correction is not 3 x 3 (a root-polynomial of a higher degree, a
+    Vandermonde) is read as an undeclared one, and its record says so in a warning."""
     table = load_table(SPECTRAL_TABLE) if table is None else table
     if record.hair is None:
         return record
     if spectra is None or ccm is None or np.shape(ccm) != (3, 3):
-        return replace(record, uncertainty=with_spectral(record.uncertainty, table, "unknown"))
+        unknown = replace(record, uncertainty=with_spectral(record.uncertainty, table, "unknown"))
+        if spectra is None or ccm is None:
+            return unknown
+        return replace(unknown, warnings=(*record.warnings, EstimateWarning(WarningKind.OTHER, NOT_LINEAR)))
     from hairdigi.inference.refine import RefineSettings, response_curve
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.chart import rig_chart_targets

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import argparse
 
+from hairdigi.app.cli.arguments import add_spectra_arguments
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser("app", help="the desktop app")
@@ -10,6 +12,7 @@ def add_parser(sub) -> None:
     p.add_argument("--genicam", nargs="?", const="", metavar="ID", help="a GenICam camera (as rig --genicam)")
     p.add_argument("--session", default=None, help="session folder (default: from the settings)")
     p.add_argument("--tour", help="calibrate and capture once, time it, save a screenshot in this folder, quit")
+    add_spectra_arguments(p)   # a real rig's --led and --sensor are remembered in the settings
     p.set_defaults(func=run)
 
 
@@ -17,4 +20,5 @@ def run(args: argparse.Namespace) -> int:
     from hairdigi.app.gui.main import run_app
 
     camera = None if args.genicam is None else f"genicam:{args.genicam}"
-    return run_app(sim=args.sim, session=args.session, tour=args.tour, camera=camera)
+    return run_app(sim=args.sim, session=args.session, tour=args.tour, camera=camera, spectral=args.spectral,
+                   led=args.led, sensor=args.sensor)

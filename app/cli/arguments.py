@@ -1,4 +1,4 @@
-"""What several commands' arguments share: the numbers' argparse types and ``--variant``."""
+"""What several commands' arguments share: the numbers' argparse types, ``--variant`` and a rig's spectra."""
 from __future__ import annotations
 
 from hairdigi.app.cli import validation as v
@@ -16,3 +16,19 @@ def use_variant(name: str | None) -> str:
     from hairdigi.render.variant import select_variant
 
     return select_variant(name)
+
+
+def add_spectra_arguments(p) -> None:
+    """``--spectral``, ``--led`` and ``--sensor``: a rig's declared spectra (``rig`` and ``app``)."""
+    p.add_argument("--spectral", action="store_true", help="with --sim: a spectral rig: white LEDs of an SPD "
+                   "(--led), the ColorChecker's measured spectra, spectral hair, seen through a camera's "
+                   "sensitivities (--sensor)")
+    p.add_argument("--led", type=v.illuminant, default=None, help="the rig's LEDs, a named light or a CSV of "
+                   "wavelength (nm), power: with --sim --spectral, the simulated LEDs (default LED-B4, a 5109 K "
+                   "phosphor LED); on a real rig, with --sensor, its declared LEDs (each record then carries the "
+                   "estimate read in the camera's RGB and its colour under daylight, tungsten and a shop LED)")
+    p.add_argument("--sensor", type=v.camera_sensitivities, default=None, help="the camera's sensitivities: "
+                   "nikon-5100, sigma-sdmerill, cie (the CIE observer, an ideal camera), or a CSV of wavelength (nm), "
+                   "r, g, b: with --sim --spectral, the simulated camera (default nikon-5100); on a real rig, with "
+                   "--led, its declared camera")
+

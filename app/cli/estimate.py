@@ -30,6 +30,14 @@ def add_parser(sub) -> None:
     p.add_argument("--lights-ev", type=v.float_in(-10.0, 10.0), default=None, metavar="EV",
                    help="the --lights frames' exposure over IMAGE's, in stops (default: the rig's capture record "
                    "beside IMAGE, else the same exposure)")
+    p.add_argument("--led", type=v.illuminant, default=None, help="with --sensor and --calibration: the light the "
+                   "photo was taken under, a named light or a CSV of wavelength (nm), power; the record then carries the "
+                   "estimate read in the camera's RGB and its colour under daylight, tungsten and a shop LED (as a "
+                   "declared rig's). Without them, a calibrated photo's colour interval is widened for the "
+                   "metamerism an undeclared camera leaves")
+    p.add_argument("--sensor", type=v.camera_sensitivities, default=None, help="with --led: the camera's "
+                   "sensitivities: nikon-5100, sigma-sdmerill, cie (the CIE observer), or a CSV of wavelength (nm), "
+                   "r, g, b")
     p.set_defaults(func=run)
 
 
@@ -51,6 +59,8 @@ def run(args: argparse.Namespace) -> int:
                                         refine_colour=not args.no_refine, rig_view=False if args.camera else None,
                                         light_paths=lights, light_exposures=exposures,
                                         structure=args.structure)
+    if args.calibration:    # the spectral world: the declared camera's reading, or an undeclared camera's metamerism
+        record = in_spectral_world(record, estimate, args.calibration, args.led, args.sensor)
     write_record(args.out, record)
     p = estimate.params
     refined = estimate.refinement
@@ -58,11 +68,12 @@ def run(args: argparse.Namespace) -> int:
            else "encoder alone")
     print(f"dye rgb {tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
           f"{p.melanin_concentration:.2f} (ratio {p.melanin_ratio:.2f}); {how}; wrote {args.out}")
-    if record.appearance is not None:
-        from hairdigi.app.cli.rig import appearance_lines
+    from hairdigi.app.cli.rig import appearance_lines, say_spectral
 
+    if record.appearance is not None:
         print("appearance: " + "; ".join(appearance_lines(record.appearance)))
-    for warning in estimate.warnings:
+    say_spectral(record)
+    for warning in record.warnings:
         print(f"warning: {warning.message}", file=sys.stderr)
     if args.render:
         from hairdigi.render.io.images import save_png
@@ -72,3 +83,17 @@ def run(args: argparse.Namespace) -> int:
         save_png(args.render, result.srgb)
         print(f"wrote {args.render}")
     return 0
+
+
+def in_spectral_world(record, estimate, calibration: str, led: str | None, sensor: str | None):
+    """A calibrated photo's record in the spectral world (``inference.spectral.spectral_record``): read in the
+    camera's RGB where ``led`` and ``sensor`` declare its light and camera, else its colour interval widened
+    as an undeclared camera's."""
+    from hairdigi.app.session.spectra import rig_spectra
+    from hairdigi.inference.calibration import load_profile
+    from hairdigi.inference.spectral import spectral_record
+
+    profile = load_profile(calibration)
+    spectra = rig_spectra(False, False, led, sensor)[1]
+    curve = None if estimate.refinement is None else estimate.refinement.curve
+    return spectral_record(record, spectra, profile.matrix, curve, patches=profile.patches)

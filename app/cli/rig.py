@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hairdigi.app.cli import validation as v
-from hairdigi.app.cli.arguments import SPP
+from hairdigi.app.cli.arguments import SPP, add_spectra_arguments
 from hairdigi.app.session.blockers import messages
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
 
@@ -29,6 +29,7 @@ def check_dead_lights(dead) -> set[int]:
 def open_session(args) -> RigSession:
     """The simulated rig with ``--sim``, else the camera and the light board (``--port``, or found)."""
     from hairdigi.app.session.rig_session import open_rig
+    from hairdigi.app.session.spectra import rig_spectra
 
     simulated = {}
     if args.sim:
@@ -41,15 +42,9 @@ def open_session(args) -> RigSession:
 
             simulated["hidden"] = load_params(args.hidden)
             simulated["appearance"] = hidden_appearance(args.hidden)
-        if getattr(args, "spectral", False):   # LEDs of an SPD, the chart's spectra, a real camera's sensitivities
-            simulated["illuminant"] = args.led or "LED-B4"
-            sensor = args.sensor or "nikon-5100"
-            simulated["sensitivities"] = None if sensor == "cie" else sensor
-    spectra = None
-    if not args.sim and getattr(args, "led", None):   # a real rig's declared LEDs and camera
-        from hairdigi.inference.spectral import RigSpectra
-
-        spectra = RigSpectra(args.led, None if args.sensor == "cie" else args.sensor)
+    keywords, spectra = rig_spectra(args.sim, getattr(args, "spectral", False), getattr(args, "led", None),
+                                    getattr(args, "sensor", None))
+    simulated.update(keywords)
     roi = tuple(int(v) for v in args.roi.split(",")) if args.roi else None
     camera = args.camera if getattr(args, "genicam", None) is None else f"genicam:{args.genicam}"
     return open_rig(args.session, args.sim, camera, args.port, roi, require_lights=False, spectra=spectra,
@@ -184,7 +179,16 @@ def say_record(record, say=print) -> None:
     if u.mean_colour_de2000_p68 is not None:
         say(f"stated colour interval: within ΔE2000 {u.mean_colour_de2000_p68:.2f} of the truth in 68% and "
             f"{u.mean_colour_de2000_p95:.2f} in 95% of held-out captures ({u.mean_colour_source or ''})")
-    spectral = u.spectral
+    say_spectral(record, say)
+    if record.appearance is not None:
+        say("appearance: " + "; ".join(appearance_lines(record.appearance)))
+    for warning in record.warnings:
+        say(f"warning: {warning.message}")
+
+
+def say_spectral(record, say=print) -> None:
+    """A record's spectral world: its colour interval there, and its reading in the declared camera's RGB."""
+    spectral = record.uncertainty.spectral
     if spectral is not None:
         say(f"in the spectral world ({spectral.camera} camera): within ΔE2000 {spectral.mean_colour_de2000_p68:.2f} "
             f"in 68% and {spectral.mean_colour_de2000_p95:.2f} in 95%, for {spectral.holds_for}")
@@ -193,10 +197,6 @@ def say_record(record, say=print) -> None:
         say(f"read in the camera's RGB ({r.camera} under {r.led}, residual {r.residual:.2f}, {r.seconds:.1f} s): "
             f"{hair_line(r.hair)}; seen under "
             + ", ".join(f"{light} L*a*b* {lab[0]:.1f} {lab[1]:.1f} {lab[2]:.1f}" for light, lab in r.under.items()))
-    if record.appearance is not None:
-        say("appearance: " + "; ".join(appearance_lines(record.appearance)))
-    for warning in record.warnings:
-        say(f"warning: {warning.message}")
 
 
 def report_still(session_folder: str | Path, still: str | Path, say=print) -> int:
@@ -263,17 +263,7 @@ def add_parser(sub) -> None:
                         "the chain's estimate is then judged against them, at the rig and away from it")
     p.add_argument("--still", help="import a RAW still of the rig (DNG, CR2, NEF, ...; the chart in view) into "
                                    "the session and estimate it; needs no camera or light board")
-    p.add_argument("--spectral", action="store_true", help="with --sim: a spectral rig: white LEDs of an SPD "
-                   "(--led), the ColorChecker's measured spectra, spectral hair, seen through a camera's "
-                   "sensitivities (--sensor)")
-    p.add_argument("--led", type=v.illuminant, default=None, help="the rig's LEDs, a named light or a CSV of "
-                   "wavelength (nm), power: with --sim --spectral, the simulated LEDs (default LED-B4, a 5109 K "
-                   "phosphor LED); on a real rig, with --sensor, its declared LEDs (each record then carries the "
-                   "estimate read in the camera's RGB and its colour under daylight, tungsten and a shop LED)")
-    p.add_argument("--sensor", type=v.camera_sensitivities, default=None, help="the camera's sensitivities: "
-                   "nikon-5100, sigma-sdmerill, cie (the CIE observer, an ideal camera), or a CSV of wavelength (nm), "
-                   "r, g, b: with --sim --spectral, the simulated camera (default nikon-5100); on a real rig, with "
-                   "--led, its declared camera")
+    add_spectra_arguments(p)
     p.set_defaults(func=run)
 
 

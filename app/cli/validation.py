@@ -316,6 +316,16 @@ def check_estimate(args: argparse.Namespace) -> None:
 
         check_input_file(args.calibration, "--calibration")
         load_profile(args.calibration)   # a corrupt profile stops here, before the model is loaded
+    led, sensor = getattr(args, "led", None), getattr(args, "sensor", None)
+    if (led or sensor) and not args.calibration:
+        raise ArgumentError("--led and --sensor read the estimate in the camera's RGB through its chart correction: "
+                            "add --calibration (the photo's calibration profile)")
+    if led or sensor:
+        from hairdigi.app.session.spectra import spectra_problem
+
+        problem = spectra_problem(led, sensor)
+        if problem is not None:
+            raise ArgumentError(problem)
     if args.model:
         check_input_file(args.model, "--model")
     for i, light in enumerate((getattr(args, "lights", None) or "").split(",") if getattr(args, "lights", None) else ()):
@@ -368,24 +378,7 @@ def camera_sensitivities(text: str) -> str:
 def check_rig(args: argparse.Namespace) -> None:
     """``hairdigi rig``: the session folder, the swatch area, a RAW still to import, a spectral rig's parts."""
     check_session_folder(args.session, "--session")
-    if getattr(args, "spectral", False) and not args.sim:
-        raise ArgumentError("--spectral is the simulated rig's: add --sim (a real rig is spectral already)")
-    for flag in ("led", "sensor"):
-        if getattr(args, flag, None) is not None and args.sim and not getattr(args, "spectral", False):
-            raise ArgumentError(f"--{flag} goes with --spectral on the simulated rig; add --spectral or leave "
-                                f"--{flag} out")
-    if not args.sim and (getattr(args, "led", None) is None) != (getattr(args, "sensor", None) is None):
-        raise ArgumentError("a real rig declares its spectra with --led and --sensor together (its LEDs' SPD and "
-                            "its camera's sensitivities, each a name or a CSV); give both, or neither")
-    for flag, read in (("led", "illuminant_spd"), ("sensor", "camera_sensitivities")):
-        value = getattr(args, flag, None)
-        if value is not None and value != "cie":
-            from hairdigi.render import spectra
-
-            try:
-                getattr(spectra, read)(value)
-            except spectra.SpectrumError as exc:
-                raise ArgumentError(f"--{flag}: {exc}") from None
+    check_spectra(args)
     if args.roi:
         _parse_roi(args.roi, "--roi")
     if getattr(args, "still", None):
@@ -395,6 +388,25 @@ def check_rig(args: argparse.Namespace) -> None:
         if still.suffix.lower() not in RAW_EXTENSIONS:
             raise ArgumentError(f"--still {still}: not a RAW still ({', '.join(sorted(RAW_EXTENSIONS))}); "
                                 "estimate images with hairdigi estimate")
+
+
+def check_spectra(args: argparse.Namespace) -> None:
+    """``--spectral``, ``--led`` and ``--sensor`` (``rig`` and ``app``): the simulated rig's with --spectral, a
+    real rig's both together, and each a known spectrum or a readable CSV."""
+    if args.spectral and not args.sim:
+        raise ArgumentError("--spectral is the simulated rig's: add --sim (a real rig is spectral already)")
+    for flag in ("led", "sensor"):
+        if getattr(args, flag) is not None and args.sim and not args.spectral:
+            raise ArgumentError(f"--{flag} goes with --spectral on the simulated rig; add --spectral or leave "
+                                f"--{flag} out")
+    if args.sim and not args.spectral:
+        return
+    from hairdigi.app.session.spectra import SIM_LED, SIM_SENSOR, spectra_problem
+
+    declared = (args.led or SIM_LED, args.sensor or SIM_SENSOR) if args.sim else (args.led, args.sensor)
+    problem = spectra_problem(*declared)
+    if problem is not None:
+        raise ArgumentError(problem)
 
 
 def check_session_folder(path: str | os.PathLike, flag: str) -> Path:
@@ -615,6 +627,7 @@ def check_folder_out(args: argparse.Namespace) -> None:
 
 def check_app(args: argparse.Namespace) -> None:
     """``hairdigi app``: the session and tour folders, when given."""
+    check_spectra(args)
     check_display()
     if args.session:
         check_session_folder(args.session, "--session")

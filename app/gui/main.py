@@ -9,9 +9,10 @@ from PySide6.QtWidgets import QApplication, QDialog, QDialogButtonBox, QFormLayo
 
 from hairdigi.app.gui.main_window import MainWindow, settings_store
 from hairdigi.app.session.rig_session import open_rig
+from hairdigi.app.session.spectra import rig_spectra, spectra_problem
 
 SETTING_DEFAULTS = {"camera": "0", "serial_port": "", "output_folder": str(Path.home() / "hairdigi-sessions" / "default"),
-                    "hairstyle_size": 512}
+                    "hairstyle_size": 512, "led": "", "sensor": ""}
 
 
 def read_settings() -> dict:
@@ -36,6 +37,10 @@ class SettingsDialog(QDialog):
         for key, value in read_settings().items():
             self.fields[key] = QLineEdit(str(value))
             form.addRow(key.replace("_", " "), self.fields[key])
+        self.fields["led"].setToolTip("the rig's LEDs: a named light or a CSV of wavelength (nm), power; with the "
+                                      "sensor, each capture is read in the camera's RGB (as hairdigi app --led)")
+        self.fields["sensor"].setToolTip("the camera's sensitivities: a named camera, cie, or a CSV of wavelength "
+                                         "(nm), r, g, b (as hairdigi app --sensor); used at the next start")
         self.fields["camera"].setToolTip("an OpenCV camera index or stream URL, or genicam (the first GenICam "
                                          "camera) or genicam:ID (arv-tool-0.8 lists the IDs); used at the next start")
         buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Save | QDialogButtonBox.StandardButton.Cancel)
@@ -48,12 +53,34 @@ class SettingsDialog(QDialog):
         self.accept()
 
 
-def run_app(sim: bool = False, session: str | None = None, tour: str | None = None, camera: str | None = None) -> int:
-    """The window on the rig; ``camera`` (an OpenCV index or URL, or ``genicam[:ID]``) overrides the setting."""
+def declared_spectra(settings: dict, led: str | None, sensor: str | None) -> tuple[str | None, str | None, str | None]:
+    """A real rig's LEDs and camera: ``led`` and ``sensor`` when given (then remembered in the settings),
+    else the settings'; and why the settings' are not used (a pair half given, an unknown or unreadable
+    spectrum), or None."""
+    if led is not None or sensor is not None:
+        write_settings({"led": led or "", "sensor": sensor or ""})
+        return led, sensor, None
+    led, sensor = settings["led"] or None, settings["sensor"] or None
+    problem = spectra_problem(led, sensor)
+    if problem is not None:
+        return None, None, f"the settings' led and sensor are not used: {problem}"
+    return led, sensor, None
+
+
+def run_app(sim: bool = False, session: str | None = None, tour: str | None = None, camera: str | None = None,
+            spectral: bool = False, led: str | None = None, sensor: str | None = None) -> int:
+    """The window on the rig; ``camera`` (an OpenCV index or URL, or ``genicam[:ID]``) overrides the setting.
+    ``led`` and ``sensor``: a real rig's declared spectra (remembered), or with ``sim`` and ``spectral``
+    the simulated spectral rig's (``session.spectra.rig_spectra``)."""
     app = QApplication.instance() or QApplication(sys.argv[:1])
     settings = read_settings()
     folder = Path(session or settings["output_folder"])
-    rig, reason = open_rig(folder, sim, camera or settings["camera"], settings["serial_port"], fallback=True)
+    problem = None
+    if not sim:
+        led, sensor, problem = declared_spectra(settings, led, sensor)
+    simulated, spectra = rig_spectra(sim, spectral, led, sensor)
+    rig, reason = open_rig(folder, sim, camera or settings["camera"], settings["serial_port"], fallback=True,
+                           spectra=spectra, **simulated)
     offscreen = os.environ.get("QT_QPA_PLATFORM") == "offscreen"
     window = MainWindow(rig, {"hairstyle_size": settings["hairstyle_size"]}, strand_view=not offscreen)
     menu = window.menuBar().addMenu("&File")
@@ -62,8 +89,8 @@ def run_app(sim: bool = False, session: str | None = None, tour: str | None = No
     menu.addAction("Settings…", lambda: SettingsDialog(window).exec())
     menu.addAction("Quit", window.close)
     window.menuBar().addMenu("&Help").addAction("About hairdigi", window.show_about)
-    if reason:
-        window.statusBar().showMessage(f"simulated rig: {reason}")
+    if reason or problem:
+        window.statusBar().showMessage("; ".join(filter(None, [reason and f"simulated rig: {reason}", problem])))
     window.show()
     if tour:
         from hairdigi.app.gui.tour import run_tour
