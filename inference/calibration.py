@@ -316,21 +316,26 @@ def calibration_warnings(profile_path: str | os.PathLike, image_path: str | os.P
 MID_GREYS = (19, 20, 21, 22)
 
 
-def light_colour_warnings(chart: ChartDetection, corrected_singles: list[np.ndarray], tolerance_de: float = 2.0
-                          ) -> list[str]:
-    """Warnings for a light whose own frame, corrected with the all-lights profile, turns the chart's
-    mid greys coloured: that LED differs from the others, and one profile for all does not hold for it.
+def light_colour_warnings(chart: ChartDetection, singles: list[np.ndarray], tolerance_de: float = 2.0) -> list[str]:
+    """Warnings for a light whose own frame turns the chart's mid greys another colour than the other
+    lights' frames do: that LED differs from the others, and one profile for all does not hold for it.
 
     One profile serves every light (the rig's LEDs are one make, and a profile fitted on the chart lit
     from one side folds that light's geometry into the colour); this checks that it holds, per light.
+    ``singles``: each light's frame as the camera read it (linear, uncorrected). Each light's greys are
+    judged against the lights' median grey (per patch and channel, at that light's lightness), so the
+    odd light out is named and not the others, whose mean it shifts. Judged after a 3 x 3 correction
+    instead, a camera whose bands overlap (the Sigma SD Merrill's coefficients reach -7) turns the
+    patches' noise into tints of ΔE2000 1-18 and warned about every light; uncorrected, 0.2-1.9.
     """
+    greys = [chart.patch_linear(frame)[list(MID_GREYS)] for frame in singles]
+    levels = [g.mean(1, keepdims=True) for g in greys]
+    usual = np.median([g / np.maximum(level, 1e-9) for g, level in zip(greys, levels)], axis=0)
     warnings = []
-    for i, frame in enumerate(corrected_singles):
-        greys = chart.patch_linear(frame)[list(MID_GREYS)]
-        neutral = np.repeat(greys.mean(1, keepdims=True), 3, axis=1)
-        off = float(np.median(delta_e2000(np.clip(greys, 1e-6, None), np.clip(neutral, 1e-6, None))))
+    for i, (g, level) in enumerate(zip(greys, levels)):
+        off = float(np.median(delta_e2000(np.clip(g, 1e-6, None), np.clip(usual * level, 1e-6, None))))
         if off > tolerance_de:
-            warnings.append(f"calibration: light {i} tints the chart's greys by ΔE2000 {off:.1f} once corrected: its "
-                            f"LED differs from the others, so the shine read from it is uncertain; replace it or "
-                            f"match its colour, and calibrate again")
+            warnings.append(f"calibration: light {i} tints the chart's greys by ΔE2000 {off:.1f} against the other "
+                            f"lights: its LED differs from the others, so the shine read from it is uncertain; "
+                            f"replace it or match its colour, and calibrate again")
     return warnings

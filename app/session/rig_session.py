@@ -451,8 +451,10 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
     warnings = [EstimateWarning(WarningKind.CALIBRATION, w) for w in stale + correction_warnings(
         profile, mean_linear(fitted_pixels(to_linear(source), view)), mean_linear(fitted_pixels(corrected, view)))]
     lights = [apply_profile(frame, profile) / np.float32(factor) for frame, factor in singles] or None
-    if lights and chart is not None:
-        warnings += [EstimateWarning(WarningKind.CALIBRATION, w) for w in light_colour_warnings(chart, lights)]
+    if lights and chart is not None:   # judged as the camera read them: see light_colour_warnings
+        raw_lights = [to_linear(frame) / np.float32(factor) for frame, factor in singles]
+        warnings += [EstimateWarning(WarningKind.CALIBRATION, w)
+                     for w in light_colour_warnings(chart, raw_lights)]
     estimate = estimate_image(corrected, encoder, view=view, extra_warnings=warnings,
                               on_encoder_estimate=on_encoder_estimate, light_images=lights, sensor_clipped=clipped)
     result.params = estimate.params
