@@ -57,7 +57,8 @@ def test_import_contracts_hold_on_the_built_package(site):
 
 def test_a_stray_import_breaks_the_contracts(site, tmp_path):
     """The contracts are rules: a copy of the package with an ``app.review.model -> PySide6``, a
-    ``render -> inference`` and an ``app.gui -> app.cli`` import (modules no contract lists) fails them."""
+    ``render -> inference``, an ``app.gui -> app.cli`` and an ``app.session -> app.cli`` import (modules no
+    contract lists) fails them."""
     shutil.copytree(site / "hairdigi", tmp_path / "hairdigi")
     with open(tmp_path / "hairdigi" / "app" / "review" / "model.py", "a") as f:
         f.write("\nimport PySide6  # stray\n")
@@ -65,11 +66,14 @@ def test_a_stray_import_breaks_the_contracts(site, tmp_path):
         f.write("\nfrom hairdigi.inference import estimate  # stray\n")
     with open(tmp_path / "hairdigi" / "app" / "gui" / "images.py", "a") as f:
         f.write("\nimport hairdigi.app.cli  # stray\n")
+    with open(tmp_path / "hairdigi" / "app" / "session" / "blockers.py", "a") as f:
+        f.write("\nimport hairdigi.app.cli.validation  # stray\n")
     result = lint_imports(tmp_path)
     assert result.returncode != 0 and "3 broken" in result.stdout, result.stdout[-3000:]
     assert "hairdigi.app.review.model -> PySide6" in result.stdout
     assert "hairdigi.render.metrics -> hairdigi.inference.estimate" in result.stdout
     assert "hairdigi.app.gui.images -> hairdigi.app.cli" in result.stdout
+    assert "hairdigi.app.session.blockers -> hairdigi.app.cli.validation" in result.stdout
 
 
 def domain_imports(site: Path) -> dict[str, list[str]]:

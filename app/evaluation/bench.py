@@ -8,6 +8,11 @@ import argparse
 from pathlib import Path
 
 from hairdigi.app.evaluation.registry import BENCH_OUT
+from hairdigi.render.domain.errors import HairdigiError
+
+
+class BenchError(HairdigiError, ValueError):
+    """A benchmark cannot run as asked; the message names what it needs."""
 
 
 def bench_render(args: argparse.Namespace) -> int:
@@ -37,11 +42,10 @@ def bench_rig(args: argparse.Namespace) -> int:
 
 def bench_encoder(args: argparse.Namespace) -> int:
     """ONNX encoders side by side: latency and error on held-out swatches."""
-    from hairdigi.app.cli.validation import ArgumentError
     from hairdigi.inference.training.report import bench_encoders
 
     if not args.models:
-        raise ArgumentError("bench encoder needs --models A.onnx B.onnx ...")
+        raise BenchError("bench encoder needs --models A.onnx B.onnx ...")
     out = Path(args.out)
     rows = bench_encoders(args.models, out, n=args.n or 300, data_root=args.data)
     for r in rows:
