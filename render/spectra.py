@@ -31,6 +31,7 @@ from __future__ import annotations
 import csv
 import functools
 import io
+import re
 from pathlib import Path
 
 import numpy as np
@@ -222,22 +223,30 @@ def _read_table(path: Path, columns: int, what: str, form: str) -> np.ndarray:
     return table
 
 
+#: A Planckian radiator named by its temperature: "3200K" (1000-25000 K).
+_BLACKBODY = re.compile(r"(\d{4,5}) ?[Kk]")
+
+
 def illuminant_spd(name: str) -> np.ndarray:
     """A light's relative SPD on ``WAVELENGTHS``, normalised to luminance Y = 1 (as an RGB white of 1
-    is in Mitsuba's spectral variants): a name of
-    ``ILLUMINANTS`` or a CSV of wavelength, power."""
+    is in Mitsuba's spectral variants): a name of ``ILLUMINANTS``, a Planckian radiator's temperature
+    ("3200K", 1000-25000 K), or a CSV of wavelength, power."""
     import colour
 
     key = ILLUMINANTS.get(name) or ILLUMINANTS.get(str(name).upper())
+    kelvin = _BLACKBODY.fullmatch(str(name).strip())
     if key is not None:
         sd = colour.SDS_ILLUMINANTS[key]
+        values = np.interp(WAVELENGTHS, sd.wavelengths, sd.values)
+    elif kelvin is not None and 1000 <= int(kelvin.group(1)) <= 25000:   # a Planckian radiator, e.g. studio tungsten
+        sd = colour.sd_blackbody(float(kelvin.group(1)), colour.SpectralShape(360.0, 830.0, 5.0))
         values = np.interp(WAVELENGTHS, sd.wavelengths, sd.values)
     elif Path(name).suffix.lower() in (".csv", ".txt"):
         table = _read_table(Path(name), 2, "illuminant", "wavelength, power")
         values = np.interp(WAVELENGTHS, table[:, 0], table[:, 1])
     else:
-        raise SpectrumError(f"unknown illuminant {name!r}; choose one of {', '.join(ILLUMINANTS)} "
-                            f"or give a CSV file of wavelength (nm), power")
+        raise SpectrumError(f"unknown illuminant {name!r}; choose one of {', '.join(ILLUMINANTS)}, a "
+                            f"temperature from 1000K to 25000K, or a CSV file of wavelength (nm), power")
     y = float(spectrum_to_xyz(values)[1])
     if y <= 0:
         raise SpectrumError(f"illuminant {name}: no power where the eye sees (380–780 nm); check the file")

@@ -90,6 +90,10 @@ def test_a_bad_spd_csv_is_refused_in_one_line_naming_the_fix(tmp_path, text, say
 def test_unknown_lights_cameras_and_unreadable_files_are_refused(tmp_path):
     with pytest.raises(spectra.SpectrumError, match="unknown illuminant 'candle'"):
         spectra.illuminant_spd("candle")
+    with pytest.raises(spectra.SpectrumError, match="1000K to 25000K"):
+        spectra.illuminant_spd("900K")                 # a temperature out of range is named as such
+    warm, cool = spectra.light_rgb("3200K"), spectra.light_rgb("6500 K")   # Planckian radiators by temperature
+    assert warm[0] / warm[2] > 2.0 and 0.8 < cool[0] / cool[2] < 1.3
     with pytest.raises(spectra.SpectrumError, match="unknown camera 'canon'"):
         spectra.camera_sensitivities("canon")
     (tmp_path / "bin.csv").write_bytes(b"\xff\xfe\x00\x01" * 10)
