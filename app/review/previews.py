@@ -84,7 +84,7 @@ class PassTag:
     light: int | None = None        # the twin: the light it is lit by alone (None: all lights)
 
 
-@dataclass
+@dataclass(frozen=True)
 class TwinPreview:
     """One pass of the synthetic twin beside the real swatch."""
 
@@ -105,7 +105,7 @@ class TwinPreview:
     light: int | None = None        # lit by this light alone, beside that light's captured frame (None: all)
 
 
-@dataclass
+@dataclass(frozen=True)
 class HairstylePass:
     """One pass of the hairstyle render."""
 
