@@ -44,7 +44,7 @@ def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output, monkey
     _check_the_twin_views(win, tmp_path)
     _orbit_and_open_hair_models(qtbot, win, tmp_path, varied)
     _check_a_new_selection_cancels_the_stale_render(qtbot, win)
-    _check_the_export(win, tmp_path, onnx_path, session)
+    _check_the_export(qtbot, win, tmp_path, onnx_path, session)
     shot = win.grab()
     shot.save(str(test_output / "app_after_capture.png"))
     assert pixmap_array(shot).std() > 10               # not a blank window
@@ -66,7 +66,7 @@ def _calibrate(qtbot, win):
     with qtbot.waitSignal(win.calibrated, timeout=120000) as cal:
         win.calibrate_button.click()
     assert cal.args[0].delta_e2000["after"]["mean"] < cal.args[0].delta_e2000["before"]["mean"]
-    assert "ΔE2000" in win.calibration_label.text()
+    qtbot.waitUntil(lambda: "ΔE2000" in win.calibration_label.text(), timeout=20000)    # read in a worker
     return cal.args[0]
 
 
@@ -135,8 +135,11 @@ def _check_a_new_selection_cancels_the_stale_render(qtbot, win) -> None:
         pass
 
 
-def _check_the_export(win, tmp_path, onnx_path, session) -> None:
-    exported = win.export(tmp_path / "all.json")
+def _check_the_export(qtbot, win, tmp_path, onnx_path, session) -> None:
+    task = win.export(tmp_path / "all.json")           # written in a worker
+    qtbot.waitUntil(lambda: task not in win.tasks, timeout=20000)
+    exported = tmp_path / "all.json"
+    assert win.statusBar().currentMessage() == f"exported to {exported}"
     record = json.loads(exported.read_text())
     assert record["hair"]["dye_rgb"] and record["provenance"]["model"]["sha256"] == Encoder(onnx_path).sha256
     assert record["provenance"]["calibration"]["id"] == session.profile.id

@@ -6,6 +6,7 @@ One simulated session serves the module: an older capture without single-light f
 not measured" kind), then a capture with them (the first renders the view's per-light tables once).
 """
 import dataclasses
+import json
 import threading
 
 import numpy as np
@@ -81,6 +82,38 @@ def test_the_window_reads_records_and_captures_off_the_ui_thread(qtbot, captured
     qtbot.waitUntil(lambda: win.model.shown.capture_id == old, timeout=20000)
     assert records_in and {new, old} <= {capture_id for _, capture_id in captures_in}      # the work was seen
     assert ui not in records_in and ui not in [thread for thread, _ in captures_in]
+    win.close()
+
+
+def test_the_window_saves_a_render_exports_and_reads_the_calibration_off_the_ui_thread(qtbot, captured, monkeypatch,
+                                                                                      tmp_path):
+    """Which thread wrote the render and the export, and read the calibration's status, is recorded in the real
+    writers and reader, which still run."""
+    from hairdigi.app.gui.main_window import MainWindow
+    from hairdigi.app.session import rig_session as rs
+    from hairdigi.render.io import images
+
+    session, _, new = captured
+    threads = {"png": [], "exr": [], "export": [], "calibration": []}
+
+    def recorded(name, fn):
+        return lambda *a, **k: threads[name].append(threading.get_ident()) or fn(*a, **k)
+    monkeypatch.setattr(images, "save_png", recorded("png", images.save_png))
+    monkeypatch.setattr(images, "save_exr", recorded("exr", images.save_exr))
+    monkeypatch.setattr(rs, "export_records", recorded("export", rs.export_records))
+    monkeypatch.setattr(session, "calibration_status", recorded("calibration", session.calibration_status))
+    ui = threading.get_ident()
+    win = MainWindow(session, {**dataclasses.asdict(SMALL), "feed_fps": 5}, strand_view=False)
+    qtbot.addWidget(win)
+    qtbot.waitUntil(lambda: win.model.twin is not None and win.model.shown.capture_id == new, timeout=120000)
+    qtbot.waitUntil(lambda: "ΔE2000" in win.calibration_label.text(), timeout=20000)
+    saving = win.save_render("twin", tmp_path / "twin")
+    exporting = win.export(tmp_path / "all.json")
+    qtbot.waitUntil(lambda: saving not in win.tasks and exporting not in win.tasks, timeout=60000)
+    assert (tmp_path / "twin.png").stat().st_size > 0 and (tmp_path / "twin.exr").stat().st_size > 0
+    assert json.loads((tmp_path / "all.json").read_text())["count"] == 2
+    assert all(threads.values()), threads                                   # the work was seen
+    assert not [name for name, seen in threads.items() if ui in seen], threads
     win.close()
 
 

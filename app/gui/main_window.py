@@ -534,8 +534,12 @@ class MainWindow(QMainWindow):
     def set_all(self, on: bool) -> Task:
         return self.run_task(self.model.set_all_work(on))
 
-    def refresh_calibration(self) -> None:
-        status, text = self.model.calibration()
+    def refresh_calibration(self) -> Task:
+        """The calibration's status line, read in a worker."""
+        return self.run_task(self.model.calibration_work(), self._show_calibration)
+
+    def _show_calibration(self, calibration: tuple[rs.CalibrationStatus, str]) -> None:
+        status, text = calibration
         self.calibration_label.setText(text)
         self.calibration_label.setStyleSheet("color:#2a2" if status is rs.CalibrationStatus.OK else "color:#c60")
 
@@ -625,8 +629,15 @@ class MainWindow(QMainWindow):
         return self.jobs.get("hairstyle")
 
     # -- export ------------------------------------------------------------------------------
-    def export(self, path: str | Path, all_: bool = True) -> Path:
-        return self.model.export(path, all_)
+    def export(self, path: str | Path, all_: bool = True) -> Task:
+        """Export the estimates as JSON in a worker (nothing to export is refused here, at once)."""
+        return self.run_task(self.model.export_work(path, all_),
+                             lambda written: self.statusBar().showMessage(f"exported to {written}"))
+
+    def save_render(self, which: str, path: str | Path) -> Task:
+        """Save the shown ``"hairstyle"`` or ``"twin"`` render (PNG, and linear EXR beside it) in a worker."""
+        return self.run_task(self.model.save_render_work(which, path),
+                             lambda written: self.statusBar().showMessage("saved " + " and ".join(map(str, written))))
 
     def _export_dialog(self, all_: bool) -> None:
         path, _ = QFileDialog.getSaveFileName(self, "Export parameters", str(self.session.folder / "export.json"),
@@ -634,8 +645,7 @@ class MainWindow(QMainWindow):
         if path:
             try:
                 self.export(path, all_)
-                self.statusBar().showMessage(f"exported to {path}")
-            except (ValueError, OSError) as exc:
+            except ValueError as exc:
                 self.show_banner(str(exc))
 
     def _save_dialog(self, which: str) -> None:
@@ -644,9 +654,8 @@ class MainWindow(QMainWindow):
                                               default, "PNG (*.png)")
         if path:
             try:
-                written = self.model.save_render(which, path)
-                self.statusBar().showMessage("saved " + " and ".join(str(p) for p in written))
-            except (ValueError, OSError) as exc:
+                self.save_render(which, path)
+            except ValueError as exc:
                 self.show_banner(str(exc))
 
     def show_about(self):

@@ -46,7 +46,7 @@ from hairdigi.render import denoise as dn
 from hairdigi.render.domain.bounds import ENVIRONMENTS, HAIRSTYLES, ILLUMINANTS, SceneKind
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.params import HairParams
-from hairdigi.render.domain.records import EstimateWarning
+from hairdigi.render.domain.records import EstimateRecord, EstimateWarning
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.srgb import linear_to_srgb8
@@ -557,6 +557,10 @@ class ReviewModel:
         status, reasons = self.session.calibration_status()
         return status, calibration_text(as_profile(self.session.profile), status, reasons)
 
+    def calibration_work(self) -> Work:
+        """:meth:`calibration` in a worker: it returns (status, one line)."""
+        return Work("calibration status", returns(self.calibration))
+
     def twin_image(self, preview: TwinPreview | None = None) -> np.ndarray | None:
         """The twin as shown (denoised or raw), sRGB 8-bit."""
         preview = preview or self.twin
@@ -572,25 +576,47 @@ class ReviewModel:
 
     def save_render(self, which: str, path: str | Path) -> list[Path]:
         """Write the shown ``"hairstyle"`` or ``"twin"`` render as ``path`` (.png) and beside it linear .exr."""
-        from hairdigi.render.io.images import save_exr, save_png
+        return write_render(self._shown_render(which), path)
 
+    def save_render_work(self, which: str, path: str | Path) -> Work:
+        """:meth:`save_render` in a worker, of the render shown now (checked here); it returns the paths."""
+        linear = self._shown_render(which)
+        return Work(f"save {which}", returns(lambda: write_render(linear, path)))
+
+    def _shown_render(self, which: str) -> np.ndarray:
+        """The shown ``"hairstyle"`` or ``"twin"`` render, linear (denoised when shown so)."""
         if which not in ("hairstyle", "twin"):
             raise ValueError(f"save which render? 'hairstyle' or 'twin', got {which!r}")
         item = self.hairstyle if which == "hairstyle" else self.twin
         if item is None:
             raise ReviewError(f"no {which} render yet: capture or select a swatch first")
-        linear = item.clean if self.show_denoised and item.clean is not None else item.raw
-        path = Path(path)
-        if path.suffix.lower() not in (".png", ".exr"):
-            path = path.with_name(path.name + ".png")
-        png, exr = path.with_suffix(".png"), path.with_suffix(".exr")
-        return [save_png(png, linear_to_srgb8(linear)), save_exr(exr, linear)]
+        return item.clean if self.show_denoised and item.clean is not None else item.raw
 
     def export(self, path: str | Path, all_: bool = True) -> Path:
         """The estimates as JSON: all of the session's, or the shown capture's."""
+        return rs.export_records(self._to_export(all_), path)
+
+    def export_work(self, path: str | Path, all_: bool = True) -> Work:
+        """:meth:`export` in a worker, of the records chosen now (checked here); it returns the path."""
+        records = self._to_export(all_)
+        return Work("export", returns(lambda: rs.export_records(records, path)))
+
+    def _to_export(self, all_: bool) -> list[EstimateRecord]:
+        """The records to export: all of the session's with an estimate, or the shown capture's."""
         entries = [e for e in self.records if e.record.hair is not None]
         if not all_ and self.shown is not None and self.shown.capture_id is not None:
             entries = [e for e in entries if e.id == self.shown.capture_id]
         if not entries:
             raise ReviewError("nothing to export: no capture has an estimate yet")
-        return rs.export_records([e.record for e in entries], path)
+        return [e.record for e in entries]
+
+
+def write_render(linear: np.ndarray, path: str | Path) -> list[Path]:
+    """A linear render as ``path`` (.png, sRGB) and beside it linear .exr; the written paths."""
+    from hairdigi.render.io.images import save_exr, save_png
+
+    path = Path(path)
+    if path.suffix.lower() not in (".png", ".exr"):
+        path = path.with_name(path.name + ".png")
+    png, exr = path.with_suffix(".png"), path.with_suffix(".exr")
+    return [save_png(png, linear_to_srgb8(linear)), save_exr(exr, linear)]
