@@ -288,8 +288,9 @@ def test_two_renderers_render_from_two_threads():
 def test_a_table_and_the_sim_rig_render_on_the_one_path(tmp_path, monkeypatch):
     """A response curve (the refinement's table) and the simulated rig's light images render through
     ``renderer.trace``: while this thread holds the render lock neither renders (the process's tally stands
-    still), and once it lets go every one of their renders is counted there, NaN count included, which the
-    curve and the rig report as the tally saw it."""
+    still while both wait at the lock), and once it lets go every one of their renders is counted there, NaN
+    count included, which the curve and the rig report as the tally saw it. A render of another thread (one an
+    earlier test left running) is told apart by the thread that traced it."""
     import threading
     import time
 
@@ -297,6 +298,28 @@ def test_a_table_and_the_sim_rig_render_on_the_one_path(tmp_path, monkeypatch):
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, render_light_images
     from hairdigi.inference.refine import RefineSettings, response_curve
 
+    class Arrivals:
+        """The render lock, noting each thread that comes to it."""
+
+        def __init__(self, lock):
+            self.lock, self.threads = lock, set()
+
+        def __enter__(self):
+            self.threads.add(threading.get_ident())
+            return self.lock.__enter__()
+
+        def __exit__(self, *exc):
+            return self.lock.__exit__(*exc)
+
+    traced = []                                   # (thread, NaN count) of each render trace counts
+    finite_image = rr.finite_image
+
+    def counted(image):
+        linear, nonfinite = finite_image(image)
+        traced.append((threading.get_ident(), nonfinite))
+        return linear, nonfinite
+    monkeypatch.setattr(rr, "finite_image", counted)
+    monkeypatch.setattr(rr, "RENDER_LOCK", Arrivals(rr.RENDER_LOCK))
     monkeypatch.setenv("HAIRDIGI_CACHE", str(tmp_path))
     settings = RefineSettings(size=8, spp=1)   # 12 levels: 4 renders
     jobs = {"curve": lambda: response_curve(CameraPose(20, 30), settings, Renderer(max_cached=1), cache=False),
@@ -307,15 +330,22 @@ def test_a_table_and_the_sim_rig_render_on_the_one_path(tmp_path, monkeypatch):
         renders, nonfinite = rr.TALLY.renders, rr.TALLY.nonfinite
         for t in threads:
             t.start()
-        time.sleep(1.5)
+        deadline = time.monotonic() + 120
+        while not {t.ident for t in threads} <= rr.RENDER_LOCK.threads and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert {t.ident for t in threads} <= rr.RENDER_LOCK.threads       # both wait at the lock
         assert rr.TALLY.renders == renders and not done and all(t.is_alive() for t in threads)
     for t in threads:
         t.join(300)
     assert set(done) == {"curve", "rig"}
-    assert rr.TALLY.renders - renders == 4 + 3
+    with rr.RENDER_LOCK:                          # the tally and the traces read together
+        grown, nonfinite_grown, traced = rr.TALLY.renders - renders, rr.TALLY.nonfinite - nonfinite, list(traced)
+    ours = [n for thread, n in traced if thread in {t.ident for t in threads}]
+    assert len(ours) == 4 + 3 and grown == len(traced)
     images, rig_nonfinite = done["rig"]
     assert images.shape == (3, 12, 16, 3) and np.isfinite(images).all()
-    assert done["curve"].nonfinite + rig_nonfinite == rr.TALLY.nonfinite - nonfinite
+    assert done["curve"].nonfinite + rig_nonfinite == sum(ours)
+    assert nonfinite_grown == sum(n for _, n in traced)
 
 
 def test_a_cycles_render_is_checked_as_the_renderer_checks_its_own(tmp_path, monkeypatch):
