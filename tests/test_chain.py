@@ -62,12 +62,13 @@ def test_an_interval_that_misses_is_flagged():
     """A twin that misses the capture by more than the stated 68% colour interval is flagged with
     the interval's kind, and such a record is still reliable (an honest doubt, not a refusal)."""
     from hairdigi.inference.estimate import interval_warnings
+    from hairdigi.render.domain.estimate_parts import Uncertainty
 
-    stated = {"mean_colour_de2000_p68": 0.8, "mean_colour_de2000_p95": 1.6}
+    stated = Uncertainty(mean_colour_de2000_p68=0.8, mean_colour_de2000_p95=1.6)
     assert interval_warnings(0.5, stated) == []
     missed = interval_warnings(1.2, stated)
     assert [w.kind for w in missed] == [WarningKind.INTERVAL] and "0.80" in missed[0].message
-    assert interval_warnings(5.0, {}) == []          # no stated interval: nothing to miss
+    assert interval_warnings(5.0, Uncertainty()) == []          # no stated interval: nothing to miss
     record = EstimateRecord(hair=HairParams(), warnings=tuple(missed))
     assert record.reliable and EstimateRecord.from_json(record.to_json()).warnings == record.warnings
 
