@@ -33,6 +33,7 @@ while renders < 100_000 and interrupts < 5:
         renders += 1
     except KeyboardInterrupt:
         interrupts += 1
+        print("interrupted", flush=True)
 print("interrupts", interrupts, "renders", renders, flush=True)
 """
 
@@ -47,11 +48,18 @@ def _child(code: str) -> subprocess.Popen:
 @pytest.mark.skipif(not LINUX, reason="signal masks per thread: Linux's /proc")
 def test_ctrl_c_in_a_render_waits_for_the_call_and_is_a_keyboard_interrupt_mitsuba_never_sees():
     proc = _child(RENDERS)
-    assert proc.stdout.readline().strip() == "rendering", proc.stderr.read()[-2000:]
-    for _ in range(5):
-        time.sleep(0.3)
-        proc.send_signal(signal.SIGINT)
-    out, err = proc.communicate(timeout=60)
+    watchdog = threading.Timer(120, proc.kill)      # a child that stops answering ends the reads below
+    watchdog.start()
+    try:
+        assert proc.stdout.readline().strip() == "rendering", proc.stderr.read()[-2000:]
+        for _ in range(5):   # the next Ctrl-C once the last was taken: two in one render would be one signal
+            time.sleep(0.3)
+            proc.send_signal(signal.SIGINT)
+            assert proc.stdout.readline().strip() == "interrupted", proc.stderr.read()[-2000:]
+        out, err = proc.communicate(timeout=60)
+    finally:
+        watchdog.cancel()
+        proc.kill()      # a failed check leaves no renderer behind
     # each Ctrl-C was one KeyboardInterrupt: none lost, none turned into Mitsuba's RuntimeError
     assert proc.returncode == 0 and out.split()[:2] == ["interrupts", "5"], (out, err[-2000:])
     assert 0 < int(out.split()[3]) < 100_000
@@ -74,7 +82,10 @@ def test_no_thread_but_the_main_one_takes_ctrl_c_once_mitsuba_has_rendered():
             "    takes[task] = not blocked >> 1 & 1\n"
             "print(json.dumps({'pid': os.getpid(), 'takes': takes}))\n")
     proc = _child(code)
-    out, err = proc.communicate(timeout=120)
+    try:
+        out, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
     assert proc.returncode == 0, err[-2000:]
     import json
 
