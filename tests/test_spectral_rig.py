@@ -37,18 +37,24 @@ def test_the_response_curve_read_per_wavelength_is_a_spectral_render_without_the
             assert de < 1.0, (light, de)    # the spectral render's own noise at 64 spp: ~0.2-0.7
 
 
-def test_a_spectral_rig_capture_is_read_in_the_camera_and_carries_to_tungsten(tmp_path):
-    from hairdigi.app.evaluation.spectral import SpectralSet, answers, _judge
+def _spectral_capture(tmp_path, hidden, led: str, camera: str):
+    """One calibration and capture of ``hidden`` on a spectral simulated rig (8 spp): the closed session,
+    its profile and the capture's result."""
     from hairdigi.app.session.rig_session import RigSession
 
-    hidden = HairParams((230, 20, 30), 1.0, 0.08, 0.3)            # a saturated red: far from the chart's colours
-    session = RigSession.simulated_rig(tmp_path / "session", hidden=hidden, spp=8,
-                                       illuminant="LED-B4", sensitivities="nikon-5100")
+    session = RigSession.simulated_rig(tmp_path / "session", hidden=hidden, spp=8, illuminant=led,
+                                       sensitivities=camera)
     try:
-        profile = session.calibrate()
-        result = session.capture()
+        return session, session.calibrate(), session.capture()
     finally:
         session.close()
+
+
+def test_a_spectral_rig_capture_is_read_in_the_camera_and_carries_to_tungsten(tmp_path):
+    from hairdigi.app.evaluation.spectral import SpectralSet, answers, _judge
+
+    hidden = HairParams((230, 20, 30), 1.0, 0.08, 0.3)            # a saturated red: far from the chart's colours
+    session, profile, result = _spectral_capture(tmp_path, hidden, "LED-B4", "nikon-5100")
     assert result.record is not None, result.blocked
     reading = result.record.spectral                 # the record carries the camera answer, read at capture
     assert reading is not None and (reading.camera, reading.led) == ("nikon-5100", "LED-B4")
@@ -163,16 +169,9 @@ def test_a_camera_whose_bands_overlap_is_read_from_its_measured_greys_and_its_no
     clipped (clipping biased a swatch's blue up by 20-45%), the camera's gains come from the chart's
     measured greys (kept in the profile), and no light is said to tint the greys for it."""
     from hairdigi.app.evaluation.spectral import SpectralSet, answers, _judge
-    from hairdigi.app.session.rig_session import RigSession
 
     hidden = HairParams(melanin_concentration=0.45, melanin_ratio=0.6, dye_concentration=0.0)   # a brown
-    session = RigSession.simulated_rig(tmp_path / "session", hidden=hidden, spp=8,
-                                       illuminant="LED-B5", sensitivities="sigma-sdmerill")
-    try:
-        profile = session.calibrate()
-        result = session.capture()
-    finally:
-        session.close()
+    _, profile, result = _spectral_capture(tmp_path, hidden, "LED-B5", "sigma-sdmerill")
     assert profile.patches is not None and len(profile.patches) == 24
     assert result.record is not None, result.blocked
     assert not any("tints" in w.message for w in result.record.warnings), result.record.warning_messages()
