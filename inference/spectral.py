@@ -102,20 +102,20 @@ NOT_LINEAR = ("spectral: the camera answer needs a linear 3x3 chart correction, 
               "Finlayson 2015 at degree 1: hairdigi rig, or Calibrate in hairdigi app)")
 
 
-def spectral_record(record, spectra: RigSpectra | None, ccm, curve=None, table: dict | None = None,
-                    patches=None):
+def spectral_record(record, spectra: RigSpectra | None, profile, curve=None, table: dict | None = None):
     """``record`` (an ``EstimateRecord``) in the spectral world: with the rig's ``spectra`` declared and a
-    linear chart correction ``ccm``, its :class:`SpectralReading` and that camera's colour interval; with
+    calibration ``profile`` whose chart correction is linear, its :class:`SpectralReading` and that camera's colour interval; with
     none declared, its colour interval widened by the metamerism an undeclared camera leaves. ``curve``:
     the response curve the record's refinement inverted (the capture's region, at its appearance), so
     that the colour read and its model agree; default, the rig's swatch crop's. A camera whose bands
     overlap (the Sigma's CCM has coefficients to 7.5) amplifies any disagreement between the two.
-    ``patches``: the profile's measured chart patches (``CalibrationProfile.patches``), for the gains.
+    The profile's measured chart patches (``CalibrationProfile.patches``) give the camera's gains.
     A declared rig whose chart correction is not 3 x 3 (a root-polynomial of a higher degree, a
     Vandermonde) is read as an undeclared one, and its record says so in a warning."""
     table = load_table(SPECTRAL_TABLE) if table is None else table
     if record.hair is None:
         return record
+    ccm = None if profile is None else np.asarray(profile.matrix, float)
     if spectra is None or ccm is None or np.shape(ccm) != (3, 3):
         unknown = replace(record, uncertainty=with_spectral(record.uncertainty, table, "unknown"))
         if spectra is None or ccm is None:
@@ -130,8 +130,8 @@ def spectral_record(record, spectra: RigSpectra | None, ccm, curve=None, table: 
         curve = curve or response_curve(RIG_SWATCH_POSE, RefineSettings())
         sigma = np.asarray(record.sigma_a, float)
         measured = curve(sigma)
-    reading = read_spectral(record.hair, np.asarray(measured, float), curve, np.asarray(ccm, float), spectra.led,
-                            spectra.sensitivities, rig_chart_targets()[0], patches)
+    reading = read_spectral(record.hair, np.asarray(measured, float), curve, ccm, spectra.led,
+                            spectra.sensitivities, rig_chart_targets()[0], profile.patches)
     return replace(record, spectral=reading,
                    uncertainty=with_spectral(record.uncertainty, table, reading.camera))
 

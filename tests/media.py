@@ -12,3 +12,10 @@ def write_video(path, frames: int = 5, size=(64, 48), step: int = 40, fps: int =
         writer.write(np.full((size[1], size[0], 3), step * i, np.uint8))
     writer.release()
     return path
+
+
+def chart_profile(matrix):
+    """A calibration profile whose chart correction is ``matrix`` (no measured patches)."""
+    from hairdigi.render.domain.records import CalibrationProfile
+
+    return CalibrationProfile(id="t", method="Finlayson 2015", matrix=tuple(map(tuple, matrix)), time=1.7e9)

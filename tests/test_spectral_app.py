@@ -10,6 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from media import chart_profile
 
 from hairdigi.render.domain.estimate_parts import Uncertainty
 from hairdigi.render.domain.params import HairParams
@@ -56,14 +57,14 @@ def test_a_declared_rig_whose_correction_is_not_3x3_is_warned_of_and_keeps_the_w
         "unknown": {"answer": "rgb", "holds_for": "daylight", "p68": 2.7, "p95": 7.2}}}
     record = EstimateRecord(hair=HairParams(), uncertainty=Uncertainty(mean_colour_de2000_p68=0.5,
                                                                        mean_colour_de2000_p95=6.0))
-    root_polynomial = spectral_record(record, RigSpectra("LED-B4", "nikon-5100"), np.eye(3, 6), table=table)
+    root_polynomial = spectral_record(record, RigSpectra("LED-B4", "nikon-5100"), chart_profile(np.eye(3, 6)), table=table)
     assert root_polynomial.spectral is None and root_polynomial.uncertainty.spectral.camera == "unknown"
     assert root_polynomial.uncertainty.mean_colour_de2000_p95 == 7.2
     [warning] = root_polynomial.warnings
     assert warning.kind is WarningKind.OTHER
     assert warning.message.startswith("spectral: the camera answer needs a linear 3x3 chart correction")
     assert "degree 1" in warning.message
-    undeclared = spectral_record(record, None, np.eye(3, 6), table=table)   # nothing declared: nothing to warn of
+    undeclared = spectral_record(record, None, chart_profile(np.eye(3, 6)), table=table)   # nothing declared: nothing to warn of
     assert undeclared.warnings == () and undeclared.uncertainty.spectral.camera == "unknown"
 
 

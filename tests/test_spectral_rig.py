@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from media import chart_profile
 
 from hairdigi.render.domain.estimate_parts import Uncertainty
 from hairdigi.render.domain.params import HairParams
@@ -90,9 +91,9 @@ def test_a_record_is_widened_by_metamerism_unless_its_rig_declares_its_camera():
     assert with_spectral(base, table, "unknown").spectral.answer == "rgb"
     assert with_spectral(base, None, "nikon-5100") == base
     record = EstimateRecord(hair=HairParams(), uncertainty=base)
-    undeclared = spectral_record(record, None, np.eye(3), table=table)
+    undeclared = spectral_record(record, None, chart_profile(np.eye(3)), table=table)
     assert undeclared.spectral is None and undeclared.uncertainty.mean_colour_de2000_p95 == 7.2
-    polynomial = spectral_record(record, RigSpectra("LED-B4", "nikon-5100"), np.eye(3, 9), table=table)
+    polynomial = spectral_record(record, RigSpectra("LED-B4", "nikon-5100"), chart_profile(np.eye(3, 9)), table=table)
     assert polynomial.spectral is None and polynomial.uncertainty.spectral.camera == "unknown"
 
 

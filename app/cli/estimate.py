@@ -96,4 +96,4 @@ def in_spectral_world(record, estimate, calibration: str, led: str | None, senso
     profile = load_profile(calibration)
     spectra = rig_spectra(False, False, led, sensor)[1]
     curve = None if estimate.refinement is None else estimate.refinement.curve
-    return spectral_record(record, spectra, profile.matrix, curve, patches=profile.patches)
+    return spectral_record(record, spectra, profile, curve)

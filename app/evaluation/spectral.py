@@ -139,8 +139,7 @@ def answers(record, profile=None, led: str | None = None, sensitivities: str | N
     if record.spectral is not None:      # read as the capture was made (``inference.spectral.spectral_record``)
         out["camera"], out["camera_residual"] = record.spectral.hair, record.spectral.residual
     elif profile is not None and led is not None:   # a record made before the rig declared its spectra
-        reading = spectral_record(record, RigSpectra(led, sensitivities), profile.matrix,
-                                  patches=profile.patches).spectral
+        reading = spectral_record(record, RigSpectra(led, sensitivities), profile).spectral
         if reading is not None:
             out["camera"], out["camera_residual"] = reading.hair, reading.residual
     return out

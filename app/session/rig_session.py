@@ -361,8 +361,7 @@ class RigSession:
         from hairdigi.inference.spectral import spectral_record
 
         profile = profile or self.profile
-        return spectral_record(record, self.spectra, None if profile is None else profile.matrix, curve,
-                               patches=None if profile is None else profile.patches)
+        return spectral_record(record, self.spectra, profile, curve)
 
     def load_capture(self, capture_id: str) -> "LoadedCapture":
         """A saved capture with what reviewing it needs: the frame, its swatch area, its result record,
