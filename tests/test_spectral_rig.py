@@ -38,6 +38,19 @@ def test_the_response_curve_read_per_wavelength_is_a_spectral_render_without_the
             assert de < 1.0, (light, de)    # the spectral render's own noise at 64 spp: ~0.2-0.7
 
 
+def test_the_refit_reaches_a_saturated_purples_colour_from_an_rgb_answer_far_from_it():
+    """The dye's spectrum is a solve; the refit's finite differences must not differentiate its noise."""
+    from hairdigi.inference.refine import RefineSettings, response_curve
+    from hairdigi.inference.spectral import colour_under, spectral_answer
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
+
+    curve = response_curve(RIG_SWATCH_POSE, RefineSettings())
+    truth = HairParams((107.4, 7.2, 242.8), 0.944, 0.322, 0.493)    # held-out seed 29's worst hair
+    rgb_answer = HairParams((60.8, 13.4, 140.4), 0.785, 0.297, 0.522)  # what the RGB chain read of it
+    hair, residual = spectral_answer(rgb_answer, colour_under(curve, truth, "D65"), curve)
+    assert residual < 0.2, (hair, residual)          # was 1.36 with a step of 1e-3
+
+
 def _spectral_capture(tmp_path, hidden, led: str, camera: str):
     """One calibration and capture of ``hidden`` on a spectral simulated rig (8 spp): the closed session,
     its profile and the capture's result."""
