@@ -281,3 +281,25 @@ def test_the_shipped_chart_targets_are_the_chart_rendered_in_todays_rig():
     fresh = render_chart_targets(spp=32)
     de = delta_e2000(fresh, shipped)
     assert de.mean() < 0.5 and de.max() < 1.5, de
+
+
+def test_an_over_exposed_swatch_is_captured_again_as_the_operator_is_told(tmp_path):
+    """Glossy white hair's glints clip at the bench's exposure; the evaluations then do what the message
+    says (``capture_as_told``): lower the exposure, calibrate again, capture again."""
+    from hairdigi.app.session.blockers import EXPOSURE_STEP_EV, capture_as_told
+    from hairdigi.render.domain.appearance import Appearance
+    from hairdigi.render.domain.params import HairParams
+
+    white = HairParams((255, 255, 255), 0.0, 0.0, 0.3)
+    session = RigSession.simulated_rig(tmp_path / "session", hidden=white, spp=8,
+                                       appearance=Appearance(longitudinal_roughness=0.12))
+    try:
+        session.calibrate()
+        first = session.capture()
+        assert [b.kind for b in first.blocked] == [BlockerKind.OVER_EXPOSED], first.blocked
+        assert "lower the exposure" in first.blocked[0].message
+        result, profile = capture_as_told(session)
+        assert result.record is not None, result.blocked
+        assert profile is not None and session.camera.camera.exposure_ev <= -EXPOSURE_STEP_EV
+    finally:
+        session.close()

@@ -195,3 +195,4 @@ def test_a_camera_whose_bands_overlap_is_read_from_its_measured_greys_and_its_no
     # before the two mends, 4.1-5.0
     for light in ("D65", "A", "shop-led"):
         assert verdict[f"camera_rig_{light}"] < 2.0, verdict
+

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.session.blockers import BlockerKind, messages
+from hairdigi.app.session.blockers import capture_as_told, messages
 from hairdigi.render.domain.appearance import APPEARANCE_DRAW, DEFAULT_APPEARANCE, FIELDS, Appearance
 from hairdigi.render.domain.files import write_json_atomic
 from hairdigi.render.io.figures import save_table
@@ -111,16 +111,8 @@ def _one(name: str, hidden: HairParams, look: Appearance, layout: int, folder: P
         frames_s = time.perf_counter() - start
         for mode, per_light in (("read", True), ("no light frames", False)):
             start = time.perf_counter()
-            result = session.capture(per_light=per_light)
+            result, _ = capture_as_told(session, per_light=per_light)   # with any retries at a lower exposure
             seconds = time.perf_counter() - start
-            for _ in range(2):   # as the operator is told: lower the exposure by 0.5 EV, calibrate, capture again
-                if not any(b.kind is BlockerKind.OVER_EXPOSED for b in result.blocked):
-                    break
-                session.camera.camera.exposure_ev -= 0.5
-                session.calibrate()
-                start = time.perf_counter()
-                result = session.capture(per_light=per_light)
-                seconds = time.perf_counter() - start
             row = {"hidden": name, "mode": mode, **{f"true_{k}": v for k, v in look.to_dict().items()},
                    "exposure_ev": session.camera.camera.exposure_ev,
                    "capture_frames_s": round(frames_s, 2), "capture_s": round(seconds, 2),

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.session.blockers import messages
+from hairdigi.app.session.blockers import capture_as_told, messages
 from hairdigi.render.io.figures import save_table
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.metrics import error_stats
@@ -177,7 +177,9 @@ def evaluate_spectral(out_dir: str | os.PathLike, config: SpectralSet = Spectral
                     row["rig_seconds"] = round(time.perf_counter() - start, 2)
                     start = time.perf_counter()
                     profile = session.calibrate()
-                    result = session.capture()
+                    result, recalibrated = capture_as_told(session)   # an over-exposed swatch: as the operator is told
+                    profile = recalibrated or profile
+                    row["exposure_ev"] = session.camera.camera.exposure_ev
                     row["chain_seconds"] = round(time.perf_counter() - start, 2)
                     row["calibration_de2000"] = round(float(profile.delta_e2000["after"]["mean"]), 3)
                 except Exception as exc:   # noqa: BLE001 - a failure found by the evaluation is reported, not lost

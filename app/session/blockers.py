@@ -30,3 +30,21 @@ class Blocker:
 def messages(blockers: list[Blocker] | tuple[Blocker, ...]) -> tuple[str, ...]:
     """The blockers' messages, in order: what a capture's record keeps and a report prints."""
     return tuple(b.message for b in blockers)
+
+
+#: How far the evaluations lower a simulated camera's exposure each time a swatch is over-exposed.
+EXPOSURE_STEP_EV = 0.5
+
+
+def capture_as_told(session, tries: int = 2, **capture_options):
+    """``session.capture(...)``, then, as the operator is told of an over-exposed swatch, up to ``tries``
+    times: lower the simulated camera's exposure by ``EXPOSURE_STEP_EV``, calibrate again, capture again.
+    Returns the last result and the calibration profile in force (None where it was not recalibrated)."""
+    result, profile = session.capture(**capture_options), None
+    for _ in range(tries):
+        if not any(b.kind is BlockerKind.OVER_EXPOSED for b in result.blocked):
+            break
+        session.camera.camera.exposure_ev -= EXPOSURE_STEP_EV
+        profile = session.calibrate()
+        result = session.capture(**capture_options)
+    return result, profile
