@@ -32,11 +32,11 @@ from hairdigi.resources import MODELS
 
 #: How much a refit may move the parameters (normalised to [0, 1]) for one unit of CIELAB distance.
 STAY = 1.0
-#: The refit's finite-difference step in normalised parameters. The dye's spectrum is itself a solve
-#: (Jakob & Hanika 2019, to colour-science's tolerance), so a step of 1e-3 differentiates its noise: a
-#: saturated purple (dye (107, 7, 243) at 0.94) was left 1.36 ΔE76 from its own colour, and on 14 hairs
-#: (the rig's hard cases and 8 drawn, started 0.1 off) the worst residual was 2.21. At 1e-2: 0.12, and
-#: the refit's colour under tungsten 0.12 median / 0.70 p95 ΔE2000 from the truth's (1.5 s median).
+#: The refit's finite-difference step in normalised parameters. At 1e-3 a saturated purple (dye
+#: (107, 7, 243) at 0.94, held-out seed 29) was left 1.36 ΔE76 from its own colour, and of 14 hairs (the
+#: rig's hard cases and 8 drawn, each started 0.1 off) the worst 2.16: the landscape has flats a small
+#: step cannot see past. At 1e-2: worst 0.12, the refit's colour under tungsten 0.12 median / 0.76 worst
+#: ΔE2000 from the truth's, 0.09 s median (0.25 s worst) a refit.
 FIT_STEP = 1e-2
 #: The lights a customer sees hair under: daylight, tungsten, a shop's white LED.
 UNDER = ("D65", "A", "shop-led")

@@ -81,6 +81,23 @@ def test_colours_under_two_lights():
     assert labs["studio"][0, 2] > labs["daylight"][0, 2] + 10        # tungsten: warmer on a daylight photo
 
 
+def test_the_studio_colour_of_a_swatch_with_parameters_comes_from_its_spectrum():
+    """Under the 3200 K lamps a dye's absorption band moves as a spectrum does, not as an RGB product:
+    measured, a saturated red 3.96 and a copper red 3.51 ΔE2000 from the RGB renderer's studio colour,
+    black 0.03; daylight (what the rig measured) is the same either way."""
+    import colour
+
+    from hairdigi.render.domain.absorption import hair_sigma_a
+
+    hairs = [HairParams((255, 0, 0), 1.0, 0.0, 0.5),
+             HairParams(melanin_concentration=0.98, melanin_ratio=0.9, dye_concentration=0.0)]
+    sigma = np.array([hair_sigma_a(h) for h in hairs])
+    rgb, spectral = swatch_labs(sigma), swatch_labs(sigma, hairs)
+    assert np.allclose(rgb["daylight"], spectral["daylight"])
+    moved = colour.delta_E(rgb["studio"], spectral["studio"], method="CIE 2000")
+    assert moved[0] > 2.0 and moved[1] < 0.5, moved
+
+
 # --- migrations ----------------------------------------------------------------------------------
 def test_migrations_apply_once_in_order_and_keep_data(lib_env):
     with Library(str(lib_env), migrate_to=1) as old:

@@ -10,6 +10,7 @@ import numpy as np
 
 from hairdigi.app.library.store import Library, LibraryError, SwatchRow
 from hairdigi.app.library.swatch_colour import swatch_labs
+from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.record_fields import RecordError
 from hairdigi.render.domain.records import EstimateRecord, read_record, read_session_capture, record_sha256
 from hairdigi.render.domain.session_folder import SessionFolder, capture_id_of
@@ -25,11 +26,21 @@ def _sigma(record: EstimateRecord | None) -> tuple[float, float, float] | None:
     return None if record is None else record.sigma_a
 
 
+def _spectral_hair(row: SwatchRow) -> HairParams | None:
+    """The Table 1 hair whose spectrum gives a row's studio colour: a declared rig's camera answer
+    (``record.spectral``) where the record has one, else its parameters."""
+    result = row.record.get("result", row.record) if isinstance(row.record, dict) else {}
+    reading = (result or {}).get("spectral") or {}
+    hair = reading.get("hair") or row.hair
+    return None if hair is None else HairParams.from_dict(hair)
+
+
 def _with_colours(rows: list[SwatchRow]) -> list[SwatchRow]:
-    """Fill every row's CIELAB under each light from its ``sigma_a``, all at once."""
+    """Fill every row's CIELAB under each light from its ``sigma_a`` (the studio light's change from its
+    Table 1 hair's spectrum, where it has one), all at once."""
     coloured = [r for r in rows if r.sigma_a is not None]
     if coloured:
-        labs = swatch_labs(np.array([r.sigma_a for r in coloured]))
+        labs = swatch_labs(np.array([r.sigma_a for r in coloured]), [_spectral_hair(r) for r in coloured])
         for i, r in enumerate(coloured):
             r.labs = {ill: tuple(float(v) for v in lab[i]) for ill, lab in labs.items()}
     return rows

@@ -5,10 +5,14 @@ channel of the mean depends on that channel's ``sigma_a`` alone through the rig'
 (``inference.refine.response_curve``, rendered once per pose and cached), so it costs no render at import.
 
 - ``daylight``: the rig's white lights, which in hairdigi's linear Rec.709 are D65; CIELAB against D65.
-- ``studio``: the same swatch under 3200 K tungsten studio lamps, approximated the way an RGB renderer
-  lights it (the per-channel product of the lamp's linear Rec.709 colour, scaled to luminance 1, and the
-  daylight colour), and seen without chromatic adaptation, as a daylight-balanced photograph shows it
-  (CIELAB against D65). Both are approximations: no spectra, one lamp colour.
+- ``studio``: the same swatch under 3200 K tungsten studio lamps (a Planckian radiator), seen without
+  chromatic adaptation, as a daylight-balanced photograph shows it (CIELAB against D65). Where the
+  record holds Table 1 parameters, the change from daylight is the spectral hair's
+  (``inference.spectral.colour_under``: the rig's response curve read per wavelength, under each SPD),
+  applied per channel to the measured daylight colour, so a dye's absorption band moves as it does
+  under a real lamp; the parameters of a declared rig's camera answer (``record.spectral``) are used
+  where the record has them. Without parameters, as an RGB renderer lights it: the per-channel product
+  of the lamp's linear Rec.709 colour, scaled to luminance 1, and the daylight colour.
 """
 from __future__ import annotations
 
@@ -21,6 +25,8 @@ from hairdigi.render.domain.errors import HairdigiError
 
 ILLUMINANTS = ("daylight", "studio")
 STUDIO_CCT = 3200.0
+#: The studio lamps as a spectrum (``render.spectra.illuminant_spd``).
+STUDIO_LIGHT = f"{STUDIO_CCT:.0f}K"
 _HEX = re.compile(r"^#?([0-9a-fA-F]{6})$")
 
 
@@ -52,17 +58,33 @@ def rendered_linear(sigma_a: np.ndarray) -> np.ndarray:
     return _curve()(np.asarray(sigma_a, float))
 
 
-def lab_under(linear_daylight: np.ndarray) -> dict[str, np.ndarray]:
-    """CIELAB of the rendered colour under each illuminant (see the module's docstring)."""
+def studio_change(hair) -> np.ndarray:
+    """Per channel, the spectral swatch of ``hair`` (``HairParams``) under the studio lamps over under
+    daylight (linear sRGB, unadapted; both lights at luminance 1)."""
+    from hairdigi.inference.spectral import colour_under
+
+    curve = _curve()
+    daylight = colour_under(curve, hair, "D65")
+    return colour_under(curve, hair, STUDIO_LIGHT) / np.maximum(daylight, 1e-9)
+
+
+def lab_under(linear_daylight: np.ndarray, hairs: list | None = None) -> dict[str, np.ndarray]:
+    """CIELAB of the rendered colour under each illuminant (see the module's docstring); ``hairs``: each
+    swatch's Table 1 parameters or None (then the studio colour is the RGB renderer's)."""
     from hairdigi.render.metrics import linear_rgb_to_lab
 
     rgb = np.asarray(linear_daylight, float)
-    return {"daylight": linear_rgb_to_lab(rgb), "studio": linear_rgb_to_lab(rgb * studio_light_rgb())}
+    change = np.broadcast_to(studio_light_rgb(), rgb.shape).copy()
+    for i, hair in enumerate(hairs or ()):
+        if hair is not None:
+            change[i] = studio_change(hair)
+    return {"daylight": linear_rgb_to_lab(rgb), "studio": linear_rgb_to_lab(rgb * change)}
 
 
-def swatch_labs(sigma_a: np.ndarray) -> dict[str, np.ndarray]:
-    """CIELAB under each illuminant of swatches of these ``sigma_a`` (any shape ending in 3)."""
-    return lab_under(rendered_linear(sigma_a))
+def swatch_labs(sigma_a: np.ndarray, hairs: list | None = None) -> dict[str, np.ndarray]:
+    """CIELAB under each illuminant of swatches of these ``sigma_a`` (any shape ending in 3); ``hairs``:
+    their Table 1 parameters where known (one per swatch, or None), for the spectral studio colour."""
+    return lab_under(rendered_linear(sigma_a), hairs)
 
 
 def hex_lab(text: str) -> np.ndarray:

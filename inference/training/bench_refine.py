@@ -143,7 +143,8 @@ def bench_layouts(out_dir: str | os.PathLike, progress: bool = True) -> list[dic
     ``LAYOUT_SEEDS`` layouts of the default swatch at the rig's swatch area (the capture: its mean at
     ``LAYOUT_JUDGE_SPP``); every answer is rendered on one judge layout (seed 900, ``LAYOUT_JUDGE_SPP``):
     the **nuisance** is the largest ΔE2000 between two layouts' answers there, the **error** each answer
-    against the truth on its own layout. Writes ``layouts_bench.csv`` and ``layouts_bench.png``."""
+    against the truth on its own layout, and the **truth's spread** the largest ΔE2000 between the
+    truth's own captures: the floor of any answer read from one capture. Writes ``layouts_bench.csv`` and ``layouts_bench.png``."""
     import time
 
     from tqdm import tqdm
@@ -168,6 +169,9 @@ def bench_layouts(out_dir: str | os.PathLike, progress: bool = True) -> list[dic
     for name, hair in tqdm(LAYOUT_HAIRS.items(), desc="layouts", unit="hair", disable=not progress):
         truth = hair_sigma_a(hair)
         captures = {s: mean(truth, s) for s in LAYOUT_SEEDS}
+        # the floor: no answer read from one capture can vary less between layouts than the truth's own colour
+        floor = max(float(delta_e2000(a, b)) for i, a in enumerate(captures.values())
+                    for b in list(captures.values())[i + 1:])
         for layouts in LAYOUT_SETTINGS:
             settings = replace(RefineSettings(), check_layouts=layouts)
             answers, errors, seconds = [], [], []
@@ -179,6 +183,7 @@ def bench_layouts(out_dir: str | os.PathLike, progress: bool = True) -> list[dic
                 errors.append(float(delta_e2000(mean(r.sigma_a, s), captures[s])))
             spread = max(float(delta_e2000(a, b)) for i, a in enumerate(answers) for b in answers[i + 1:])
             rows.append({"hair": name, "check_layouts": layouts, "nuisance_de2000": round(spread, 3),
+                         "truth_spread_de2000": round(floor, 3),
                          "error_median_de2000": round(float(np.median(errors)), 3),
                          "error_worst_de2000": round(float(np.max(errors)), 3),
                          "polish_s": round(float(np.median(seconds)), 2)})
