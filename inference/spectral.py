@@ -188,9 +188,18 @@ def with_spectral(uncertainty: Uncertainty, table: dict | None, camera: str) -> 
 NEUTRALS = (19, 20, 21, 22)
 
 
+#: A refit left this far from its colour (CIELAB ΔE76) starts again from ``RESTARTS`` too.
+RESTART_DE = 1.0
+#: Where a refit starts again: the start's melanins under a mid-grey dye at half concentration. Without
+#: a dye (concentration 0, or a white dye), neither the dye's colour nor its concentration moves the
+#: colour, so a refit started there cannot find a dye at all.
+RESTARTS = ((0.5, 0.5, 0.5, 0.5),)
+
+
 def fit_table1(start_hair: HairParams, target_linear: np.ndarray, forward) -> tuple[HairParams, float]:
     """The Table 1 hair nearest ``start_hair`` whose ``forward(hair)`` (linear sRGB) is ``target_linear``:
-    least squares of CIELAB differences and ``STAY`` times the move in normalised parameters."""
+    least squares of CIELAB differences and ``STAY`` times the move in normalised parameters; where that
+    is left more than ``RESTART_DE`` away, the best of it and fits started from ``RESTARTS``."""
     from scipy.optimize import least_squares
 
     from hairdigi.render.metrics import linear_rgb_to_lab
@@ -202,5 +211,12 @@ def fit_table1(start_hair: HairParams, target_linear: np.ndarray, forward) -> tu
         colour = forward(HairParams.from_vector(v))
         return np.concatenate([linear_rgb_to_lab(np.maximum(colour, 1e-6)) - target, STAY * (v - start)])
 
-    fit = least_squares(residuals, start, bounds=(0.0, 1.0), diff_step=FIT_STEP, max_nfev=200)
-    return HairParams.from_vector(fit.x), float(np.linalg.norm(fit.fun[:3]))
+    def fit(v0: np.ndarray):
+        return least_squares(residuals, v0, bounds=(0.0, 1.0), diff_step=FIT_STEP, max_nfev=200)
+
+    best = fit(start)
+    if np.linalg.norm(best.fun[:3]) > RESTART_DE:
+        for dye in RESTARTS:
+            again = fit(np.concatenate([dye, start[4:]]))
+            best = again if again.cost < best.cost else best
+    return HairParams.from_vector(best.x), float(np.linalg.norm(best.fun[:3]))

@@ -38,7 +38,7 @@ def test_the_response_curve_read_per_wavelength_is_a_spectral_render_without_the
             assert de < 1.0, (light, de)    # the spectral render's own noise at 64 spp: ~0.2-0.7
 
 
-def test_the_refit_reaches_a_saturated_purples_colour_from_an_rgb_answer_far_from_it():
+def test_the_refit_reaches_a_saturated_purple_and_a_dye_from_rgb_answers_far_from_them():
     """The dye's spectrum is a solve; the refit's finite differences must not differentiate its noise."""
     from hairdigi.inference.refine import RefineSettings, response_curve
     from hairdigi.inference.spectral import colour_under, spectral_answer
@@ -49,6 +49,11 @@ def test_the_refit_reaches_a_saturated_purples_colour_from_an_rgb_answer_far_fro
     rgb_answer = HairParams((60.8, 13.4, 140.4), 0.785, 0.297, 0.522)  # what the RGB chain read of it
     hair, residual = spectral_answer(rgb_answer, colour_under(curve, truth, "D65"), curve)
     assert residual < 0.2, (hair, residual)          # was 1.36 with a step of 1e-3
+    # an RGB answer without dye: neither the dye's colour nor its concentration moves the colour there
+    violet_ash = HairParams((150, 110, 220), 0.6, 0.15, 0.7)
+    natural = HairParams(melanin_concentration=0.15, melanin_ratio=0.7, dye_concentration=0.0)
+    hair, residual = spectral_answer(natural, colour_under(curve, violet_ash, "D65"), curve)
+    assert residual < 0.2 and hair.dye_concentration > 0.2, (hair, residual)   # was 5.4, no dye found
 
 
 def _spectral_capture(tmp_path, hidden, led: str, camera: str):
