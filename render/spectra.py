@@ -19,9 +19,10 @@ Table 1 stays; each parameter maps to an absorption spectrum ``sigma_a(λ)`` per
    the table Mitsuba's spectral variants upsample RGB albedos with (``srgb_model_fetch``, 0.2 µs), so
    a dye renders spectrally as Mitsuba would render its RGB albedo; colour-science's solve of the same
    model (``XYZ_to_sd``, method "Jakob 2019", 40 ms) is the reference it is tested against (within
-   0.0023 in albedo from saturated to grey dyes, ``tests/test_spectra.py``). The solve's cost (0.5 s a dyed swatch's colour under
-   another light) and its solver noise (which a refit's finite differences took for a slope) are gone. Chiang 2016's
-   eq. 9 then turns each wavelength's albedo into an absorption, times the concentration. A dye
+   0.0023 in albedo from saturated to grey dyes, ``tests/test_spectra.py``). The solve's cost (0.5 s
+   a dyed swatch's colour under another light) and its solver noise (which a refit's finite
+   differences took for a slope) are gone. Chiang 2016's eq. 9 then turns each wavelength's albedo
+   into an absorption, times the concentration. A dye
    whose real absorption is a narrow band cannot be told from Table 1's RGB: :func:`band_dye` makes
    one, for the evaluations' hidden hairs.
 
@@ -136,7 +137,7 @@ def _albedo_spectrum(rgb: tuple[float, float, float]) -> np.ndarray:
     from mitsuba import scalar_rgb   # the variant's module itself: no global variant is chosen here
 
     c0, c1, c2 = scalar_rgb.srgb_model_fetch(scalar_rgb.ScalarColor3f(*c))
-    x = c0 * WAVELENGTHS ** 2 + c1 * WAVELENGTHS + c2            # Jakob & Hanika 2019, eq. 3 (colour's sd_Jakob2019)
+    x = c0 * WAVELENGTHS ** 2 + c1 * WAVELENGTHS + c2   # Jakob & Hanika 2019 (as colour's sd_Jakob2019)
     return np.clip(0.5 + x / (2.0 * np.sqrt(1.0 + x * x)), MIN_DYE_ALBEDO, 1.0)
 
 

@@ -77,9 +77,10 @@ def bench_layouts(args: argparse.Namespace) -> int:
 
     out = Path("packaging/bench/layouts") if args.out == BENCH_OUT else Path(args.out)
     for r in run(out):
-        print(f"{r['hair']:15s} {r['check_layouts']} layouts: two layouts' answers {r['nuisance_de2000']:.2f} apart "
-              f"(the truth's own colour {r['truth_spread_de2000']:.2f}, {r['truth_spread_fine_de2000']:.2f} of finer fibres); "
-              f"error median {r['error_median_de2000']:.2f}, worst {r['error_worst_de2000']:.2f}; polish {r['polish_s']:.2f} s")
+        print(f"{r['hair']:15s} {r['check_layouts']} layouts: two layouts' answers {r['nuisance_de2000']:.2f} "
+              f"apart (the truth's own colour {r['truth_spread_de2000']:.2f}, "
+              f"{r['truth_spread_fine_de2000']:.2f} of finer fibres); error median {r['error_median_de2000']:.2f}, "
+              f"worst {r['error_worst_de2000']:.2f}; polish {r['polish_s']:.2f} s")
     print(f"wrote {out / 'layouts_bench.csv'} and {out / 'layouts_bench.png'}")
     return 0
 
