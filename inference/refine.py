@@ -197,9 +197,12 @@ def view_key(view: View) -> dict:
 def cache_key(head: list, spec, variant: str) -> str:
     """The disk-cache key of renders of ``spec``'s swatch: ``head`` (what the caller renders) with the
     swatch's strands, depth, the variant and its model (left out for the first swatch, "today", so
-    its cached files keep their keys)."""
-    data = [*head, spec.n_strands, spec.depth, variant] + ([spec.swatch_model]
-                                                           if spec.swatch_model is not SwatchModel.TODAY else [])
+    its cached files keep their keys) and the model's geometry revision where it has one."""
+    from hairdigi.render.swatch_family import REVISIONS
+
+    model = spec.swatch_model
+    data = [*head, spec.n_strands, spec.depth, variant] + ([model] if model is not SwatchModel.TODAY else []) \
+        + ([REVISIONS[model]] if model in REVISIONS else [])
     return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
 
 
