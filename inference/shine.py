@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import threading
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -40,9 +40,14 @@ class ShineTables:
     means: np.ndarray           # (L, B, K)
     seconds: float = 0.0
     nonfinite: int = 0          # NaN or Inf values its renders returned (replaced by 0), kept in the cache with it
+    _curves: dict = field(default_factory=dict, repr=False, compare=False)
 
     def curve(self, light: int, b: int) -> ResponseCurve:
-        return ResponseCurve(self.sigma, self.means[light, b])
+        """Light ``light``'s response curve at ``betas[b]`` (built once per tables)."""
+        key = (int(light), int(b))
+        if key not in self._curves:
+            self._curves[key] = ResponseCurve(self.sigma, self.means[light, b])
+        return self._curves[key]
 
     def _weights(self, beta: float) -> tuple[int, float]:
         j = int(np.clip(np.searchsorted(self.betas, beta) - 1, 0, len(self.betas) - 2))

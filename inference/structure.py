@@ -99,9 +99,11 @@ def nuisance(sigma: np.ndarray, family: FamilyCurves) -> dict[str, float]:
             for m, c in family.members.items()}
 
 
-#: The structures the single-light frames choose among. Deposited, spread and wavy swatches render
-#: alike at the rig (within 0.1-0.3 ΔE2000 at equal sigma_a), so "deposited" stands for all three.
-READ_MEMBERS = ("layered", "tilted", "deposited", "deposited-coarse", "loose")
+#: The structures the single-light frames choose among. Deposited and wavy swatches render alike at the
+#: rig (0.1-0.9 ΔE2000 apart at equal sigma_a, ``hairdigi bench family``), so "deposited" stands for both;
+#: a spread swatch, whose crossing fibres keep out of one another, stands high and loose and renders
+#: 1.5-4 darker than the deposited one, so it is read on its own.
+READ_MEMBERS = ("layered", "tilted", "deposited", "deposited-coarse", "spread", "loose")
 
 
 @dataclass(frozen=True)
