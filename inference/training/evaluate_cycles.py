@@ -113,11 +113,13 @@ def hidden_set(config: CyclesSet) -> list[tuple[str, HairParams, float, int]]:
 
 
 def cycles_render(sigma_a, strands: Strands, scene: str, config: CyclesSet, seed: int, folder: Path,
-                  pixels: bool = False, shine: float | None = None) -> dict:
+                  pixels: bool = False, shine: float | None = None, bspline: bool = False) -> dict:
     """One Cycles render of ``strands`` with absorption ``sigma_a`` and ``shine`` (None: the default):
     ``scene`` "rig" (the rig's swatch pose, its three lights), "light0".."light2" (one light alone) or
     "transfer"; the mean linear colour (and the pixels), the seconds and the NaN/Inf count
-    (``blender_run.render_cycles``, the one Cycles path)."""
+    (``blender_run.render_cycles``, the one Cycles path). ``bspline``: ``strands`` are Mitsuba's B-spline
+    control points (``render.swatch_family``'s), drawn as Mitsuba draws them; else polylines as they are
+    (this evaluation's own generator)."""
     from hairdigi.render.domain.absorption import LONGITUDINAL_ROUGHNESS
     from hairdigi.render.blender_run import render_cycles, rig_for_blender
     from hairdigi.render.interchange import HairLook
@@ -125,13 +127,13 @@ def cycles_render(sigma_a, strands: Strands, scene: str, config: CyclesSet, seed
     look = HairLook("hidden", tuple(float(v) for v in sigma_a),
                     longitudinal_roughness=LONGITUDINAL_ROUGHNESS if shine is None else float(shine))
     if scene == "rig":
-        rig = rig_for_blender(strands, RIG_SWATCH_POSE, "crop", config.size, bspline=False)
+        rig = rig_for_blender(strands, RIG_SWATCH_POSE, "crop", config.size, bspline=bspline)
     elif scene.startswith("light"):
         alone = tuple(1.0 if f"light{i}" == scene else 0.0 for i in range(N_LIGHTS))
-        rig = rig_for_blender(strands, RIG_SWATCH_POSE, "crop", config.size, lights=alone, bspline=False)
+        rig = rig_for_blender(strands, RIG_SWATCH_POSE, "crop", config.size, lights=alone, bspline=bspline)
     else:
         rig = rig_for_blender(strands, TRANSFER_POSE, "crop", config.size, lights=(0.0, 0.0, 0.0), env=Environment.KEY_SKY,
-                              bspline=False)
+                              bspline=bspline)
     out = render_cycles(look, rig, config.spp, seed, config.threads, pixels=pixels, folder=folder)
     return {"mean_linear": list(out.mean_linear), "seconds": out.seconds, "spp": out.spp, "nonfinite": out.nonfinite,
             "blender": out.blender, **({"pixels": out.pixels} if pixels else {})}

@@ -128,7 +128,8 @@ class _Cycles:
         if key not in self.strands:
             self.strands[key] = structure_strands(structure, defaults_for("swatch").strands, layout)
         strands = self.strands[key]
-        out = cycles_render(sigma, strands, scene, self.cycles, layout, self.folder, pixels=pixels, shine=shine)
+        out = cycles_render(sigma, strands, scene, self.cycles, layout, self.folder, pixels=pixels, shine=shine,
+                            bspline=True)     # the family's strands are B-spline control points, as Mitsuba draws them
         return np.asarray(out["pixels"], np.float32) if pixels else np.asarray(out["mean_linear"])
 
 
