@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hairdigi.render.strands import SWATCH_WIDTH, layered_radius
-from hairdigi.render.swatch_family import FAMILY, STRUCTURES, deposit, structure_strands
+from hairdigi.render.swatch_family import FAMILY, STRUCTURES, deposit, inside_share, structure_strands
 
 
 def test_every_structure_builds_deterministically_on_the_holder() -> None:
@@ -66,20 +66,6 @@ def test_a_records_colour_interval_carries_the_unknown_structure() -> None:
     assert with_structure(chain, None, "assumed") == chain                 # no table shipped: unchanged
 
 
-def _inside_another(strands, radius: float, per_segment: int = 32) -> float:
-    """The share of the drawn curves' points (a fixed sample) that lie inside another fibre by more than
-    2.5% of a radius (a neighbour's drawn point closer than 1.95 radii: the samples are 0.5 radius apart
-    along a fibre at the default swatch, so a point this close is inside)."""
-    from scipy.spatial import cKDTree
-
-    pts = strands.curves(per_segment=per_segment)
-    owner = np.repeat(np.arange(pts.n_strands), pts.counts)
-    query = np.random.default_rng(0).choice(len(pts.points), min(100_000, len(pts.points)), replace=False)
-    d, i = cKDTree(pts.points).query(pts.points[query], k=24, distance_upper_bound=1.95 * radius)
-    inside = (owner[np.minimum(i, len(owner) - 1)] != owner[query, None]) & np.isfinite(d)
-    return float(inside.any(axis=1).mean())
-
-
 def test_deposited_fibres_rest_on_one_another_and_settle() -> None:
     """Dropped fibres pile up (the stack grows with the count) but settle into hollows: a swatch of
     2000 fibres of radius 0.004 stands 3-16 fibre diameters high at its median fibre (measured 12.5;
@@ -98,9 +84,8 @@ def test_no_deposited_fibre_lies_inside_another_at_the_default_swatch() -> None:
     Measured 0.09% of points more than 2.5% of a radius inside another fibre (0.35% with 2,000 of
     radius 0.004); the former deposit, checked on its control points only, 68% (45%). Mitsuba and
     Cycles rendered that geometry 10% apart, where they agree within 4% on fibres that keep apart."""
-    radius = layered_radius(8000)
-    assert _inside_another(deposit(8000, 0, radius), radius) < 0.005
-    assert _inside_another(deposit(2000, 0, 0.004), 0.004) < 0.01
+    assert inside_share(deposit(8000, 0, layered_radius(8000))) < 0.005
+    assert inside_share(deposit(2000, 0, 0.004)) < 0.01
 
 
 @pytest.mark.slow

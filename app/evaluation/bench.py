@@ -223,6 +223,31 @@ def bench_family(args: argparse.Namespace) -> int:
     return 0
 
 
+def bench_renderers(args: argparse.Namespace) -> int:
+    """Every family structure at equal sigma_a in Mitsuba and in Blender Cycles (HAIRDIGI_BLENDER)."""
+    import sys
+
+    from hairdigi.inference.training.bench_structure import renderers
+    from hairdigi.render.blender_run import BlenderError, blender_command, probe_blender
+
+    try:
+        if blender_command() is None:
+            raise BlenderError("no Blender found: set HAIRDIGI_BLENDER to a Python that has bpy (python3.11 -m venv "
+                               "VENV && VENV/bin/pip install bpy==5.0.1) or to a blender executable")
+        probe_blender()
+    except BlenderError as exc:
+        print(f"hairdigi bench renderers: {exc}", file=sys.stderr)
+        return 2
+    out = Path("packaging/bench/renderers") if args.out == BENCH_OUT else Path(args.out)
+    for r in renderers(out, ("layered", "deposited") if args.quick else None, size=16 if args.quick else 32,
+                       spp=8 if args.quick else 64):
+        print(f"{r['structure']:17s} {r['hair']:7s}: ΔE2000 {r['de2000']:.2f}, Cycles / Mitsuba "
+              f"{r['ratio_r']:.3f} {r['ratio_g']:.3f} {r['ratio_b']:.3f} ({100 * r['inside_share']:.2f}% of the drawn "
+              f"fibres inside another)")
+    print(f"wrote {out / 'renderers.csv'} and {out / 'renderers.png'}")
+    return 0
+
+
 def bench_fibres(args: argparse.Namespace) -> int:
     """Fibre groups of a varied swatch: render time and colour against the finest split."""
     from hairdigi.render.bench_fibres import run

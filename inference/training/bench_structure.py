@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -274,5 +275,74 @@ def _plot_family(rows: list[dict], path: Path) -> None:
     ax.set_ylabel("ΔE2000 vs layered, equal σa")
     ax.set_title("the swatch's structure at equal σa, rig's swatch area (mean of 2 layouts)")
     ax.legend(fontsize=7, ncol=5)
+    fig.tight_layout()
+    save_figure(fig, path)
+
+
+#: ``hairdigi bench renderers``: the hairs (sigma_a per fibre radius), the crop's side and samples.
+RENDERER_HAIRS = {"copper": (0.07, 0.14, 0.31), "brown": (0.19, 0.30, 0.62), "red": (0.01, 0.20, 0.16)}
+RENDERER_SIZE, RENDERER_SPP = 32, 64
+
+
+def renderers(out_dir: str | os.PathLike, structures: tuple[str, ...] | None = None, size: int = RENDERER_SIZE,
+              spp: int = RENDERER_SPP, progress: bool = True) -> list[dict]:
+    """Every structure's swatch at equal sigma_a in Mitsuba and in Blender Cycles (``HAIRDIGI_BLENDER``), as
+    ``hairdigi evaluate --structures --blender`` renders its hidden swatches (the rig's swatch pose, a crop
+    of ``size``², ``spp``, layout 0, one shine): the two mean colours' ΔE2000, their ratio per channel,
+    each renderer's seconds, and the share of the drawn fibres inside another fibre
+    (``swatch_family.inside_share``). Writes ``renderers.csv`` and ``renderers.png``."""
+    import tempfile
+
+    from tqdm import tqdm
+
+    from hairdigi.inference.training.evaluate_structures import StructureSet, _Cycles, _Mitsuba
+    from hairdigi.render.swatch_family import FAMILY, inside_share, structure_strands
+    from hairdigi.render.domain.bounds import defaults_for
+
+    names = tuple(structures or FAMILY)
+    config = StructureSet(size=size, spp=spp, blender=True)
+    mitsuba = _Mitsuba(config)
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="hairdigi-bench-renderers-") as tmp:
+        cycles = _Cycles(config, Path(tmp))
+        bar = tqdm(total=len(names) * len(RENDERER_HAIRS), desc="Mitsuba and Cycles", unit="swatch",
+                   disable=not progress)
+        for name in names:
+            inside = round(inside_share(structure_strands(name, defaults_for("swatch").strands, 0)), 4)
+            for hair, sigma in RENDERER_HAIRS.items():
+                s = np.asarray(sigma, float)
+                start = time.perf_counter()
+                a = np.asarray(mitsuba.mean(s, name, 0, "rig", 0.25), float)
+                mid = time.perf_counter()
+                b = np.asarray(cycles.mean(s, name, 0, "rig", 0.25), float)
+                rows.append({"structure": name, "hair": hair, "inside_share": inside,
+                             "de2000": round(float(delta_e2000(np.clip(a, 1e-9, None), np.clip(b, 1e-9, None))), 3),
+                             **{f"ratio_{c}": round(float(b[k] / max(a[k], 1e-12)), 4) for k, c in enumerate("rgb")},
+                             "mitsuba_s": round(mid - start, 2), "cycles_s": round(time.perf_counter() - mid, 2)})
+                bar.update()
+        bar.close()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv_atomic(out / "renderers.csv", rows)
+    _plot_renderers(rows, out / "renderers.png")
+    return rows
+
+
+def _plot_renderers(rows: list[dict], path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 3.5))
+    models = list(dict.fromkeys(r["structure"] for r in rows))
+    hairs = list(dict.fromkeys(r["hair"] for r in rows))
+    x = np.arange(len(models))
+    width = 0.8 / max(1, len(hairs))
+    for k, hair in enumerate(hairs):
+        values = [next(r["de2000"] for r in rows if r["structure"] == m and r["hair"] == hair) for m in models]
+        ax.bar(x + (k - (len(hairs) - 1) / 2) * width, values, width, label=hair)
+    ax.set_xticks(x, [f"{m}\n{100 * next(r['inside_share'] for r in rows if r['structure'] == m):.1f}% inside"
+                      for m in models], fontsize=7)
+    ax.set_ylabel("ΔE2000, Mitsuba vs Cycles")
+    ax.set_title("one swatch at equal σa in two renderers (rig's swatch pose, crop)")
+    ax.legend(fontsize=7)
     fig.tight_layout()
     save_figure(fig, path)
