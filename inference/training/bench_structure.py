@@ -20,7 +20,7 @@ import numpy as np
 
 from hairdigi.render.domain.files import write_csv_atomic
 from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
-from hairdigi.render.io.figures import save_figure
+from hairdigi.render.io.figures import save_figure, save_table
 from hairdigi.render.metrics import delta_e2000, linear_rgb_to_lab
 from hairdigi.render.renderer import Renderer, SceneSpec, strands_for
 from hairdigi.render.strands import Strands
@@ -255,26 +255,31 @@ def family(out_dir: str | os.PathLike) -> list[dict]:
             row[f"{hair}_de2000"] = round(float(delta_e2000(curve(s), ref(s))), 3)
             row[f"{hair}_dL"] = round(float(_lab(curve(s))[0] - _lab(ref(s))[0]), 3)
         rows.append(row)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    write_csv_atomic(out / "family.csv", rows)
-    _plot_family(rows, out / "family.png")
+    save_table(out_dir, "family", rows, _plot_family)
     return rows
 
 
 def _plot_family(rows: list[dict], path: Path) -> None:
+    models = list(dict.fromkeys(r["structure"] for r in rows))
+    _grouped_bars(path, models, list(FAMILY_HAIRS),
+                  lambda m, h: np.mean([r[f"{h}_de2000"] for r in rows if r["structure"] == m]),
+                  "ΔE2000 vs layered, equal σa", "the swatch's structure at equal σa, rig's swatch area (mean of 2 layouts)")
+
+
+def _grouped_bars(path: Path, models: list[str], groups: list[str], value, ylabel: str, title: str,
+                  labels: list[str] | None = None) -> None:
+    """A bar per (model, group): ``value(model, group)``, the groups side by side over each model."""
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(8, 3.5))
-    models = list(dict.fromkeys(r["structure"] for r in rows))
     x = np.arange(len(models))
-    for k, hair in enumerate(FAMILY_HAIRS):
-        values = [np.mean([r[f"{hair}_de2000"] for r in rows if r["structure"] == m]) for m in models]
-        ax.bar(x + (k - 2) * 0.16, values, 0.16, label=hair)
-    ax.set_xticks(x, models, rotation=20, ha="right", fontsize=8)
-    ax.set_ylabel("ΔE2000 vs layered, equal σa")
-    ax.set_title("the swatch's structure at equal σa, rig's swatch area (mean of 2 layouts)")
-    ax.legend(fontsize=7, ncol=5)
+    width = 0.8 / max(1, len(groups))
+    for k, group in enumerate(groups):
+        ax.bar(x + (k - (len(groups) - 1) / 2) * width, [value(m, group) for m in models], width, label=group)
+    ax.set_xticks(x, labels or models, rotation=0 if labels else 20, ha="center" if labels else "right", fontsize=7)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=7, ncol=len(groups))
     fig.tight_layout()
     save_figure(fig, path)
 
@@ -321,28 +326,14 @@ def renderers(out_dir: str | os.PathLike, structures: tuple[str, ...] | None = N
                              "mitsuba_s": round(mid - start, 2), "cycles_s": round(time.perf_counter() - mid, 2)})
                 bar.update()
         bar.close()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    write_csv_atomic(out / "renderers.csv", rows)
-    _plot_renderers(rows, out / "renderers.png")
+    save_table(out_dir, "renderers", rows, _plot_renderers)
     return rows
 
 
 def _plot_renderers(rows: list[dict], path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(8, 3.5))
     models = list(dict.fromkeys(r["structure"] for r in rows))
-    hairs = list(dict.fromkeys(r["hair"] for r in rows))
-    x = np.arange(len(models))
-    width = 0.8 / max(1, len(hairs))
-    for k, hair in enumerate(hairs):
-        values = [next(r["de2000"] for r in rows if r["structure"] == m and r["hair"] == hair) for m in models]
-        ax.bar(x + (k - (len(hairs) - 1) / 2) * width, values, width, label=hair)
-    ax.set_xticks(x, [f"{m}\n{100 * next(r['inside_share'] for r in rows if r['structure'] == m):.1f}% inside"
-                      for m in models], fontsize=7)
-    ax.set_ylabel("ΔE2000, Mitsuba vs Cycles")
-    ax.set_title("one swatch at equal σa in two renderers (rig's swatch pose, crop)")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    save_figure(fig, path)
+    share = {r["structure"]: r["inside_share"] for r in rows}
+    _grouped_bars(path, models, list(dict.fromkeys(r["hair"] for r in rows)),
+                  lambda m, h: next(r["de2000"] for r in rows if r["structure"] == m and r["hair"] == h),
+                  "ΔE2000, Mitsuba vs Cycles", "one swatch at equal σa in two renderers (rig's swatch pose, crop)",
+                  [f"{m}\n{100 * share[m]:.1f}% inside" for m in models])
