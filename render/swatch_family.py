@@ -217,9 +217,36 @@ def structure_strands(name: str, n_strands: int, seed: int = 0) -> Strands:
     return _built(str(name), int(n_strands), int(seed))
 
 
+#: Structures slow enough to build (a second or more at the default swatch) that their strands are kept on
+#: disk (``cache_dir() / "strands"``), as the response curves are: an estimate on a spread swatch read from
+#: a capture took 25 s, 18 of them building its strands.
+DISK_CACHED = ("deposited", "deposited-coarse", "spread", "wavy", "thin")
+
+
+def _from_disk(name: str, n_strands: int, seed: int) -> Strands:
+    """Structure ``name``'s strands from the disk cache, built and saved there (atomically) when missing or
+    unreadable; the file's name carries the geometry's revision (``REVISIONS``)."""
+    from hairdigi.render.domain.files import atomic_path, cache_dir
+
+    path = cache_dir() / "strands" / f"{name}-{n_strands}-{seed}-r{REVISIONS.get(name, 1)}.npz"
+    try:
+        with np.load(path) as data:
+            return Strands(data["points"], data["radii"], data["counts"])
+    except (OSError, ValueError, KeyError):
+        pass   # not built yet, or a damaged file: built again
+    strands = STRUCTURES[name](n_strands, seed)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(path, ".npz") as tmp:
+            np.savez(tmp, points=strands.points, radii=strands.radii, counts=strands.counts)
+    except OSError:
+        pass   # a cache that cannot be written costs time, not the render
+    return strands
+
+
 @functools.lru_cache(maxsize=8)
 def _built(name: str, n_strands: int, seed: int) -> Strands:
-    strands = STRUCTURES[name](n_strands, seed)
+    strands = _from_disk(name, n_strands, seed) if name in DISK_CACHED else STRUCTURES[name](n_strands, seed)
     for array in (strands.points, strands.radii, strands.counts):
         array.flags.writeable = False          # shared between callers: read-only
     return strands

@@ -23,6 +23,28 @@ def test_every_structure_builds_deterministically_on_the_holder() -> None:
     assert set(FAMILY) <= set(STRUCTURES) and "thin" not in FAMILY
 
 
+def test_structures_long_to_build_are_kept_on_disk_and_a_damaged_file_is_built_again(monkeypatch, tmp_path) -> None:
+    """A spread swatch of 8,000 fibres takes 18 s to build: its strands are cached on disk (as response
+    curves are), under a name with the geometry's revision; a damaged file is rebuilt, not an error."""
+    from hairdigi.render import swatch_family as F
+
+    monkeypatch.setenv("HAIRDIGI_CACHE", str(tmp_path))
+    F._built.cache_clear()
+    first = structure_strands("deposited", 300, 5)
+    (path,) = (tmp_path / "strands").glob("*.npz")
+    assert path.name == f"deposited-300-5-r{F.REVISIONS['deposited']}.npz"
+    F._built.cache_clear()
+    assert np.array_equal(structure_strands("deposited", 300, 5).points, first.points)     # read back
+    path.write_bytes(b"not an npz")
+    F._built.cache_clear()
+    assert np.array_equal(structure_strands("deposited", 300, 5).points, first.points)     # built again
+    assert np.load(path)["points"].shape == first.points.shape                              # and saved again
+    assert not (tmp_path / "strands" / "layered-300-5-r1.npz").exists()
+    structure_strands("layered", 300, 5)                                                     # fast: not kept
+    assert not any(p.name.startswith("layered") for p in (tmp_path / "strands").iterdir())
+    F._built.cache_clear()
+
+
 def test_unknown_structure_is_refused_in_one_line() -> None:
     from hairdigi.render.renderer import SceneSpec
 
