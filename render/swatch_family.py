@@ -184,9 +184,12 @@ STRUCTURES: dict[str, Builder] = {
     "loose": lambda n, s: layered_swatch_strands(n, seed=s, radius=layered_radius(n), fill=0.4),
     "thin": lambda n, s: deposit(max(1, n // 5), s, _radius(n)),
 }
-#: Each structure's geometry revision, part of the cache key of every render of it (``inference.refine.cache_key``):
-#: 2 for the deposits that keep every fibre out of every other (the first let 68% of the drawn curve sink in).
-REVISIONS: dict[str, int] = {"deposited": 2, "deposited-coarse": 2, "spread": 2, "wavy": 2, "thin": 2}
+#: The structures ``deposit`` draws: a second or more to build at the default swatch (spread 18 s).
+DEPOSITS = ("deposited", "deposited-coarse", "spread", "wavy", "thin")
+#: Each structure's geometry revision, part of the cache key of every render of it (``inference.refine.cache_key``)
+#: and of its kept strands: 2 for the deposits that keep every fibre out of every other (the first let 68%
+#: of the drawn curve sink in).
+REVISIONS: dict[str, int] = {name: 2 for name in DEPOSITS}
 #: The structures a lab's full swatch may have: what an estimate is made robust over.
 FAMILY = ("layered", "deposited", "deposited-coarse", "spread", "wavy", "tilted", "loose")
 
@@ -217,12 +220,6 @@ def structure_strands(name: str, n_strands: int, seed: int = 0) -> Strands:
     return _built(str(name), int(n_strands), int(seed))
 
 
-#: Structures slow enough to build (a second or more at the default swatch) that their strands are kept on
-#: disk (``cache_dir() / "strands"``), as the response curves are: an estimate on a spread swatch read from
-#: a capture took 25 s, 18 of them building its strands.
-DISK_CACHED = ("deposited", "deposited-coarse", "spread", "wavy", "thin")
-
-
 def _from_disk(name: str, n_strands: int, seed: int) -> Strands:
     """Structure ``name``'s strands from the disk cache, built and saved there (atomically) when missing or
     unreadable; the file's name carries the geometry's revision (``REVISIONS``)."""
@@ -246,7 +243,9 @@ def _from_disk(name: str, n_strands: int, seed: int) -> Strands:
 
 @functools.lru_cache(maxsize=8)
 def _built(name: str, n_strands: int, seed: int) -> Strands:
-    strands = _from_disk(name, n_strands, seed) if name in DISK_CACHED else STRUCTURES[name](n_strands, seed)
+    # the deposits' strands are kept on disk (``cache_dir() / "strands"``), as the response curves are: an
+    # estimate on a spread swatch read from a capture took 25 s, 18 of them building its strands
+    strands = _from_disk(name, n_strands, seed) if name in DEPOSITS else STRUCTURES[name](n_strands, seed)
     for array in (strands.points, strands.radii, strands.counts):
         array.flags.writeable = False          # shared between callers: read-only
     return strands
