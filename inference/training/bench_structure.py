@@ -263,7 +263,8 @@ def _plot_family(rows: list[dict], path: Path) -> None:
     models = list(dict.fromkeys(r["structure"] for r in rows))
     _grouped_bars(path, models, list(FAMILY_HAIRS),
                   lambda m, h: np.mean([r[f"{h}_de2000"] for r in rows if r["structure"] == m]),
-                  "ΔE2000 vs layered, equal σa", "the swatch's structure at equal σa, rig's swatch area (mean of 2 layouts)")
+                  "ΔE2000 vs layered, equal σa",
+                  "the swatch's structure at equal σa, rig's swatch area (mean of 2 layouts)")
 
 
 def _grouped_bars(path: Path, models: list[str], groups: list[str], value, ylabel: str, title: str,
