@@ -140,13 +140,10 @@ def appearance(args: argparse.Namespace) -> int:
 def cycles(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --cycles``: swatches rendered in Blender Cycles, estimated, rendered back in Cycles."""
     from hairdigi.inference.training.evaluate_cycles import CyclesSet, evaluate_cycles
-    from hairdigi.render.blender_run import BlenderError, blender_command, probe_blender
+    from hairdigi.render.blender_run import BlenderError, probe_blender
 
     try:
-        if blender_command() is None:
-            raise BlenderError("no Blender found: set HAIRDIGI_BLENDER to a Python that has bpy (python3.11 -m venv "
-                               "VENV && VENV/bin/pip install bpy==5.0.1) or to a blender executable")
-        probe_blender()   # a Blender that does not run stops here, before any swatch is made
+        probe_blender()   # no Blender, or one that does not run, stops here, before any swatch is made
     except BlenderError as exc:
         print(f"hairdigi evaluate --cycles: error: {exc}", file=sys.stderr)
         return 2

@@ -117,17 +117,13 @@ class _Cycles:
 
         self.cycles = CyclesSet(size=config.size, spp=config.spp)
         self.folder = folder
-        self.strands: dict = {}
 
     def mean(self, sigma, structure: str, layout: int, scene: str, shine: float, pixels: bool = False):
         from hairdigi.inference.training.evaluate_cycles import cycles_render
         from hairdigi.render.swatch_family import structure_strands
         from hairdigi.render.domain.bounds import defaults_for
 
-        key = (structure, layout)   # a deposited swatch takes ~0.7 s to build: once per swatch, not per render
-        if key not in self.strands:
-            self.strands[key] = structure_strands(structure, defaults_for("swatch").strands, layout)
-        strands = self.strands[key]
+        strands = structure_strands(structure, defaults_for("swatch").strands, layout)   # kept: built once
         out = cycles_render(sigma, strands, scene, self.cycles, layout, self.folder, pixels=pixels, shine=shine,
                             bspline=True)     # the family's strands are B-spline control points, as Mitsuba draws them
         return np.asarray(out["pixels"], np.float32) if pixels else np.asarray(out["mean_linear"])
