@@ -25,7 +25,7 @@ from hairdigi.render.domain.files import atomic_path, cache_dir
 from hairdigi.render.chart import colorchecker_reflectances
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance
 from hairdigi.render.domain.params import HairParams
-from hairdigi.render.renderer import Renderer, SceneSpec
+from hairdigi.render.renderer import DEFAULT_SWATCH_MODEL, Renderer, SceneSpec
 
 SIM_SIZE = (400, 300)
 #: The hidden swatch of the demo: a copper-dyed light brown.
@@ -38,20 +38,26 @@ def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int
                         cache: bool = True, pose: rig_geometry.CameraPose = rig_geometry.CameraPose(),
                         half_width: float = rig_geometry.RIG_HALF_WIDTH,
                         appearance: Appearance = DEFAULT_APPEARANCE, illuminant: str | None = None,
-                        sensitivities: str | None = None) -> tuple[np.ndarray, int]:
+                        sensitivities: str | None = None, swatch_model: str | None = None
+                        ) -> tuple[np.ndarray, int]:
     """(3, H, W, 3) linear images of the rig lit by each light alone, and the NaN or Inf values their renders
     returned (replaced by 0; kept in the cache with them; a warning when any), seen by a camera at ``pose``
     around the rig's target (default: the bench camera), cached by their settings. ``hidden`` is
     Table 1 parameters or a median fibre's sigma_a (an absorption spectrum in a spectral rig);
     ``appearance`` its shine and fibre variation. ``illuminant`` (the LEDs' SPD) renders the rig
     spectrally, the chart with its measured spectra, seen by the CIE observer or by a camera's
-    ``sensitivities`` (its raw RGB): ``render.renderer.SceneSpec``."""
+    ``sensitivities`` (its raw RGB): ``render.renderer.SceneSpec``. ``swatch_model``: the hidden swatch's
+    physical structure (``render.swatch_family``; None: hairdigi's own, layered)."""
     view = [] if pose == rig_geometry.CameraPose() and half_width == rig_geometry.RIG_HALF_WIDTH else \
         [pose.polar_deg, pose.azimuth_deg, pose.distance, half_width]
     look = [] if appearance == DEFAULT_APPEARANCE else [appearance.to_dict()]
     if illuminant is not None:   # a CSV is keyed by its content, so an edited file renders again
         look += [{"illuminant": _content_key(illuminant), "sensitivities": _content_key(sensitivities),
                   "chart": 2}]   # 2: the chart's spectra bent to its reference colours (render.chart)
+    if swatch_model not in (None, DEFAULT_SWATCH_MODEL.value):   # with its geometry's revision
+        from hairdigi.render.swatch_family import REVISIONS
+
+        look += [{"swatch_model": swatch_model, "revision": REVISIONS.get(swatch_model, 1)}]
     hair = hidden.to_dict() if isinstance(hidden, HairParams) else [round(float(v), 6) for v in np.ravel(hidden)]
     key = hashlib.sha256(json.dumps([CACHE_VERSION, hair, list(size), spp, strand_seed, *view, *look],
                                     sort_keys=True).encode()).hexdigest()[:16]
@@ -67,7 +73,7 @@ def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int
         spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET, camera=pose,
                          half_width=half_width, lights=lights, strand_seed=strand_seed,
                          appearance=None if appearance == DEFAULT_APPEARANCE else appearance,
-                         illuminant=illuminant, sensitivities=sensitivities)
+                         illuminant=illuminant, sensitivities=sensitivities, swatch_model=swatch_model)
         result = renderer.render(hidden, spec, size, spp, seed=17 + i)
         images.append(result.linear)
         nonfinite += result.nonfinite
@@ -107,12 +113,14 @@ class SimRig:
     strand_seed: int = 0                                           # its strand layout
     illuminant: str | None = None        # the LEDs' SPD (render.spectra): a spectral rig; None: RGB, white
     sensitivities: str | None = None     # a spectral rig's camera (render.spectra.CAMERAS or a CSV)
+    swatch_model: str | None = None      # the hidden swatch's structure (render.swatch_family); None: layered
 
     def __post_init__(self) -> None:
         #: ``nonfinite``: NaN or Inf values the light images' renders returned (replaced by 0)
         self.light_images, self.nonfinite = render_light_images(self.hidden, self.size, self.spp, self.strand_seed, pose=self.pose,
                                                 half_width=self.half_width, appearance=self.appearance,
-                                                illuminant=self.illuminant, sensitivities=self.sensitivities)
+                                                illuminant=self.illuminant, sensitivities=self.sensitivities,
+                                                swatch_model=self.swatch_model)
         self.exposure_offset_ev = 0.0
         self._rng = np.random.default_rng(self.seed)
         self.name = "sim-rig"

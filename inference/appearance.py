@@ -50,6 +50,7 @@ class AppearanceReading:
     warnings: list[EstimateWarning] = field(default_factory=list)
     seconds: float = 0.0
     swatch_model: str | None = None               # the structure read (None: the default, not read)
+    misfits: dict[str, float] | None = None       # every member's misfit, when the structure was read
 
     @property
     def value(self) -> Appearance:
@@ -172,7 +173,7 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
     with the shine (``inference.structure.read_structure``); None: the default structure alone."""
     start = time.perf_counter()
     value, measured, method, warnings, curve = DEFAULT_APPEARANCE, [], {}, [], None
-    swatch_model = None
+    swatch_model, misfits = None, None
     dead, dim = ([], []) if light_means is None else dark_lights(light_means, frame_levels)
     if light_means is None:
         warnings.append(EstimateWarning(WarningKind.APPEARANCE, (
@@ -193,6 +194,7 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
 
             structure = read_structure(np.asarray(light_means, float), view, settings, renderer, structures)
             tables, shine, swatch_model = structure.tables, structure.shine, structure.swatch_model
+            misfits = structure.misfits
             method["structure"] = (f"{swatch_model}: read from the {N_LIGHTS} single-light frames, whose per-light "
                                    f"tables fit best (rms log misfit " + ", ".join(
                                        f"{m} {v:.3f}" for m, v in structure.misfits.items()) + ")")
@@ -230,7 +232,7 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
             method.update({k: "read from the texture (inference.texture's model)" for k in FROM_TEXTURE})
             intervals.update({k: v for k, v in variation.intervals.items() if k in FROM_TEXTURE})
     estimate = AppearanceEstimate(value, intervals, tuple(measured), method)
-    return AppearanceReading(estimate, curve, warnings, time.perf_counter() - start, swatch_model)
+    return AppearanceReading(estimate, curve, warnings, time.perf_counter() - start, swatch_model, misfits)
 
 
 #: What the texture gives the estimate. The grey share: held-out MAE 0.057 against 0.080 for always

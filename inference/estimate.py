@@ -23,7 +23,8 @@ from hairdigi.inference.domain import domain_stats, domain_warnings
 from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, crop_of, read_image, swatch_crop, to_linear
 from hairdigi.inference.refine import Refinement, RefineSettings, View, fitted_pixels, mean_linear, refine
-from hairdigi.inference.structure import READ_MEMBERS, STRUCTURE_TABLE, toward_family, with_structure
+from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABLE, decisive, toward_family,
+                                          with_structure)
 from hairdigi.inference.uncertainty import intervals, load_table
 from hairdigi.inference.views import swatch_view
 from hairdigi.render.domain.bounds import StructureMode
@@ -105,7 +106,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     each light alone (light order), corrected as ``image`` and at its exposure: the shine is read
     from them; without them the record says "shine not measured". ``structure``: how the swatch's
     structure is treated (``render.domain.bounds.STRUCTURE_MODES``): "assumed", hairdigi's layered swatch;
-    "family", the answer mapped to the mean of ``render.swatch_family``'s physical structures; "read",
+    "family", the answer mapped to the mean of ``render.swatch_family``'s physical structures (or refined on
+    the structure the single-light frames read decisively, ``inference.structure.decisive``); "read",
     read from the single-light frames among them and refined on it. ``sensor_clipped``: the image's
     saturated photosites per pixel (a RAW still's, ``Frame.clipped``): clipping is judged on them.
     """
@@ -175,7 +177,12 @@ def _refined(fit: _Fit, structure: StructureMode
              ) -> tuple[Refinement, AppearanceEstimate, StructureMode, list[EstimateWarning]]:
     """The refinement of ``fit`` with the appearance read on the way, the structure it was made on (a
     capture no hair on the assumed swatch reaches is read anew) and their warnings."""
-    reading = fit.read(READ_MEMBERS if structure is StructureMode.READ else None)
+    decided = None
+    if structure is StructureMode.FAMILY and fit.singles is not None:
+        # the family's mean stands for a structure the frames cannot tell; one they tell decisively is used
+        members = fit.read(READ_MEMBERS)
+        decided = decisive(members.misfits or {})
+    reading = members if decided else fit.read(READ_MEMBERS if structure is StructureMode.READ else None)
     warnings = list(reading.warnings)
     appearance = reading.estimate
     refinement = fit.refine(reading)
@@ -191,7 +198,8 @@ def _refined(fit: _Fit, structure: StructureMode
                 f"{refinement.residual_de2000:.2f}; uniform fibres {uniform.residual_de2000:.2f}): it is not "
                 f"reported as measured"])
             refinement, appearance = uniform, unmeasured_variation(reading.estimate)
-    if structure is not StructureMode.READ and fit.singles is not None and refinement.residual_de2000 > UNREACHED_DE:
+    if (structure is not StructureMode.READ and not decided and fit.singles is not None
+            and refinement.residual_de2000 > UNREACHED_DE):
         # no hair on the assumed swatch renders the capture's colour: the swatch is built another way.
         # Its structure is read from the single-light frames and kept where it reaches the colour
         reread = fit.read(READ_MEMBERS)
@@ -204,7 +212,11 @@ def _refined(fit: _Fit, structure: StructureMode
                 f"made on it"])
             warnings = [w for w in warnings if w.kind != WarningKind.APPEARANCE] + list(reread.warnings)
             refinement, appearance, structure = other, reread.estimate, StructureMode.READ
-    if structure is StructureMode.FAMILY:
+    if decided:
+        refinement = replace(refinement, region=replace(refinement.region, structure=(
+            f"read decisively from the single-light frames as {decided} (its misfit under 1/{DECISIVE:g} of "
+            f"every other member's: " + ", ".join(f"{m} {v:.3f}" for m, v in members.misfits.items()) + ")")))
+    elif structure is StructureMode.FAMILY:
         refinement = toward_family(refinement, fit.start, fit.view, fit.settings, fit.renderer)
     if not refinement.reachable:
         warnings += _warn(WarningKind.UNREACHABLE, [

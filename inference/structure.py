@@ -106,6 +106,23 @@ def nuisance(sigma: np.ndarray, family: FamilyCurves) -> dict[str, float]:
 READ_MEMBERS = ("layered", "tilted", "deposited", "deposited-coarse", "spread", "loose")
 
 
+#: A structure reading is decisive when the next-best member's misfit is at least this many times the best's:
+#: the "family" mode then refines on the structure read, and maps to the family's mean otherwise. Chosen on
+#: ``hairdigi evaluate --structures`` (fit on other structures, median / p95 with the rule): held out 13 in
+#: Mitsuba 0.48 / 1.48 (mapped alone 0.51 / 2.14: the spread swatch, read at ratios 2.2-9.2), Blender Cycles
+#: 0.90 / 1.71 (read alone 0.71 / 2.10: tilted swatches misread as deposited at ratios 1.03-1.60); any ratio
+#: from 1.8 to 2.2 gave the same figures. Checked on draws it was not chosen on: see the model card.
+DECISIVE = 2.0
+
+
+def decisive(misfits: dict[str, float], ratio: float = DECISIVE) -> str | None:
+    """The member whose misfit is under ``1 / ratio`` of every other's (``StructureReading.misfits``), or None."""
+    if len(misfits) < 2:
+        return None
+    best, second = sorted(misfits.items(), key=lambda kv: kv[1])[:2]
+    return best[0] if second[1] >= ratio * max(best[1], 1e-9) else None
+
+
 @dataclass(frozen=True)
 class StructureReading:
     """The structure whose per-light tables fit the single-light frames best, and its shine."""

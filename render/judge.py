@@ -31,6 +31,14 @@ class Verdict:
     nonfinite: int
 
 
+def judge_scene(swatch_model: str | None = None):
+    """The judge's scene: the swatch at the rig's swatch pose, all hair in view, of ``swatch_model``'s strands
+    (``render.swatch_family``; None: the default, layered)."""
+    from hairdigi.render.renderer import SceneSpec
+
+    return SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop", swatch_model=swatch_model)
+
+
 def judge(truth: HairParams | np.ndarray, estimate: HairParams | np.ndarray, scene=None,
           size: int | tuple[int, int] = JUDGE_SIZE, spp: int = JUDGE_SPP, seed: int = JUDGE_SEED,
           renderer=None, looks: tuple = (None, None)) -> Verdict:
@@ -38,9 +46,7 @@ def judge(truth: HairParams | np.ndarray, estimate: HairParams | np.ndarray, sce
     with its appearance in ``looks`` (shine and fibre variation; None: the default uniform hair)."""
     from dataclasses import replace
 
-    from hairdigi.render.renderer import SceneSpec
-
-    base = scene or SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop")
+    base = scene or judge_scene()
     ta, n_truth = judge_mean(truth, replace(base, appearance=looks[0]), size, spp, seed, renderer)
     tb, n_est = judge_mean(estimate, replace(base, appearance=looks[1]), size, spp, seed, renderer)
     return Verdict(float(delta_e2000(np.clip(tb, 1e-9, None), np.clip(ta, 1e-9, None))),
@@ -54,9 +60,9 @@ def judge_mean(hair: HairParams | np.ndarray, scene=None, size: int | tuple[int,
                spp: int = JUDGE_SPP, seed: int = JUDGE_SEED, renderer=None) -> tuple[np.ndarray, int]:
     """The judge render's mean linear colour of ``hair`` and its NaN/Inf count (the last 64 kept: a
     truth is judged against many estimates)."""
-    from hairdigi.render.renderer import SceneSpec, default_renderer
+    from hairdigi.render.renderer import default_renderer
 
-    scene = scene or SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop")
+    scene = scene or judge_scene()
     value = hair if isinstance(hair, HairParams) else tuple(float(v) for v in np.asarray(hair, float))
     key = (value, scene, size if isinstance(size, int) else tuple(size), spp, seed)
     if key not in _MEANS:

@@ -486,10 +486,22 @@ def test_a_stale_wayland_display_is_one_line(monkeypatch, tmp_path):
 # --- small things (continued) ----------------------------------------------------------------------------
 @pytest.mark.parametrize("args", [["--rig", "--cycles"], ["--appearance", "--rig"], ["--convergence", "4,16", "--rig"],
                                   ["--ship"], ["--no-variation", "--rig"], ["--default-shine"], ["--dye", "--ship"],
-                                  ["--structures", "--rig"], ["--blender"], ["--hidden-structures", "loose"]])
+                                  ["--structures", "--rig"], ["--blender"], ["--hidden-structures", "loose"],
+                                  ["--structure", "family"], ["--structures", "--structure", "read"]])
 def test_contradictory_evaluation_flags_are_refused(ws, capsys, args):
     one_line(main(["evaluate", *args, "--out", "ev"]), capsys, "--")
     assert not (ws / "ev").exists()
+
+
+@pytest.mark.parametrize("args, says", [(["--ship", "--structure", "family"], "drop --ship"),
+                                        (["--ship", "--hidden-structures", "deposited"], "drop --ship"),
+                                        (["--hidden-structures", "deposited,stacked"], "unknown structure 'stacked'")])
+def test_a_rig_evaluation_of_other_swatches_is_not_shipped_nor_run_on_a_structure_that_is_not(ws, capsys, args, says):
+    """The chain's shipped interval is measured on hairdigi's own swatch in the default mode; a misspelt
+    hidden structure is named before any capture is rendered."""
+    assert main(["evaluate", "--rig", *args, "--out", "ev"]) == 2
+    assert says in capsys.readouterr().err
+    assert not list((ws / "ev").glob("rig_evaluation*"))
 
 
 def test_a_misspelt_hidden_appearance_key_is_refused(tmp_path):

@@ -140,3 +140,21 @@ def test_the_app_remembers_a_real_rigs_spectra_and_names_a_bad_setting(tmp_path)
     assert half.startswith("(None, None, \"the settings' led and sensor are not used: a real rig declares its spectra "
                            "with --led and --sensor together")
     assert "unknown camera 'canon'" in unknown and unknown.startswith("(None, None,")
+
+
+def test_the_app_remembers_how_estimates_treat_the_structure_and_names_a_bad_setting(tmp_path):
+    """``hairdigi app --structure family`` is kept for the next start; a setting that is not a mode is named
+    and the default used."""
+    probe = ("from hairdigi.app.gui.main import chosen_structure, read_settings, write_settings\n"
+             "print(chosen_structure(read_settings(), None))\n"
+             "print(chosen_structure(read_settings(), 'family'))\n"
+             "print(chosen_structure(read_settings(), None))\n"
+             "write_settings({'structure': 'guessed'})\n"
+             "print(chosen_structure(read_settings(), None))\n")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "PYTHONPATH": str(ROOT), "XDG_CONFIG_HOME": str(tmp_path),
+                               "HOME": str(tmp_path), "QT_QPA_PLATFORM": "offscreen"})
+    assert done.returncode == 0, done.stderr[-2000:]
+    first, given, remembered, bad = done.stdout.strip().splitlines()
+    assert first == "('assumed', None)" and given == remembered == "('family', None)"
+    assert bad.startswith("('assumed', \"the settings' structure 'guessed' is not one of assumed, family, read")

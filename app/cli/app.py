@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from hairdigi.app.cli.arguments import add_spectra_arguments
+from hairdigi.app.cli.arguments import add_spectra_arguments, add_structure_argument
 
 
 def add_parser(sub) -> None:
@@ -13,7 +13,8 @@ def add_parser(sub) -> None:
     p.add_argument("--session", default=None, help="session folder (default: from the settings)")
     p.add_argument("--tour", help="calibrate and capture once, time it, save a screenshot in this folder, quit")
     add_spectra_arguments(p)   # a real rig's --led and --sensor are remembered in the settings
-    p.set_defaults(func=run)
+    add_structure_argument(p, "remembered in the settings: how estimates treat the swatch's")
+    p.set_defaults(func=run, structure=None)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -21,4 +22,4 @@ def run(args: argparse.Namespace) -> int:
 
     camera = None if args.genicam is None else f"genicam:{args.genicam}"
     return run_app(sim=args.sim, session=args.session, tour=args.tour, camera=camera, spectral=args.spectral,
-                   led=args.led, sensor=args.sensor)
+                   led=args.led, sensor=args.sensor, structure=args.structure)

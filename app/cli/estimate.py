@@ -8,7 +8,7 @@ from hairdigi.app.cli import validation as v
 
 
 def add_parser(sub) -> None:
-    from hairdigi.render.domain.bounds import STRUCTURE_MODES
+    from hairdigi.app.cli.arguments import add_structure_argument
 
     p = sub.add_parser("estimate", help="estimate hair parameters from an image")
     p.add_argument("image")
@@ -22,11 +22,7 @@ def add_parser(sub) -> None:
     p.add_argument("--no-refine", action="store_true", help="the encoder alone, without refinement by synthesis")
     p.add_argument("--lights", metavar="L0,L1,L2", help="the same view lit by each rig light alone, in light order "
                    "(8/16-bit sRGB PNG or linear EXR): the shine is read from them")
-    p.add_argument("--structure", choices=STRUCTURE_MODES, default="assumed",
-                   help="the swatch's physical structure: 'assumed', hairdigi's layered swatch; 'family', the answer "
-                   "mapped to the mean of render.swatch_family's physical structures (their curves render once per "
-                   "view, 56 small renders); 'read' from the --lights frames among them (their per-light tables, "
-                   "96 renders each), refined on it. hairdigi evaluate --structures measures each")
+    add_structure_argument(p)
     p.add_argument("--lights-ev", type=v.float_in(-10.0, 10.0), default=None, metavar="EV",
                    help="the --lights frames' exposure over IMAGE's, in stops (default: the rig's capture record "
                    "beside IMAGE, else the same exposure)")

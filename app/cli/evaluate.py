@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from hairdigi.app.cli import validation as v
-from hairdigi.app.cli.arguments import SIZE, SPP, VARIANT_HELP, WORKERS, use_variant
+from hairdigi.app.cli.arguments import SIZE, SPP, VARIANT_HELP, WORKERS, add_structure_argument, use_variant
 from hairdigi.app.evaluation.registry import EVALUATIONS, chosen_evaluation
 
 
@@ -47,7 +47,9 @@ def _add_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--blender", action="store_true", help="with --structures: render the hidden swatches and the "
                    "judge in Blender Cycles (HAIRDIGI_BLENDER)")
     p.add_argument("--hidden-structures", metavar="NAME,NAME,...", help="with --structures: the structures to hide "
-                   "hairs in (default: layered and the physical family)")
+                   "hairs in (default: layered and the physical family); with --rig, the hidden swatches' structures, "
+                   "one hair after another in turn (default: layered), each judged on its own strands")
+    add_structure_argument(p, "with --rig: how the rig sessions' estimates treat the swatch's")
     p.add_argument("--held-out", type=int, metavar="SEED", help="with --structures: in place of the named cases, "
                    "--rig-random N uniform Table 1 hairs and N dark ones (melanin 0.95-1.0) drawn with this seed "
                    "(>= 1), no layouts: a check of rules chosen on the named cases; a run cut short resumes "

@@ -7,7 +7,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hairdigi.app.cli import validation as v
-from hairdigi.app.cli.arguments import SPP, add_spectra_arguments
+from hairdigi.app.cli.arguments import SPP, add_spectra_arguments, add_structure_argument
+from hairdigi.render.swatch_family import STRUCTURES
 from hairdigi.app.session.blockers import messages
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
 
@@ -42,13 +43,15 @@ def open_session(args) -> RigSession:
 
             simulated["hidden"] = load_params(args.hidden)
             simulated["appearance"] = hidden_appearance(args.hidden)
+        if getattr(args, "hidden_structure", None):
+            simulated["swatch_model"] = args.hidden_structure
     keywords, spectra = rig_spectra(args.sim, getattr(args, "spectral", False), getattr(args, "led", None),
                                     getattr(args, "sensor", None))
     simulated.update(keywords)
     roi = tuple(int(v) for v in args.roi.split(",")) if args.roi else None
     camera = args.camera if getattr(args, "genicam", None) is None else f"genicam:{args.genicam}"
     return open_rig(args.session, args.sim, camera, args.port, roi, require_lights=False, spectra=spectra,
-                    **simulated)[0]
+                    structure=getattr(args, "structure", "assumed"), **simulated)[0]
 
 
 def hidden_appearance(path):
@@ -92,7 +95,8 @@ def run_chain(session: RigSession, estimate: bool = True, say=print) -> dict:
         say("estimate blocked: " + "; ".join(messages(result.blocked)))
     elif result.params is not None:
         p = result.params
-        say(f"estimate in {1000 * result.seconds:.0f} ms from capture: {hair_line(p)}")
+        took = f"{1000 * result.seconds:.0f} ms" if result.seconds < 10 else f"{result.seconds:.0f} s"
+        say(f"estimate in {took} from capture: {hair_line(p)}")
         out["params"] = p.to_dict()
         say_record(result.record, say)
         _judge_hidden(session, result, out, say)
@@ -136,8 +140,10 @@ def _judge_hidden(session: RigSession, result, out: dict, say) -> None:
                 f"{what}: " + "; ".join(f"{view} " + ", ".join(f"{light} {where[f'{answer}_{view}_{light}']:.2f}"
                                                             for light in LIGHTS) for view in ("rig", "away")))
         return
-    say(f"hidden truth of the simulated swatch:  {hair_line(hidden)}")
-    from hairdigi.render.judge import judge
+    structure = getattr(session.camera, "swatch_model", None)
+    say(f"hidden truth of the simulated swatch:  {hair_line(hidden)}"
+        + (f" (a {structure} swatch, judged on its strands)" if structure else ""))
+    from hairdigi.render.judge import judge, judge_scene
 
     look = session.camera.appearance
     if result.record.appearance is not None:
@@ -148,13 +154,13 @@ def _judge_hidden(session: RigSession, result, out: dict, say) -> None:
             f"greys {look.grey_fraction:.2f}; read: shine {read.longitudinal_roughness:.2f}, grey share "
             f"{read.grey_fraction:.2f}")
         where = judge_everywhere((hidden, look), (result.record.sigma_a, read),
-                                 session.region(session.frame().srgb))
+                                 session.region(session.frame().srgb), structure)
         out["truth_de2000_everywhere"] = where
         say("against the hidden truth, mean-colour ΔE2000: " + ", ".join(
             f"{name} {de:.2f}" for name, de in where.items()) + " (transfer: another camera, a key light "
             "and a grey sky)")
     read = result.record.appearance
-    verdict = judge(hidden, result.record.refinement.sigma_a or result.params,
+    verdict = judge(hidden, result.record.refinement.sigma_a or result.params, judge_scene(structure),
                     looks=(session.camera.appearance, None if read is None else read.value))
     out["truth_de2000"] = verdict.de2000
     say(f"against the hidden truth (both rendered at the rig's swatch pose, {verdict.spp} spp, common "
@@ -264,6 +270,10 @@ def add_parser(sub) -> None:
     p.add_argument("--still", help="import a RAW still of the rig (DNG, CR2, NEF, ...; the chart in view) into "
                                    "the session and estimate it; needs no camera or light board")
     add_spectra_arguments(p)
+    add_structure_argument(p, "how the session's estimates treat the swatch's")
+    p.add_argument("--hidden-structure", choices=STRUCTURES, default=None, metavar="NAME",
+                   help="with --sim: the simulated swatch's physical structure (render.swatch_family: "
+                   + ", ".join(STRUCTURES) + "; default layered, hairdigi's own); the truth is judged on its strands")
     p.set_defaults(func=run)
 
 

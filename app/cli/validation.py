@@ -526,7 +526,7 @@ def check_export(args: argparse.Namespace) -> None:
 EVALUATE_MODES = tuple(EVALUATIONS)
 #: Flags that go with one mode only.
 EVALUATE_MODE_FLAGS = {"ship": ("rig", "appearance", "structures", "spectral"), "no_variation": ("appearance",),
-                       "default_shine": ("cycles",), "blender": ("structures",), "hidden_structures": ("structures",),
+                       "default_shine": ("cycles",), "blender": ("structures",), "hidden_structures": ("structures", "rig"),
                        "held_out": ("structures", "spectral")}
 
 
@@ -546,6 +546,9 @@ def check_evaluate_modes(args: argparse.Namespace) -> None:
                 flag == "ship" and args.ship and getattr(args, "dye", False)):
             raise ArgumentError(f"{_flag(flag)} goes with {' or '.join(map(_flag, modes))}; add it or leave "
                                 f"{_flag(flag)} out")
+    if getattr(args, "structure", "assumed") != "assumed" and not getattr(args, "rig", False):
+        raise ArgumentError(f"--structure {args.structure} goes with --rig (--structures judges every mode at once); "
+                            "add --rig or leave --structure out")
 
 
 def check_evaluate(args: argparse.Namespace) -> None:

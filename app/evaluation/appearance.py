@@ -81,8 +81,9 @@ def _scenes(view) -> dict:
     return out
 
 
-def judge_everywhere(truth: tuple, estimate: tuple, view) -> dict:
-    """ΔE2000 of ``estimate`` against ``truth`` (each (hair or sigma_a, Appearance)) in every judge scene."""
+def judge_everywhere(truth: tuple, estimate: tuple, view, swatch_model: str | None = None) -> dict:
+    """ΔE2000 of ``estimate`` against ``truth`` (each (hair or sigma_a, Appearance)) in every judge scene, on
+    the strands of ``swatch_model`` (``render.swatch_family``; None: the default, layered)."""
     from hairdigi.render.judge import JUDGE_SEED, judge_mean
     from hairdigi.render.metrics import delta_e2000
 
@@ -90,7 +91,7 @@ def judge_everywhere(truth: tuple, estimate: tuple, view) -> dict:
     for name, (spec, size) in _scenes(view).items():
         means = []
         for hair, look in (truth, estimate):
-            scene = replace(spec, appearance=None if look == DEFAULT_APPEARANCE else look)
+            scene = replace(spec, appearance=None if look == DEFAULT_APPEARANCE else look, swatch_model=swatch_model)
             means.append(judge_mean(hair if isinstance(hair, HairParams) else np.asarray(hair, float), scene, size,
                                     JUDGE_SPP, JUDGE_SEED)[0])
         out[name] = round(float(delta_e2000(np.clip(means[1], 1e-9, None), np.clip(means[0], 1e-9, None))), 3)

@@ -82,7 +82,17 @@ def rig(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --rig``: the chain against the truth; prints the figures, writes table and plot."""
     from hairdigi.app.evaluation.rig import RigSet, evaluate_rig
 
-    s = evaluate_rig(args.out, RigSet(random=args.rig_random))
+    hidden = tuple(args.hidden_structures.split(",")) if getattr(args, "hidden_structures", None) else ()
+    structure = getattr(args, "structure", None) or "assumed"
+    if args.ship and (hidden or structure != "assumed"):
+        print("hairdigi evaluate --rig --ship: the chain's colour interval is measured on hairdigi's own swatch with "
+              "the default structure mode; drop --ship, or --hidden-structures and --structure", file=sys.stderr)
+        return 2
+    unknown = _unknown_structure(hidden)
+    if unknown:
+        print(f"hairdigi evaluate --rig: {unknown}", file=sys.stderr)
+        return 2
+    s = evaluate_rig(args.out, RigSet(random=args.rig_random, structure=structure, hidden_structures=hidden))
     r, e = s["refined"], s["encoder_alone"]
     print(f"{s['estimated']} of {s['captures']} captures estimated; against the hidden truth, mean-colour ΔE2000 "
           f"median {r['median']:.2f}, p95 {r['p95']:.2f}, worst {r['worst']:.2f} (encoder alone {e['median']:.2f} / "
@@ -93,6 +103,9 @@ def rig(args: argparse.Namespace) -> int:
     for case, st in s["by_case"].items():
         if st["n"]:
             print(f"  {case}: median {st['median']:.2f}, worst {st['worst']:.2f}")
+    if hidden:
+        for name, st in s["by_structure"].items():
+            print(f"  {name} swatches: median {st['median']:.2f}, p95 {st['p95']:.2f}, worst {st['worst']:.2f} ({st['n']})")
     c = s["coverage_held_out"]
     print(f"colour interval fitted on half the hidden swatches holds on the other half: 68% -> {c['p68']:.0%}, "
           f"95% -> {c['p95']:.0%}")
@@ -179,7 +192,6 @@ def cycles(args: argparse.Namespace) -> int:
 def structures(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --structures``: hidden hairs in every physical swatch structure, judged on their strands."""
     from hairdigi.inference.training.evaluate_structures import MODES, StructureSet, evaluate_structures
-    from hairdigi.render.swatch_family import STRUCTURES
 
     if args.blender:
         from hairdigi.render.blender_run import BlenderError, blender_command
@@ -191,10 +203,9 @@ def structures(args: argparse.Namespace) -> int:
             print(f"hairdigi evaluate --structures --blender: {exc}", file=sys.stderr)
             return 2
     hidden = tuple(args.hidden_structures.split(",")) if args.hidden_structures else StructureSet.structures
-    unknown = [name for name in hidden if name not in STRUCTURES]
+    unknown = _unknown_structure(hidden)
     if unknown:
-        print(f"hairdigi evaluate --structures: unknown structure {unknown[0]!r}; choose among "
-              f"{', '.join(STRUCTURES)}", file=sys.stderr)
+        print(f"hairdigi evaluate --structures: {unknown}", file=sys.stderr)
         return 2
     s = evaluate_structures(args.out, StructureSet(random=args.rig_random, size=min(args.size, 64), spp=args.spp,
                                                    blender=args.blender, structures=hidden, seed=args.held_out))
@@ -270,3 +281,11 @@ def dye(args: argparse.Namespace) -> int:
             line = line[:line.rindex(":")] + f": not judged, {n} predictions are too few (under {MIN_GOAL_PREDICTIONS}); raise --n)"
         print(line)
     return 0
+
+
+def _unknown_structure(names) -> str | None:
+    """The one-line reason ``--hidden-structures`` names a structure ``render.swatch_family`` has not, or None."""
+    from hairdigi.render.swatch_family import STRUCTURES
+
+    unknown = [name for name in names if name not in STRUCTURES]
+    return f"unknown structure {unknown[0]!r}; choose among {', '.join(STRUCTURES)}" if unknown else None

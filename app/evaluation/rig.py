@@ -53,6 +53,14 @@ class RigSet:
     random: int = 5          # random Table 1 draws beside the hard cases
     spp: int = 32            # the simulated rig's light renders
     stills: bool = True
+    structure: str = "assumed"               # how the sessions' estimates treat the swatch's structure
+    hidden_structures: tuple[str, ...] = ()  # the hidden swatches' structures, in turn (render.swatch_family);
+    #                                          () : hairdigi's own, layered
+
+
+def hidden_structure(config: RigSet, k: int) -> str | None:
+    """The physical structure of the ``k``-th hidden swatch (None: hairdigi's layered swatch)."""
+    return config.hidden_structures[k % len(config.hidden_structures)] if config.hidden_structures else None
 
 
 def hidden_set(config: RigSet) -> list[tuple[str, HairParams]]:
@@ -60,28 +68,32 @@ def hidden_set(config: RigSet) -> list[tuple[str, HairParams]]:
     return list(HARD_CASES.items()) + [(f"random {i}", sample_params(rng)) for i in range(config.random)]
 
 
-def _capture(name: str, params: HairParams, source: str, cast, ev: float, take) -> dict:
+def _capture(name: str, params: HairParams, source: str, cast, ev: float, take, structure: str | None = None) -> dict:
     """One capture's row; a capture that raises is recorded with its error (and the run goes on)."""
     start = time.perf_counter()
     try:
         result = take()
     except Exception as exc:   # noqa: BLE001 - a bug found by the evaluation is reported, not lost
-        return {"hidden": name, "source": source, "cast": "/".join(f"{c:g}" for c in cast), "exposure_ev": ev,
-                "error": f"{type(exc).__name__}: {exc}"}
-    return _row(name, params, source, cast, ev, result, time.perf_counter() - start)
+        return {"hidden": name, "structure": structure or "layered", "source": source,
+                "cast": "/".join(f"{c:g}" for c in cast), "exposure_ev": ev, "error": f"{type(exc).__name__}: {exc}"}
+    return _row(name, params, source, cast, ev, result, time.perf_counter() - start, structure)
 
 
-def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, seconds: float) -> dict:
-    from hairdigi.render.judge import judge
+def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, seconds: float,
+         structure: str | None = None) -> dict:
+    """A capture's row, its estimate judged against the truth on the hidden swatch's own strands."""
+    from hairdigi.render.judge import judge, judge_scene
 
-    row = {"hidden": name, "source": source, "cast": "/".join(f"{c:g}" for c in cast), "exposure_ev": ev,
+    row = {"hidden": name, "structure": structure or "layered", "source": source,
+           "cast": "/".join(f"{c:g}" for c in cast), "exposure_ev": ev,
            "seconds": round(seconds, 2), "blocked": "; ".join(messages(result.blocked))}
     if result.record is None:
         return row
     rec = result.record
     look = None if rec.appearance is None or rec.appearance.value == DEFAULT_APPEARANCE else rec.appearance.value
-    refined = judge(hidden, rec.refinement.sigma_a if rec.refinement.sigma_a else rec.hair, looks=(None, look))
-    encoder = judge(hidden, rec.encoder.hair)
+    scene = judge_scene(structure)
+    refined = judge(hidden, rec.refinement.sigma_a if rec.refinement.sigma_a else rec.hair, scene, looks=(None, look))
+    encoder = judge(hidden, rec.encoder.hair, scene)
     row.update(de2000=refined.de2000, encoder_de2000=encoder.de2000,
                residual_de2000=rec.refinement.residual_de2000, refine_seconds=rec.refinement.seconds,
                stated_p68=rec.uncertainty.mean_colour_de2000_p68,
@@ -111,13 +123,15 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
                disable=not progress)
     with tempfile.TemporaryDirectory(prefix="hairdigi-eval-rig-") as tmp:
         for k, (name, params) in enumerate(hidden):
+            built = hidden_structure(config, k)
+            swatch = {"swatch_model": built, "structure": config.structure}
             for cast, ev in CONDITIONS:
                 session = RigSession.simulated_rig(Path(tmp) / f"s{k}", hidden=params, spp=config.spp,
                                                    camera_model=CameraModel(exposure_ev=ev, cast=cast),
-                                                   encoder=encoder)
+                                                   encoder=encoder, **swatch)
                 try:
                     rows.append(_capture(name, params, "live", cast, ev,
-                                         lambda: (session.calibrate(), session.capture())[1]))
+                                         lambda: (session.calibrate(), session.capture())[1], built))
                 finally:
                     session.close()
                 bar.update()
@@ -126,10 +140,11 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
 
                 pose = CameraPose(*POSES[(k // 2) % len(POSES)])
                 session = RigSession.simulated_rig(Path(tmp) / f"s{k}", hidden=params, spp=config.spp,
-                                                   encoder=encoder, pose=pose, half_width=POSE_HALF_WIDTH)
+                                                   encoder=encoder, pose=pose, half_width=POSE_HALF_WIDTH, **swatch)
                 try:
                     rows.append(_capture(name, params, f"live, camera {pose.polar_deg:g}°/{pose.azimuth_deg:g}°",
-                                         (1.0, 1.0, 1.0), 0.0, lambda: (session.calibrate(), session.capture())[1]))
+                                         (1.0, 1.0, 1.0), 0.0, lambda: (session.calibrate(), session.capture())[1],
+                                         built))
                 finally:
                     session.close()
                 bar.update()
@@ -138,17 +153,20 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
                 cast = tuple(float(v) for v in rng.uniform(0.9, 1.1, 3))
                 ev = float(rng.uniform(-0.5, 0.3))
                 session = RigSession.simulated_rig(Path(tmp) / f"s{k}", hidden=params, spp=config.spp,
-                                                   encoder=encoder)
+                                                   encoder=encoder, **swatch)
                 try:
                     radiance = session.camera.radiance().repeat(2, axis=0).repeat(2, axis=1)
                     still = write_raw_still(Path(tmp) / f"IMG_{k:04d}.dng",
                                             radiance * np.array(cast) * 2.0 ** ev * 0.8)
-                    rows.append(_capture(name, params, "raw still", cast, ev, lambda: session.import_still(still)))
+                    rows.append(_capture(name, params, "raw still", cast, ev, lambda: session.import_still(still),
+                                         built))
                 finally:
                     session.close()
                 bar.update()
     bar.close()
     summary = summarise(rows, hidden)
+    summary["settings"] = {"structure": config.structure, "hidden_structures": list(config.hidden_structures) or
+                           ["layered"], "random": config.random, "spp": config.spp}
     save_table(out_dir, "rig_evaluation", rows, _plot, summary)
     return summary
 
@@ -168,6 +186,9 @@ def summarise(rows: list[dict], hidden: list[tuple[str, HairParams]]) -> dict:
     sources = sorted({r["source"] for r in done}, key=lambda s: (s != "live", s))
     summary["by_source"] = {s: error_stats(r["de2000"] for r in done if r["source"] == s) for s in sources}
     summary["by_case"] = {n: error_stats(r["de2000"] for r in done if r["hidden"] == n) for n, _ in hidden}
+    structures = sorted({r.get("structure", "layered") for r in done})
+    summary["by_structure"] = {s: error_stats(r["de2000"] for r in done if r.get("structure", "layered") == s)
+                               for s in structures}
     names = [n for n, _ in hidden]
     halves = [set(names[0::2]), set(names[1::2])]
     inside68, inside95 = [], []

@@ -12,7 +12,7 @@ from hairdigi.app.session.rig_session import open_rig
 from hairdigi.app.session.spectra import rig_spectra, spectra_problem
 
 SETTING_DEFAULTS = {"camera": "0", "serial_port": "", "output_folder": str(Path.home() / "hairdigi-sessions" / "default"),
-                    "hairstyle_size": 512, "led": "", "sensor": ""}
+                    "hairstyle_size": 512, "led": "", "sensor": "", "structure": "assumed"}
 
 
 def read_settings() -> dict:
@@ -41,6 +41,9 @@ class SettingsDialog(QDialog):
                                       "sensor, each capture is read in the camera's RGB (as hairdigi app --led)")
         self.fields["sensor"].setToolTip("the camera's sensitivities: a named camera, cie, or a CSV of wavelength "
                                          "(nm), r, g, b (as hairdigi app --sensor); used at the next start")
+        self.fields["structure"].setToolTip("how estimates treat the swatch's physical structure: assumed, family or "
+                                            "read (as hairdigi app --structure; hairdigi evaluate --structures measures "
+                                            "each); used at the next start")
         self.fields["camera"].setToolTip("an OpenCV camera index or stream URL, or genicam (the first GenICam "
                                          "camera) or genicam:ID (arv-tool-0.8 lists the IDs); used at the next start")
         buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Save | QDialogButtonBox.StandardButton.Cancel)
@@ -67,20 +70,38 @@ def declared_spectra(settings: dict, led: str | None, sensor: str | None) -> tup
     return led, sensor, None
 
 
+def chosen_structure(settings: dict, structure: str | None) -> tuple[str, str | None]:
+    """How estimates treat the swatch's structure: ``structure`` when given (then remembered in the settings),
+    else the settings'; and why the settings' is not used (not a mode), or None."""
+    from hairdigi.render.domain.bounds import STRUCTURE_MODES
+
+    if structure is not None:
+        write_settings({"structure": structure})
+        return structure, None
+    if settings["structure"] in STRUCTURE_MODES:
+        return settings["structure"], None
+    return "assumed", (f"the settings' structure {settings['structure']!r} is not one of {', '.join(STRUCTURE_MODES)}; "
+                       "'assumed' is used (Settings > structure)")
+
+
 def run_app(sim: bool = False, session: str | None = None, tour: str | None = None, camera: str | None = None,
-            spectral: bool = False, led: str | None = None, sensor: str | None = None) -> int:
+            spectral: bool = False, led: str | None = None, sensor: str | None = None,
+            structure: str | None = None) -> int:
     """The window on the rig; ``camera`` (an OpenCV index or URL, or ``genicam[:ID]``) overrides the setting.
     ``led`` and ``sensor``: a real rig's declared spectra (remembered), or with ``sim`` and ``spectral``
-    the simulated spectral rig's (``session.spectra.rig_spectra``)."""
+    the simulated spectral rig's (``session.spectra.rig_spectra``); ``structure``, how estimates treat the
+    swatch's physical structure (remembered)."""
     app = QApplication.instance() or QApplication(sys.argv[:1])
     settings = read_settings()
     folder = Path(session or settings["output_folder"])
     problem = None
     if not sim:
         led, sensor, problem = declared_spectra(settings, led, sensor)
+    structure, wrong = chosen_structure(settings, structure)
+    problem = "; ".join(filter(None, [problem, wrong])) or None
     simulated, spectra = rig_spectra(sim, spectral, led, sensor)
     rig, reason = open_rig(folder, sim, camera or settings["camera"], settings["serial_port"], fallback=True,
-                           spectra=spectra, **simulated)
+                           spectra=spectra, structure=structure, **simulated)
     offscreen = os.environ.get("QT_QPA_PLATFORM") == "offscreen"
     window = MainWindow(rig, {"hairstyle_size": settings["hairstyle_size"]}, strand_view=not offscreen)
     menu = window.menuBar().addMenu("&File")

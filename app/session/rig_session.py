@@ -26,6 +26,7 @@ from hairdigi.hardware.lights import N_LIGHTS, LightController, LightError
 from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, correction_warnings,
                                             detect_chart, light_colour_warnings, load_profile, profile_warnings,
                                             save_profile, staleness)
+from hairdigi.render.domain.bounds import StructureMode
 from hairdigi.render.domain.files import write_json_atomic
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.errors import HairdigiError
@@ -105,8 +106,11 @@ class RigSession:
     calibration profile."""
 
     def __init__(self, camera, lights: LightController | None, folder: str | Path, swatch_roi=None,
-                 encoder=None, simulated: bool = False, spectra=None) -> None:
+                 encoder=None, simulated: bool = False, spectra=None, structure: str = "assumed") -> None:
         self.camera = camera
+        #: how its estimates treat the swatch's physical structure (``render.domain.bounds.STRUCTURE_MODES``:
+        #: ``inference.estimate.estimate_image``'s ``structure``)
+        self.structure = StructureMode(structure)
         #: the rig's LEDs and camera sensitivities (``inference.spectral.RigSpectra``): declared, a capture's
         #: record carries its reading in the camera's RGB and colour under other lights; None on a real rig,
         #: its colour interval carries the metamerism of an undeclared camera
@@ -132,12 +136,15 @@ class RigSession:
                       dead: set[int] | None = None, spp: int = 32, encoder=None,
                       pose: CameraPose = CameraPose(), half_width: float = RIG_HALF_WIDTH,
                       appearance=None, strand_seed: int = 0, genicam: str | None = None,
-                      illuminant: str | None = None, sensitivities: str | None = None) -> "RigSession":
+                      illuminant: str | None = None, sensitivities: str | None = None,
+                      swatch_model: str | None = None, structure: str = "assumed") -> "RigSession":
         """The bench in software: a pty light board, the rendered rig, and a camera model; the hidden
         swatch is ``hidden`` with ``appearance`` (shine and fibre variation; default uniform). With
         ``genicam`` (Aravis's fake camera ID) the frames come through the GenICam path as 12-bit Bayer.
         ``illuminant`` makes it a spectral rig: LEDs of that SPD, the chart's measured spectra, seen by
-        a camera's ``sensitivities`` (or the CIE observer); ``hidden`` may then be an absorption spectrum."""
+        a camera's ``sensitivities`` (or the CIE observer); ``hidden`` may then be an absorption spectrum.
+        ``swatch_model``: the hidden swatch's physical structure (``render.swatch_family``; None: layered);
+        ``structure``: how the session's estimates treat it."""
         from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE
         from hairdigi.hardware.sim_lights import SimulatedLightBoard
         from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SimRig
@@ -148,7 +155,7 @@ class RigSession:
         rig = SimRig(DEFAULT_HIDDEN if hidden is None else hidden, camera_model or CameraModel(), spp=spp,
                      dead_lights=set(dead or ()), board=board, pose=pose, half_width=half_width,
                      appearance=appearance or DEFAULT_APPEARANCE, strand_seed=strand_seed,
-                     illuminant=illuminant, sensitivities=sensitivities)
+                     illuminant=illuminant, sensitivities=sensitivities, swatch_model=swatch_model)
         camera = rig
         if genicam is not None:    # the same rig seen through Aravis's fake camera, as a 12-bit lab camera
             from hairdigi.hardware.sim_genicam import open_lab_camera
@@ -161,7 +168,7 @@ class RigSession:
             from hairdigi.inference.spectral import RigSpectra
 
             spectra = RigSpectra(illuminant, sensitivities)
-        session = cls(camera, lights, folder, rig.roi, encoder, simulated=True, spectra=spectra)
+        session = cls(camera, lights, folder, rig.roi, encoder, simulated=True, spectra=spectra, structure=structure)
         session._board = board
         for i in range(N_LIGHTS):
             lights.set_light(i, True, 255)
@@ -343,7 +350,8 @@ class RigSession:
         if estimate and not result.blocked:   # a raw frame is estimated from its linear light, as a RAW still
             _estimate(result, frame.srgb, frame.linear, self.encoder_or_reason, self.profile, self.region(frame.srgb),
                       profile_warnings(self.profile, self.settings()), on_encoder_estimate,
-                      [(f.srgb if f.linear is None else f.linear, k) for f, k in zip(singles, factors)], chart)
+                      [(f.srgb if f.linear is None else f.linear, k) for f, k in zip(singles, factors)], chart,
+                      structure=self.structure)
         result.seconds = time.perf_counter() - start    # capture to parameters; the spectral reading follows
         if result.record is not None:
             result.record = self.in_spectral_world(result.record, curve=result.curve)
@@ -398,7 +406,7 @@ class RigSession:
 
     def import_still(self, path: str | Path) -> CaptureResult:
         """A RAW still of the rig as a capture, in this session (see :func:`import_still`)."""
-        return import_still(self.folder, path, self.encoder_or_reason, self.in_spectral_world)
+        return import_still(self.folder, path, self.encoder_or_reason, self.in_spectral_world, self.structure)
 
     def encoder_or_reason(self):
         """The encoder, or the one-line reason it cannot be loaded (a missing or broken model file)."""
@@ -428,7 +436,8 @@ class RigSession:
 def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | None, encoder_or_reason,
               profile: CalibrationProfile, view: RigRegion, stale: list[str],
               on_encoder_estimate: Callable[[HairParams], None] | None = None,
-              singles: list[tuple[np.ndarray, float]] = (), chart=None, clipped: np.ndarray | None = None) -> None:
+              singles: list[tuple[np.ndarray, float]] = (), chart=None, clipped: np.ndarray | None = None,
+              structure: str = "assumed") -> None:
     """Colour-correct the frame (``linear`` where the source has it, else the 8-bit ``image``) with
     ``profile``, keep it linear, estimate the swatch area ``view`` as the rig sees it, and fill ``result``.
 
@@ -436,7 +445,8 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
     profile (the rig's LEDs are one make; a profile fitted on a chart lit from one side would fold
     that light's geometry into the colour) and scaled back to the frame's exposure; ``chart``, the
     frame's chart detection, checks that one profile holds for each light. ``clipped``: a RAW still's
-    saturated photosites (``Frame.clipped``), on which clipping is judged."""
+    saturated photosites (``Frame.clipped``), on which clipping is judged; ``structure``, how the estimate
+    treats the swatch's physical structure."""
     from hairdigi.inference.estimate import calibration_summary, estimate_image, record
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.inference.refine import fitted_pixels, mean_linear
@@ -455,7 +465,8 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
         warnings += [EstimateWarning(WarningKind.CALIBRATION, w)
                      for w in light_colour_warnings(chart, raw_lights)]
     estimate = estimate_image(corrected, encoder, view=view, extra_warnings=warnings,
-                              on_encoder_estimate=on_encoder_estimate, light_images=lights, sensor_clipped=clipped)
+                              on_encoder_estimate=on_encoder_estimate, light_images=lights, sensor_clipped=clipped,
+                              structure=structure)
     result.params = estimate.params
     result.corrected = corrected
     result.curve = None if estimate.refinement is None else estimate.refinement.curve
@@ -477,7 +488,8 @@ class StillError(HairdigiError, ValueError):
 
 
 def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
-                 in_spectral_world: Callable[..., EstimateRecord] | None = None) -> CaptureResult:
+                 in_spectral_world: Callable[..., EstimateRecord] | None = None,
+                 structure: str = "assumed") -> CaptureResult:
     """A RAW still (DNG, CR2, NEF, ...) of the rig, taken with the chart in view, as a capture.
 
     The file is copied into the session first, untouched. Then rawpy decodes it (linear, the
@@ -519,7 +531,7 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
     if not result.blocked:
         _estimate(result, still.srgb, still.linear, encoder_or_reason, profile,
                   rig_region((still.srgb.shape[1], still.srgb.shape[0]), roi), profile_warnings(profile, None),
-                  clipped=still.clipped)
+                  clipped=still.clipped, structure=structure)
     result.seconds = time.perf_counter() - start
     if result.record is not None and in_spectral_world is not None:
         result.record = in_spectral_world(result.record, profile, result.curve)
@@ -541,7 +553,7 @@ def frame_linear(frame) -> np.ndarray:
 
 
 def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", port: str | None = None, roi=None,
-             fallback: bool = False, require_lights: bool = True, spectra=None,
+             fallback: bool = False, require_lights: bool = True, spectra=None, structure: str = "assumed",
              **simulated) -> tuple[RigSession, str | None]:
     """The rig for the command line and the window alike, and why it is the simulated one (or None).
 
@@ -551,13 +563,14 @@ def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", por
     the camera and the light board on ``port``, found on the serial ports when empty; without a board
     the session has no lights unless ``require_lights``. When they do not answer, ``fallback`` gives
     the simulated rig and the reason; without it the CameraError or LightError is raised. ``spectra``
-    (``inference.spectral.RigSpectra``): what the real rig declares of its LEDs and camera.
+    (``inference.spectral.RigSpectra``): what the real rig declares of its LEDs and camera; ``structure``, how
+    the session's estimates treat the swatch's physical structure (``RigSession.structure``).
     """
     genicam = genicam_id(camera)
     if sim and genicam is not None:
         from hairdigi.hardware.genicam import FAKE_ID
 
-        return RigSession.simulated_rig(folder, genicam=genicam or FAKE_ID, **simulated), None
+        return RigSession.simulated_rig(folder, genicam=genicam or FAKE_ID, structure=structure, **simulated), None
     if not sim:
         from hairdigi.hardware.cameras import CameraError, OpenCVCamera
         from hairdigi.hardware.lights import discover
@@ -573,7 +586,8 @@ def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", por
             port = port or next((p for p, _ in discover()), None)
             if port is None and require_lights:
                 raise LightError("no light board answered on any serial port; plug it in, or name it with --port")
-            return RigSession(opened, LightController(port) if port else None, folder, roi, spectra=spectra), None
+            return RigSession(opened, LightController(port) if port else None, folder, roi, spectra=spectra,
+                              structure=structure), None
         except (CameraError, LightError) as exc:
             if opened is not None:
                 opened.close()
@@ -582,7 +596,7 @@ def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", por
             reason = f"{exc}; using the simulated rig"
     else:
         reason = None
-    return RigSession.simulated_rig(folder, **simulated), reason
+    return RigSession.simulated_rig(folder, structure=structure, **simulated), reason
 
 
 def load_results(folder: str | os.PathLike) -> list[tuple[str, EstimateRecord | str]]:

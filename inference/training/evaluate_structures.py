@@ -9,9 +9,10 @@ in a strand layout no estimate renders, and asks whether the ``sigma_a`` returne
    light alone (1.5 EV longer, as the rig takes them), through the camera model
    (``evaluate.capture``: noise, 12-bit ADC, 8-bit sRGB);
 2. ``estimate_image`` estimates it (the encoder, the shine from the single-light frames, refinement):
-   on the default structure (``shipped``), that answer mapped to the family's mean
-   (``family``: ``inference.structure.to_family``), and with the structure read from the single-light
-   frames and refined on it (``read``: ``inference.structure.read_structure``); all three are judged;
+   in each structure mode: on the default structure (``shipped``), mapped to the family's mean unless the
+   single-light frames read one structure decisively (``family``: ``inference.structure.to_family`` and
+   ``decisive``), and with the structure read from the single-light frames and refined on it (``read``:
+   ``inference.structure.read_structure``); all three are judged;
 3. each answer is rendered back **on the hidden swatch's own strands** with the truth's sampler seed
    and compared with the truth: at the rig's pose (**fit**) and away from it (**transfer**: another
    camera, a key light and a grey sky). Mean-colour ΔE2000; the ``sigma_a``'s relative error.
@@ -46,6 +47,8 @@ HIDDEN = ("layered", "deposited", "deposited-coarse", "spread", "wavy", "tilted"
 #: The structure the layout nuisance is measured on, and the layouts (seeds no estimate renders).
 LAYOUT_STRUCTURE, LAYOUT_SEEDS = "deposited", (601, 602)
 MODES = ("shipped", "family", "read")
+#: The ``estimate_image`` structure mode each column judges ("shipped": the default, assumed structure).
+STRUCTURE_MODE = {"shipped": "assumed", "family": "family", "read": "read"}
 
 
 @dataclass(frozen=True)
@@ -136,27 +139,24 @@ def _de(a, b) -> float:
 
 
 def _estimate(render, truth, structure: str, layout: int, shine: float, encoder, family, index: int):
-    """The hidden swatch's capture and single-light frames, estimated on the default structure and with the
-    structure read: (result, read result, {mode: sigma_a})."""
+    """The hidden swatch's capture and single-light frames, estimated in every mode: ({mode: result},
+    {mode: sigma_a}, every member's misfit)."""
     from hairdigi.inference.estimate import estimate_image
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.inference.refine import mean_linear
-    from hairdigi.inference.structure import read_structure, to_family
+    from hairdigi.inference.structure import read_structure
     from hairdigi.inference.training.evaluate import capture
 
     frame = capture(render.mean(truth, structure, layout, "rig", shine, pixels=True).astype(np.float32), index)
     lights = [to_linear(capture(render.mean(truth, structure, layout, f"light{i}", shine, pixels=True)
                                 .astype(np.float32) * np.float32(2.0 ** LIGHT_EV), index + 7 * (i + 1)))
               / np.float32(2.0 ** LIGHT_EV) for i in range(N_LIGHTS)]
-    result = estimate_image(frame, encoder, light_images=lights)
-    read = estimate_image(frame, encoder, light_images=lights, structure="read")
-    if result.refinement is None or read.refinement is None:
+    results = {mode: estimate_image(frame, encoder, light_images=lights, structure=STRUCTURE_MODE[mode])
+               for mode in MODES}
+    if any(r.refinement is None for r in results.values()):
         raise RuntimeError("no refinement")
-    sigma = np.asarray(result.refinement.sigma_a, float)
     misfits = read_structure(np.array([mean_linear(im) for im in lights]), RIG_SWATCH_POSE).misfits
-    switched = result.refinement.region.swatch_model not in (None, "layered")   # read: out of reach
-    return result, read, {"shipped": sigma, "family": sigma if switched else to_family(sigma, family),
-                          "read": np.asarray(read.refinement.sigma_a, float)}, misfits
+    return results, {mode: np.asarray(r.refinement.sigma_a, float) for mode, r in results.items()}, misfits
 
 
 def _shine(result, default: float) -> float:
@@ -172,13 +172,16 @@ def _one(name: str, hidden: HairParams, shine: float, structure: str, layout: in
     row = {"hidden": name, "structure": structure, "layout": layout, "true_shine": shine,
            "true_sigma_a": [round(float(v), 5) for v in truth]}
     start = time.perf_counter()
-    result, read, answers, misfits = _estimate(render, truth, structure, layout, shine, encoder, family, index)
-    shines = {mode: _shine(r, shine) for mode, r in (("shipped", result), ("family", result), ("read", read))}
+    results, answers, misfits = _estimate(render, truth, structure, layout, shine, encoder, family, index)
+    result, read = results["shipped"], results["read"]
+    shines = {mode: _shine(r, shine) for mode, r in results.items()}
     truth_rig = render.mean(truth, structure, layout, "rig", shine)
     truth_away = render.mean(truth, structure, layout, "transfer", shine)
     row.update({"estimate_s": round(result.seconds, 2), "read_estimate_s": round(read.seconds, 2),
+                "family_estimate_s": round(results["family"].seconds, 2),
                 "est_shine": shines["shipped"], "read_shine": shines["read"],
                 "read_structure": read.refinement.region.swatch_model, "misfits": misfits,
+                "family_structure": results["family"].refinement.region.swatch_model or "layered",
                 "twin_residual": round(result.refinement.residual_de2000, 3),
                 "read_twin_residual": round(read.refinement.residual_de2000, 3),
                 "warnings": " | ".join(w.kind.value for w in result.warnings),
@@ -201,10 +204,10 @@ def _layout_row(name: str, hidden: HairParams, shine: float, render, encoder, fa
     a, b = (_estimate(render, truth, LAYOUT_STRUCTURE, s, shine, encoder, family, index + k)
             for k, s in enumerate(LAYOUT_SEEDS))
     row = {"hidden": name, "structure": LAYOUT_STRUCTURE, "layouts": list(LAYOUT_SEEDS)}
-    shine_a = _shine(a[0], shine)
+    shine_a = _shine(a[0]["shipped"], shine)
     for mode in MODES:
-        row[f"{mode}_layout_nuisance"] = _de(render.mean(a[2][mode], LAYOUT_STRUCTURE, LAYOUT_SEEDS[0], "rig", shine_a),
-                                             render.mean(b[2][mode], LAYOUT_STRUCTURE, LAYOUT_SEEDS[0], "rig", shine_a))
+        row[f"{mode}_layout_nuisance"] = _de(render.mean(a[1][mode], LAYOUT_STRUCTURE, LAYOUT_SEEDS[0], "rig", shine_a),
+                                             render.mean(b[1][mode], LAYOUT_STRUCTURE, LAYOUT_SEEDS[0], "rig", shine_a))
     return row
 
 
@@ -226,8 +229,10 @@ def evaluate_structures(out_dir: str | os.PathLike, config: StructureSet = Struc
     hairs = hidden_hairs(config)
     # hair by hair, every structure in turn: a run cut short has judged every structure alike
     jobs = [(h, s, 501 + k) for h in hairs for k, s in enumerate(config.structures)]
+    from hairdigi.inference.structure import DECISIVE
+
     settings = {"size": config.size, "spp": config.spp, "blender": config.blender, "seed": config.seed,
-                "random": config.random}
+                "random": config.random, "decisive": DECISIVE}   # rows of another family rule are not resumed
     rows = _resumed(out / "structures_evaluation.json", settings)
     done = {(r["hidden"], r["structure"]) for r in rows if "error" not in r}
     rows = [r for r in rows if (r["hidden"], r["structure"]) in done]
@@ -277,6 +282,8 @@ def summarise(rows: list[dict], layout_rows: list[dict], config: StructureSet, f
            "family_curves_s": family_s, "estimate_s": error_stats(r["estimate_s"] for r in done),
            "twin_residual": error_stats(r["twin_residual"] for r in done),
            "read_estimate_s": error_stats(r["read_estimate_s"] for r in done),
+           "family_estimate_s": error_stats(r.get("family_estimate_s") for r in done),
+           "family_read": sum(1 for r in done if r.get("family_structure", "layered") != "layered"),
            "structure_read": {s: {m: sum(1 for r in done if r["structure"] == s and r["read_structure"] == m)
                                   for m in {r["read_structure"] for r in done}} for s in config.structures},
            "structure_nuisance": error_stats(r["structure_nuisance"] for r in done),
