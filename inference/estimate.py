@@ -177,7 +177,7 @@ def _refined(fit: _Fit, structure: StructureMode
              ) -> tuple[Refinement, AppearanceEstimate, StructureMode, list[EstimateWarning]]:
     """The refinement of ``fit`` with the appearance read on the way, the structure it was made on (a
     capture no hair on the assumed swatch reaches is read anew) and their warnings."""
-    decided = None
+    decided, members = None, None
     if structure is StructureMode.FAMILY and fit.singles is not None:
         # the family's mean stands for a structure the frames cannot tell; one they tell decisively is used
         members = fit.read(READ_MEMBERS)
@@ -202,7 +202,7 @@ def _refined(fit: _Fit, structure: StructureMode
             and refinement.residual_de2000 > UNREACHED_DE):
         # no hair on the assumed swatch renders the capture's colour: the swatch is built another way.
         # Its structure is read from the single-light frames and kept where it reaches the colour
-        reread = fit.read(READ_MEMBERS)
+        reread = members or fit.read(READ_MEMBERS)
         other = fit.refine(reread)
         if other.residual_de2000 < refinement.residual_de2000 / 2:
             warnings += _warn(WarningKind.OTHER, [
