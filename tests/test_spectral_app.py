@@ -121,6 +121,15 @@ def test_a_photo_of_a_declared_camera_is_read_in_its_rgb(photo, tmp_path):
     assert "read in the camera's RGB (nikon-5100 under LED-B4" in done.stdout
 
 
+def _with_own_settings(probe: str, home) -> list[str]:
+    """The lines ``probe`` prints, run in a process whose app settings live in ``home`` (QSettings are per user)."""
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "PYTHONPATH": str(ROOT), "XDG_CONFIG_HOME": str(home),
+                               "HOME": str(home), "QT_QPA_PLATFORM": "offscreen"})
+    assert done.returncode == 0, done.stderr[-2000:]
+    return done.stdout.strip().splitlines()
+
+
 def test_the_app_remembers_a_real_rigs_spectra_and_names_a_bad_setting(tmp_path):
     """``hairdigi app --led --sensor`` is declared once: the settings keep it for the next start; a half
     or unknown pair in the settings is named, and the rig declares nothing."""
@@ -131,11 +140,7 @@ def test_the_app_remembers_a_real_rigs_spectra_and_names_a_bad_setting(tmp_path)
              "print(declared_spectra(read_settings(), None, None))\n"
              "write_settings({'sensor': 'canon'})\n"
              "print(declared_spectra(read_settings(), None, None))\n")
-    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120,
-                          env={**os.environ, "PYTHONPATH": str(ROOT), "XDG_CONFIG_HOME": str(tmp_path),
-                               "HOME": str(tmp_path), "QT_QPA_PLATFORM": "offscreen"})
-    assert done.returncode == 0, done.stderr[-2000:]
-    given, remembered, half, unknown = done.stdout.strip().splitlines()
+    given, remembered, half, unknown = _with_own_settings(probe, tmp_path)
     assert given == remembered == "('A', 'nikon-5100', None)"
     assert half.startswith("(None, None, \"the settings' led and sensor are not used: a real rig declares its spectra "
                            "with --led and --sensor together")
@@ -151,10 +156,6 @@ def test_the_app_remembers_how_estimates_treat_the_structure_and_names_a_bad_set
              "print(chosen_structure(read_settings(), None))\n"
              "write_settings({'structure': 'guessed'})\n"
              "print(chosen_structure(read_settings(), None))\n")
-    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120,
-                          env={**os.environ, "PYTHONPATH": str(ROOT), "XDG_CONFIG_HOME": str(tmp_path),
-                               "HOME": str(tmp_path), "QT_QPA_PLATFORM": "offscreen"})
-    assert done.returncode == 0, done.stderr[-2000:]
-    first, given, remembered, bad = done.stdout.strip().splitlines()
+    first, given, remembered, bad = _with_own_settings(probe, tmp_path)
     assert first == "('assumed', None)" and given == remembered == "('family', None)"
     assert bad.startswith("('assumed', \"the settings' structure 'guessed' is not one of assumed, family, read")
