@@ -5,14 +5,19 @@ import os
 import sys
 from pathlib import Path
 
-from PySide6.QtWidgets import QApplication, QDialog, QDialogButtonBox, QFormLayout, QLineEdit
+from PySide6.QtWidgets import QApplication, QComboBox, QDialog, QDialogButtonBox, QFormLayout, QLineEdit
 
 from hairdigi.app.gui.main_window import MainWindow, settings_store
 from hairdigi.app.session.rig_session import open_rig
 from hairdigi.app.session.spectra import rig_spectra, spectra_problem
+from hairdigi.render.domain.bounds import STRUCTURE_MODES
 
 SETTING_DEFAULTS = {"camera": "0", "serial_port": "", "output_folder": str(Path.home() / "hairdigi-sessions" / "default"),
                     "hairstyle_size": 512, "led": "", "sensor": "", "structure": "assumed"}
+
+
+#: Settings picked from a list, not typed.
+CHOICES = {"structure": STRUCTURE_MODES}
 
 
 def read_settings() -> dict:
@@ -35,15 +40,16 @@ class SettingsDialog(QDialog):
         form = QFormLayout(self)
         self.fields = {}
         for key, value in read_settings().items():
-            self.fields[key] = QLineEdit(str(value))
+            self.fields[key] = _choice(CHOICES[key], str(value)) if key in CHOICES else QLineEdit(str(value))
             form.addRow(key.replace("_", " "), self.fields[key])
         self.fields["led"].setToolTip("the rig's LEDs: a named light or a CSV of wavelength (nm), power; with the "
                                       "sensor, each capture is read in the camera's RGB (as hairdigi app --led)")
         self.fields["sensor"].setToolTip("the camera's sensitivities: a named camera, cie, or a CSV of wavelength "
                                          "(nm), r, g, b (as hairdigi app --sensor); used at the next start")
-        self.fields["structure"].setToolTip("how estimates treat the swatch's physical structure: assumed, family or "
-                                            "read (as hairdigi app --structure; hairdigi evaluate --structures measures "
-                                            "each); used at the next start")
+        self.fields["structure"].setToolTip("how estimates treat the swatch's physical structure: assumed (hairdigi's "
+                                            "layered swatch), family (the structure read decisively, else the family's "
+                                            "mean) or read (as hairdigi app --structure; hairdigi evaluate --structures "
+                                            "measures each); used at the next start")
         self.fields["camera"].setToolTip("an OpenCV camera index or stream URL, or genicam (the first GenICam "
                                          "camera) or genicam:ID (arv-tool-0.8 lists the IDs); used at the next start")
         buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Save | QDialogButtonBox.StandardButton.Cancel)
@@ -52,8 +58,17 @@ class SettingsDialog(QDialog):
         form.addRow(buttons)
 
     def _save(self) -> None:
-        write_settings({k: type(SETTING_DEFAULTS[k])(f.text()) for k, f in self.fields.items()})
+        write_settings({k: type(SETTING_DEFAULTS[k])(f.currentText() if isinstance(f, QComboBox) else f.text())
+                        for k, f in self.fields.items()})
         self.accept()
+
+
+def _choice(options: tuple[str, ...], value: str) -> QComboBox:
+    """A list to pick one of ``options`` from, showing ``value`` (the default's, when not one of them)."""
+    box = QComboBox()
+    box.addItems(list(options))
+    box.setCurrentIndex(max(0, box.findText(value)))
+    return box
 
 
 def declared_spectra(settings: dict, led: str | None, sensor: str | None) -> tuple[str | None, str | None, str | None]:
@@ -73,8 +88,6 @@ def declared_spectra(settings: dict, led: str | None, sensor: str | None) -> tup
 def chosen_structure(settings: dict, structure: str | None) -> tuple[str, str | None]:
     """How estimates treat the swatch's structure: ``structure`` when given (then remembered in the settings),
     else the settings'; and why the settings' is not used (not a mode), or None."""
-    from hairdigi.render.domain.bounds import STRUCTURE_MODES
-
     if structure is not None:
         write_settings({"structure": structure})
         return structure, None
