@@ -68,14 +68,19 @@ def hidden_set(config: RigSet) -> list[tuple[str, HairParams]]:
     return list(HARD_CASES.items()) + [(f"random {i}", sample_params(rng)) for i in range(config.random)]
 
 
+def _head(name: str, structure: str | None, source: str, cast, ev: float) -> dict:
+    """What a capture's row says of the capture: the hidden hair, its swatch's structure, the source and conditions."""
+    return {"hidden": name, "structure": structure or "layered", "source": source,
+            "cast": "/".join(f"{c:g}" for c in cast), "exposure_ev": ev}
+
+
 def _capture(name: str, params: HairParams, source: str, cast, ev: float, take, structure: str | None = None) -> dict:
     """One capture's row; a capture that raises is recorded with its error (and the run goes on)."""
     start = time.perf_counter()
     try:
         result = take()
     except Exception as exc:   # noqa: BLE001 - a bug found by the evaluation is reported, not lost
-        return {"hidden": name, "structure": structure or "layered", "source": source,
-                "cast": "/".join(f"{c:g}" for c in cast), "exposure_ev": ev, "error": f"{type(exc).__name__}: {exc}"}
+        return {**_head(name, structure, source, cast, ev), "error": f"{type(exc).__name__}: {exc}"}
     return _row(name, params, source, cast, ev, result, time.perf_counter() - start, structure)
 
 
@@ -84,9 +89,8 @@ def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, se
     """A capture's row, its estimate judged against the truth on the hidden swatch's own strands."""
     from hairdigi.render.judge import judge, judge_scene
 
-    row = {"hidden": name, "structure": structure or "layered", "source": source,
-           "cast": "/".join(f"{c:g}" for c in cast), "exposure_ev": ev,
-           "seconds": round(seconds, 2), "blocked": "; ".join(messages(result.blocked))}
+    row = {**_head(name, structure, source, cast, ev), "seconds": round(seconds, 2),
+           "blocked": "; ".join(messages(result.blocked))}
     if result.record is None:
         return row
     rec = result.record

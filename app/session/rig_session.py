@@ -163,6 +163,7 @@ class RigSession:
             response = np.asarray(rig.camera.cast, np.float32) * np.float32(2.0 ** rig.camera.exposure_ev)
             camera = open_lab_camera(rig.radiance, response=response, size=rig.size, device_id=genicam)[0]
             camera.hidden, camera.appearance = rig.hidden, rig.appearance   # the truth, as SimRig tells it
+            camera.swatch_model = rig.swatch_model                            # and the strands it lies on
         spectra = None
         if illuminant is not None:
             from hairdigi.inference.spectral import RigSpectra
