@@ -138,7 +138,7 @@ def _de(a, b) -> float:
     return round(float(delta_e2000(np.clip(np.asarray(a), 1e-9, None), np.clip(np.asarray(b), 1e-9, None))), 3)
 
 
-def _estimate(render, truth, structure: str, layout: int, shine: float, encoder, family, index: int):
+def _estimate(render, truth, structure: str, layout: int, shine: float, encoder, index: int):
     """The hidden swatch's capture and single-light frames, estimated in every mode: ({mode: result},
     {mode: sigma_a}, every member's misfit)."""
     from hairdigi.inference.estimate import estimate_image
@@ -172,7 +172,7 @@ def _one(name: str, hidden: HairParams, shine: float, structure: str, layout: in
     row = {"hidden": name, "structure": structure, "layout": layout, "true_shine": shine,
            "true_sigma_a": [round(float(v), 5) for v in truth]}
     start = time.perf_counter()
-    results, answers, misfits = _estimate(render, truth, structure, layout, shine, encoder, family, index)
+    results, answers, misfits = _estimate(render, truth, structure, layout, shine, encoder, index)
     result, read = results["shipped"], results["read"]
     shines = {mode: _shine(r, shine) for mode, r in results.items()}
     truth_rig = render.mean(truth, structure, layout, "rig", shine)
@@ -201,7 +201,7 @@ def _layout_row(name: str, hidden: HairParams, shine: float, render, encoder, fa
     from hairdigi.render.domain.absorption import hair_sigma_a
 
     truth = hair_sigma_a(hidden)
-    a, b = (_estimate(render, truth, LAYOUT_STRUCTURE, s, shine, encoder, family, index + k)
+    a, b = (_estimate(render, truth, LAYOUT_STRUCTURE, s, shine, encoder, index + k)
             for k, s in enumerate(LAYOUT_SEEDS))
     row = {"hidden": name, "structure": LAYOUT_STRUCTURE, "layouts": list(LAYOUT_SEEDS)}
     shine_a = _shine(a[0]["shipped"], shine)
