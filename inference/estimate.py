@@ -22,7 +22,8 @@ from hairdigi.inference.appearance import (AppearanceReading, check_light_frames
 from hairdigi.inference.domain import domain_stats, domain_warnings
 from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, crop_of, read_image, swatch_crop, to_linear
-from hairdigi.inference.refine import Refinement, RefineSettings, View, fitted_pixels, mean_linear, refine
+from hairdigi.inference.refine import (Refinement, RefineSettings, View, curve_reach, fitted_pixels, mean_linear, refine,
+                                      response_curve)
 from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABLE, decisive, toward_family,
                                           with_structure)
 from hairdigi.inference.uncertainty import intervals, load_table
@@ -167,6 +168,12 @@ class _Fit:
         return read_appearance(self.singles, self.view, self.settings, self.renderer, texture_pixels=self.texture,
                                frame_levels=self.levels, structures=structures)
 
+    def reach(self, reading: AppearanceReading) -> float:
+        """How near (ΔE2000) hair of ``reading``'s appearance comes to the colour on its curve (``curve_reach``)."""
+        curve = reading.curve or response_curve(self.view, self.settings, self.renderer,
+                                                swatch_model=reading.swatch_model)
+        return curve_reach(curve, reading.value, self.colour)
+
     def refine(self, reading: AppearanceReading, value: Appearance | None = None) -> Refinement:
         """The refinement on ``reading``'s swatch and curve, with its appearance or ``value``."""
         return refine(self.start, self.colour, self.view, self.settings, self.renderer,
@@ -185,18 +192,24 @@ def _refined(fit: _Fit, structure: StructureMode
     reading = members if decided else fit.read(READ_MEMBERS if structure is StructureMode.READ else None)
     warnings = list(reading.warnings)
     appearance = reading.estimate
-    refinement = fit.refine(reading)
-    if reading.value.varied and refinement.residual_de2000 > VARIATION_FIT_DE:
-        # the colour checks the texture's reading: if hair of the read variation renders the capture's
-        # colour worse than the chain's precision, and uniform fibres render it better, the reading is
-        # wrong for this swatch (black hair's glints read as greys), and is not reported as measured
+    # the colour checks the texture's reading: if hair of the read variation renders the capture's colour
+    # worse than the chain's precision, and uniform fibres render it better, the reading is wrong for this
+    # swatch (black hair's glints, a deposited swatch's shadows read as greys), and is not reported as
+    # measured. Where the variation's own curve falls short of the colour by twice that, its refinement (check
+    # renders) is run only if uniform fibres do not render the colour within it
+    reach = fit.reach(reading) if reading.value.varied else 0.0
+    refinement = None if reach > 2 * VARIATION_FIT_DE else fit.refine(reading)
+    if reading.value.varied and (refinement is None or refinement.residual_de2000 > VARIATION_FIT_DE):
         uniform = fit.refine(reading, replace(reading.value, fibre_spread=0.0, grey_fraction=0.0))
-        if uniform.residual_de2000 < refinement.residual_de2000:
+        if refinement is None and uniform.residual_de2000 > min(reach, VARIATION_FIT_DE):
+            refinement = fit.refine(reading)
+        missed = reach if refinement is None else refinement.residual_de2000
+        if refinement is None or uniform.residual_de2000 < refinement.residual_de2000:
             warnings += _warn(WarningKind.APPEARANCE, [
                 f"appearance: with the grey share {reading.value.grey_fraction:.2f} read from the texture, no "
-                f"hair renders this swatch's colour within ΔE2000 {VARIATION_FIT_DE} (residual "
-                f"{refinement.residual_de2000:.2f}; uniform fibres {uniform.residual_de2000:.2f}): it is not "
-                f"reported as measured"])
+                f"hair renders this swatch's colour within ΔE2000 {VARIATION_FIT_DE} (residual {missed:.2f}"
+                f"{' on its curve' if refinement is None else ''}; uniform fibres {uniform.residual_de2000:.2f}): "
+                f"it is not reported as measured"])
             refinement, appearance = uniform, unmeasured_variation(reading.estimate)
     if (structure is not StructureMode.READ and not decided and fit.singles is not None
             and refinement.residual_de2000 > UNREACHED_DE):

@@ -169,6 +169,14 @@ def varied_curve(curve: ResponseCurve, appearance: Appearance) -> ResponseCurve:
     return ResponseCurve(curve.sigma.copy(), mean, curve.seconds, curve.cached, curve.nonfinite)
 
 
+def curve_reach(curve: ResponseCurve, appearance: Appearance, target: np.ndarray) -> float:
+    """ΔE2000 from ``target`` of the nearest colour the swatch of ``appearance`` makes on ``curve`` (its own
+    prediction, no render): about 0 where its hair reaches the colour, the colour's distance where it does not."""
+    varied = varied_curve(curve, appearance)
+    sigma, _ = varied.inverse(np.asarray(target, float))
+    return float(delta_e2000(np.clip(varied(sigma), 1e-9, None), np.clip(np.asarray(target, float), 1e-9, None)))
+
+
 def fitted_pixels(image: np.ndarray, view: View) -> np.ndarray:
     """The pixels of ``image`` whose mean the refinement fits: a rig view's region exactly as it is
     rendered, or (an all-hair crop) the whole image."""

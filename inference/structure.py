@@ -23,6 +23,7 @@ import numpy as np
 from hairdigi.inference.refine import RefineSettings, ResponseCurve, View, response_curve
 from hairdigi.inference.uncertainty import widen_colour
 from hairdigi.render.domain.estimate_parts import StructureInterval, Uncertainty
+from hairdigi.render.domain.rig_geometry import RigRegion
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.swatch_family import FAMILY
 from hairdigi.resources import MODELS
@@ -50,6 +51,31 @@ def _averaged(curves: list[ResponseCurve]) -> ResponseCurve:
     logs = np.mean([np.log(np.clip(c.mean, 1e-12, None)) for c in curves], axis=0)
     return ResponseCurve(curves[0].sigma.copy(), np.exp(logs), sum(c.seconds for c in curves),
                          all(c.cached for c in curves), sum(c.nonfinite for c in curves))
+
+
+#: The family's curves are rendered on a canonical copy of a rig region: its frame scaled to ``FAMILY_FRAME[0]``
+#: pixels wide and its region's edges snapped to ``FAMILY_FRAME[1]`` of those pixels. A RAW still (twice the
+#: feed's resolution, its swatch found a few pixels off) and the live frames then share one set of curves,
+#: rendered once (``len(FAMILY) * LAYOUTS`` curves, 1-3 minutes), where each still's own region rendered them
+#: anew. The map is a ratio of two curves at one view, both on the canonical region.
+FAMILY_FRAME = (400, 8)
+
+
+def family_view(view: View, frame: tuple[int, int] = FAMILY_FRAME) -> View:
+    """The canonical view the family's curves of ``view`` are rendered at (``FAMILY_FRAME``; a pose as it is)."""
+    if not isinstance(view, RigRegion):
+        return view
+    width, grid = frame
+    scale = width / view.frame_size[0]
+    size = (width, max(grid, int(round(view.frame_size[1] * scale))))
+    x, y, w, h = view.roi
+
+    def snap(v: float, top: int) -> int:
+        return int(min(top, max(0, round(v * scale / grid) * grid)))
+
+    x0, y0 = min(snap(x, size[0]), size[0] - grid), min(snap(y, size[1]), size[1] - grid)
+    x1, y1 = max(snap(x + w, size[0]), x0 + grid), max(snap(y + h, size[1]), y0 + grid)
+    return replace(view, frame_size=size, roi=(x0, y0, min(x1, size[0]) - x0, min(y1, size[1]) - y0))
 
 
 def family_curves(view: View, settings: RefineSettings = RefineSettings(), renderer=None,
@@ -181,7 +207,8 @@ def with_structure(uncertainty: Uncertainty, table: dict | None, mode: str = "as
 def toward_family(refinement, prior, view: View, settings: RefineSettings = RefineSettings(), renderer=None):
     """``refinement`` (``inference.refine.Refinement``) with its sigma_a mapped to the family's mean
     (``to_family``) and the Table 1 parameters nearest ``prior`` that make it; the residual stays the one
-    measured on the default structure. The family's curves render once per view (cached)."""
+    measured on the default structure. The family's curves render once per canonical view (``family_view``;
+    cached)."""
     import time
     from dataclasses import replace as replaced
 
@@ -189,7 +216,7 @@ def toward_family(refinement, prior, view: View, settings: RefineSettings = Refi
     from hairdigi.render.domain.absorption import hair_sigma_a
 
     start = time.perf_counter()
-    family = family_curves(view, settings, renderer)
+    family = family_curves(family_view(view), settings, renderer)
     params, _ = params_for_sigma(to_family(refinement.sigma_a, family), prior)
     return replaced(refinement, params=params, sigma_a=hair_sigma_a(params),
                     seconds=refinement.seconds + time.perf_counter() - start,

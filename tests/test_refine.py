@@ -121,3 +121,21 @@ def test_a_cropped_render_is_that_window_of_the_whole_film(tmp_path):
     c = renderer.render(sigma, SceneSpec("swatch", framing="rig", target=RIG_TARGET, half_width=RIG_HALF_WIDTH,
                                          crop=(70, 0, 30, 36)), (100, 75), 64, seed=4).linear
     assert float(delta_e2000(c.reshape(-1, 3).mean(0), b.reshape(-1, 3).mean(0))) > 3.0
+
+
+def test_a_variation_whose_curve_cannot_reach_the_colour_says_how_far_it_falls_short():
+    """``curve_reach``: the swatch's own prediction, no render. Uniform fibres reach any colour on their curve
+    (about 0); a fifth of grey fibres lightens every hair, so a colour darker than the darkest it makes is out
+    of reach by its distance: the estimate then skips that variation's check renders."""
+    from hairdigi.inference.refine import SIGMA_LEVELS, ResponseCurve, curve_reach
+    from hairdigi.render.domain.appearance import Appearance
+
+    sigma = np.array(SIGMA_LEVELS)
+    curve = ResponseCurve(sigma, 0.02 + 0.5 * np.exp(-sigma))   # every channel's, of its own sigma_a
+    reachable = curve(np.array([0.4, 0.8, 1.6]))
+    uniform, greys = Appearance(0.3), Appearance(0.3, grey_fraction=0.2)
+    assert curve_reach(curve, uniform, reachable) < 0.05    # the interpolants' round trip
+    assert curve_reach(curve, greys, reachable) < 0.1       # lighter hair of more sigma_a makes it too
+    darkest = curve(np.full(3, sigma[-1]))
+    assert curve_reach(curve, uniform, darkest) < 0.05
+    assert curve_reach(curve, greys, darkest) > 2.0         # no hair with a fifth of greys is that dark

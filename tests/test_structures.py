@@ -386,3 +386,21 @@ def test_a_swatch_out_of_the_layered_swatchs_reach_is_estimated_on_its_structure
     assert family.refinement.region.structure.startswith("read decisively"), family.refinement.region
     assert family.uncertainty.structure.mode == "family"
     assert delta_e2000(shot(family.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0), goal) < 1.0
+
+
+def test_a_still_and_the_live_frames_share_the_familys_curves() -> None:
+    """``family_view``: a RAW still of twice the feed's resolution, its swatch found a few pixels off, maps to
+    the live frame's canonical region, so the family's curves (12 renders) are not rendered again for each
+    still; a region at the frame's edge stays inside it, and a pose (an all-hair crop) is its own view."""
+    from hairdigi.inference.structure import FAMILY_FRAME, family_view
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, RigRegion
+
+    live = family_view(RigRegion((400, 300), (30, 56, 130, 189)))
+    still = family_view(RigRegion((800, 600), (61, 113, 259, 377)))
+    assert live == still and live.frame_size == (400, 300)
+    assert all(v % FAMILY_FRAME[1] == 0 for v in live.roi)
+    assert family_view(RigRegion((400, 300), (30, 56, 150, 189))) != live      # another region is another view
+    edge = family_view(RigRegion((1000, 750), (990, 740, 10, 10)))
+    x, y, w, h = edge.roi
+    assert w > 0 and h > 0 and x + w <= edge.frame_size[0] and y + h <= edge.frame_size[1]
+    assert family_view(RIG_SWATCH_POSE) is RIG_SWATCH_POSE

@@ -231,15 +231,20 @@ class RigSession:
         return s
 
     def prepare_refinement(self) -> float:
-        """Render (or load) the refinement's response curve and the shine's per-light tables for the
-        rig's swatch area; returns their seconds (0 when cached)."""
+        """Render (or load) what an estimate of the rig's swatch area needs in the session's structure mode:
+        the refinement's response curve and the shine's per-light tables; in the family and read modes every
+        read member's tables, and in the family mode the family's curves. Returns their seconds (0 when cached)."""
         from hairdigi.inference.refine import RefineSettings, response_curve
         from hairdigi.inference.shine import shine_tables
+        from hairdigi.inference.structure import READ_MEMBERS, family_curves, family_view
 
         region = self.region(self.frame().srgb)
         curve = response_curve(region, RefineSettings())
         start = time.perf_counter()
-        shine_tables(region, RefineSettings())
+        for member in (None,) if self.structure is StructureMode.ASSUMED else READ_MEMBERS:
+            shine_tables(region, RefineSettings(), swatch_model=member)
+        if self.structure is StructureMode.FAMILY:
+            family_curves(family_view(region), RefineSettings())
         return (0.0 if curve.cached else curve.seconds) + time.perf_counter() - start
 
     def region(self, image: np.ndarray) -> RigRegion:
