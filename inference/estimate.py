@@ -28,7 +28,7 @@ from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABL
                                           with_structure)
 from hairdigi.inference.uncertainty import intervals, load_table
 from hairdigi.inference.views import swatch_view
-from hairdigi.render.domain.bounds import StructureMode
+from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
 from hairdigi.render.domain.version import version
 from hairdigi.render.domain.appearance import Appearance, AppearanceEstimate
 from hairdigi.render.domain.estimate_parts import EncoderReading, Provenance, Uncertainty
@@ -95,7 +95,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
                    settings: RefineSettings = RefineSettings(), extra_warnings: list[EstimateWarning] = (),
                    on_encoder_estimate: Callable[[HairParams], None] | None = None,
                    renderer=None, light_images: list[np.ndarray] | None = None,
-                   structure: StructureMode = StructureMode.ASSUMED,
+                   structure: StructureMode = DEFAULT_STRUCTURE,
                    sensor_clipped: np.ndarray | None = None) -> EstimateResult:
     """Estimate a colour-corrected image: linear float RGB (a corrected capture) or 8-bit sRGB; a rig
     frame or a crop that is all hair.
@@ -275,7 +275,7 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
                   calibration_path: str | os.PathLike | None = None, camera: CameraPose | None = None,
                   refine_colour: bool = True, settings: RefineSettings = RefineSettings(),
                   rig_view: bool | None = None, light_paths: list | None = None,
-                  light_exposures: list[float] | None = None, structure: StructureMode = StructureMode.ASSUMED
+                  light_exposures: list[float] | None = None, structure: StructureMode = DEFAULT_STRUCTURE
                   ) -> tuple[EstimateResult, EstimateRecord, np.ndarray]:
     """Read, colour-correct (when a calibration profile is given) and estimate; returns the result,
     its record and the corrected image (linear float when corrected, else as read).

@@ -35,10 +35,10 @@ def add_spectra_arguments(p) -> None:
 
 def add_structure_argument(p, what: str = "the swatch's") -> None:
     """``--structure``: how an estimate treats the swatch's physical structure (``estimate``, ``rig``, ``app``)."""
-    from hairdigi.render.domain.bounds import STRUCTURE_MODES
+    from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, STRUCTURE_MODES
 
-    p.add_argument("--structure", choices=STRUCTURE_MODES, default="assumed",
-                   help=f"{what} physical structure: 'assumed', hairdigi's layered swatch; 'family', the answer mapped to "
+    p.add_argument("--structure", choices=STRUCTURE_MODES, default=None,
+                   help=f"{what} physical structure (default {DEFAULT_STRUCTURE}): 'assumed', hairdigi's layered swatch; 'family', the answer mapped to "
                    "the mean of render.swatch_family's physical structures, or refined on the structure the single-light "
                    "frames read decisively (their curves render once per view, 56 small renders); 'read', read from the "
                    "single-light frames among them (their per-light tables, 96 renders each) and refined on it. "

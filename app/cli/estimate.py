@@ -5,6 +5,7 @@ import argparse
 import sys
 
 from hairdigi.app.cli import validation as v
+from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE
 
 
 def add_parser(sub) -> None:
@@ -54,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     estimate, record, _ = estimate_file(args.image, encoder, roi, args.calibration, camera,
                                         refine_colour=not args.no_refine, rig_view=False if args.camera else None,
                                         light_paths=lights, light_exposures=exposures,
-                                        structure=args.structure)
+                                        structure=args.structure or DEFAULT_STRUCTURE)
     if args.calibration:    # the spectral world: the declared camera's reading, or an undeclared camera's metamerism
         record = in_spectral_world(record, estimate, args.calibration, args.led, args.sensor)
     write_record(args.out, record)

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 from hairdigi.app.cli import validation as v
 from hairdigi.app.cli.arguments import SPP, add_spectra_arguments, add_structure_argument
+from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE
 from hairdigi.render.swatch_family import STRUCTURES
 from hairdigi.app.session.blockers import messages
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
@@ -51,7 +52,7 @@ def open_session(args) -> RigSession:
     roi = tuple(int(v) for v in args.roi.split(",")) if args.roi else None
     camera = args.camera if getattr(args, "genicam", None) is None else f"genicam:{args.genicam}"
     return open_rig(args.session, args.sim, camera, args.port, roi, require_lights=False, spectra=spectra,
-                    structure=getattr(args, "structure", "assumed"), **simulated)[0]
+                    structure=getattr(args, "structure", None) or DEFAULT_STRUCTURE, **simulated)[0]
 
 
 def hidden_appearance(path):

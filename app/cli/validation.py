@@ -331,10 +331,10 @@ def check_estimate(args: argparse.Namespace) -> None:
     for i, light in enumerate((getattr(args, "lights", None) or "").split(",") if getattr(args, "lights", None) else ()):
         check_input_file(light, f"--lights (light {i})")   # a device or FIFO is refused before it is read
         inputs[f"--lights (light {i})"] = light
-    if getattr(args, "structure", "assumed") == "read" and not getattr(args, "lights", None):
+    if getattr(args, "structure", None) == "read" and not getattr(args, "lights", None):
         raise ArgumentError("--structure read reads the swatch's structure from its single-light frames: pass "
                             "--lights L0,L1,L2, or use --structure family")
-    if getattr(args, "structure", "assumed") != "assumed" and getattr(args, "no_refine", False):
+    if getattr(args, "structure", None) and getattr(args, "no_refine", False):
         raise ArgumentError(f"--structure {args.structure} acts on the refinement, which --no-refine skips; "
                             f"leave one of them out")
     check_distinct({"--out": args.out, "--render": args.render})
@@ -546,7 +546,7 @@ def check_evaluate_modes(args: argparse.Namespace) -> None:
                 flag == "ship" and args.ship and getattr(args, "dye", False)):
             raise ArgumentError(f"{_flag(flag)} goes with {' or '.join(map(_flag, modes))}; add it or leave "
                                 f"{_flag(flag)} out")
-    if getattr(args, "structure", "assumed") != "assumed" and not getattr(args, "rig", False):
+    if getattr(args, "structure", None) and not getattr(args, "rig", False):
         raise ArgumentError(f"--structure {args.structure} goes with --rig (--structures judges every mode at once); "
                             "add --rig or leave --structure out")
 

@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE
 from hairdigi.render.domain.errors import HairdigiError
 
 #: Fewer predictions than this give no p95 to judge ``evaluate --dye``'s goal by.
@@ -83,10 +84,11 @@ def rig(args: argparse.Namespace) -> int:
     from hairdigi.app.evaluation.rig import RigSet, evaluate_rig
 
     hidden = tuple(args.hidden_structures.split(",")) if getattr(args, "hidden_structures", None) else ()
-    structure = getattr(args, "structure", None) or "assumed"
-    if args.ship and (hidden or structure != "assumed"):
-        print("hairdigi evaluate --rig --ship: the chain's colour interval is measured on hairdigi's own swatch with "
-              "the default structure mode; drop --ship, or --hidden-structures and --structure", file=sys.stderr)
+    structure = getattr(args, "structure", None) or DEFAULT_STRUCTURE
+    if args.ship and (hidden or structure != DEFAULT_STRUCTURE):
+        print(f"hairdigi evaluate --rig --ship: the chain's colour interval is measured on hairdigi's own swatch with "
+              f"the default structure mode ({DEFAULT_STRUCTURE}); drop --ship, or --hidden-structures and --structure",
+              file=sys.stderr)
         return 2
     unknown = _unknown_structure(hidden)
     if unknown:

@@ -25,6 +25,7 @@ import numpy as np
 
 from hairdigi.app.session.blockers import messages
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE
+from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE
 from hairdigi.render.io.figures import save_table
 from hairdigi.render.domain.params import HairParams, sample_params
 from hairdigi.render.metrics import error_stats
@@ -53,7 +54,7 @@ class RigSet:
     random: int = 5          # random Table 1 draws beside the hard cases
     spp: int = 32            # the simulated rig's light renders
     stills: bool = True
-    structure: str = "assumed"               # how the sessions' estimates treat the swatch's structure
+    structure: str = DEFAULT_STRUCTURE       # how the sessions' estimates treat the swatch's structure
     hidden_structures: tuple[str, ...] = ()  # the hidden swatches' structures, in turn (render.swatch_family);
     #                                          () : hairdigi's own, layered
 

@@ -10,10 +10,10 @@ from PySide6.QtWidgets import QApplication, QComboBox, QDialog, QDialogButtonBox
 from hairdigi.app.gui.main_window import MainWindow, settings_store
 from hairdigi.app.session.rig_session import open_rig
 from hairdigi.app.session.spectra import rig_spectra, spectra_problem
-from hairdigi.render.domain.bounds import STRUCTURE_MODES
+from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, STRUCTURE_MODES
 
 SETTING_DEFAULTS = {"camera": "0", "serial_port": "", "output_folder": str(Path.home() / "hairdigi-sessions" / "default"),
-                    "hairstyle_size": 512, "led": "", "sensor": "", "structure": "assumed"}
+                    "hairstyle_size": 512, "led": "", "sensor": "", "structure": str(DEFAULT_STRUCTURE)}
 
 
 #: Settings picked from a list, not typed.
@@ -93,8 +93,8 @@ def chosen_structure(settings: dict, structure: str | None) -> tuple[str, str | 
         return structure, None
     if settings["structure"] in STRUCTURE_MODES:
         return settings["structure"], None
-    return "assumed", (f"the settings' structure {settings['structure']!r} is not one of {', '.join(STRUCTURE_MODES)}; "
-                       "'assumed' is used (Settings > structure)")
+    return str(DEFAULT_STRUCTURE), (f"the settings' structure {settings['structure']!r} is not one of "
+                                    f"{', '.join(STRUCTURE_MODES)}; '{DEFAULT_STRUCTURE}' is used (Settings > structure)")
 
 
 def run_app(sim: bool = False, session: str | None = None, tour: str | None = None, camera: str | None = None,

@@ -26,7 +26,7 @@ from hairdigi.hardware.lights import N_LIGHTS, LightController, LightError
 from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, correction_warnings,
                                             detect_chart, light_colour_warnings, load_profile, profile_warnings,
                                             save_profile, staleness)
-from hairdigi.render.domain.bounds import StructureMode
+from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
 from hairdigi.render.domain.files import write_json_atomic
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.errors import HairdigiError
@@ -106,7 +106,7 @@ class RigSession:
     calibration profile."""
 
     def __init__(self, camera, lights: LightController | None, folder: str | Path, swatch_roi=None,
-                 encoder=None, simulated: bool = False, spectra=None, structure: str = "assumed") -> None:
+                 encoder=None, simulated: bool = False, spectra=None, structure: str = DEFAULT_STRUCTURE) -> None:
         self.camera = camera
         #: how its estimates treat the swatch's physical structure (``render.domain.bounds.STRUCTURE_MODES``:
         #: ``inference.estimate.estimate_image``'s ``structure``)
@@ -137,7 +137,7 @@ class RigSession:
                       pose: CameraPose = CameraPose(), half_width: float = RIG_HALF_WIDTH,
                       appearance=None, strand_seed: int = 0, genicam: str | None = None,
                       illuminant: str | None = None, sensitivities: str | None = None,
-                      swatch_model: str | None = None, structure: str = "assumed") -> "RigSession":
+                      swatch_model: str | None = None, structure: str = DEFAULT_STRUCTURE) -> "RigSession":
         """The bench in software: a pty light board, the rendered rig, and a camera model; the hidden
         swatch is ``hidden`` with ``appearance`` (shine and fibre variation; default uniform). With
         ``genicam`` (Aravis's fake camera ID) the frames come through the GenICam path as 12-bit Bayer.
@@ -443,7 +443,7 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
               profile: CalibrationProfile, view: RigRegion, stale: list[str],
               on_encoder_estimate: Callable[[HairParams], None] | None = None,
               singles: list[tuple[np.ndarray, float]] = (), chart=None, clipped: np.ndarray | None = None,
-              structure: str = "assumed") -> None:
+              structure: str = DEFAULT_STRUCTURE) -> None:
     """Colour-correct the frame (``linear`` where the source has it, else the 8-bit ``image``) with
     ``profile``, keep it linear, estimate the swatch area ``view`` as the rig sees it, and fill ``result``.
 
@@ -495,7 +495,7 @@ class StillError(HairdigiError, ValueError):
 
 def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
                  in_spectral_world: Callable[..., EstimateRecord] | None = None,
-                 structure: str = "assumed") -> CaptureResult:
+                 structure: str = DEFAULT_STRUCTURE) -> CaptureResult:
     """A RAW still (DNG, CR2, NEF, ...) of the rig, taken with the chart in view, as a capture.
 
     The file is copied into the session first, untouched. Then rawpy decodes it (linear, the
@@ -559,7 +559,7 @@ def frame_linear(frame) -> np.ndarray:
 
 
 def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", port: str | None = None, roi=None,
-             fallback: bool = False, require_lights: bool = True, spectra=None, structure: str = "assumed",
+             fallback: bool = False, require_lights: bool = True, spectra=None, structure: str = DEFAULT_STRUCTURE,
              **simulated) -> tuple[RigSession, str | None]:
     """The rig for the command line and the window alike, and why it is the simulated one (or None).
 

@@ -94,6 +94,9 @@ class StructureMode(TextEnum):
 
 
 STRUCTURE_MODES = StructureMode.names()
+#: The mode an estimate uses when none is named (``--structure``, the app's settings): see the model card's
+#: figures for what each mode measures on hairdigi's own swatch and on swatches built another way.
+DEFAULT_STRUCTURE = StructureMode.ASSUMED
 #: Named cameras of the spectral world (``render.spectra``): name -> colour-science's ``MSDS_CAMERA_SENSITIVITIES`` key.
 CAMERAS = {"nikon-5100": "Nikon 5100 (NPL)", "sigma-sdmerill": "Sigma SDMerill (NPL)"}
 #: Named lights of the spectral world (``render.spectra``): name -> colour-science's ``SDS_ILLUMINANTS`` key.
