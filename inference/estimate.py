@@ -230,7 +230,8 @@ def _refined(fit: _Fit, structure: StructureMode
             f"read decisively from the single-light frames as {decided} (its misfit under 1/{DECISIVE:g} of "
             f"every other member's: " + ", ".join(f"{m} {v:.3f}" for m, v in members.misfits.items()) + ")")))
     elif structure is StructureMode.FAMILY:
-        refinement = toward_family(refinement, fit.start, fit.view, fit.settings, fit.renderer)
+        refinement = toward_family(refinement, fit.start, fit.view, fit.settings, fit.renderer,
+                                   members.misfits if members is not None else None)
     if not refinement.reachable:
         warnings += _warn(WarningKind.UNREACHABLE, [
             f"unreachable: no Table 1 hair renders this swatch's colour (residual ΔE2000 "
