@@ -142,7 +142,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     uncertainty = intervals(params, load_table(UNCERTAINTY_TABLE), chain)
     if refinement is not None:   # a swatch's structure: read, or the default assumed (``inference.structure``)
         uncertainty = with_structure(uncertainty, load_table(STRUCTURE_TABLE), structure,
-                                     refinement.region.swatch_model)
+                                     refinement.region.swatch_model, frames=light_images is not None)
     if refinement is not None:
         warnings += interval_warnings(refinement.residual_de2000, uncertainty)
     return EstimateResult(params, est, refinement, warnings, stats.to_dict(), uncertainty,

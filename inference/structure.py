@@ -207,21 +207,26 @@ def read_structure(light_means: np.ndarray, view: View, settings: RefineSettings
 STRUCTURE_TABLE = MODELS / "structure_uncertainty.json"
 
 
-#: The evaluation's name of each mode's figures in ``STRUCTURE_TABLE``.
+#: The evaluation's name of each mode's figures in ``STRUCTURE_TABLE``; "family_unread": the family mode
+#: without single-light frames (a RAW still), every answer mapped to the whole family's mean.
 _TABLE_KEYS = {"assumed": "shipped", "family": "family", "read": "read"}
 
 
 def with_structure(uncertainty: Uncertainty, table: dict | None, mode: str = "assumed",
-                   swatch_model: str | None = None) -> Uncertainty:
+                   swatch_model: str | None = None, frames: bool = True) -> Uncertainty:
     """``uncertainty`` (``inference.uncertainty.intervals``) with its colour interval widened to what
     swatches of other structures measured for ``mode`` (the larger of the two, per level), and a
-    ``structure`` entry naming the mode and the structure rendered."""
+    ``structure`` entry naming the mode and the structure rendered. ``frames``: the capture had single-light
+    frames to read the structure from (without, the family mode states its figures without a reading)."""
     key = _TABLE_KEYS[mode]
+    if not frames and mode == "family" and table and "family_unread" in table:
+        key = "family_unread"
     if not table or key not in table:
         return uncertainty
     measured = table[key]
+    unread = " without single-light frames" if key == "family_unread" else ""
     out = widen_colour(uncertainty, measured["p68"], measured["p95"],
-                       f"{table.get('source', 'hairdigi evaluate --structures')} (--structure {mode})")
+                       f"{table.get('source', 'hairdigi evaluate --structures')} (--structure {mode}{unread})")
     return replace(out, structure=StructureInterval(mode, swatch_model, round(measured["p68"], 3),
                                                     round(measured["p95"], 3), table.get("source", "")))
 

@@ -115,6 +115,13 @@ def test_a_records_colour_interval_carries_the_unknown_structure() -> None:
     family = with_structure(wide, table, "family")
     assert (family.mean_colour_de2000_p68, family.mean_colour_source) == (3.38, "the chain")
     assert with_structure(chain, None, "assumed") == chain                 # no table shipped: unchanged
+    # without single-light frames (a RAW still) the family mode states what mapping alone measured
+    table["family_unread"] = {"p68": 1.2, "p95": 2.4}
+    unread = with_structure(chain, table, "family", frames=False)
+    assert (unread.mean_colour_de2000_p68, unread.mean_colour_de2000_p95) == (1.2, 2.4)
+    assert "without single-light frames" in unread.mean_colour_source
+    assert with_structure(chain, table, "family").mean_colour_de2000_p95 == 1.4
+    assert with_structure(chain, table, "read", frames=False) == chain      # no figures for the mode: unchanged
 
 
 def test_deposited_fibres_rest_on_one_another_and_settle() -> None:
