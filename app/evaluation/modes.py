@@ -219,11 +219,11 @@ def structures(args: argparse.Namespace) -> int:
                 continue
             fit, away = st["fit"], st["transfer"]
             if fit["n"]:
-                print(f"  {mode:8s} {group:14s} fit {fit['median']:.2f} / {fit['p95']:.2f} / {fit['worst']:.2f}, "
+                print(f"  {mode:13s} {group:14s} fit {fit['median']:.2f} / {fit['p95']:.2f} / {fit['worst']:.2f}, "
                       f"transfer {away['median']:.2f} / {away['p95']:.2f} / {away['worst']:.2f}")
         nuisance = s[mode]["layout_nuisance"]
         if nuisance["n"]:
-            print(f"  {mode:8s} layout nuisance {nuisance['median']:.2f} / {nuisance['p95']:.2f} / {nuisance['worst']:.2f}")
+            print(f"  {mode:13s} layout nuisance {nuisance['median']:.2f} / {nuisance['p95']:.2f} / {nuisance['worst']:.2f}")
     for line in s["errors"]:
         print(f"not judged: {line}")
     if s["judged"] == 0:

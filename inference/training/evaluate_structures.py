@@ -46,9 +46,10 @@ CASES = {**CYCLES_CASES, "platinum, glossy": (CYCLES_CASES["platinum, glossy"][0
 HIDDEN = ("layered", "deposited", "deposited-coarse", "spread", "wavy", "tilted", "loose")
 #: The structure the layout nuisance is measured on, and the layouts (seeds no estimate renders).
 LAYOUT_STRUCTURE, LAYOUT_SEEDS = "deposited", (601, 602)
-MODES = ("shipped", "family", "read")
-#: The ``estimate_image`` structure mode each column judges ("shipped": the default, assumed structure).
-STRUCTURE_MODE = {"shipped": "assumed", "family": "family", "read": "read"}
+MODES = ("shipped", "family", "read", "family_unread")
+#: The ``estimate_image`` structure mode each column judges ("shipped": the assumed structure; "family_unread":
+#: the family mode without the single-light frames, as a RAW still is estimated).
+STRUCTURE_MODE = {"shipped": "assumed", "family": "family", "read": "read", "family_unread": "family"}
 
 
 @dataclass(frozen=True)
@@ -151,8 +152,8 @@ def _estimate(render, truth, structure: str, layout: int, shine: float, encoder,
     lights = [to_linear(capture(render.mean(truth, structure, layout, f"light{i}", shine, pixels=True)
                                 .astype(np.float32) * np.float32(2.0 ** LIGHT_EV), index + 7 * (i + 1)))
               / np.float32(2.0 ** LIGHT_EV) for i in range(N_LIGHTS)]
-    results = {mode: estimate_image(frame, encoder, light_images=lights, structure=STRUCTURE_MODE[mode])
-               for mode in MODES}
+    results = {mode: estimate_image(frame, encoder, light_images=None if mode == "family_unread" else lights,
+                                    structure=STRUCTURE_MODE[mode]) for mode in MODES}
     if any(r.refinement is None for r in results.values()):
         raise RuntimeError("no refinement")
     misfits = read_structure(np.array([mean_linear(im) for im in lights]), RIG_SWATCH_POSE).misfits
@@ -229,10 +230,11 @@ def evaluate_structures(out_dir: str | os.PathLike, config: StructureSet = Struc
     hairs = hidden_hairs(config)
     # hair by hair, every structure in turn: a run cut short has judged every structure alike
     jobs = [(h, s, 501 + k) for h in hairs for k, s in enumerate(config.structures)]
-    from hairdigi.inference.structure import DECISIVE
+    from hairdigi.inference.structure import DECISIVE, RULED_OUT
 
     settings = {"size": config.size, "spp": config.spp, "blender": config.blender, "seed": config.seed,
-                "random": config.random, "decisive": DECISIVE}   # rows of another family rule are not resumed
+                "random": config.random, "decisive": DECISIVE, "ruled_out": RULED_OUT,
+                "modes": list(MODES)}   # rows of another family rule, or without a mode's columns, are not resumed
     rows = _resumed(out / "structures_evaluation.json", settings)
     done = {(r["hidden"], r["structure"]) for r in rows if "error" not in r}
     rows = [r for r in rows if (r["hidden"], r["structure"]) in done]
@@ -326,7 +328,7 @@ def _plot(rows: list[dict], path: Path, config: StructureSet) -> None:
         x = np.arange(len(config.structures))
         for k, mode in enumerate(MODES):
             values = [[r[f"{mode}_{key}"] for r in done if r["structure"] == s] for s in config.structures]
-            ax.boxplot([v or [np.nan] for v in values], positions=x + (k - 1) * 0.27, widths=0.24,
+            ax.boxplot([v or [np.nan] for v in values], positions=x + (k - 1.5) * 0.21, widths=0.19,
                        patch_artist=True, boxprops={"facecolor": f"C{k}"}, medianprops={"color": "k"})
             ax.plot([], [], color=f"C{k}", lw=6, label=mode)
         ax.axhline(1.0, ls="--", color="grey", lw=0.8)
