@@ -141,28 +141,6 @@ READ_MEMBERS = ("layered", "tilted", "deposited", "deposited-coarse", "spread", 
 DECISIVE = 2.0
 
 
-#: A member whose misfit is at least this many times the best's is ruled out of the family's mean that an
-#: undecided reading maps to (wavy stands and falls with deposited, which it renders like): in practice the
-#: spread swatch, which renders 1.5-4 ΔE2000 darker than the rest and pulled a layered copper 2.51 from its
-#: truth. Chosen by replaying the mapping on ``hairdigi evaluate --structures --held-out 13`` and ``14``
-#: (``packaging/evaluation/structures-heldout14/family_ruled_out_replay.*``), fit median / p95 on the 12 layered
-#: swatches 0.27 / 1.29 -> 0.27 / 0.88, on the 72 of other structures 0.48 / 1.59 -> 0.50 / 1.59 (transfer
-#: unchanged, 0.50 / 1.84); a ratio of 5 ruled out more (other 0.47 / 1.51, transfer 0.53 / 1.91), 3 more still.
-RULED_OUT = 10.0
-
-
-def plausible(misfits: dict[str, float] | None, ratio: float = RULED_OUT,
-              members: tuple[str, ...] = FAMILY) -> tuple[str, ...]:
-    """The family's members the single-light frames do not rule out (``RULED_OUT``); all of them without a reading."""
-    if not misfits:
-        return members
-    best = max(min(misfits.values()), 1e-9)
-    kept = {m for m, v in misfits.items() if v < ratio * best}
-    if "deposited" in kept:
-        kept.add("wavy")
-    return tuple(m for m in members if m in kept or m not in misfits and m != "wavy")
-
-
 def decisive(misfits: dict[str, float], ratio: float = DECISIVE) -> str | None:
     """The member whose misfit is under ``1 / ratio`` of every other's (``StructureReading.misfits``), or None."""
     if len(misfits) < 2:
@@ -233,10 +211,12 @@ def with_structure(uncertainty: Uncertainty, table: dict | None, mode: str = "as
 
 def toward_family(refinement, prior, view: View, settings: RefineSettings = RefineSettings(), renderer=None,
                   misfits: dict[str, float] | None = None):
-    """``refinement`` (``inference.refine.Refinement``) with its sigma_a mapped to the mean of the family's members
-    that ``misfits`` (the single-light frames' reading; None: none) does not rule out (``plausible``, ``to_family``)
+    """``refinement`` (``inference.refine.Refinement``) with its sigma_a mapped to the family's mean (``to_family``)
     and the Table 1 parameters nearest ``prior`` that make it; the residual stays the one measured on the default
-    structure. The family's curves render once per canonical view (``family_view``;
+    structure; ``misfits``, the single-light frames' undecided reading (None: none), is recorded with it.
+    (Leaving out the members the frames rule out, misfit ten times the best's, helped the layered swatch and
+    hurt the deposited ones through the rig: ``packaging/evaluation/structures-heldout14/family_ruled_out_replay.*``
+    and the manual's figures.) The family's curves render once per canonical view (``family_view``;
     cached)."""
     import time
     from dataclasses import replace as replaced
@@ -245,13 +225,11 @@ def toward_family(refinement, prior, view: View, settings: RefineSettings = Refi
     from hairdigi.render.domain.absorption import hair_sigma_a
 
     start = time.perf_counter()
-    members = plausible(misfits)
-    family = family_curves(family_view(view), settings, renderer, members)
+    family = family_curves(family_view(view), settings, renderer)
     params, _ = params_for_sigma(to_family(refinement.sigma_a, family), prior)
     why = ("no single-light frames read the structure" if not misfits else
-           f"the single-light frames read no structure decisively, and rule out those {RULED_OUT:g} times the best's "
-           f"misfit: " + ", ".join(f"{m} {v:.3f}" for m, v in misfits.items()))
+           "the single-light frames read none decisively: " + ", ".join(f"{m} {v:.3f}" for m, v in misfits.items()))
     return replaced(refinement, params=params, sigma_a=hair_sigma_a(params),
                     seconds=refinement.seconds + time.perf_counter() - start,
                     region=replaced(refinement.region, structure=(
-                        f"mapped to the mean of {', '.join(family.members)} ({why})")))
+                        f"mapped to the family's mean: {', '.join(family.members)} ({why})")))

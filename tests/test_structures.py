@@ -203,23 +203,6 @@ def test_a_structure_is_read_decisively_only_when_every_other_member_fits_far_wo
     assert decisive({"a": 0.01, "b": 0.03}, ratio=4.0) is None
 
 
-def test_an_undecided_reading_maps_to_the_mean_of_the_members_it_does_not_rule_out() -> None:
-    """``plausible``: the demo's layered copper on the simulated rig, read at misfits where the spread swatch is
-    12 times the best's, maps without it (with it, the mean lies far from the layered swatch: 2.51 ΔE2000 from
-    the truth); wavy stands with deposited; without a reading (a RAW still) the whole family stays."""
-    from hairdigi.inference.structure import RULED_OUT, plausible
-    from hairdigi.render.swatch_family import FAMILY
-
-    copper = {"layered": 0.0251, "tilted": 0.0469, "deposited": 0.0318, "deposited-coarse": 0.0353,
-              "spread": 0.3165, "loose": 0.0266}
-    assert plausible(copper) == tuple(m for m in FAMILY if m != "spread")
-    assert plausible(None) == FAMILY and plausible({}) == FAMILY
-    far = {"layered": 0.01, "spread": 0.01 * RULED_OUT, "deposited": 0.01 * RULED_OUT - 1e-4, "tilted": 0.2,
-           "deposited-coarse": 0.2, "loose": 0.2}
-    assert plausible(far) == ("layered", "deposited", "wavy")
-    assert "wavy" not in plausible({**far, "deposited": 0.3})
-
-
 @pytest.mark.slow
 def test_a_deposited_swatch_is_estimated_within_the_goal_mapped_to_the_family() -> None:
     """A rough saturated red hidden in a deposited swatch (a layout no curve renders), shot through the

@@ -230,10 +230,10 @@ def evaluate_structures(out_dir: str | os.PathLike, config: StructureSet = Struc
     hairs = hidden_hairs(config)
     # hair by hair, every structure in turn: a run cut short has judged every structure alike
     jobs = [(h, s, 501 + k) for h in hairs for k, s in enumerate(config.structures)]
-    from hairdigi.inference.structure import DECISIVE, RULED_OUT
+    from hairdigi.inference.structure import DECISIVE
 
     settings = {"size": config.size, "spp": config.spp, "blender": config.blender, "seed": config.seed,
-                "random": config.random, "decisive": DECISIVE, "ruled_out": RULED_OUT,
+                "random": config.random, "decisive": DECISIVE,
                 "modes": list(MODES)}   # rows of another family rule, or without a mode's columns, are not resumed
     rows = _resumed(out / "structures_evaluation.json", settings)
     done = {(r["hidden"], r["structure"]) for r in rows if "error" not in r}
