@@ -40,7 +40,7 @@ def add_structure_argument(p, what: str = "the swatch's") -> None:
     p.add_argument("--structure", choices=STRUCTURE_MODES, default=None,
                    help=f"{what} physical structure (default {DEFAULT_STRUCTURE}): 'assumed', hairdigi's layered swatch; "
                    "'family', for a lab's swatches built another way: refined on the structure the single-light frames "
-                   "read decisively, else the answer mapped to the mean of render.swatch_family's structures they do not "
-                   "rule out (the family's curves render once per rig region, 56 small renders); 'read', read from the "
+                   "read decisively, else the answer mapped to the mean of render.swatch_family's structures (their "
+                   "curves render once per rig region, 56 small renders); 'read', read from the "
                    "single-light frames among them (their per-light tables, 96 renders each) and refined on it. "
                    "hairdigi evaluate --structures measures each")

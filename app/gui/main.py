@@ -48,8 +48,7 @@ class SettingsDialog(QDialog):
                                          "(nm), r, g, b (as hairdigi app --sensor); used at the next start")
         self.fields["structure"].setToolTip("how estimates treat the swatch's physical structure: assumed (hairdigi's "
                                             "layered swatch, the default), family (for a lab's swatches, built another "
-                                            "way: the structure read decisively, else the mean of the structures the "
-                                            "light frames do not rule out) or read (as hairdigi app --structure; "
+                                            "way: the structure read decisively, else the family's mean) or read (as hairdigi app --structure; "
                                             "hairdigi evaluate --structures measures each); used at the next start")
         self.fields["camera"].setToolTip("an OpenCV camera index or stream URL, or genicam (the first GenICam "
                                          "camera) or genicam:ID (arv-tool-0.8 lists the IDs); used at the next start")
