@@ -48,8 +48,9 @@ class SettingsDialog(QDialog):
                                          "(nm), r, g, b (as hairdigi app --sensor); used at the next start")
         self.fields["structure"].setToolTip("how estimates treat the swatch's physical structure: assumed (hairdigi's "
                                             "layered swatch, the default), family (for a lab's swatches, built another "
-                                            "way: the structure read decisively, else the family's mean) or read (as hairdigi app --structure; "
-                                            "hairdigi evaluate --structures measures each); used at the next start")
+                                            "way: the structure read decisively, else the family's mean) or read (as "
+                                            "hairdigi app --structure; hairdigi evaluate --structures measures each); "
+                                            "used at the next start")
         self.fields["camera"].setToolTip("an OpenCV camera index or stream URL, or genicam (the first GenICam "
                                          "camera) or genicam:ID (arv-tool-0.8 lists the IDs); used at the next start")
         buttons = QDialogButtonBox(QDialogButtonBox.StandardButton.Save | QDialogButtonBox.StandardButton.Cancel)
