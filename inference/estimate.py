@@ -24,8 +24,8 @@ from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, crop_of, read_image, swatch_crop, to_linear
 from hairdigi.inference.refine import (Refinement, RefineSettings, View, curve_reach, fitted_pixels, mean_linear, refine,
                                       response_curve)
-from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABLE, decisive, toward_family,
-                                          with_structure)
+from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABLE, decisive, read_texture,
+                                          toward_family, with_structure)
 from hairdigi.inference.uncertainty import intervals, load_table
 from hairdigi.inference.views import swatch_view
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
@@ -184,10 +184,16 @@ def _refined(fit: _Fit, structure: StructureMode
              ) -> tuple[Refinement, AppearanceEstimate, StructureMode, list[EstimateWarning]]:
     """The refinement of ``fit`` with the appearance read on the way, the structure it was made on (a
     capture no hair on the assumed swatch reaches is read anew) and their warnings."""
-    decided, members = None, None
+    decided, members, texture = None, None, None
+    candidates = READ_MEMBERS
+    if structure is StructureMode.FAMILY:
+        # the texture leaves the members whose streaks it shows (``read_texture``); the family's mean, over them,
+        # stands for a structure the frames cannot tell; one they tell decisively among them is used
+        texture = read_texture(fit.texture, fit.view)
+        if texture is not None and texture.weights is not None:
+            candidates = tuple(m for m in READ_MEMBERS if m in texture.weights)
     if structure is StructureMode.FAMILY and fit.singles is not None:
-        # the family's mean stands for a structure the frames cannot tell; one they tell decisively is used
-        members = fit.read(READ_MEMBERS)
+        members = fit.read(candidates)
         decided = decisive(members.misfits or {})
     reading = members if decided else fit.read(READ_MEMBERS if structure is StructureMode.READ else None)
     warnings = list(reading.warnings)
@@ -228,10 +234,11 @@ def _refined(fit: _Fit, structure: StructureMode
     if decided:
         refinement = replace(refinement, region=replace(refinement.region, structure=(
             f"read decisively from the single-light frames as {decided} (its misfit under 1/{DECISIVE:g} of "
-            f"every other member's: " + ", ".join(f"{m} {v:.3f}" for m, v in members.misfits.items()) + ")")))
+            f"every other member's: " + ", ".join(f"{m} {v:.3f}" for m, v in members.misfits.items()) + ")"
+            + ("" if texture is None else f"; {texture.describe()}"))))
     elif structure is StructureMode.FAMILY:
         refinement = toward_family(refinement, fit.start, fit.view, fit.settings, fit.renderer,
-                                   members.misfits if members is not None else None)
+                                   members.misfits if members is not None else None, texture)
     if not refinement.reachable:
         warnings += _warn(WarningKind.UNREACHABLE, [
             f"unreachable: no Table 1 hair renders this swatch's colour (residual ΔE2000 "

@@ -43,12 +43,20 @@ class FamilyCurves:
     @property
     def mean(self) -> ResponseCurve:
         """The family's response: the geometric mean of its members' curves."""
-        return _averaged(list(self.members.values()))
+        return self.mean_of(None)
+
+    def mean_of(self, weights: dict[str, float] | None) -> ResponseCurve:
+        """The geometric mean of the members' curves, weighted by ``weights`` (member -> weight; None, or
+        no known member weighted: the whole family's, evenly)."""
+        chosen = {m: w for m, w in (weights or {}).items() if m in self.members and w > 0}
+        if not chosen:
+            return _averaged(list(self.members.values()))
+        return _averaged([self.members[m] for m in chosen], list(chosen.values()))
 
 
-def _averaged(curves: list[ResponseCurve]) -> ResponseCurve:
-    """The geometric mean of curves on one sigma ladder (a member's layouts, or the family's members)."""
-    logs = np.mean([np.log(np.clip(c.mean, 1e-12, None)) for c in curves], axis=0)
+def _averaged(curves: list[ResponseCurve], weights: list[float] | None = None) -> ResponseCurve:
+    """The (weighted) geometric mean of curves on one sigma ladder (a member's layouts, or the family's members)."""
+    logs = np.average([np.log(np.clip(c.mean, 1e-12, None)) for c in curves], axis=0, weights=weights)
     return ResponseCurve(curves[0].sigma.copy(), np.exp(logs), sum(c.seconds for c in curves),
                          all(c.cached for c in curves), sum(c.nonfinite for c in curves))
 
@@ -106,14 +114,15 @@ def family_weight(sigma: np.ndarray, dark: tuple[float, float] = DARK_SIGMA) -> 
     return float(np.clip(np.log(hi / least) / np.log(hi / lo), 0.0, 1.0))
 
 
-def to_family(sigma: np.ndarray, family: FamilyCurves, dark: tuple[float, float] = DARK_SIGMA) -> np.ndarray:
-    """The ``sigma_a`` whose family-mean colour is the default structure's colour of ``sigma``, applied as
-    far as ``family_weight`` says (a dark hair keeps its answer)."""
+def to_family(sigma: np.ndarray, family: FamilyCurves, dark: tuple[float, float] = DARK_SIGMA,
+              weights: dict[str, float] | None = None) -> np.ndarray:
+    """The ``sigma_a`` whose family-mean colour (``FamilyCurves.mean_of(weights)``; None: every member) is the default
+    structure's colour of ``sigma``, applied as far as ``family_weight`` says (a dark hair keeps its answer)."""
     sigma = np.asarray(sigma, float)
     weight = family_weight(sigma, dark)
     if weight == 0.0:
         return sigma.copy()
-    mapped = family.mean.inverse(family.default(sigma))[0]
+    mapped = family.mean_of(weights).inverse(family.default(sigma))[0]
     return sigma * (np.clip(mapped, 1e-9, None) / np.clip(sigma, 1e-9, None)) ** weight
 
 
@@ -180,6 +189,73 @@ def read_structure(light_means: np.ndarray, view: View, settings: RefineSettings
                             fits[best][1])
 
 
+#: The texture's reading of the structure (``inference.texture.streaks``, at the canonical frame width
+#: ``FAMILY_FRAME[0]``): streak-free when ``along`` and ``order`` are both under ``STREAK_FREE``, streaked
+#: when both are over ``STREAKED``, undecided otherwise (the orientation order tells the classes apart with
+#: the wider margin; the correlation along the fibres confirms it). Chosen on ``hairdigi bench streaks`` (the simulated
+#: rig's live frames, its tilted cameras and its RAW stills of 15 hairs in every member): see
+#: ``TEXTURE_MEMBERS``.
+STREAK_FREE = (0.02, 0.45)
+STREAKED = (0.01, 0.55)
+#: The members each texture reading leaves, weighted by the share of that member's bench renders that read
+#: so (``hairdigi bench streaks``; the texture's likelihood of each member, as a posterior weight over an even
+#: prior): fibres side by side in full layers show no streaks, fibres dropped one by one, spread or wavy do,
+#: and a loose swatch mostly shows none.
+TEXTURE_MEMBERS = {
+    "streak-free": {"layered": 1.0, "tilted": 1.0, "loose": 0.69},
+    "streaked": {"deposited": 1.0, "deposited-coarse": 0.87, "spread": 1.0, "wavy": 1.0},
+}
+
+
+@dataclass(frozen=True)
+class TextureReading:
+    """What the swatch area's texture says of the structure: a class of ``TEXTURE_MEMBERS``, or None."""
+
+    kind: str | None
+    along: float
+    order: float
+
+    @property
+    def weights(self) -> dict[str, float] | None:
+        """The members the texture leaves, weighted (None: undecided, every member)."""
+        return TEXTURE_MEMBERS.get(self.kind) if self.kind else None
+
+    def describe(self) -> str:
+        """One line for the record."""
+        stats = f"streaks along the fibres {self.along:.3f}, orientation order {self.order:.2f}"
+        if self.kind is None:
+            return f"the texture is undecided ({stats})"
+        members = ", ".join(f"{m} {w:g}" for m, w in self.weights.items())
+        return f"the texture reads {self.kind} ({stats}): {members}"
+
+
+def read_texture(pixels_linear: np.ndarray, view: View) -> TextureReading | None:
+    """The structure the swatch area's texture reads (``TextureReading``), its pixels scaled to the canonical
+    frame width first (a RAW still's twice the feed's); None where there is no rig view's texture."""
+    import cv2
+
+    from hairdigi.inference.texture import streaks
+
+    if pixels_linear is None or not isinstance(view, RigRegion):
+        return None
+    scale = FAMILY_FRAME[0] / view.frame_size[0]
+    pixels = np.asarray(pixels_linear, np.float32)
+    if abs(scale - 1.0) > 0.05:
+        size = (max(1, round(pixels.shape[1] * scale)), max(1, round(pixels.shape[0] * scale)))
+        pixels = cv2.resize(pixels, size, interpolation=cv2.INTER_AREA)
+    try:
+        found = streaks(pixels)
+    except ValueError:          # an area too small to read
+        return None
+    if found.along < STREAK_FREE[0] and found.order < STREAK_FREE[1]:
+        kind = "streak-free"
+    elif found.along > STREAKED[0] and found.order > STREAKED[1]:
+        kind = "streaked"
+    else:
+        kind = None
+    return TextureReading(kind, found.along, found.order)
+
+
 #: The fit's ΔE2000 on swatches of other structures (``hairdigi evaluate --structures --ship``), by
 #: whether the structure was read: what a record's colour interval carries for a structure it does not know.
 STRUCTURE_TABLE = MODELS / "structure_uncertainty.json"
@@ -210,10 +286,11 @@ def with_structure(uncertainty: Uncertainty, table: dict | None, mode: str = "as
 
 
 def toward_family(refinement, prior, view: View, settings: RefineSettings = RefineSettings(), renderer=None,
-                  misfits: dict[str, float] | None = None):
+                  misfits: dict[str, float] | None = None, texture: TextureReading | None = None):
     """``refinement`` (``inference.refine.Refinement``) with its sigma_a mapped to the family's mean (``to_family``)
     and the Table 1 parameters nearest ``prior`` that make it; the residual stays the one measured on the default
-    structure; ``misfits``, the single-light frames' undecided reading (None: none), is recorded with it.
+    structure; ``misfits``, the single-light frames' undecided reading (None: none), is recorded with it;
+    ``texture`` (``read_texture``), where it reads a class, weights the members the map averages.
     (Leaving out the members the frames rule out, misfit ten times the best's, helped the layered swatch and
     hurt the deposited ones through the rig: ``packaging/evaluation/structures-heldout14/family_ruled_out_replay.*``
     and the manual's figures.) The family's curves render once per canonical view (``family_view``;
@@ -226,10 +303,14 @@ def toward_family(refinement, prior, view: View, settings: RefineSettings = Refi
 
     start = time.perf_counter()
     family = family_curves(family_view(view), settings, renderer)
-    params, _ = params_for_sigma(to_family(refinement.sigma_a, family), prior)
+    weights = texture.weights if texture is not None else None
+    params, _ = params_for_sigma(to_family(refinement.sigma_a, family, weights=weights), prior)
     why = ("no single-light frames read the structure" if not misfits else
            "the single-light frames read none decisively: " + ", ".join(f"{m} {v:.3f}" for m, v in misfits.items()))
+    if texture is not None:
+        why = f"{texture.describe()}; {why}"
+    mean = "the family's mean" if weights is None else "the mean of the members the texture leaves"
+    members = ", ".join(family.members) if weights is None else ", ".join(f"{m} {w:g}" for m, w in weights.items())
     return replaced(refinement, params=params, sigma_a=hair_sigma_a(params),
                     seconds=refinement.seconds + time.perf_counter() - start,
-                    region=replaced(refinement.region, structure=(
-                        f"mapped to the family's mean: {', '.join(family.members)} ({why})")))
+                    region=replaced(refinement.region, structure=f"mapped to {mean}: {members} ({why})"))

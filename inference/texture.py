@@ -334,3 +334,47 @@ def read_variation(pixels_linear: np.ndarray, sigma_a, shine: float, model: Text
     (wider for light hair, where greys hardly show)."""
     model = model or load_model()
     return reading_from(model, texture_features(pixels_linear), sigma_a, shine)
+
+
+#: Lags (pixels along the fibres, at the bench camera's 400-pixel-wide frame) of the streak statistic.
+STREAK_LAGS_PX = (4, 8, 16)
+#: A floor under the luminance before its logarithm (linear units): dark hair's noise does not dominate.
+STREAK_FLOOR = 1e-3
+
+
+@dataclass(frozen=True)
+class Streaks:
+    """What the swatch area's texture says of how its fibres lie (``streaks``)."""
+
+    along: float       # autocorrelation of the high-passed ln luminance along the fibres (lags STREAK_LAGS_PX)
+    order: float       # 0-1: how far the local texture's orientations agree (1: every streak one way)
+
+
+def streaks(pixels_linear: np.ndarray, fibre_axis: int = 0) -> Streaks:
+    """Streaks along the fibres in the swatch area (linear (H, W, 3), a fibre about a pixel wide).
+
+    Fibres side by side in full layers (hairdigi's layered swatch, tilted layers) show a top of even
+    fibres: the texture is the noise's, with no direction and no correlation along the fibres. Fibres
+    dropped one by one, spread or wavy leave voids and shadows that run along them: dark streaks, long
+    along the fibres and oriented. ``along`` is the high-passed ln luminance's autocovariance at
+    ``STREAK_LAGS_PX`` along ``fibre_axis`` over its variance; ``order`` the resultant length of the
+    doubled local orientation angles (a structure tensor, Gaussian 4 px) over the more coherent half of
+    the pixels, so a view that turns the fibres in the image reads the same."""
+    img = np.asarray(pixels_linear, np.float32)
+    if img.ndim != 3 or img.shape[2] != 3 or min(img.shape[:2]) < 4 * max(STREAK_LAGS_PX) // 2:
+        raise ValueError(f"pixels must be a linear (H, W, 3) swatch area at least {2 * max(STREAK_LAGS_PX)} px "
+                         f"a side, got shape {img.shape}")
+    lum = np.log(np.maximum(img, 0.0) @ _LUMA + STREAK_FLOOR).astype(np.float32)
+    high = _highpass(lum, HIGHPASS_SIGMA_PX)
+    if fibre_axis == 1:
+        high = high.T
+    m = int(np.ceil(2 * HIGHPASS_SIGMA_PX))
+    h = high[:, m:-m] - high[:, m:-m].mean()
+    along = float(np.mean([np.mean(h[:-lag] * h[lag:]) for lag in STREAK_LAGS_PX]) / max(float(np.var(h)), 1e-12))
+    smooth = cv2.GaussianBlur(lum, (0, 0), 1.0)
+    gx, gy = cv2.Sobel(smooth, cv2.CV_32F, 1, 0), cv2.Sobel(smooth, cv2.CV_32F, 0, 1)
+    jxx, jyy, jxy = (cv2.GaussianBlur(v, (0, 0), HIGHPASS_SIGMA_PX) for v in (gx * gx, gy * gy, gx * gy))
+    coherence = np.sqrt((jxx - jyy) ** 2 + 4 * jxy ** 2) / (jxx + jyy + 1e-9)
+    doubled = np.arctan2(2 * jxy, jxx - jyy)[coherence > np.median(coherence)]
+    order = float(abs(np.mean(np.exp(1j * doubled)))) if doubled.size else 0.0
+    return Streaks(round(along, 5), round(order, 5))

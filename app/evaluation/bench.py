@@ -223,6 +223,22 @@ def bench_family(args: argparse.Namespace) -> int:
     return 0
 
 
+def bench_streaks(args: argparse.Namespace) -> int:
+    """The swatch area's texture by physical structure: what ``inference.structure.read_texture`` reads."""
+    from hairdigi.inference.training.bench_streaks import streaks_bench
+
+    out = Path("packaging/bench/streaks") if args.out == BENCH_OUT else Path(args.out)
+    if args.quick:   # the demo's copper, layered and deposited, live and RAW: the rig's own cached renders
+        summary = streaks_bench(out, n=0, members=("layered", "deposited"), tilted=False, hairs=1)
+    else:
+        summary = streaks_bench(out, n=args.n or 8)
+    for group, shares in summary["shares"].items():
+        if " / " not in group:
+            print(f"{group:17s} " + ", ".join(f"{k} {v:g}" for k, v in shares.items()))
+    print(f"wrote {out / 'streaks.csv'} and {out / 'streaks.png'}")
+    return 0
+
+
 def bench_renderers(args: argparse.Namespace) -> int:
     """Every family structure at equal sigma_a in Mitsuba and in Blender Cycles (HAIRDIGI_BLENDER)."""
     import sys

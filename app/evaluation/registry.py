@@ -94,6 +94,8 @@ BENCHES: dict[str, Entry] = _modes(
           f"{_BENCH}:bench_fibres"),
     Entry("family", "every physical swatch structure at equal sigma_a, against the layered swatch",
           f"{_BENCH}:bench_family"),
+    Entry("streaks", "the swatch area's texture (streaks along the fibres) by physical structure, live, RAW and tilted",
+          f"{_BENCH}:bench_streaks"),
     Entry("renderers", "every family structure at equal sigma_a in Mitsuba and in Blender Cycles (HAIRDIGI_BLENDER)",
           f"{_BENCH}:bench_renderers"),
     Entry("structure", "the swatch's fibre structure: today's swatch against a layered one, fibre counts, lights",

@@ -106,6 +106,7 @@ def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, se
                warnings=" | ".join(w.kind.value for w in rec.warnings),
                shine=None if rec.appearance is None else rec.appearance.value.longitudinal_roughness,
                grey_share=None if rec.appearance is None else rec.appearance.value.grey_fraction,
+               structure_reading=rec.refinement.region.structure or "",
                nonfinite=refined.nonfinite + encoder.nonfinite + rec.refinement.nonfinite)
     return row
 
