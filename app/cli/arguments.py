@@ -39,8 +39,9 @@ def add_structure_argument(p, what: str = "the swatch's") -> None:
 
     p.add_argument("--structure", choices=STRUCTURE_MODES, default=None,
                    help=f"{what} physical structure (default {DEFAULT_STRUCTURE}): 'assumed', hairdigi's layered swatch; "
-                   "'family', for a lab's swatches built another way: refined on the structure the single-light frames "
-                   "read decisively, else the answer mapped to the mean of render.swatch_family's structures (their "
-                   "curves render once per rig region, 56 small renders); 'read', read from the "
+                   "'family', for a lab's swatches built another way: the texture's streaks leave the structures "
+                   "that show them; refined on the one the single-light frames read decisively among them, else the "
+                   "answer mapped to their mean (render.swatch_family's curves render once per rig region, 56 small "
+                   "renders); 'read', read from the "
                    "single-light frames among them (their per-light tables, 96 renders each) and refined on it. "
                    "hairdigi evaluate --structures measures each")

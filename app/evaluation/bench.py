@@ -225,7 +225,7 @@ def bench_family(args: argparse.Namespace) -> int:
 
 def bench_streaks(args: argparse.Namespace) -> int:
     """The swatch area's texture by physical structure: what ``inference.structure.read_texture`` reads."""
-    from hairdigi.inference.training.bench_streaks import streaks_bench
+    from hairdigi.app.evaluation.bench_streaks import streaks_bench
 
     out = Path("packaging/bench/streaks") if args.out == BENCH_OUT else Path(args.out)
     if args.quick:   # the demo's copper, layered and deposited, live and RAW: the rig's own cached renders

@@ -48,7 +48,8 @@ class SettingsDialog(QDialog):
                                          "(nm), r, g, b (as hairdigi app --sensor); used at the next start")
         self.fields["structure"].setToolTip("how estimates treat the swatch's physical structure: assumed (hairdigi's "
                                             "layered swatch, the default), family (for a lab's swatches, built another "
-                                            "way: the structure read decisively, else the family's mean) or read (as "
+                                            "way: the structure read decisively, else the mean of those its texture "
+                                            "shows) or read (as "
                                             "hairdigi app --structure; hairdigi evaluate --structures measures each); "
                                             "used at the next start")
         self.fields["camera"].setToolTip("an OpenCV camera index or stream URL, or genicam (the first GenICam "
