@@ -190,19 +190,20 @@ def read_structure(light_means: np.ndarray, view: View, settings: RefineSettings
 
 
 #: The texture's reading of the structure (``inference.texture.streaks``, at the canonical frame width
-#: ``FAMILY_FRAME[0]``): streak-free when ``along`` and ``order`` are both under ``STREAK_FREE``, streaked
-#: when both are over ``STREAKED``, undecided otherwise (the orientation order tells the classes apart with
-#: the wider margin; the correlation along the fibres confirms it). Chosen on ``hairdigi bench streaks`` (the simulated
-#: rig's live frames, its tilted cameras and its RAW stills of 15 hairs in every member): see
-#: ``TEXTURE_MEMBERS``.
-STREAK_FREE = (0.02, 0.45)
+#: ``FAMILY_FRAME[0]``): streak-free when the orientation order is under ``STREAK_FREE_ORDER``, streaked when
+#: the correlation along the fibres and the order are both over ``STREAKED``, undecided between. Chosen on
+#: ``hairdigi bench streaks`` (the simulated rig's live frames and RAW stills of 15 hairs in every member):
+#: the order alone parts the classes (layered and tilted at most 0.40, the deposits, spread and wavy swatches
+#: at least 0.46). The correlation confirms a streaked reading only: a RAW still, without a sensor's noise,
+#: shows dark layered hair's own fibres (up to 0.11 along them in ``hairdigi evaluate --rig``'s stills).
+STREAK_FREE_ORDER = 0.45
 STREAKED = (0.01, 0.55)
 #: The members each texture reading leaves, weighted by the share of that member's bench renders that read
 #: so (``hairdigi bench streaks``; the texture's likelihood of each member, as a posterior weight over an even
 #: prior): fibres side by side in full layers show no streaks, fibres dropped one by one, spread or wavy do,
 #: and a loose swatch mostly shows none.
 TEXTURE_MEMBERS = {
-    "streak-free": {"layered": 1.0, "tilted": 1.0, "loose": 0.69},
+    "streak-free": {"layered": 1.0, "tilted": 1.0, "loose": 0.85},
     "streaked": {"deposited": 1.0, "deposited-coarse": 0.87, "spread": 1.0, "wavy": 1.0},
 }
 
@@ -247,7 +248,7 @@ def read_texture(pixels_linear: np.ndarray, view: View) -> TextureReading | None
         found = streaks(pixels)
     except ValueError:          # an area too small to read
         return None
-    if found.along < STREAK_FREE[0] and found.order < STREAK_FREE[1]:
+    if found.order < STREAK_FREE_ORDER:
         kind = "streak-free"
     elif found.along > STREAKED[0] and found.order > STREAKED[1]:
         kind = "streaked"

@@ -114,7 +114,7 @@ def _plot(rows: list[dict], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from hairdigi.inference.structure import STREAK_FREE, STREAKED
+    from hairdigi.inference.structure import STREAK_FREE_ORDER, STREAKED
 
     fig, ax = plt.subplots(figsize=(8, 6))
     marks = {"live": "o", "raw still": "s", "tilted camera": "^"}
@@ -126,11 +126,9 @@ def _plot(rows: list[dict], path: Path) -> None:
                 x, y = zip(*pts)
                 ax.scatter(x, y, marker=mark, color=f"C{i}", s=22, alpha=0.8,
                            label=member if source == "live" else None)
-    ax.axvline(STREAK_FREE[0], color="0.5", lw=0.8, ls="--")
-    ax.axhline(STREAK_FREE[1], color="0.5", lw=0.8, ls="--")
-    if STREAKED != STREAK_FREE:
-        ax.axvline(STREAKED[0], color="0.3", lw=0.8, ls=":")
-        ax.axhline(STREAKED[1], color="0.3", lw=0.8, ls=":")
+    ax.axhline(STREAK_FREE_ORDER, color="0.5", lw=0.8, ls="--")          # under it: streak-free
+    ax.plot([STREAKED[0], STREAKED[0]], [STREAKED[1], 1.0], color="0.3", lw=0.8, ls=":")   # streaked: the
+    ax.axhline(STREAKED[1], xmin=0.0, color="0.3", lw=0.8, ls=":")        # corner above and right
     ax.set_xscale("symlog", linthresh=0.01)
     ax.set_xlabel("streaks along the fibres (autocorrelation, lags 4-16 px)")
     ax.set_ylabel("orientation order (0: none, 1: one direction)")
