@@ -1,8 +1,9 @@
 """``hairdigi bench streaks``: what the swatch area's texture says of how its fibres lie.
 
-Every family member (``render.swatch_family.FAMILY``) hides hairs under the simulated rig: the rig
+Family members (``render.swatch_family.FAMILY``) hide hairs under the simulated rig: the rig
 evaluation's 10 hidden hairs (``app.evaluation.rig.hidden_set``: black, platinum, saturated dyes, the
-demo's copper, 5 random) in layout 0, and ``--n`` other Table 1 draws in layout 1. Each is captured
+demo's copper, 5 random) in layout 0, each in the two structures ``hairdigi evaluate --rig`` hides it in
+(layered, and ``DRAWN``'s turn), and ``--n`` other Table 1 draws in layout 1 in every member. Each is captured
 as ``hairdigi evaluate --rig`` captures it: a live frame through the camera model's noise (two noise
 seeds); every other evaluation hair also from its tilted camera; and a RAW still of twice the feed's
 resolution (a 12-bit Bayer DNG read back through rawpy, its swatch area scaled to the feed's width).
@@ -22,6 +23,8 @@ import numpy as np
 
 SEED = 2026_1127
 NOISE_SEEDS = (0, 1)
+#: The structures ``hairdigi evaluate --rig --hidden-structures`` hides the evaluation's hairs in, in turn.
+DRAWN = ("deposited", "tilted", "spread", "wavy", "loose", "deposited-coarse")
 
 
 def _hairs(n: int) -> list[tuple[str, object, int, bool]]:
@@ -74,6 +77,7 @@ def streaks_bench(out: str | Path, n: int = 8, members: tuple[str, ...] | None =
     ``hairs``: only the first so many); writes streaks.csv/.json/.png."""
     from tqdm import tqdm
 
+    from hairdigi.app.evaluation.rig import RigSet, hidden_structure
     from hairdigi.inference.refine import fitted_pixels
     from hairdigi.inference.structure import read_texture
     from hairdigi.render.io.figures import save_table
@@ -83,9 +87,11 @@ def streaks_bench(out: str | Path, n: int = 8, members: tuple[str, ...] | None =
     hairs = _hairs(n)[:hairs]
     rows = []
     with tempfile.TemporaryDirectory(prefix="hairdigi-streaks-") as tmp:
-        bar = tqdm(total=len(hairs) * len(members), desc="streaks", unit="swatch", disable=not progress)
+        bar = tqdm(total=sum(2 if h[3] else len(members) for h in hairs), desc="streaks", unit="swatch",
+                   disable=not progress)
         for k, (name, params, layout, evaluated) in enumerate(hairs):
-            for member in members:
+            drawn = hidden_structure(RigSet(hidden_structures=DRAWN), k)
+            for member in [m for m in members if not evaluated or m in ("layered", drawn)]:
                 for source, region, frame in _captures(params, member, layout, k, evaluated, Path(tmp), tilted):
                     reading = read_texture(fitted_pixels(frame, region), region)
                     rows.append({"hair": name, "member": member, "layout": layout, "source": source,
@@ -93,7 +99,8 @@ def streaks_bench(out: str | Path, n: int = 8, members: tuple[str, ...] | None =
                                  "kind": reading.kind or "undecided"})
                 bar.update()
         bar.close()
-    summary = {"shares": _shares(rows), "n": len(rows), "settings": {"draws": n, "members": list(members), "tilted": tilted}}
+    summary = {"shares": _shares(rows), "n": len(rows),
+               "settings": {"draws": n, "members": list(members), "tilted": tilted}}
     save_table(out, "streaks", rows, _plot, summary)
     return summary
 
