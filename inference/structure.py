@@ -192,7 +192,7 @@ def read_structure(light_means: np.ndarray, view: View, settings: RefineSettings
 #: The texture's reading of the structure (``inference.texture.streaks``, at the canonical frame width
 #: ``FAMILY_FRAME[0]``): streak-free when the orientation order is under ``STREAK_FREE_ORDER``, streaked when
 #: the correlation along the fibres and the order are both over ``STREAKED``, undecided between. Chosen on
-#: ``hairdigi bench streaks`` (the simulated rig's live frames and RAW stills of 15 hairs in every member):
+#: ``hairdigi bench streaks`` (the simulated rig's live frames, RAW stills and tilted cameras of 16 hairs):
 #: the order alone parts the classes (layered and tilted at most 0.40, the deposits, spread and wavy swatches
 #: at least 0.46). The correlation confirms a streaked reading only: a RAW still, without a sensor's noise,
 #: shows dark layered hair's own fibres (up to 0.11 along them in ``hairdigi evaluate --rig``'s stills).
@@ -310,8 +310,8 @@ def toward_family(refinement, prior, view: View, settings: RefineSettings = Refi
            "the single-light frames read none decisively: " + ", ".join(f"{m} {v:.3f}" for m, v in misfits.items()))
     if texture is not None:
         why = f"{texture.describe()}; {why}"
-    mean = "the family's mean" if weights is None else "the mean of the members the texture leaves"
-    members = ", ".join(family.members) if weights is None else ", ".join(f"{m} {w:g}" for m, w in weights.items())
+    mean = (f"the family's mean: {', '.join(family.members)}" if weights is None else
+            "the weighted mean of the members the texture leaves")
     return replaced(refinement, params=params, sigma_a=hair_sigma_a(params),
                     seconds=refinement.seconds + time.perf_counter() - start,
-                    region=replaced(refinement.region, structure=f"mapped to {mean}: {members} ({why})"))
+                    region=replaced(refinement.region, structure=f"mapped to {mean} ({why})"))
