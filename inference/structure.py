@@ -198,19 +198,18 @@ def read_structure(light_means: np.ndarray, view: View, settings: RefineSettings
 #: shows dark layered hair's own fibres (up to 0.11 along them in ``hairdigi evaluate --rig``'s stills).
 STREAK_FREE_ORDER = 0.45
 STREAKED = (0.01, 0.55)
-#: The members each texture reading leaves, weighted by the share of that member's bench renders that read
-#: so (``hairdigi bench streaks``; the texture's likelihood of each member, as a posterior weight over an even
-#: prior): fibres side by side in full layers show no streaks, fibres dropped one by one, spread or wavy do,
-#: and a loose swatch mostly shows none.
-TEXTURE_MEMBERS = {
-    "streak-free": {"layered": 1.0, "tilted": 1.0, "loose": 0.85},
-    "streaked": {"deposited": 1.0, "deposited-coarse": 0.87, "spread": 1.0, "wavy": 1.0},
-}
+#: The members a streak-free texture leaves, each weighted by the share of its bench captures that read so
+#: (``hairdigi bench streaks``; the texture's likelihood of each member, as a posterior weight over an even
+#: prior): fibres side by side in full layers show no streaks, and a loose swatch mostly shows none. A streaked
+#: texture keeps the whole family: its own members (deposited 1, coarse 0.87, spread 1, wavy 1) lose the
+#: lighter structures that balance the spread swatch's darkness, and through the rig the deposited swatches'
+#: answers came out dark (1.03 median, 0.49 with the whole family: ``packaging/evaluation/rig-drawn-texture``).
+TEXTURE_MEMBERS = {"streak-free": {"layered": 1.0, "tilted": 1.0, "loose": 0.85}}
 
 
 @dataclass(frozen=True)
 class TextureReading:
-    """What the swatch area's texture says of the structure: a class of ``TEXTURE_MEMBERS``, or None."""
+    """What the swatch area's texture says of the structure: "streak-free", "streaked", or None (undecided)."""
 
     kind: str | None
     along: float
@@ -218,7 +217,7 @@ class TextureReading:
 
     @property
     def weights(self) -> dict[str, float] | None:
-        """The members the texture leaves, weighted (None: undecided, every member)."""
+        """The members the texture leaves, weighted (None: every member: undecided, or streaked)."""
         return TEXTURE_MEMBERS.get(self.kind) if self.kind else None
 
     def describe(self) -> str:
@@ -226,6 +225,8 @@ class TextureReading:
         stats = f"streaks along the fibres {self.along:.3f}, orientation order {self.order:.2f}"
         if self.kind is None:
             return f"the texture is undecided ({stats})"
+        if self.weights is None:
+            return f"the texture reads {self.kind} ({stats}): every member kept"
         members = ", ".join(f"{m} {w:g}" for m, w in self.weights.items())
         return f"the texture reads {self.kind} ({stats}): {members}"
 

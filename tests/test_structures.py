@@ -435,9 +435,9 @@ def test_the_texture_tells_streaks_along_the_fibres_from_an_even_top_whichever_w
 
 
 def test_the_texture_weights_the_family_mean_and_its_record_says_so() -> None:
-    """A texture class weights the members the family map averages (``FamilyCurves.mean_of``): the mean of
-    the streak-free members lies nearer the layered swatch than the whole family's, and the record line names
-    the class, the statistics and the weights; an undecided texture keeps the whole family."""
+    """A streak-free texture weights the members the family map averages (``FamilyCurves.mean_of``): their mean
+    lies nearer the layered swatch than the whole family's, and the record line names the class, the statistics
+    and the weights; an undecided or streaked texture keeps the whole family."""
     from hairdigi.inference.refine import SIGMA_LEVELS, ResponseCurve
     from hairdigi.inference.structure import TEXTURE_MEMBERS, FamilyCurves, TextureReading, to_family
 
@@ -457,6 +457,10 @@ def test_the_texture_weights_the_family_mean_and_its_record_says_so() -> None:
     line = free.describe()
     assert "streak-free" in line and "0.001" in line and "layered 1" in line, line
     assert "undecided" in undecided.describe()
+    # a streaked texture keeps the whole family (its own members alone took deposited answers dark, through the rig)
+    streaked = TextureReading("streaked", 0.1, 0.9)
+    assert streaked.weights is None and np.allclose(to_family(answer, family, weights=streaked.weights), whole)
+    assert streaked.describe().endswith("every member kept"), streaked.describe()
 
 
 @pytest.mark.slow
