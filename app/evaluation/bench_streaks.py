@@ -10,7 +10,7 @@ resolution (a 12-bit Bayer DNG read back through rawpy, its swatch area scaled t
 ``inference.texture.streaks`` is read on each swatch area, and ``inference.structure.read_texture``'s
 thresholds classify it. The table gives each capture's statistics and class; the summary, per member
 and per source, the share read streak-free, streaked and undecided: the weights of
-``structure.TEXTURE_MEMBERS``. The light images are the rig's own, cached (a later ``evaluate --rig``
+``structure.TEXTURE_MEMBERS`` (streak-free). The light images are the rig's own, cached (a later ``evaluate --rig``
 of the same hairs renders nothing new).
 """
 from __future__ import annotations
