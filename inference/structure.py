@@ -203,7 +203,8 @@ STREAKED = (0.01, 0.55)
 #: prior): fibres side by side in full layers show no streaks, and a loose swatch mostly shows none. A streaked
 #: texture keeps the whole family: its own members (deposited 1, coarse 0.87, spread 1, wavy 1) lose the
 #: lighter structures that balance the spread swatch's darkness, and through the rig the deposited swatches'
-#: answers came out dark (1.03 median, 0.49 with the whole family: ``packaging/evaluation/rig-drawn-texture-streaked``).
+#: answers came out dark (1.03 median, 0.49 with the whole family;
+#: ``packaging/evaluation/rig-drawn-texture-streaked``).
 TEXTURE_MEMBERS = {"streak-free": {"layered": 1.0, "tilted": 1.0, "loose": 0.85}}
 
 
