@@ -133,10 +133,11 @@ def _plot(rows: list[dict], path: Path) -> None:
                 x, y = zip(*pts)
                 ax.scatter(x, y, marker=mark, color=f"C{i}", s=22, alpha=0.8,
                            label=member if source == "live" else None)
-    ax.axhline(STREAK_FREE_ORDER, color="0.5", lw=0.8, ls="--")          # under it: streak-free
-    ax.plot([STREAKED[0], STREAKED[0]], [STREAKED[1], 1.0], color="0.3", lw=0.8, ls=":")   # streaked: the
-    ax.axhline(STREAKED[1], xmin=0.0, color="0.3", lw=0.8, ls=":")        # corner above and right
     ax.set_xscale("symlog", linthresh=0.01)
+    ax.axhline(STREAK_FREE_ORDER, color="0.5", lw=0.8, ls="--")          # under it: streak-free
+    right = ax.get_xlim()[1]                                              # streaked: the corner above and right
+    ax.plot([STREAKED[0], STREAKED[0], right], [1.02, STREAKED[1], STREAKED[1]], color="0.3", lw=0.8, ls=":")
+    ax.set_xlim(right=right)
     ax.set_xlabel("streaks along the fibres (autocorrelation, lags 4-16 px)")
     ax.set_ylabel("orientation order (0: none, 1: one direction)")
     ax.set_title("the swatch area's texture by structure (o live, □ RAW still, △ tilted camera)")
