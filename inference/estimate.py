@@ -185,16 +185,14 @@ def _refined(fit: _Fit, structure: StructureMode
     """The refinement of ``fit`` with the appearance read on the way, the structure it was made on (a
     capture no hair on the assumed swatch reaches is read anew) and their warnings."""
     decided, members, texture = None, None, None
-    candidates = READ_MEMBERS
     if structure is StructureMode.FAMILY:
-        # the texture leaves the members whose streaks it shows (``read_texture``); the family's mean, over them,
-        # stands for a structure the frames cannot tell; one they tell decisively among them is used
+        # the texture leaves the members that show no streaks where it reads none (``read_texture``); the mean
+        # over those left stands for a structure the frames cannot tell; one they tell decisively among them is used
         texture = read_texture(fit.texture, fit.view)
-        if texture is not None and texture.weights is not None:
-            candidates = tuple(m for m in READ_MEMBERS if m in texture.weights)
-    if structure is StructureMode.FAMILY and fit.singles is not None:
-        members = fit.read(candidates)
-        decided = decisive(members.misfits or {})
+        left = texture.weights if texture is not None else None
+        if fit.singles is not None:
+            members = fit.read(READ_MEMBERS if left is None else tuple(m for m in READ_MEMBERS if m in left))
+            decided = decisive(members.misfits or {})
     reading = members if decided else fit.read(READ_MEMBERS if structure is StructureMode.READ else None)
     warnings = list(reading.warnings)
     appearance = reading.estimate
