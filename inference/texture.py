@@ -360,8 +360,10 @@ def streaks(pixels_linear: np.ndarray, fibre_axis: int = 0) -> Streaks:
     ``STREAK_LAGS_PX`` along ``fibre_axis`` over its variance; ``order`` the resultant length of the
     doubled local orientation angles (a structure tensor, Gaussian 4 px) over the more coherent half of
     the pixels, so a view that turns the fibres in the image reads the same."""
+    if fibre_axis not in (0, 1):
+        raise ValueError(f"fibre_axis must be 0 (fibres run down the image) or 1 (across it), got {fibre_axis!r}")
     img = np.asarray(pixels_linear, np.float32)
-    if img.ndim != 3 or img.shape[2] != 3 or min(img.shape[:2]) < 4 * max(STREAK_LAGS_PX) // 2:
+    if img.ndim != 3 or img.shape[2] != 3 or min(img.shape[:2]) < 2 * max(STREAK_LAGS_PX):
         raise ValueError(f"pixels must be a linear (H, W, 3) swatch area at least {2 * max(STREAK_LAGS_PX)} px "
                          f"a side, got shape {img.shape}")
     lum = np.log(np.maximum(img, 0.0) @ _LUMA + STREAK_FLOOR).astype(np.float32)

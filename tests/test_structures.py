@@ -432,6 +432,8 @@ def test_the_texture_tells_streaks_along_the_fibres_from_an_even_top_whichever_w
     assert abs(turned.along - b.along) < 0.02 and abs(turned.order - b.order) < 0.05, (turned, b)
     with pytest.raises(ValueError, match="at least"):
         streaks(even[:8, :8])
+    with pytest.raises(ValueError, match="fibre_axis"):
+        streaks(even, fibre_axis=2)
 
 
 def test_the_texture_weights_the_family_mean_and_its_record_says_so() -> None:

@@ -84,21 +84,17 @@ def streaks_bench(out: str | Path, n: int = 8, members: tuple[str, ...] | None =
     from hairdigi.render.swatch_family import FAMILY
 
     members = members or FAMILY
-    hairs = _hairs(n)[:hairs]
+    drawn = RigSet(hidden_structures=DRAWN)
+    jobs = [(k, hair, member) for k, hair in enumerate(_hairs(n)[:hairs]) for member in members
+            if not hair[3] or member in ("layered", hidden_structure(drawn, k))]   # an evaluation hair: its two
     rows = []
     with tempfile.TemporaryDirectory(prefix="hairdigi-streaks-") as tmp:
-        bar = tqdm(total=sum(2 if h[3] else len(members) for h in hairs), desc="streaks", unit="swatch",
-                   disable=not progress)
-        for k, (name, params, layout, evaluated) in enumerate(hairs):
-            drawn = hidden_structure(RigSet(hidden_structures=DRAWN), k)
-            for member in [m for m in members if not evaluated or m in ("layered", drawn)]:
-                for source, region, frame in _captures(params, member, layout, k, evaluated, Path(tmp), tilted):
-                    reading = read_texture(fitted_pixels(frame, region), region)
-                    rows.append({"hair": name, "member": member, "layout": layout, "source": source,
-                                 "along": reading.along, "order": reading.order,
-                                 "kind": reading.kind or "undecided"})
-                bar.update()
-        bar.close()
+        for k, (name, params, layout, evaluated), member in tqdm(jobs, desc="streaks", unit="swatch",
+                                                                 disable=not progress):
+            for source, region, frame in _captures(params, member, layout, k, evaluated, Path(tmp), tilted):
+                reading = read_texture(fitted_pixels(frame, region), region)
+                rows.append({"hair": name, "member": member, "layout": layout, "source": source,
+                             "along": reading.along, "order": reading.order, "kind": reading.kind or "undecided"})
     summary = {"shares": _shares(rows), "n": len(rows),
                "settings": {"draws": n, "members": list(members), "tilted": tilted}}
     save_table(out, "streaks", rows, _plot, summary)
