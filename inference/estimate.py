@@ -295,7 +295,7 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
     the rig's capture record beside the image, if it names these frames, else 1). ``structure``:
     how the swatch's structure is treated (``estimate_image``; "read" needs the light frames).
     """
-    from hairdigi.inference.preprocess import find_swatch
+    from hairdigi.inference.preprocess import find_swatch, find_swatch_core
     from hairdigi.inference.view_check import view_warning, widened
 
     image_path = Path(image_path)
@@ -319,7 +319,7 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
     view: View = camera or RIG_SWATCH_POSE
     outline = None
     if roi is None and (rig_view or camera is None):
-        roi, outline = find_swatch(image)
+        roi, outline = find_swatch_core(image) if rig_view else find_swatch(image)
     if rig_view:
         view = RigRegion((image.shape[1], image.shape[0]), (roi.x, roi.y, roi.w, roi.h))
     # without --camera, the swatch's outline (when one is in view) must agree with the assumed camera

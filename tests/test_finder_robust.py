@@ -107,6 +107,34 @@ def test_the_bench_cameras_frame_is_not_warned_but_a_tilted_one_is(renderer):
     assert find_swatch(crop)[1] is None and view_warning(None, 10.3, rig_view=False) is None
 
 
+def test_the_region_estimated_from_a_found_swatch_is_its_core_not_its_sparse_edges(tmp_path):
+    """A rig frame of a spread swatch (fibres fanning out, its sides thin, the holder between them). The
+    finder's box holds the score's halo and those sides: its mean colour lay 3.1 ΔE2000 from the rig's own
+    region (a RAW still's refinement fitted it and was 8.7 off the truth). The region estimated from a
+    found swatch is its core, on the hair; a frame that is all hair is kept whole."""
+    from hairdigi.app.session.rig_session import RigSession
+    from hairdigi.inference.preprocess import Roi, find_swatch_core, swatch_core, to_linear
+    from hairdigi.render.metrics import delta_e2000
+    from hairdigi.render.srgb import linear_to_srgb8
+
+    session = RigSession.simulated_rig(tmp_path / "s", spp=8, swatch_model="spread")
+    try:
+        frame, rig = linear_to_srgb8(session.camera.radiance()), session.swatch_roi
+    finally:
+        session.close()
+
+    def mean(roi) -> np.ndarray:
+        x, y, w, h = roi
+        return to_linear(frame[y:y + h, x:x + w]).reshape(-1, 3).mean(0)
+
+    found = find_swatch_roi(frame)
+    core = find_swatch_core(frame)[0]
+    assert delta_e2000(mean((found.x, found.y, found.w, found.h)), mean(rig)) > 1.5      # the holder and the sides
+    assert delta_e2000(mean((core.x, core.y, core.w, core.h)), mean(rig)) < 0.3, (core, rig)
+    assert found.x < core.x and core.x + core.w < found.x + found.w
+    assert swatch_core(Roi(0, 0, 96, 64), (96, 64)) == Roi(0, 0, 96, 64)                 # all hair: kept whole
+
+
 # --- 3. RAW stills: clipping on the sensor's data ----------------------------------------------
 def test_a_raw_still_knows_which_pixels_are_saturated_on_the_sensor(tmp_path):
     """rawpy's counts against the white level, per channel: a dark area whose 8-bit encode is all 0 is

@@ -280,8 +280,8 @@ class RigSession:
     def _roi(self, image: np.ndarray) -> tuple[int, int, int, int]:
         if self.swatch_roi is not None:
             return tuple(self.swatch_roi)
-        from hairdigi.inference.preprocess import find_swatch_roi
-        r = find_swatch_roi(image)
+        from hairdigi.inference.preprocess import find_swatch_core
+        r = find_swatch_core(image)[0]
         return r.x, r.y, r.w, r.h
 
     # -- calibration -------------------------------------------------------------------------
@@ -524,9 +524,9 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
         result.blocked.append(Blocker(BlockerKind.STILL_UNCALIBRATED, f"the still cannot calibrate itself: {exc}"))
     roi = None
     if profile is not None:
-        from hairdigi.inference.preprocess import find_swatch_roi
+        from hairdigi.inference.preprocess import find_swatch_core
 
-        found = find_swatch_roi(still.srgb)
+        found = find_swatch_core(still.srgb)[0]   # the swatch's core: its box holds holder and sparse edges
         roi = (found.x, found.y, found.w, found.h)
         swatch = check_exposure(still.srgb, roi, clipped_mask=still.clipped)[0]   # on the sensor's counts
         if swatch.status is ExposureStatus.OVER:
