@@ -24,8 +24,8 @@ from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, crop_of, read_image, swatch_crop, to_linear
 from hairdigi.inference.refine import (Refinement, RefineSettings, View, curve_reach, fitted_pixels, mean_linear, refine,
                                       response_curve)
-from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABLE, decisive, read_texture,
-                                          toward_family, with_structure)
+from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABLE, TextureReading, decisive,
+                                          read_texture, toward_family, with_structure)
 from hairdigi.inference.uncertainty import intervals, load_table
 from hairdigi.inference.views import swatch_view
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
@@ -96,7 +96,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
                    on_encoder_estimate: Callable[[HairParams], None] | None = None,
                    renderer=None, light_images: list[np.ndarray] | None = None,
                    structure: StructureMode = DEFAULT_STRUCTURE,
-                   sensor_clipped: np.ndarray | None = None) -> EstimateResult:
+                   sensor_clipped: np.ndarray | None = None,
+                   borrowed: AppearanceReading | None = None) -> EstimateResult:
     """Estimate a colour-corrected image: linear float RGB (a corrected capture) or 8-bit sRGB; a rig
     frame or a crop that is all hair.
 
@@ -111,6 +112,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     the structure the single-light frames read decisively, ``inference.structure.decisive``); "read",
     read from the single-light frames among them and refined on it. ``sensor_clipped``: the image's
     saturated photosites per pixel (a RAW still's, ``Frame.clipped``): clipping is judged on them.
+    ``borrowed``: in the family mode, an image without single-light frames of its own (a RAW still) refines on the
+    structure and shine that other frames of the same swatch read decisively (:func:`read_decisively`: the rig's).
     """
     start = time.perf_counter()
     seen, structure = swatch_view(view), StructureMode(structure)
@@ -130,7 +133,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
         singles = None if light_images is None else np.array([mean_linear(seen.pixels(im, roi)) for im in light_images])
         fit = _Fit(est.params, mean_linear(fitted), view, settings, renderer, singles, seen.texture(fitted),
                    None if light_images is None else seen.frame_levels(light_images))
-        refinement, appearance, structure, found = _refined(fit, structure)
+        refinement, appearance, structure, found = _refined(fit, structure, borrowed if light_images is None else None)
         warnings += found
         params = refinement.params
     if est.at_range_edge:
@@ -142,7 +145,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     uncertainty = intervals(params, load_table(UNCERTAINTY_TABLE), chain)
     if refinement is not None:   # a swatch's structure: read, or the default assumed (``inference.structure``)
         uncertainty = with_structure(uncertainty, load_table(STRUCTURE_TABLE), structure,
-                                     refinement.region.swatch_model, frames=light_images is not None)
+                                     refinement.region.swatch_model,
+                                     frames=light_images is not None or borrowed is not None)
     if refinement is not None:
         warnings += interval_warnings(refinement.residual_de2000, uncertainty)
     return EstimateResult(params, est, refinement, warnings, stats.to_dict(), uncertainty,
@@ -180,19 +184,45 @@ class _Fit:
                       reading.value if value is None else value, reading.curve, swatch_model=reading.swatch_model)
 
 
-def _refined(fit: _Fit, structure: StructureMode
+def _members(fit: _Fit) -> tuple[TextureReading | None, AppearanceReading | None, str | None]:
+    """The family mode's reading of the structure: the texture's (``read_texture``), the single-light frames'
+    among the members it leaves (None without frames), and the member they read decisively (None: none).
+
+    The texture leaves the members that show no streaks where it reads none; the mean over those left stands
+    for a structure the frames cannot tell; one they tell decisively among them is refined on."""
+    texture = read_texture(fit.texture, fit.view)
+    left = texture.weights if texture is not None else None
+    if fit.singles is None:
+        return texture, None, None
+    members = fit.read(READ_MEMBERS if left is None else tuple(m for m in READ_MEMBERS if m in left))
+    return texture, members, decisive(members.misfits or {})
+
+
+def read_decisively(image: np.ndarray, light_images: list[np.ndarray], view: View,
+                    settings: RefineSettings = RefineSettings(), renderer=None) -> AppearanceReading | None:
+    """The structure and shine that ``light_images`` (each light alone, corrected as ``image`` and at its
+    exposure) read decisively at ``view``, as the family mode reads them (``_members``), or None where they read
+    none decisively: what a RAW still of the same swatch, which has no such frames, borrows (``estimate_image``)."""
+    seen = swatch_view(view)
+    check_light_frames(light_images, image)
+    fitted = seen.pixels(image, None)
+    singles = np.array([mean_linear(seen.pixels(im, None)) for im in light_images])
+    fit = _Fit(None, mean_linear(fitted), view, settings, renderer, singles, seen.texture(fitted),
+               seen.frame_levels(light_images))
+    _, members, decided = _members(fit)
+    return members if decided else None
+
+
+def _refined(fit: _Fit, structure: StructureMode, borrowed: AppearanceReading | None = None
              ) -> tuple[Refinement, AppearanceEstimate, StructureMode, list[EstimateWarning]]:
     """The refinement of ``fit`` with the appearance read on the way, the structure it was made on (a
-    capture no hair on the assumed swatch reaches is read anew) and their warnings."""
+    capture no hair on the assumed swatch reaches is read anew) and their warnings; ``borrowed``, a decisive
+    reading of other frames of the same swatch (``read_decisively``), stands in for frames ``fit`` lacks."""
     decided, members, texture = None, None, None
     if structure is StructureMode.FAMILY:
-        # the texture leaves the members that show no streaks where it reads none (``read_texture``); the mean
-        # over those left stands for a structure the frames cannot tell; one they tell decisively among them is used
-        texture = read_texture(fit.texture, fit.view)
-        left = texture.weights if texture is not None else None
-        if fit.singles is not None:
-            members = fit.read(READ_MEMBERS if left is None else tuple(m for m in READ_MEMBERS if m in left))
-            decided = decisive(members.misfits or {})
+        texture, members, decided = _members(fit)
+        if decided is None and fit.singles is None and borrowed is not None:
+            members, decided = borrowed, borrowed.swatch_model
     reading = members if decided else fit.read(READ_MEMBERS if structure is StructureMode.READ else None)
     warnings = list(reading.warnings)
     appearance = reading.estimate
@@ -230,8 +260,10 @@ def _refined(fit: _Fit, structure: StructureMode
             warnings = [w for w in warnings if w.kind != WarningKind.APPEARANCE] + list(reread.warnings)
             refinement, appearance, structure = other, reread.estimate, StructureMode.READ
     if decided:
+        frames = ("the single-light frames" if members is not borrowed else
+                  "the rig's single-light frames of the same swatch (this image has none)")
         refinement = replace(refinement, region=replace(refinement.region, structure=(
-            f"read decisively from the single-light frames as {decided} (its misfit under 1/{DECISIVE:g} of "
+            f"read decisively from {frames} as {decided} (its misfit under 1/{DECISIVE:g} of "
             f"every other member's: " + ", ".join(f"{m} {v:.3f}" for m, v in members.misfits.items()) + ")"
             + ("" if texture is None else f"; {texture.describe()}"))))
     elif structure is StructureMode.FAMILY:

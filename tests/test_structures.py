@@ -348,6 +348,37 @@ def test_a_held_out_set_has_no_named_case_and_spans_the_dark_rule(tmp_path) -> N
     assert _resumed(path, settings) == []
 
 
+#: A held-out hair (``evaluate --structures --held-out 11``'s "random 2"), hidden in a spread swatch.
+SPREAD_TRUTH = (35.2, 201.0, 170.9), 0.512, 0.817, 0.549
+
+
+def _spread_shot(sigma, lights=(1.0, 1.0, 1.0), spp: int = 64) -> np.ndarray:
+    """The spread swatch of ``SPREAD_TRUTH`` (``sigma``: its sigma_a; a tuple: its Table 1 parameters) at the
+    rig's swatch pose, 48², linear."""
+    from hairdigi.render.domain.absorption import hair_sigma_a
+    from hairdigi.render.domain.appearance import Appearance
+    from hairdigi.render.domain.params import HairParams
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.renderer import SceneSpec, default_renderer
+
+    if isinstance(sigma, tuple):
+        sigma = hair_sigma_a(HairParams(*sigma))
+    spec = SceneSpec("swatch", camera=RIG_SWATCH_POSE, swatch_model="spread", strand_seed=504,
+                     lights=lights, appearance=Appearance(0.493))
+    return default_renderer().render(np.asarray(sigma, float), spec, 48, spp, 515).linear
+
+
+def _spread_captures() -> tuple[np.ndarray, list[np.ndarray]]:
+    """The spread swatch captured (8-bit, as a camera), and its single-light frames (linear, each at 1/2.8)."""
+    from hairdigi.inference.preprocess import to_linear
+    from hairdigi.inference.training.evaluate import capture
+
+    frame = capture(_spread_shot(SPREAD_TRUTH).astype(np.float32), 300)
+    singles = [to_linear(capture(_spread_shot(SPREAD_TRUTH, tuple(float(j == i) for j in range(3))).astype(np.float32)
+                                 * 2.8, 307 + 7 * i)) / np.float32(2.8) for i in range(3)]
+    return frame, singles
+
+
 @pytest.mark.slow
 def test_a_swatch_out_of_the_layered_swatchs_reach_is_estimated_on_its_structure_read() -> None:
     """A held-out hair (``evaluate --structures --held-out 11``'s "random 2") hidden in a swatch of spread
@@ -357,34 +388,17 @@ def test_a_swatch_out_of_the_layered_swatchs_reach_is_estimated_on_its_structure
     (residual under 0.3, fit under 1.0); the record says so, and its interval is the read mode's."""
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import UNREACHED_DE, estimate_image
-    from hairdigi.inference.preprocess import to_linear
-    from hairdigi.inference.training.evaluate import capture
-    from hairdigi.render.domain.absorption import hair_sigma_a
-    from hairdigi.render.domain.appearance import Appearance
-    from hairdigi.render.domain.params import HairParams
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.metrics import delta_e2000
-    from hairdigi.render.renderer import SceneSpec, default_renderer
 
-    renderer = default_renderer()
-    truth = hair_sigma_a(HairParams((35.2, 201.0, 170.9), 0.512, 0.817, 0.549))
-
-    def shot(sigma, lights=(1.0, 1.0, 1.0), spp=64):
-        spec = SceneSpec("swatch", camera=RIG_SWATCH_POSE, swatch_model="spread", strand_seed=504,
-                         lights=lights, appearance=Appearance(0.493))
-        return renderer.render(np.asarray(sigma, float), spec, 48, spp, 515).linear
-
-    frame = capture(shot(truth).astype(np.float32), 300)
-    singles = [to_linear(capture(shot(truth, tuple(float(j == i) for j in range(3))).astype(np.float32) * 2.8,
-                                 307 + 7 * i)) / np.float32(2.8) for i in range(3)]
+    frame, singles = _spread_captures()
     result = estimate_image(frame, Encoder(), light_images=singles)
     said = [w.message for w in result.warnings if w.message.startswith("structure:")]
     assert said and "read from the single-light frames" in said[0], [w.message for w in result.warnings]
     assert result.refinement.region.swatch_model != "layered"
     assert result.refinement.residual_de2000 < UNREACHED_DE / 2
     assert result.uncertainty.structure.mode == "read"
-    goal = shot(truth, spp=128).reshape(-1, 3).mean(0)
-    back = shot(result.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0)
+    goal = _spread_shot(SPREAD_TRUTH, spp=128).reshape(-1, 3).mean(0)
+    back = _spread_shot(result.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0)
     assert delta_e2000(back, goal) < 1.0
     # the family mode does not map a swatch its frames tell decisively to the family's mean (where the
     # spread swatch lies far from it: 3.66 in held out 13 before this rule): it refines on the structure read
@@ -392,7 +406,33 @@ def test_a_swatch_out_of_the_layered_swatchs_reach_is_estimated_on_its_structure
     assert family.refinement.region.swatch_model == "spread", family.refinement.region
     assert family.refinement.region.structure.startswith("read decisively"), family.refinement.region
     assert family.uncertainty.structure.mode == "family"
-    assert delta_e2000(shot(family.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0), goal) < 1.0
+    assert delta_e2000(_spread_shot(family.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0), goal) < 1.0
+
+
+@pytest.mark.slow
+def test_a_still_without_frames_refines_on_the_structure_the_rigs_frames_read_of_the_same_swatch() -> None:
+    """A RAW still has no single-light frames: in the family mode it was mapped to the family's mean, and a spread
+    swatch's stills came out 2.9-4.1 from the truth through the simulated rig. The rig's own frames of the same
+    swatch read its structure decisively (``read_decisively``); the still borrows that reading, refines on it,
+    and its record says where the reading came from."""
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.inference.estimate import estimate_image, read_decisively
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
+    from hairdigi.render.metrics import delta_e2000
+
+    frame, singles = _spread_captures()
+    borrowed = read_decisively(frame, singles, RIG_SWATCH_POSE)
+    assert borrowed is not None and borrowed.swatch_model == "spread", borrowed
+    goal = _spread_shot(SPREAD_TRUTH, spp=128).reshape(-1, 3).mean(0)
+    alone = estimate_image(frame, Encoder(), structure="family")
+    still = estimate_image(frame, Encoder(), structure="family", borrowed=borrowed)
+    assert alone.refinement.region.structure.startswith("mapped to"), alone.refinement.region
+    assert still.refinement.region.swatch_model == "spread"
+    assert "the rig's single-light frames of the same swatch" in still.refinement.region.structure
+    assert still.appearance.value.longitudinal_roughness == borrowed.value.longitudinal_roughness
+    errors = [delta_e2000(_spread_shot(r.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0), goal)
+              for r in (alone, still)]
+    assert errors[1] < 1.0 and errors[1] < errors[0], errors
 
 
 def test_a_still_and_the_live_frames_share_the_familys_curves() -> None:

@@ -5,7 +5,7 @@ draws) is put under the simulated rig and captured the way an operator does: a r
 sensor's own white-balance cast and exposure error calibrates on the ColorChecker and captures a live
 frame (``RigSession.calibrate``, ``RigSession.capture``: the code ``hairdigi rig`` and the app run),
 every other one also from a tilted camera, and a still camera's RAW still of the same bench is
-imported (``RigSession.import_still``). Every
+imported into a calibrated session (``RigSession.import_still``). Every
 estimate is then judged against the truth: both rendered at the rig's swatch pose with one sampler
 seed (``render.judge``), the mean colours compared with CIEDE2000.
 
@@ -164,8 +164,10 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
                     radiance = session.camera.radiance().repeat(2, axis=0).repeat(2, axis=1)
                     still = write_raw_still(Path(tmp) / f"IMG_{k:04d}.dng",
                                             radiance * np.array(cast) * 2.0 ** ev * 0.8)
-                    rows.append(_capture(name, params, "raw still", cast, ev, lambda: session.import_still(still),
-                                         built))
+                    # the session calibrated, as an operator's is: in the family mode the rig's own frames
+                    # read the swatch's structure for the still (``RigSession.borrowed_reading``)
+                    rows.append(_capture(name, params, "raw still", cast, ev,
+                                         lambda: (session.calibrate(), session.import_still(still))[1], built))
                 finally:
                     session.close()
                 bar.update()

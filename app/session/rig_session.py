@@ -411,8 +411,29 @@ class RigSession:
                              capture.light_exposures if capture else ())
 
     def import_still(self, path: str | Path) -> CaptureResult:
-        """A RAW still of the rig as a capture, in this session (see :func:`import_still`)."""
-        return import_still(self.folder, path, self.encoder_or_reason, self.in_spectral_world, self.structure)
+        """A RAW still of the rig as a capture, in this session (see :func:`import_still`). In the family mode the
+        rig's lights and camera read the swatch's structure and shine as it is imported (``borrowed_reading``)."""
+        borrowed = self.borrowed_reading() if self.structure is StructureMode.FAMILY else None
+        return import_still(self.folder, path, self.encoder_or_reason, self.in_spectral_world, self.structure,
+                            borrowed)
+
+    def borrowed_reading(self):
+        """The structure and shine the rig's single-light frames read decisively of the swatch on the bench now
+        (``inference.estimate.read_decisively``), for a RAW still of it, which has no frames of its own; None
+        without lights or a calibration, or where they read none decisively. (Through the simulated rig, RAW
+        stills of swatches built another way came out 0.87 / 3.56 mapped to the family's mean: a spread
+        swatch, which only the frames tell, 2.9-4.1.)"""
+        if self.lights is None or self.profile is None:
+            return None
+        from hairdigi.inference.estimate import read_decisively
+
+        singles, factors = self.light_frames()
+        frame = self.frame()
+        def corrected(f):   # as a capture's frames are (``_estimate``)
+            return apply_profile(f.srgb if f.linear is None else f.linear, self.profile)
+
+        lights = [corrected(f) / np.float32(k) for f, k in zip(singles, factors)]
+        return read_decisively(corrected(frame), lights, self.region(frame.srgb))
 
     def encoder_or_reason(self):
         """The encoder, or the one-line reason it cannot be loaded (a missing or broken model file)."""
@@ -443,7 +464,7 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
               profile: CalibrationProfile, view: RigRegion, stale: list[str],
               on_encoder_estimate: Callable[[HairParams], None] | None = None,
               singles: list[tuple[np.ndarray, float]] = (), chart=None, clipped: np.ndarray | None = None,
-              structure: str = DEFAULT_STRUCTURE) -> None:
+              structure: str = DEFAULT_STRUCTURE, borrowed=None) -> None:
     """Colour-correct the frame (``linear`` where the source has it, else the 8-bit ``image``) with
     ``profile``, keep it linear, estimate the swatch area ``view`` as the rig sees it, and fill ``result``.
 
@@ -452,7 +473,7 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
     that light's geometry into the colour) and scaled back to the frame's exposure; ``chart``, the
     frame's chart detection, checks that one profile holds for each light. ``clipped``: a RAW still's
     saturated photosites (``Frame.clipped``), on which clipping is judged; ``structure``, how the estimate
-    treats the swatch's physical structure."""
+    treats the swatch's physical structure; ``borrowed``, a reading of it from other frames (``import_still``)."""
     from hairdigi.inference.estimate import calibration_summary, estimate_image, record
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.inference.refine import fitted_pixels, mean_linear
@@ -472,7 +493,7 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
                      for w in light_colour_warnings(chart, raw_lights)]
     estimate = estimate_image(corrected, encoder, view=view, extra_warnings=warnings,
                               on_encoder_estimate=on_encoder_estimate, light_images=lights, sensor_clipped=clipped,
-                              structure=structure)
+                              structure=structure, borrowed=borrowed)
     result.params = estimate.params
     result.corrected = corrected
     result.curve = None if estimate.refinement is None else estimate.refinement.curve
@@ -495,7 +516,7 @@ class StillError(HairdigiError, ValueError):
 
 def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
                  in_spectral_world: Callable[..., EstimateRecord] | None = None,
-                 structure: str = DEFAULT_STRUCTURE) -> CaptureResult:
+                 structure: str = DEFAULT_STRUCTURE, borrowed=None) -> CaptureResult:
     """A RAW still (DNG, CR2, NEF, ...) of the rig, taken with the chart in view, as a capture.
 
     The file is copied into the session first, untouched. Then rawpy decodes it (linear, the
@@ -503,7 +524,8 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
     processing is not the live feed's; the swatch is found, corrected and estimated. The still's
     profile is kept in its result record, so reviewing it later corrects it the same way.
     ``in_spectral_world`` (``RigSession.in_spectral_world``) finishes the record as the session's captures
-    are (a session's declared camera is its stills' too).
+    are (a session's declared camera is its stills' too). ``borrowed``: the structure and shine the rig's own
+    frames read of the same swatch (``RigSession.borrowed_reading``), which the family mode refines on.
     """
     start = time.perf_counter()
     path = Path(path)
@@ -537,7 +559,7 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
     if not result.blocked:
         _estimate(result, still.srgb, still.linear, encoder_or_reason, profile,
                   rig_region((still.srgb.shape[1], still.srgb.shape[0]), roi), profile_warnings(profile, None),
-                  clipped=still.clipped, structure=structure)
+                  clipped=still.clipped, structure=structure, borrowed=borrowed)
     result.seconds = time.perf_counter() - start
     if result.record is not None and in_spectral_world is not None:
         result.record = in_spectral_world(result.record, profile, result.curve)
