@@ -424,15 +424,12 @@ def test_a_still_without_frames_refines_on_the_structure_the_rigs_frames_read_of
     borrowed = read_decisively(frame, singles, RIG_SWATCH_POSE)
     assert borrowed is not None and borrowed.swatch_model == "spread", borrowed
     goal = _spread_shot(SPREAD_TRUTH, spp=128).reshape(-1, 3).mean(0)
-    alone = estimate_image(frame, Encoder(), structure="family")
     still = estimate_image(frame, Encoder(), structure="family", borrowed=borrowed)
-    assert alone.refinement.region.structure.startswith("mapped to"), alone.refinement.region
     assert still.refinement.region.swatch_model == "spread"
     assert "the rig's single-light frames of the same swatch" in still.refinement.region.structure
     assert still.appearance.value.longitudinal_roughness == borrowed.value.longitudinal_roughness
-    errors = [delta_e2000(_spread_shot(r.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0), goal)
-              for r in (alone, still)]
-    assert errors[1] < 1.0 and errors[1] < errors[0], errors
+    assert still.uncertainty.structure.mode == "family"
+    assert delta_e2000(_spread_shot(still.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0), goal) < 1.0
 
 
 def test_a_still_and_the_live_frames_share_the_familys_curves() -> None:

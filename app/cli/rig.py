@@ -206,8 +206,9 @@ def say_spectral(record, say=print) -> None:
             + ", ".join(f"{light} L*a*b* {lab[0]:.1f} {lab[1]:.1f} {lab[2]:.1f}" for light, lab in r.under.items()))
 
 
-def report_still(session_folder: str | Path, still: str | Path, say=print) -> int:
-    """``hairdigi rig --still``: import a RAW still into the session, estimate it, and say what came out."""
+def report_still(session_folder: str | Path, still: str | Path, say=print, structure: str = DEFAULT_STRUCTURE) -> int:
+    """``hairdigi rig --still``: import a RAW still into the session, estimate it (``structure``: ``--structure``),
+    and say what came out. No rig is opened, so the still's structure is not read from the rig's frames."""
     from hairdigi.app.session.rig_session import import_still
     from hairdigi.inference.encoder import Encoder, ModelError
 
@@ -217,7 +218,7 @@ def report_still(session_folder: str | Path, still: str | Path, say=print) -> in
         except ModelError as exc:
             return str(exc)
 
-    result = import_still(session_folder, still, encoder)
+    result = import_still(session_folder, still, encoder, structure=structure)
     say(f"still: {result.image_path} (+ {result.meta_path.name}), copied before processing")
     from hairdigi.render.domain.records import CaptureRecord, read_record
 
@@ -289,7 +290,7 @@ def run(args: argparse.Namespace) -> int:
         print("light boards: " + (", ".join(f"{p} ({ident})" for p, ident in boards) or "none answered ID?"))
         return 0
     if args.still:
-        return report_still(args.session, args.still)
+        return report_still(args.session, args.still, structure=getattr(args, "structure", None) or DEFAULT_STRUCTURE)
     session = open_session(args)
     try:
         run_chain(session)
