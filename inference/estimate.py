@@ -97,7 +97,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
                    renderer=None, light_images: list[np.ndarray] | None = None,
                    structure: StructureMode = DEFAULT_STRUCTURE,
                    sensor_clipped: np.ndarray | None = None,
-                   borrowed: AppearanceReading | None = None) -> EstimateResult:
+                   borrowed: "RigReading | None" = None) -> EstimateResult:
     """Estimate a colour-corrected image: linear float RGB (a corrected capture) or 8-bit sRGB; a rig
     frame or a crop that is all hair.
 
@@ -112,8 +112,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     the structure the single-light frames read decisively, ``inference.structure.decisive``); "read",
     read from the single-light frames among them and refined on it. ``sensor_clipped``: the image's
     saturated photosites per pixel (a RAW still's, ``Frame.clipped``): clipping is judged on them.
-    ``borrowed``: in the family mode, an image without single-light frames of its own (a RAW still) refines on the
-    structure and shine that other frames of the same swatch read decisively (:func:`read_decisively`: the rig's).
+    ``borrowed``: in the family mode, an image without single-light frames of its own (a RAW still) takes the texture
+    and the structure and shine that the rig's frames of the same swatch read (:func:`read_rig_structure`).
     """
     start = time.perf_counter()
     seen, structure = swatch_view(view), StructureMode(structure)
@@ -198,31 +198,44 @@ def _members(fit: _Fit) -> tuple[TextureReading | None, AppearanceReading | None
     return texture, members, decisive(members.misfits or {})
 
 
-def read_decisively(image: np.ndarray, light_images: list[np.ndarray], view: View,
-                    settings: RefineSettings = RefineSettings(), renderer=None) -> AppearanceReading | None:
-    """The structure and shine that ``light_images`` (each light alone, corrected as ``image`` and at its
-    exposure) read decisively at ``view``, as the family mode reads them (``_members``), or None where they read
-    none decisively: what a RAW still of the same swatch, which has no such frames, borrows (``estimate_image``)."""
+@dataclass(frozen=True)
+class RigReading:
+    """What the rig's own frames of a swatch read of its structure (``read_rig_structure``), for an image of the same
+    swatch without single-light frames (a RAW still): the texture, and the frames' reading where it is decisive."""
+
+    texture: TextureReading | None
+    decisive: AppearanceReading | None
+
+
+def read_rig_structure(image: np.ndarray, light_images: list[np.ndarray], view: View,
+                       settings: RefineSettings = RefineSettings(), renderer=None) -> RigReading:
+    """The texture of ``image`` and the structure and shine that ``light_images`` (each light alone, corrected as
+    ``image`` and at its exposure) read decisively at ``view``, as the family mode reads a capture (``_members``):
+    what a RAW still of the same swatch, which has no such frames, borrows (``estimate_image``). The texture's
+    classes were chosen on the rig camera's frames."""
     seen = swatch_view(view)
     check_light_frames(light_images, image)
     fitted = seen.pixels(image, None)
     singles = np.array([mean_linear(seen.pixels(im, None)) for im in light_images])
     fit = _Fit(None, mean_linear(fitted), view, settings, renderer, singles, seen.texture(fitted),
                seen.frame_levels(light_images))
-    _, members, decided = _members(fit)
-    return members if decided else None
+    texture, members, decided = _members(fit)
+    return RigReading(None if texture is None else replace(texture, source="the rig camera's frame"),
+                      members if decided else None)
 
 
-def _refined(fit: _Fit, structure: StructureMode, borrowed: AppearanceReading | None = None
+def _refined(fit: _Fit, structure: StructureMode, borrowed: RigReading | None = None
              ) -> tuple[Refinement, AppearanceEstimate, StructureMode, list[EstimateWarning]]:
     """The refinement of ``fit`` with the appearance read on the way, the structure it was made on (a
-    capture no hair on the assumed swatch reaches is read anew) and their warnings; ``borrowed``, a decisive
-    reading of other frames of the same swatch (``read_decisively``), stands in for frames ``fit`` lacks."""
+    capture no hair on the assumed swatch reaches is read anew) and their warnings; ``borrowed``, the rig's
+    reading of the same swatch (``read_rig_structure``), stands in for the frames ``fit`` lacks."""
     decided, members, texture = None, None, None
     if structure is StructureMode.FAMILY:
         texture, members, decided = _members(fit)
-        if decided is None and fit.singles is None and borrowed is not None:
-            members, decided = borrowed, borrowed.swatch_model
+        if fit.singles is None and borrowed is not None:
+            texture = borrowed.texture or texture
+            if borrowed.decisive is not None:
+                members, decided = borrowed.decisive, borrowed.decisive.swatch_model
     reading = members if decided else fit.read(READ_MEMBERS if structure is StructureMode.READ else None)
     warnings = list(reading.warnings)
     appearance = reading.estimate
@@ -260,7 +273,7 @@ def _refined(fit: _Fit, structure: StructureMode, borrowed: AppearanceReading | 
             warnings = [w for w in warnings if w.kind != WarningKind.APPEARANCE] + list(reread.warnings)
             refinement, appearance, structure = other, reread.estimate, StructureMode.READ
     if decided:
-        frames = ("the single-light frames" if members is not borrowed else
+        frames = ("the single-light frames" if fit.singles is not None else
                   "the rig's single-light frames of the same swatch (this image has none)")
         refinement = replace(refinement, region=replace(refinement.region, structure=(
             f"read decisively from {frames} as {decided} (its misfit under 1/{DECISIVE:g} of "

@@ -215,6 +215,7 @@ class TextureReading:
     kind: str | None
     along: float
     order: float
+    source: str = ""        # where it was read, when not the image estimated (a RAW still takes the rig camera's)
 
     @property
     def weights(self) -> dict[str, float] | None:
@@ -223,7 +224,8 @@ class TextureReading:
 
     def describe(self) -> str:
         """One line for the record."""
-        stats = f"streaks along the fibres {self.along:.3f}, orientation order {self.order:.2f}"
+        stats = f"streaks along the fibres {self.along:.3f}, orientation order {self.order:.2f}" + (
+            f", on {self.source}" if self.source else "")
         if self.kind is None:
             return f"the texture is undecided ({stats})"
         if self.weights is None:

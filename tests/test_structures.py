@@ -413,21 +413,22 @@ def test_a_swatch_out_of_the_layered_swatchs_reach_is_estimated_on_its_structure
 def test_a_still_without_frames_refines_on_the_structure_the_rigs_frames_read_of_the_same_swatch() -> None:
     """A RAW still has no single-light frames: in the family mode it was mapped to the family's mean, and a spread
     swatch's stills came out 2.9-4.1 from the truth through the simulated rig. The rig's own frames of the same
-    swatch read its structure decisively (``read_decisively``); the still borrows that reading, refines on it,
+    swatch read its structure decisively (``read_rig_structure``); the still borrows that reading, refines on it,
     and its record says where the reading came from."""
     from hairdigi.inference.encoder import Encoder
-    from hairdigi.inference.estimate import estimate_image, read_decisively
+    from hairdigi.inference.estimate import estimate_image, read_rig_structure
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.metrics import delta_e2000
 
     frame, singles = _spread_captures()
-    borrowed = read_decisively(frame, singles, RIG_SWATCH_POSE)
-    assert borrowed is not None and borrowed.swatch_model == "spread", borrowed
+    borrowed = read_rig_structure(frame, singles, RIG_SWATCH_POSE)
+    assert borrowed.decisive is not None and borrowed.decisive.swatch_model == "spread", borrowed
+    assert borrowed.texture is None          # an all-hair crop has no rig view's texture
     goal = _spread_shot(SPREAD_TRUTH, spp=128).reshape(-1, 3).mean(0)
     still = estimate_image(frame, Encoder(), structure="family", borrowed=borrowed)
     assert still.refinement.region.swatch_model == "spread"
     assert "the rig's single-light frames of the same swatch" in still.refinement.region.structure
-    assert still.appearance.value.longitudinal_roughness == borrowed.value.longitudinal_roughness
+    assert still.appearance.value.longitudinal_roughness == borrowed.decisive.value.longitudinal_roughness
     assert still.uncertainty.structure.mode == "family"
     assert delta_e2000(_spread_shot(still.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0), goal) < 1.0
 

@@ -418,14 +418,13 @@ class RigSession:
                             borrowed)
 
     def borrowed_reading(self):
-        """The structure and shine the rig's single-light frames read decisively of the swatch on the bench now
-        (``inference.estimate.read_decisively``), for a RAW still of it, which has no frames of its own; None
-        without lights or a calibration, or where they read none decisively. (Through the simulated rig, RAW
-        stills of swatches built another way came out 0.87 / 3.56 mapped to the family's mean: a spread
-        swatch, which only the frames tell, 2.9-4.1.)"""
+        """The texture, and the structure and shine the rig's single-light frames read decisively, of the swatch on
+        the bench now (``inference.estimate.read_rig_structure``), for a RAW still of it, which has no frames of its
+        own; None without lights or a calibration. (Through the simulated rig, RAW stills of swatches built another
+        way came out 0.87 / 3.56 mapped to the family's mean: a spread swatch, which only the frames tell, 2.9-4.1.)"""
         if self.lights is None or self.profile is None:
             return None
-        from hairdigi.inference.estimate import read_decisively
+        from hairdigi.inference.estimate import read_rig_structure
 
         singles, factors = self.light_frames()
         frame = self.frame()
@@ -433,7 +432,7 @@ class RigSession:
             return apply_profile(f.srgb if f.linear is None else f.linear, self.profile)
 
         lights = [corrected(f) / np.float32(k) for f, k in zip(singles, factors)]
-        return read_decisively(corrected(frame), lights, self.region(frame.srgb))
+        return read_rig_structure(corrected(frame), lights, self.region(frame.srgb))
 
     def encoder_or_reason(self):
         """The encoder, or the one-line reason it cannot be loaded (a missing or broken model file)."""
