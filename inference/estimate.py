@@ -97,7 +97,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
                    renderer=None, light_images: list[np.ndarray] | None = None,
                    structure: StructureMode = DEFAULT_STRUCTURE,
                    sensor_clipped: np.ndarray | None = None,
-                   borrowed: "RigReading | None" = None) -> EstimateResult:
+                   borrowed: RigReading | None = None) -> EstimateResult:
     """Estimate a colour-corrected image: linear float RGB (a corrected capture) or 8-bit sRGB; a rig
     frame or a crop that is all hair.
 
@@ -133,7 +133,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
         singles = None if light_images is None else np.array([mean_linear(seen.pixels(im, roi)) for im in light_images])
         fit = _Fit(est.params, mean_linear(fitted), view, settings, renderer, singles, seen.texture(fitted),
                    None if light_images is None else seen.frame_levels(light_images))
-        refinement, appearance, structure, found = _refined(fit, structure, borrowed if light_images is None else None)
+        refinement, appearance, structure, found = _refined(fit, structure, borrowed)
         warnings += found
         params = refinement.params
     if est.at_range_edge:
@@ -200,11 +200,12 @@ def _members(fit: _Fit) -> tuple[TextureReading | None, AppearanceReading | None
 
 @dataclass(frozen=True)
 class RigReading:
-    """What the rig's own frames of a swatch read of its structure (``read_rig_structure``), for an image of the same
-    swatch without single-light frames (a RAW still): the texture, and the frames' reading where it is decisive."""
+    """What the rig's own frames of a swatch read of its structure (``read_rig_structure``, as ``_members``), for an
+    image of the same swatch without single-light frames (a RAW still)."""
 
-    texture: TextureReading | None
-    decisive: AppearanceReading | None
+    texture: TextureReading | None       # read on the rig camera's frame
+    frames: AppearanceReading | None     # the single-light frames' reading among the members the texture leaves
+    decided: str | None                  # the member they read decisively (None: none)
 
 
 def read_rig_structure(image: np.ndarray, light_images: list[np.ndarray], view: View,
@@ -220,8 +221,7 @@ def read_rig_structure(image: np.ndarray, light_images: list[np.ndarray], view: 
     fit = _Fit(None, mean_linear(fitted), view, settings, renderer, singles, seen.texture(fitted),
                seen.frame_levels(light_images))
     texture, members, decided = _members(fit)
-    return RigReading(None if texture is None else replace(texture, source="the rig camera's frame"),
-                      members if decided else None)
+    return RigReading(None if texture is None else replace(texture, source="the rig camera's frame"), members, decided)
 
 
 def _refined(fit: _Fit, structure: StructureMode, borrowed: RigReading | None = None
@@ -233,9 +233,7 @@ def _refined(fit: _Fit, structure: StructureMode, borrowed: RigReading | None = 
     if structure is StructureMode.FAMILY:
         texture, members, decided = _members(fit)
         if fit.singles is None and borrowed is not None:
-            texture = borrowed.texture or texture
-            if borrowed.decisive is not None:
-                members, decided = borrowed.decisive, borrowed.decisive.swatch_model
+            texture, members, decided = borrowed.texture or texture, borrowed.frames, borrowed.decided
     reading = members if decided else fit.read(READ_MEMBERS if structure is StructureMode.READ else None)
     warnings = list(reading.warnings)
     appearance = reading.estimate

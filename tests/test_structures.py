@@ -422,13 +422,13 @@ def test_a_still_without_frames_refines_on_the_structure_the_rigs_frames_read_of
 
     frame, singles = _spread_captures()
     borrowed = read_rig_structure(frame, singles, RIG_SWATCH_POSE)
-    assert borrowed.decisive is not None and borrowed.decisive.swatch_model == "spread", borrowed
+    assert borrowed.decided == "spread" and borrowed.frames.swatch_model == "spread", borrowed
     assert borrowed.texture is None          # an all-hair crop has no rig view's texture
     goal = _spread_shot(SPREAD_TRUTH, spp=128).reshape(-1, 3).mean(0)
     still = estimate_image(frame, Encoder(), structure="family", borrowed=borrowed)
     assert still.refinement.region.swatch_model == "spread"
     assert "the rig's single-light frames of the same swatch" in still.refinement.region.structure
-    assert still.appearance.value.longitudinal_roughness == borrowed.decisive.value.longitudinal_roughness
+    assert still.appearance.value.longitudinal_roughness == borrowed.frames.value.longitudinal_roughness
     assert still.uncertainty.structure.mode == "family"
     assert delta_e2000(_spread_shot(still.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0), goal) < 1.0
 

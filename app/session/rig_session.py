@@ -428,6 +428,7 @@ class RigSession:
 
         singles, factors = self.light_frames()
         frame = self.frame()
+
         def corrected(f):   # as a capture's frames are (``_estimate``)
             return apply_profile(f.srgb if f.linear is None else f.linear, self.profile)
 
