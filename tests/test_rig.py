@@ -303,3 +303,17 @@ def test_an_over_exposed_swatch_is_captured_again_as_the_operator_is_told(tmp_pa
         assert profile is not None and session.camera.camera.exposure_ev <= -EXPOSURE_STEP_EV
     finally:
         session.close()
+
+
+def test_a_still_borrows_no_reading_from_an_uncalibrated_rig_nor_from_a_board_that_is_gone(tmp_path):
+    """``RigSession.borrowed_reading`` (a RAW still in the family mode takes the rig's own reading of the swatch):
+    frames corrected by no calibration are not read, and a light board that stops answering leaves the still to
+    be estimated without the reading, not the import failing."""
+    session = RigSession.simulated_rig(tmp_path / "s", spp=SPP, structure="family")
+    try:
+        assert session.borrowed_reading() is None
+        session.calibrate()
+        session._board.close()
+        assert session.borrowed_reading() is None
+    finally:
+        session.close()

@@ -420,14 +420,20 @@ class RigSession:
     def borrowed_reading(self):
         """The texture, and the structure and shine the rig's single-light frames read decisively, of the swatch on
         the bench now (``inference.estimate.read_rig_structure``), for a RAW still of it, which has no frames of its
-        own; None without lights or a calibration. (Through the simulated rig, RAW stills of swatches built another
-        way came out 0.87 / 3.56 mapped to the family's mean: a spread swatch, which only the frames tell, 2.9-4.1.)"""
+        own; None without lights or a calibration, or where the lights or the camera fail (the still is then
+        estimated without the reading, and nothing is lost). (Through the simulated rig, RAW stills of swatches built
+        another way came out 0.87 / 3.56 mapped to the family's mean: a spread swatch, which only the frames tell,
+        2.9-4.1.)"""
         if self.lights is None or self.profile is None:
             return None
+        from hairdigi.hardware.cameras import CameraError
         from hairdigi.inference.estimate import read_rig_structure
 
-        singles, factors = self.light_frames()
-        frame = self.frame()
+        try:
+            singles, factors = self.light_frames()
+            frame = self.frame()
+        except (CameraError, LightError):
+            return None
 
         def corrected(f):   # as a capture's frames are (``_estimate``)
             return apply_profile(f.srgb if f.linear is None else f.linear, self.profile)
