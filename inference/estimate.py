@@ -129,10 +129,7 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     if light_images is not None:
         check_light_frames(light_images, image)
     if refine_colour:
-        fitted = seen.pixels(image, roi)
-        singles = None if light_images is None else np.array([mean_linear(seen.pixels(im, roi)) for im in light_images])
-        fit = _Fit(est.params, mean_linear(fitted), view, settings, renderer, singles, seen.texture(fitted),
-                   None if light_images is None else seen.frame_levels(light_images))
+        fit = _Fit.of(est.params, image, light_images, view, roi, settings, renderer)
         refinement, appearance, structure, found = _refined(fit, structure, borrowed)
         warnings += found
         params = refinement.params
@@ -166,6 +163,16 @@ class _Fit:
     singles: np.ndarray | None
     texture: np.ndarray | None
     levels: np.ndarray | None
+
+    @classmethod
+    def of(cls, start: HairParams | None, image: np.ndarray, light_images: list[np.ndarray] | None, view: View,
+           roi: Roi | None, settings: RefineSettings, renderer) -> "_Fit":
+        """What ``image`` (and its single-light frames, if any) gives the refinement at ``view``."""
+        seen = swatch_view(view)
+        fitted = seen.pixels(image, roi)
+        singles = None if light_images is None else np.array([mean_linear(seen.pixels(im, roi)) for im in light_images])
+        return cls(start, mean_linear(fitted), view, settings, renderer, singles, seen.texture(fitted),
+                   None if light_images is None else seen.frame_levels(light_images))
 
     def read(self, structures: tuple[str, ...] | None = None) -> AppearanceReading:
         """The appearance read from the frames (``inference.appearance.read_appearance``)."""
@@ -214,13 +221,8 @@ def read_rig_structure(image: np.ndarray, light_images: list[np.ndarray], view: 
     ``image`` and at its exposure) read decisively at ``view``, as the family mode reads a capture (``_members``):
     what a RAW still of the same swatch, which has no such frames, borrows (``estimate_image``). The texture's
     classes were chosen on the rig camera's frames."""
-    seen = swatch_view(view)
     check_light_frames(light_images, image)
-    fitted = seen.pixels(image, None)
-    singles = np.array([mean_linear(seen.pixels(im, None)) for im in light_images])
-    fit = _Fit(None, mean_linear(fitted), view, settings, renderer, singles, seen.texture(fitted),
-               seen.frame_levels(light_images))
-    texture, members, decided = _members(fit)
+    texture, members, decided = _members(_Fit.of(None, image, light_images, view, None, settings, renderer))
     return RigReading(None if texture is None else replace(texture, source="the rig camera's frame"), members, decided)
 
 
