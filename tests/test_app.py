@@ -207,3 +207,21 @@ def test_a_raw_still_is_a_capture_source_in_the_window(qtbot, tiny_model, tmp_pa
     qtbot.waitUntil(lambda: win.session_list.count() == 1, timeout=20000)
     win.close()
     session.close()
+
+
+def test_a_capture_that_ends_after_its_window_is_gone_touches_nothing(qtbot, tiny_model, tmp_path):
+    """A capture still in flight when the window closes finishes later: its slots must not touch the
+    deleted window (it raised 'Internal C++ object (QPushButton) already deleted'); the capture is kept."""
+    from shiboken6 import Shiboken
+
+    _, onnx_path, _ = tiny_model
+    session = RigSession.simulated_rig(tmp_path / "s", spp=8, encoder=Encoder(onnx_path))
+    win = MainWindow(session, {**FAST, "warm": False}, strand_view=False)   # not added to qtbot: deleted here
+    win.show()
+    qtbot.waitUntil(lambda: win.last_frame is not None, timeout=60000)
+    win.capture()
+    win.close()                        # waits for the pool: the capture's signals are queued, not yet delivered
+    Shiboken.delete(win)               # the window's widgets are gone, as after the app's own close
+    qtbot.wait(300)                    # the queued done/finished arrive now: an error here fails the test
+    assert list((tmp_path / "s" / "captures").glob("*.json"))
+    session.close()

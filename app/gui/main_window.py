@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 from PySide6.QtCore import QSettings, Qt, QThreadPool, QTimer, Signal
@@ -75,6 +76,7 @@ class MainWindow(QMainWindow):
         self.model = review.ReviewModel(session, preview_settings(self.opts))
         self.setWindowTitle(f"hairdigi — {session.folder}")
         self.tasks: list[Task] = []
+        self.closed = False                  # set on close: a task that finishes later touches nothing here
         self.jobs: dict[str, Task] = {}      # the running twin, hairstyle and strand work, by name
         self.hair_models: dict[str, Path] = {}   # opened .hair models, by their entry in the style list
         self.last_frame = None
@@ -483,14 +485,22 @@ class MainWindow(QMainWindow):
         """Run the model's ``work`` in a worker; what it yields and returns goes to the model by default,
         and its ``ended`` runs here on the UI thread when it is over."""
         task = Task(work.run, work.name)
-        task.signals.done.connect(on_done or self.model.apply)
-        task.signals.progress.connect(on_progress or self.model.apply)
-        task.signals.failed.connect(self.show_banner)
+        task.signals.done.connect(self.while_open(on_done or self.model.apply))
+        task.signals.progress.connect(self.while_open(on_progress or self.model.apply))
+        task.signals.failed.connect(self.while_open(self.show_banner))
         task.signals.finished.connect(lambda t=task: self.tasks.remove(t) if t in self.tasks else None)
         if work.ended is not None:
-            task.signals.finished.connect(work.ended)
+            task.signals.finished.connect(work.ended)     # the model's own bookkeeping: runs after a close too
         self.tasks.append(task)
         return start(task, POOL)
+
+    def while_open(self, slot: Callable) -> Callable:
+        """``slot``, called only while this window is open: a task that outlives the window (a render that
+        finishes after close) must not touch its deleted widgets."""
+        def guarded(*args) -> None:
+            if not self.closed:
+                slot(*args)
+        return guarded
 
     def run_job(self, name: str, work: Work | None) -> Task | None:
         """Run the model's ``work`` as the one job called ``name``; the previous one is cancelled."""
@@ -546,7 +556,7 @@ class MainWindow(QMainWindow):
     def calibrate(self) -> Task:
         self.calibrate_button.setEnabled(False)
         task = self.run_task(self.model.calibrate_work())
-        task.signals.finished.connect(lambda: self.calibrate_button.setEnabled(True))
+        task.signals.finished.connect(self.while_open(lambda: self.calibrate_button.setEnabled(True)))
         return task
 
     def _on_calibrated(self, calibrated: Calibrated) -> None:
@@ -564,7 +574,7 @@ class MainWindow(QMainWindow):
             self.model.apply(captured)
             self.captured.emit(captured.result)
         task = self.run_task(self.model.capture_work(), done)
-        task.signals.finished.connect(lambda: self.capture_button.setEnabled(True))
+        task.signals.finished.connect(self.while_open(lambda: self.capture_button.setEnabled(True)))
         return task
 
     def start_previews(self) -> None:
@@ -678,6 +688,7 @@ class MainWindow(QMainWindow):
 
     # -- shutdown ----------------------------------------------------------------------------
     def closeEvent(self, event) -> None:
+        self.closed = True
         self._disconnect_model()
         self.feed.stop()
         for t in list(self.tasks):
