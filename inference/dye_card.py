@@ -20,7 +20,7 @@ from hairdigi.inference.dye import apply, describe_colour, sample_of
 from hairdigi.inference.levels import LEVEL_NAMES, LEVELS, natural_base
 from hairdigi.render.domain.absorption import hair_sigma_a
 from hairdigi.render.domain.dye_record import DyeRecord
-from hairdigi.render.domain.files import atomic_paths
+from hairdigi.render.domain.files import atomic_paths, refuse_protected
 from hairdigi.render.domain.records import EstimateRecord
 from hairdigi.render.metrics import delta_e2000
 
@@ -128,13 +128,15 @@ def draw_card(dye: DyeRecord, rows: list[dict], dose: float = 1.0):
 def shade_card(dye: DyeRecord, out_png: str | os.PathLike, dose: float = 1.0, size: int = CARD_SIZE,
                spp: int = CARD_SPP, curve=None) -> tuple[Path, Path, Path, list[dict]]:
     """Write the card as PNG, PDF (beside it) and JSON, all three published together (a failure leaves none
-    of them half made, and the old card whole); returns the three paths and the rows."""
+    of them half made, and the old card whole); returns the three paths and the rows. None of the three may
+    be a record, a dye, a capture or a library (``ProtectedFileError``, before anything is rendered)."""
     import json
 
     out_png = Path(out_png)
+    pdf, table = out_png.with_suffix(".pdf"), out_png.with_suffix(".json")
+    refuse_protected((out_png, pdf, table))   # every file checked before any render or write
     rows = card_rows(dye, size, spp, dose=dose, curve=curve)
     fig = draw_card(dye, rows, dose)
-    pdf, table = out_png.with_suffix(".pdf"), out_png.with_suffix(".json")
     clean = [{k: v for k, v in r.items() if not k.startswith("_")} for r in rows]
     with atomic_paths(out_png, pdf, table, suffixes=(".png", ".pdf", ".json")) as (png_tmp, pdf_tmp, json_tmp):
         fig.savefig(pdf_tmp, format="pdf")

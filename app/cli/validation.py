@@ -180,13 +180,14 @@ def check_output_file(path: str | os.PathLike, flag: str, suffixes: Iterable[str
 
 
 def check_not_protected(path: str | os.PathLike, flag: str, allow: tuple = ()) -> None:
-    """``path`` must not be a file hairdigi reads back: a session's, a dataset's or the package's."""
-    from hairdigi.render.domain.files import protected_reason
+    """``path`` must not be a file hairdigi reads back: a session's, a dataset's or the package's, or a
+    record, a dye or a library of any name (the one guard: ``render.domain.files.refuse_protected``)."""
+    from hairdigi.render.domain.files import ProtectedFileError, refuse_protected
 
-    reason = protected_reason(path, allow)
-    if reason:
-        raise ArgumentError(f"{flag} {os.fspath(path)} {reason}; writing over it is refused: choose another "
-                            f"output name")
+    try:
+        refuse_protected((path,), allow)
+    except ProtectedFileError as exc:
+        raise ArgumentError(f"{flag} {exc}") from None
 
 
 def _name_fits(p: Path, flag: str) -> None:

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from hairdigi.render.domain.files import refuse_protected
 from hairdigi.render.domain.records import EstimateRecord, read_record
 from hairdigi.render.interchange import FORMATS, HairLook, look_from_record, write_look
 
@@ -22,6 +23,7 @@ def export_record(record: str | Path, fmt: str, out: str | Path, blend: str | Pa
         raise ValueError(f"unknown export format {fmt!r}; choose one of {', '.join(FORMATS)}")
     if blend and fmt != "blender":
         raise ValueError("a .blend goes with the blender format")
+    refuse_protected((out, blend))   # never over a record, a dye, a capture or a library
     look = load_look(record, name)
     written = [write_look(look, fmt, out)]
     if blend:

@@ -14,6 +14,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
 
+from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.session_folder import SessionFolder
 
 
@@ -235,8 +236,15 @@ PACKAGE_PARTS = ("app", "render", "hardware", "inference", "resources")
 #: In a checkout, beside the package's folders: what the tests and docs read.
 CHECKOUT_PARTS = ("tests",)
 CHECKOUT_FILES = ("pyproject.toml", "README.md", "Makefile", "setup.py", "setup.cfg")
-#: Top-level keys by which an existing JSON file is recognised as one hairdigi reads back.
-_RECORD_KINDS = {"calibration": "a session's calibration profile", "capture": "a capture's record"}
+#: The ``kind`` of each record hairdigi writes and reads back, as a refusal names it.
+_RECORD_KINDS = {"calibration": "a session's calibration profile", "capture": "a capture's record",
+                 "estimate": "an estimate record", "dye": "a dye record"}
+#: The most a record is read to be recognised (a larger file is no record hairdigi wrote).
+_RECORD_SNIFF_BYTES = 4 << 20
+
+
+class ProtectedFileError(HairdigiError, ValueError):
+    """A command would write over a file it did not make and hairdigi reads back; the message names it."""
 
 
 def package_folders() -> list[Path]:
@@ -266,23 +274,31 @@ def _within(path: Path, folder: Path) -> bool:
 
 
 def _record_kind(path: Path) -> str | None:
-    """What hairdigi record an existing JSON file is (calibration profile, capture record, manifest)."""
+    """What hairdigi record an existing file is, whatever its extension: a calibration profile, a capture's
+    record, an estimate record (a result, a dye prediction), a dye record, a dataset's manifest; else None."""
     try:
-        if path.suffix.lower() != ".json" or not path.is_file() or path.stat().st_size > 1 << 20:
+        if not path.is_file() or path.stat().st_size > _RECORD_SNIFF_BYTES:
             return None
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        with open(path, "rb") as f:
+            head = f.read(64).lstrip()
+            if not head.startswith(b"{"):
+                return None
+            data = json.loads(head + f.read(_RECORD_SNIFF_BYTES))
+    except (OSError, ValueError, RecursionError):
         return None
     if not isinstance(data, dict):
         return None
-    if data.get("kind") in _RECORD_KINDS:
-        return _RECORD_KINDS[data["kind"]]
+    kind = data.get("kind")
+    if isinstance(kind, str) and kind in _RECORD_KINDS:
+        return _RECORD_KINDS[kind]
     if "matrix" in data and "method" in data:
         return _RECORD_KINDS["calibration"]
     if "image_sha256" in data and "image" in data:
         return _RECORD_KINDS["capture"]
     if isinstance(data.get("config"), dict) and "format" in data:
         return "a dataset's manifest"
+    if isinstance(data.get("hair"), dict) and ("provenance" in data or "refinement" in data):
+        return _RECORD_KINDS["estimate"]      # the first layout, before records had a kind
     return None
 
 
@@ -302,8 +318,13 @@ def _is_sqlite(path: Path) -> bool:
 def protected_reason(path: str | os.PathLike, allow: tuple = ()) -> str | None:
     """Why ``path`` must not be written over: it belongs to a rig session (its calibration, its
     captures), a dataset (manifest, shards) or the hairdigi package (its folders, a checkout's tests
-    and top files); None when it may be written. ``allow`` lists folders where the package's files may
-    be replaced (``export-onnx`` and ``model-card`` write the shipped model and its card)."""
+    and top files), or it is, whatever its name, a record hairdigi reads back (a calibration, a capture's
+    or an estimate record, a dye), a SQLite database (a swatch library) or a dataset's manifest; None
+    when it may be written. ``allow`` lists folders where the package's files may be replaced
+    (``export-onnx`` and ``model-card`` write the shipped model and its card).
+
+    The one guard of every file a command writes: the command line's output checks
+    (``app.cli.validation.check_output_file``) and :func:`refuse_protected` both ask it."""
     given = Path(path).absolute()
     try:
         real = Path(path).resolve()
@@ -329,6 +350,18 @@ def protected_reason(path: str | os.PathLike, allow: tuple = ()) -> str | None:
     if kind:
         return f"is {kind}, which hairdigi reads back"
     return None
+
+
+def refuse_protected(paths, allow: tuple = ()) -> None:
+    """Refuse, before anything is written, when any of ``paths`` (a command's every output) is a file that
+    :func:`protected_reason` keeps; :class:`ProtectedFileError` names the file and the fix."""
+    for path in paths:
+        if path is None:
+            continue
+        reason = protected_reason(path, allow)
+        if reason:
+            raise ProtectedFileError(f"{os.fspath(path)} {reason}; writing over it is refused: choose another "
+                                     f"output name")
 
 
 def cache_dir() -> Path:
