@@ -2,7 +2,8 @@
 
 One embedded SQLite file in the user's data folder (WAL mode; ``~/.local/share/hairdigi/library.sqlite``),
 or one PostgreSQL database shared by several benches, with the same schema and the same SQL.
-``HAIRDIGI_LIBRARY`` (a file path or a ``postgresql://`` URL) overrides the default. The schema
+``HAIRDIGI_LIBRARY`` (a file path, a ``postgresql://`` URL or a libpq keyword string, read by one
+function, :func:`parse_location`) overrides the default; no password is ever shown (:func:`redact`). The schema
 evolves by numbered migrations (``MIGRATIONS``), each applied once, in a transaction.
 
 Every write is one transaction: a session's import is all there or not there, whatever kills the
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sqlite3
 import time
 from contextlib import contextmanager
@@ -46,12 +48,185 @@ def default_location() -> Path:
 
 
 def location() -> str:
-    """Where the library is: ``HAIRDIGI_LIBRARY`` (path or ``postgresql://`` URL), else the default file."""
-    return os.environ.get("HAIRDIGI_LIBRARY") or str(default_location())
+    """Where the library is: ``HAIRDIGI_LIBRARY`` (a file path, a PostgreSQL URL or a libpq keyword string,
+    read by :func:`parse_location`), else the default file."""
+    return (os.environ.get("HAIRDIGI_LIBRARY") or "").strip() or str(default_location())
+
+
+# --- addresses: parsed once, shown without their password -------------------------------------------
+#: libpq's connection settings (``PQconndefaults``): a keyword string names only these.
+LIBPQ_KEYWORDS = frozenset((
+    "host", "hostaddr", "port", "dbname", "user", "password", "passfile", "require_auth", "channel_binding",
+    "connect_timeout", "client_encoding", "options", "application_name", "fallback_application_name", "keepalives",
+    "keepalives_idle", "keepalives_interval", "keepalives_count", "tcp_user_timeout", "replication", "gssencmode",
+    "sslmode", "sslnegotiation", "requiressl", "sslcompression", "sslcert", "sslkey", "sslkeylogfile", "sslpassword",
+    "sslcertmode", "sslrootcert", "sslcrl", "sslcrldir", "sslsni", "requirepeer", "ssl_min_protocol_version",
+    "ssl_max_protocol_version", "krbsrvname", "gsslib", "gssdelegation", "service", "target_session_attrs",
+    "load_balance_hosts", "min_protocol_version", "max_protocol_version", "scram_client_key", "scram_server_key",
+    "oauth_issuer", "oauth_client_id", "oauth_client_secret", "oauth_scope"))
+#: Settings whose value is a secret, never shown.
+SECRET_KEYS = ("password", "sslpassword", "oauth_client_secret")
+FORMS = ("a PostgreSQL URL (postgresql://user@host/db), a libpq keyword string (host=... dbname=...) or the path "
+         "of a SQLite file")
+_SCHEME = re.compile(r"^([A-Za-z][A-Za-z0-9+.-]*):")
+_POSTGRES_SCHEME = re.compile(r"(?i)^postgres(?:ql)?(?:\+[a-z0-9_]+)?$")
+_KEY = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)\s*=\s*")
+_SECRET = "|".join(SECRET_KEYS)
+#: A URL's ``user:PASSWORD@`` (to the last ``@``: a password may hold one), its query's ``password=``, and a
+#: keyword string's ``password=VALUE`` (quoted, unterminated, or unquoted up to the next ``key=``).
+_URL_PASSWORD = re.compile(r"(?i)\b([a-z][a-z0-9+.-]*:/+[^:/@\s]*):.*@")
+_QUERY_PASSWORD = re.compile(rf"(?i)([?&](?:{_SECRET})=)[^&#\s]*")
+_KEYWORD_PASSWORD = re.compile(rf"(?i)(?<![?&\w])((?:{_SECRET})\s*=\s*)"
+                               r"('(?:[^'\\]|\\.)*'?|\S*(?:\s+(?![A-Za-z_][A-Za-z0-9_]*\s*=)\S+)*)")
+
+
+@dataclass(frozen=True)
+class Address:
+    """A library's address, parsed once (:func:`parse_location`): a SQLite file's ``path``, or the
+    ``conninfo`` a PostgreSQL driver connects to; ``secrets``, its password in every form and part, are
+    masked wherever a message shows text."""
+
+    given: str
+    path: Path | None = None
+    conninfo: str | None = None
+    secrets: tuple[str, ...] = ()
+
+    @property
+    def postgres(self) -> bool:
+        return self.conninfo is not None
+
+    @property
+    def shown(self) -> str:
+        return _mask(self.given, self.secrets)
+
+
+def parse_location(where: str | os.PathLike) -> Address:
+    """The one reading of a library address: a URL (any scheme case; ``postgres://``,
+    ``postgresql+driver://``), a libpq keyword string (``host=... password='...'``) or a file path. An
+    address that is none of these, or that the driver would misread, raises :class:`LibraryError` naming
+    the fix (without its password)."""
+    text = os.fspath(where).strip()
+    scheme = _SCHEME.match(text)
+    if scheme and (text[scheme.end():].startswith("//") or _POSTGRES_SCHEME.match(scheme.group(1))):
+        return _url_address(text, scheme.group(1))
+    key = _KEY.match(text)
+    if key and key.group(1).lower() in LIBPQ_KEYWORDS:
+        return _keyword_address(text)
+    return Address(text, path=Path(text).expanduser())
+
+
+def _secret_parts(*values: str) -> tuple[str, ...]:
+    """A password's every form: whole, URL-decoded, and each run of 3 or more letters and digits in it."""
+    from urllib.parse import unquote
+
+    forms = {v for value in values if value for v in (value, unquote(value))}
+    parts = {p for v in forms for p in re.split(r"[^0-9A-Za-z]+", v) if len(p) >= 3}
+    return tuple(sorted(forms | parts, key=len, reverse=True))
+
+
+def _url_address(text: str, scheme: str) -> Address:
+    """A ``scheme://`` address: PostgreSQL's (normalised to ``postgresql://``), else refused."""
+    from urllib.parse import parse_qsl
+
+    if not _POSTGRES_SCHEME.match(scheme):
+        raise LibraryError(f"HAIRDIGI_LIBRARY {_mask(text)}: a {scheme.lower()}:// address, which hairdigi cannot "
+                           f"open; give {FORMS}")
+    rest = text[len(scheme) + 1:]
+    if not rest.startswith("//"):
+        raise LibraryError(f"HAIRDIGI_LIBRARY holds a {scheme.lower()}: address without its '//'; write it as "
+                           f"postgresql://user@host/db")
+    body = rest[2:]
+    userinfo = body[:body.rfind("@")] if "@" in body else ""
+    password = userinfo.partition(":")[2] if ":" in userinfo else ""
+    query = body.partition("?")[2]
+    secrets = [password] + [v for k, v in parse_qsl(query, keep_blank_values=True) if k.lower() in SECRET_KEYS]
+    if re.search(r"[@/?#\s]", password):
+        raise LibraryError(f"HAIRDIGI_LIBRARY {_mask(text)}: the password holds '@', '/', '?', '#' or a space, "
+                           f"which a URL must percent-encode (%40, %2F, %3F, %23, %20); encode them, or give a "
+                           f"keyword string: host=... user=... password='...'")
+    return Address(text, conninfo="postgresql://" + body, secrets=_secret_parts(*secrets))
+
+
+def _keyword_address(text: str) -> Address:
+    """A libpq keyword string, read by libpq's rules (``key = value``, a value quoted with ``'`` and ``\\``
+    escapes where it holds a space); a word that is not ``key=value`` or a setting libpq does not know is
+    refused without showing it where it may be part of a password."""
+    pairs, pos, after_secret = [], 0, False
+    while True:
+        while pos < len(text) and text[pos].isspace():
+            pos += 1
+        if pos >= len(text):
+            break
+        key = _KEY.match(text, pos)
+        if not key:
+            raise LibraryError("HAIRDIGI_LIBRARY: the keyword string holds a word that is not key=value (a password "
+                               "with a space must be quoted: password='two words'); check its quoting")
+        name, pos = key.group(1).lower(), key.end()
+        if name not in LIBPQ_KEYWORDS:
+            shown = "a setting" if after_secret else repr(name[:40])
+            raise LibraryError(f"HAIRDIGI_LIBRARY: the keyword string names {shown} that libpq does not know; "
+                               f"use host, port, dbname, user, password, sslmode... (a password with a space must "
+                               f"be quoted: password='two words')")
+        value, pos, quoted = _keyword_value(text, pos)
+        pairs.append((name, value))
+        after_secret = name in SECRET_KEYS and not quoted
+    if not any(k in ("host", "hostaddr", "dbname", "service", "port", "user") for k, _ in pairs):
+        raise LibraryError(f"HAIRDIGI_LIBRARY {_mask(text)}: the keyword string names no server or database; "
+                           f"give {FORMS}")
+    return Address(text, conninfo=text, secrets=_secret_parts(*(v for k, v in pairs if k in SECRET_KEYS)))
+
+
+def _keyword_value(text: str, pos: int) -> tuple[str, int, bool]:
+    """The value at ``pos`` of a keyword string, the position after it, and whether it was quoted."""
+    out, quoted = [], pos < len(text) and text[pos] == "'"
+    pos += quoted
+    while pos < len(text):
+        c = text[pos]
+        if quoted and c == "'":
+            return "".join(out), pos + 1, True
+        if not quoted and c.isspace():
+            break
+        if c == "\\" and pos + 1 < len(text):
+            pos += 1
+            c = text[pos]
+        out.append(c)
+        pos += 1
+    if quoted:
+        raise LibraryError("HAIRDIGI_LIBRARY: a quoted value of the keyword string is not closed (a ' is missing); "
+                           "close it: password='two words'")
+    return "".join(out), pos, False
+
+
+def redact(text: str | os.PathLike) -> str:
+    """An address (or a message about one) with every password masked as ``***``, whole and in part: what
+    :func:`parse_location` finds its password to be, wherever it appears, and by its form: a URL's
+    ``user:PASSWORD@`` (to its last ``@``), a URL's ``?password=``, a keyword string's ``password=`` (quoted,
+    unclosed, or up to the next ``key=``), and ``sslpassword`` alike."""
+    text = os.fspath(text)
+    try:
+        secrets = parse_location(text).secrets
+    except LibraryError:
+        secrets = ()
+    return _mask(text, secrets)
+
+
+def _mask(text: str, secrets: tuple[str, ...] = ()) -> str:
+    """``text`` with each of ``secrets`` and every password found by its form masked."""
+    for secret in secrets:
+        text = text.replace(secret, "***")
+    text = _URL_PASSWORD.sub(r"\1:***@", text)
+    text = _QUERY_PASSWORD.sub(r"\1***", text)
+    return _KEYWORD_PASSWORD.sub(r"\1***", text)
+
+
+def driver_message(exc: BaseException, address: Address) -> str:
+    """A driver's message on one line, with the address's password masked wherever it appears, whole or in part."""
+    return _mask(" ".join(str(exc).split()) or type(exc).__name__, address.secrets)[:400]
 
 
 def is_url(where: str) -> bool:
-    return where.startswith(("postgresql://", "postgres://"))
+    """Whether ``where`` addresses a PostgreSQL server (a URL or a keyword string), not a file."""
+    return parse_location(where).postgres
 
 
 # --- schema ----------------------------------------------------------------------------------------
@@ -147,8 +322,9 @@ class _Db:
 
     def __init__(self, where: str) -> None:
         self.where = where
-        self.shown = redact(where)
-        self.postgres = is_url(where)
+        self.address = parse_location(where)
+        self.shown = self.address.shown
+        self.postgres = self.address.postgres
         if self.postgres:
             try:
                 import psycopg
@@ -157,14 +333,14 @@ class _Db:
             options = (f"-c lock_timeout={int(LOCK_TIMEOUT_S * 1000)} "
                        f"-c statement_timeout={int(STATEMENT_TIMEOUT_S * 1000)}")
             try:
-                self.conn = psycopg.connect(where, autocommit=True, connect_timeout=CONNECT_TIMEOUT_S,
+                self.conn = psycopg.connect(self.address.conninfo, autocommit=True, connect_timeout=CONNECT_TIMEOUT_S,
                                             options=options)
             except psycopg.Error as exc:
                 raise LibraryError(f"cannot connect to the library at {self.shown} within {CONNECT_TIMEOUT_S} s a "
-                                   f"host: {_first_line(exc, where)}; check that the server runs and answers, or "
-                                   f"set HAIRDIGI_LIBRARY to another library") from None
+                                   f"host: {driver_message(exc, self.address)}; check that the server runs and "
+                                   f"answers, or set HAIRDIGI_LIBRARY to another library") from None
         else:
-            path = Path(where).expanduser()
+            path = self.address.path
             self._check_file(path)
             path.parent.mkdir(parents=True, exist_ok=True)
             try:
@@ -225,7 +401,7 @@ class _Db:
                 raise LibraryError(f"the library {self.shown}: {'a lock' if name == 'LockNotAvailable' else 'a query'} "
                                    f"waited longer than {LOCK_TIMEOUT_S if name == 'LockNotAvailable' else STATEMENT_TIMEOUT_S:g} "
                                    f"s (another session holds it); try again when it ends") from None
-            raise LibraryError(f"the library {self.shown}: {_first_line(exc, self.where)}") from None
+            raise LibraryError(f"the library {self.shown}: {driver_message(exc, self.address)}") from None
 
     def _sql(self, sql: str) -> str:
         return sql.replace("?", "%s") if self.postgres else sql
@@ -270,29 +446,16 @@ class _Db:
         self.conn.close()
 
 
-def redact(where: str) -> str:
-    """A library's location without its password (a URL's ``user:PASSWORD@`` or ``password=`` setting)."""
-    import re
-
-    where = re.sub(r"(://[^:/@]*):[^@/]*@", r"\1:***@", str(where))
-    return re.sub(r"(?i)(password\s*=\s*)('[^']*'|[^&\s]*)", r"\1***", where)
-
-
 _redact = redact
 
 
 def _first_line(exc: BaseException, where: str) -> str:
-    """A driver's message, first line, with the location's password masked wherever it appears."""
-    from urllib.parse import unquote, urlsplit
-
-    text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+    """:func:`driver_message` for an address given as text."""
     try:
-        password = urlsplit(where).password
-    except ValueError:
-        password = None
-    for secret in {password, unquote(password or "")} - {None, ""}:
-        text = text.replace(secret, "***")
-    return redact(text)
+        address = parse_location(where)
+    except LibraryError:
+        address = Address(str(where))
+    return driver_message(exc, address)
 
 
 def like_escape(text: str) -> str:
