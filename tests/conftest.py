@@ -17,13 +17,27 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 TEST_OUTPUT = Path(os.environ.get("HAIRDIGI_TEST_OUTPUT", Path(__file__).resolve().parent.parent / "test-output"))
 
 
+def pytest_collection_modifyitems(items) -> None:
+    """Each test's tier in the JUnit report (``packaging/bench/tests/durations.py`` reads it)."""
+    for item in items:
+        item.user_properties.append(("tier", "slow" if item.get_closest_marker("slow") else "fast"))
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _private_cache(tmp_path_factory):
-    """One cache for the whole run (the simulated rig's light renders are made once), never ~/.cache."""
-    os.environ["HAIRDIGI_CACHE"] = str(tmp_path_factory.mktemp("cache"))
+    """One cache for the whole run, never ~/.cache: the simulated rig's light renders, the response curves and
+    shine tables are made once. Under pytest-xdist the workers of one run share it: every entry is keyed by
+    what it holds and written atomically (``render.domain.files.atomic_path``), so two workers that make the
+    same entry at once write the same bytes. A test of the cache itself sets its own."""
+    base = tmp_path_factory.getbasetemp()
+    cache = base.parent / "shared-cache" if os.environ.get("PYTEST_XDIST_WORKER") else base / "cache"
+    cache.mkdir(exist_ok=True)
+    os.environ["HAIRDIGI_CACHE"] = str(cache)
     # the swatch library: a private file, and no sessions written before it to import
     os.environ["HAIRDIGI_LIBRARY"] = str(tmp_path_factory.mktemp("library") / "library.sqlite")
     os.environ["HAIRDIGI_SESSIONS"] = str(tmp_path_factory.mktemp("no-sessions"))
+    # the app's settings (QSettings) too: parallel workers never share one user's settings file
+    os.environ["XDG_CONFIG_HOME"] = str(tmp_path_factory.mktemp("config"))
 
 
 TINY = dict(n=8, size=32, spp=2, seed=3, strands=150, shard_size=4)
@@ -72,21 +86,27 @@ def avr_build(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def xvfb():
-    """A real X server for pyvistaqt (the strand view needs GL on X), shared by the tests that open one."""
+    """A real X server for pyvistaqt (the strand view needs GL on X), shared by the tests that open one.
+    Xvfb picks a free display itself (``-displayfd``), so parallel workers and other servers never collide."""
+    import select
     import shutil
     import subprocess
-    import time
 
     binary = shutil.which("Xvfb")
     assert binary, "Xvfb is missing: the Makefile's system-deps step installs it (apt-get install xvfb)"
-    display = ":97"
-    proc = subprocess.Popen([binary, display, "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    socket, deadline = Path(f"/tmp/.X11-unix/X{display[1:]}"), time.monotonic() + 30
-    while not socket.exists() and proc.poll() is None and time.monotonic() < deadline:   # until it listens
-        time.sleep(0.02)
-    assert proc.poll() is None and socket.exists(), "Xvfb did not start"
-    yield display
+    read, write = os.pipe()
+    proc = subprocess.Popen([binary, "-displayfd", str(write), "-screen", "0", "1600x1000x24", "-nolisten", "tcp"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, pass_fds=(write,))
+    os.close(write)
+    number = b""
+    while not number.endswith(b"\n") and select.select([read], [], [], 60)[0]:   # it writes "N\n" once it listens
+        chunk = os.read(read, 16)
+        if not chunk:
+            break
+        number += chunk
+    os.close(read)
+    assert proc.poll() is None and number.strip().isdigit(), "Xvfb did not start"
+    yield f":{number.strip().decode()}"
     proc.terminate()
     proc.wait(5)
 

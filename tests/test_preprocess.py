@@ -9,6 +9,7 @@ import pytest
 
 from hairdigi.inference.preprocess import (MAX_IMAGE_PIXELS, ImageError, Roi, find_swatch_roi, image_size, read_image,
                                            swatch_crop)
+from deadlines import within
 
 SIM = (200, 150)   # a small rig frame (the rig's is 400 x 300): the same view, a quarter of the pixels
 
@@ -125,7 +126,7 @@ def test_a_large_frame_is_searched_scaled_down(rig_frames):
     seconds = time.perf_counter() - start
     expected = np.array([small.x, small.y, small.w, small.h]) * factor
     assert np.all(np.abs(np.array([roi.x, roi.y, roi.w, roi.h]) - expected) <= 0.06 * expected.max()), (roi, expected)
-    assert seconds < 10, seconds                  # it took minutes when the frame was searched whole
+    assert seconds < within(10), seconds                  # it took minutes when the frame was searched whole
 
 
 def test_all_hair_and_flat_noise_keep_the_whole_image():
@@ -148,7 +149,7 @@ def test_a_huge_image_is_refused_from_its_header_quickly(tmp_path):
     start = time.perf_counter()
     with pytest.raises(ImageError, match="20000x20000 px is more than hairdigi decodes"):
         read_image(path)
-    assert time.perf_counter() - start < 1.0
+    assert time.perf_counter() - start < within(1.0)
     assert 6000 * 4000 <= MAX_IMAGE_PIXELS < 20000 * 20000   # a camera still is read; this is not
 
 

@@ -10,6 +10,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from hairdigi.render.strands import SWATCH_LENGTH, SWATCH_WIDTH, Strands, layered_swatch_strands, swatch_strands
+from deadlines import within
 
 
 def closest_fibres(strands: Strands, per_segment: int = 16) -> float:
@@ -44,7 +45,7 @@ def test_the_check_finds_todays_interpenetration() -> None:
 def test_layered_swatch_spans_the_holder_and_builds_fast() -> None:
     start = time.perf_counter()
     strands = layered_swatch_strands(8000, seed=1)
-    assert time.perf_counter() - start < 1.0
+    assert time.perf_counter() - start < within(1.0)
     assert strands.n_strands == 8000
     drawn = strands.curves(4).points   # what Mitsuba draws, through_ends honoured
     assert drawn[:, 1].min() == pytest.approx(-SWATCH_LENGTH / 2, abs=1e-4)
