@@ -4,6 +4,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -46,8 +47,66 @@ def _with_colours(rows: list[SwatchRow]) -> list[SwatchRow]:
     return rows
 
 
+#: The largest capture image hashed at import (a RAW still is tens of MB; a file this large is no capture).
+MAX_IMAGE_BYTES = 1 << 30
+_CHUNK = 1 << 20
+
+
+def checked_image(session: SessionFolder, name: str, claimed: str, record: Path) -> tuple[Path, str]:
+    """A capture's image and its sha256, recomputed: the image must lie inside its session folder, be a
+    regular file, and hash to what its record claims (when it claims one). A record that lies (an image
+    elsewhere, missing, or another's hash: it would take over that capture's swatch) raises
+    :class:`LibraryError` naming the record, before anything is written."""
+    root, path = session.root.resolve(), session.image(name)
+    shown = repr(str(name)[:120])
+    try:
+        real = path.resolve()
+    except (OSError, RuntimeError):
+        real = None
+    if real is None or Path(name).is_absolute() or (real != root and root not in real.parents):
+        raise LibraryError(f"{record}: its image {shown} lies outside the session folder {root}; the record is not "
+                           f"the one the rig wrote: fix or remove that capture's records, then import again")
+    if not real.exists():
+        raise LibraryError(f"{record}: no image {shown} in {session.captures} (moved or deleted?); put the image "
+                           f"back or remove that capture's records, then import again")
+    digest = _sha256_of(real, record, shown)
+    if claimed and digest != str(claimed).lower():
+        raise LibraryError(f"{record}: its image_sha256 does not match its image {shown} (the image or the record "
+                           f"was changed after the capture); restore them or remove that capture's records, "
+                           f"then import again")
+    return path, digest
+
+
+def _sha256_of(path: Path, record: Path, shown: str) -> str:
+    """The sha256 of a regular file of at most ``MAX_IMAGE_BYTES``, read in chunks (a device, a FIFO or a
+    folder is refused before a byte is read)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
+    except OSError as exc:
+        raise LibraryError(f"{record}: its image {shown} cannot be read ({exc.strerror or exc}); make it "
+                           f"readable, then import again") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise LibraryError(f"{record}: its image {shown} is not a regular file (a folder, device or pipe); "
+                               f"put the capture's image back, then import again")
+        if info.st_size > MAX_IMAGE_BYTES:
+            raise LibraryError(f"{record}: its image {shown} is {info.st_size / 1e9:.1f} GB, larger than any "
+                               f"capture ({MAX_IMAGE_BYTES / 1e9:.1f} GB); remove that capture, then import again")
+        digest = hashlib.sha256()
+        with os.fdopen(fd, "rb", closefd=False) as f:
+            for chunk in iter(lambda: f.read(_CHUNK), b""):
+                digest.update(chunk)
+        return digest.hexdigest()
+    except OSError as exc:
+        raise LibraryError(f"{record}: its image {shown} cannot be read ({exc.strerror or exc})") from None
+    finally:
+        os.close(fd)
+
+
 def capture_rows(folder: str | Path) -> list[SwatchRow]:
-    """One row per capture of a session folder (``captures/<id>.json`` and its ``.result.json``)."""
+    """One row per capture of a session folder (``captures/<id>.json`` and its ``.result.json``), each
+    capture's image checked (:func:`checked_image`); its swatch's id is its image's recomputed hash."""
     folder = Path(folder).resolve()
     session = SessionFolder(folder)
     if not session.is_session():
@@ -59,10 +118,10 @@ def capture_rows(folder: str | Path) -> list[SwatchRow]:
         if read.problems:
             raise LibraryError(read.problems[0])
         capture, estimate, result_path = read.capture, read.result, session.result_record(capture_id)
-        identity = capture.image_sha256 or f"{folder}/{capture_id}"
+        image, identity = checked_image(session, capture.image, capture.image_sha256, meta_path)
         rows.append(SwatchRow(
             id="c" + _short(identity)[:15], kind="capture", session=str(folder), capture_id=capture_id,
-            captured=capture.captured or None, image_path=str(session.image(capture.image)),
+            captured=capture.captured or None, image_path=str(image),
             record_path=str(result_path if estimate is not None else meta_path),
             record_sha256=record_sha256(result_path) if estimate is not None else None,
             reliable=bool(estimate and estimate.reliable),
@@ -90,18 +149,22 @@ def record_row(path: str | Path) -> SwatchRow:
 
 
 def import_paths(library: Library, paths: list[str | Path], progress=print) -> int:
-    """Import session folders (one transaction each) and record files; the swatches written."""
-    total = 0
+    """Import session folders (one transaction each) and record files; the swatches written. Every path is
+    read and checked before the first is written: one that cannot be imported leaves the library as it was."""
+    batches = []
     for path in paths:
         path = Path(path)
         if path.is_dir():
-            rows = capture_rows(path)
-            progress(f"writing {len(rows)} captures of {path.resolve()}")
-            total += library.add(rows, session=str(path.resolve()))
+            batches.append((capture_rows(path), str(path.resolve())))
         elif path.is_file():
-            total += library.add([record_row(path)])
+            batches.append(([record_row(path)], None))
         else:
             raise LibraryError(f"{path}: no such session folder or record file")
+    total = 0
+    for rows, session in batches:
+        if session is not None:
+            progress(f"writing {len(rows)} captures of {session}")
+        total += library.add(rows, session=session)
     return total
 
 
