@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import re
 import sys
 import time
 from pathlib import Path
@@ -91,13 +92,23 @@ def export_rows(library: Library) -> list[dict]:
 
 #: OWASP's CSV injection advice: a cell starting with one of these is read as a formula by a spreadsheet.
 FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+#: Where a spreadsheet may split a cell's text into cells (a locale's list separator, text to columns, a
+#: pasted line): every piece after one of these is a cell start too.
+CELL_SEPARATORS = ",;|\t\r\n\v\f"
+#: A piece after a separator that starts a formula, past spaces and double quotes (a quoted ``"=1+2"``).
+_FORMULA_AFTER_SEPARATOR = re.compile(rf"([{re.escape(CELL_SEPARATORS)}][ \"]*)(?=[=+\-@])")
 #: The most characters an XLSX cell holds (Excel's limit; openpyxl writes more, and Excel cuts them).
 XLSX_CELL_MAX = 32_767
 
 
 def neutral_cell(value):
-    """A table cell no spreadsheet runs: text starting with ``= + - @`` TAB or CR gets a leading ``'``."""
-    if isinstance(value, str) and value.startswith(FORMULA_STARTS):
+    """A table cell no spreadsheet runs, however it splits it: text starting (past spaces and quotes) with
+    ``= + - @``, TAB or CR gets a leading ``'``, and so does every piece after a separator a spreadsheet may
+    split on (``, ; |`` TAB, CR, LF) that starts with ``= + - @``. Idempotent; numbers are kept."""
+    if not isinstance(value, str):
+        return value
+    value = _FORMULA_AFTER_SEPARATOR.sub(r"\1'", value)
+    if value.startswith(FORMULA_STARTS) or value.lstrip(' "').startswith(FORMULA_STARTS[:4]):
         return "'" + value
     return value
 
@@ -145,8 +156,8 @@ def write_export(library: Library, csv_path: str | None = None, xlsx_path: str |
                     cell.data_type = "s"
     with atomic_paths(csv_path, xlsx_path) as (csv_tmp, xlsx_tmp):
         if csv_tmp is not None:
-            with open(csv_tmp, "w", newline="", encoding="utf-8") as f:
-                writer = csv.DictWriter(f, fieldnames=EXPORT_COLUMNS)
+            with open(csv_tmp, "w", newline="", encoding="utf-8") as f:   # text quoted: one cell in any locale
+                writer = csv.DictWriter(f, fieldnames=EXPORT_COLUMNS, quoting=csv.QUOTE_NONNUMERIC)
                 writer.writeheader()
                 writer.writerows(rows)
         if xlsx_tmp is not None:
@@ -191,7 +202,7 @@ def _find(library: Library, args) -> int:
 
 def _tag(library: Library, args) -> int:
     tags = library.tag(args.swatch, args.tags, remove=args.remove)
-    print(f"{library.resolve(args.swatch)}: {', '.join(tags) or 'no tags'}")
+    print(printable(f"{library.resolve(args.swatch)}: {', '.join(tags) or 'no tags'}"))
     return 0
 
 
