@@ -206,9 +206,49 @@ def say_spectral(record, say=print) -> None:
             + ", ".join(f"{light} L*a*b* {lab[0]:.1f} {lab[1]:.1f} {lab[2]:.1f}" for light, lab in r.under.items()))
 
 
-def report_still(session_folder: str | Path, still: str | Path, say=print, structure: str = DEFAULT_STRUCTURE) -> int:
-    """``hairdigi rig --still``: import a RAW still into the session, estimate it (``structure``: ``--structure``),
-    and say what came out. No rig is opened, so the still's structure is not read from the rig's frames."""
+#: ``rig``'s flags that act on the live rig only, each with its default: with ``--still`` they are refused.
+LIVE_ONLY = {"sim": ("--sim", False), "spectral": ("--spectral", False), "genicam": ("--genicam", None),
+             "camera": ("--camera", "0"), "port": ("--port", None), "roi": ("--roi", None),
+             "cast": ("--cast", (1.25, 1.0, 0.8)), "exposure": ("--exposure", 0.0), "dead": ("--dead", None),
+             "spp": ("--spp", 32), "hidden": ("--hidden", None), "hidden_structure": ("--hidden-structure", None)}
+
+
+def check_still_flags(args) -> None:
+    """``rig --still`` takes the session, ``--structure`` and a real camera's ``--led``/``--sensor``; any flag of
+    the live rig is refused in one line, never ignored, and so is ``--structure read`` (a still has no
+    single-light frames to read it from, as ``estimate`` refuses it without ``--lights``)."""
+    given = [flag for dest, (flag, default) in LIVE_ONLY.items() if _given(getattr(args, dest, default), default)]
+    if given:
+        raise v.ArgumentError(f"{' '.join(given)} acts on the live rig, which --still does not open (a still is read "
+                              "from its file, with its own chart): leave it out, or run hairdigi rig without --still")
+    if getattr(args, "structure", None) == "read":
+        raise v.ArgumentError("--structure read reads the swatch's structure from its single-light frames, which a "
+                              "RAW still does not have: use --structure family (or assumed)")
+
+
+def _given(value, default) -> bool:
+    """Whether a flag's value differs from its default (a list given for a tuple default compared as one)."""
+    return (tuple(value) if isinstance(value, list) else value) != default
+
+
+def still_spectra(led: str | None, sensor: str | None):
+    """A still camera's declared LEDs and sensitivities (``--led``/``--sensor``) as ``import_still``'s
+    ``in_spectral_world``: its record read in the camera's RGB as a declared rig's; None where none is declared."""
+    from hairdigi.app.session.spectra import rig_spectra
+
+    spectra = rig_spectra(False, False, led, sensor)[1]
+    if spectra is None:
+        return None
+    from hairdigi.inference.spectral import spectral_record
+
+    return lambda record, profile, curve: spectral_record(record, spectra, profile, curve)
+
+
+def report_still(session_folder: str | Path, still: str | Path, say=print, structure: str = DEFAULT_STRUCTURE,
+                 led: str | None = None, sensor: str | None = None) -> int:
+    """``hairdigi rig --still``: import a RAW still into the session, estimate it (``structure``: ``--structure``;
+    ``led`` and ``sensor``, the declared spectra it is read under), and say what came out. No rig is opened, so the
+    still's structure is not read from the rig's frames."""
     from hairdigi.app.session.rig_session import import_still
     from hairdigi.inference.encoder import Encoder, ModelError
 
@@ -218,7 +258,7 @@ def report_still(session_folder: str | Path, still: str | Path, say=print, struc
         except ModelError as exc:
             return str(exc)
 
-    result = import_still(session_folder, still, encoder, structure=structure)
+    result = import_still(session_folder, still, encoder, still_spectra(led, sensor), structure=structure)
     say(f"still: {result.image_path} (+ {result.meta_path.name}), copied before processing")
     from hairdigi.render.domain.records import CaptureRecord, read_record
 
@@ -290,7 +330,9 @@ def run(args: argparse.Namespace) -> int:
         print("light boards: " + (", ".join(f"{p} ({ident})" for p, ident in boards) or "none answered ID?"))
         return 0
     if args.still:
-        return report_still(args.session, args.still, structure=getattr(args, "structure", None) or DEFAULT_STRUCTURE)
+        check_still_flags(args)
+        return report_still(args.session, args.still, structure=getattr(args, "structure", None) or DEFAULT_STRUCTURE,
+                            led=args.led, sensor=args.sensor)
     session = open_session(args)
     try:
         run_chain(session)

@@ -17,7 +17,7 @@ from typing import Callable
 
 import numpy as np
 
-from hairdigi.hardware.cameras import RAW_EXTENSIONS, read_raw
+from hairdigi.hardware.cameras import MAX_RAW_BYTES, RAW_EXTENSIONS, read_raw
 from hairdigi.hardware.capture import save_capture
 from hairdigi.app.session.blockers import Blocker, BlockerKind, messages
 from hairdigi.hardware.exposure import ExposureReport, ExposureStatus, check_exposure, dead_lights
@@ -520,6 +520,72 @@ class StillError(HairdigiError, ValueError):
     """A file given as a RAW still that is not one."""
 
 
+#: The largest file taken as a RAW still: the reader's own bound (``hardware.cameras.MAX_RAW_BYTES``, 512 MiB: a
+#: 150 MP medium-format back's uncompressed 16-bit RAW is about 300 MB, a 61 MP full-frame camera's 120 MB), checked
+#: before the copy, so a huge or sparse file never reaches the session's disk.
+MAX_STILL_BYTES = MAX_RAW_BYTES
+#: What a still's capture needs on the disk beside its copy: its records and the result.
+STILL_SPARE_BYTES = 16 * 1024 * 1024
+#: The smallest still read: the chart's 24 patches and a swatch need more pixels than this a side.
+MIN_STILL_SIDE = 64
+
+
+def check_still_size(path: Path, captures: Path) -> None:
+    """A still's size, before it is copied: no more than a RAW file's (``MAX_STILL_BYTES``), and room for it on the
+    session's disk; StillError naming the size and the fix otherwise."""
+    import shutil
+
+    size = path.stat().st_size
+    if size > MAX_STILL_BYTES:
+        raise StillError(f"{path}: {size / 1e6:.0f} MB is more than any RAW still of the rig (at most "
+                         f"{MAX_STILL_BYTES / 1e6:.0f} MB); is it a RAW still? nothing was copied")
+    where = next(p for p in (captures, *captures.parents) if p.exists())
+    free = shutil.disk_usage(where).free
+    if size + STILL_SPARE_BYTES > free:
+        raise StillError(f"{path}: {size / 1e6:.0f} MB does not fit in the {free / 1e6:.0f} MB free on the session's "
+                         f"disk ({where}); free some space or use a session on another disk")
+
+
+def read_still_or_remove(original: Path, image_path: Path, meta_path: Path, made: list[Path]):
+    """The copied still, decoded (``read_raw``); one that cannot be read (not RAW, truncated, too small to hold the
+    chart) is removed with its record and the folders made for it, and StillError names it: nothing is left."""
+    from hairdigi.hardware.cameras import CameraError
+
+    try:
+        with _native_stderr_silenced():   # LibRaw writes its own complaint to the process's stderr
+            still = read_raw(image_path)
+        height, width = still.srgb.shape[:2]
+        if min(height, width) < MIN_STILL_SIDE:
+            raise StillError(f"{width}x{height} px is too small to hold the chart and the swatch")
+    except (CameraError, StillError, MemoryError) as exc:
+        for p in (image_path, meta_path):
+            p.unlink(missing_ok=True)
+        for d in made:
+            if d.is_dir() and not any(d.iterdir()):
+                d.rmdir()
+        why = str(exc).replace(str(image_path), "").lstrip(": ") or type(exc).__name__
+        raise StillError(f"{original}: not a RAW still hairdigi can read ({why}); nothing was kept in the "
+                         "session: give the camera's own RAW file, as shot, with the chart in view") from None
+    return still
+
+
+class _native_stderr_silenced:
+    """File descriptor 2 pointed at /dev/null while native code runs (Python's own ``sys.stderr`` is untouched)."""
+
+    def __enter__(self):
+        import sys
+
+        sys.stderr.flush()
+        self._saved = os.dup(2)
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, 2)
+        os.close(null)
+
+    def __exit__(self, *exc) -> None:
+        os.dup2(self._saved, 2)
+        os.close(self._saved)
+
+
 def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
                  in_spectral_world: Callable[..., EstimateRecord] | None = None,
                  structure: str = DEFAULT_STRUCTURE, borrowed=None) -> CaptureResult:
@@ -540,10 +606,12 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
                          "open images and videos with hairdigi estimate")
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such RAW file")
-    image_path, meta_path, capture = save_capture(SessionFolder(folder).captures, raw_path=path, source="raw still",
-                                                  original=path.name)
+    captures = SessionFolder(folder).captures
+    check_still_size(path, captures)
+    made = [d for d in (captures, captures.parent) if not d.exists()]
+    image_path, meta_path, capture = save_capture(captures, raw_path=path, source="raw still", original=path.name)
     result = CaptureResult(capture.id, image_path, meta_path)
-    still = read_raw(image_path)
+    still = read_still_or_remove(path, image_path, meta_path, made)
     profile = None
     try:
         profile = calibrate(still.srgb, settings={"camera": still.meta.get("camera"), "still": image_path.name},
