@@ -114,9 +114,9 @@ def test_16_bit_png_and_exr_light_frames_are_read(rig_capture, tmp_path, capsys)
             assert frame.dtype == np.float32 and np.allclose(frame, lin, atol=2e-3), path
     image = tmp_path / "frame.png"
     image.write_bytes(image_path.read_bytes())
-    for lights in (png16, exr):
+    for kind, lights in (("png16", png16), ("exr", exr)):   # an estimate record is never written over: one each
         assert main(["estimate", str(image), "--no-refine", "--lights", ",".join(map(str, lights)), "--lights-ev",
-                     "1.5", "--out", str(tmp_path / "e.json")]) == 0, capsys.readouterr().err
+                     "1.5", "--out", str(tmp_path / f"e-{kind}.json")]) == 0, capsys.readouterr().err
 
 
 def test_a_device_as_a_light_frame_is_refused_before_it_is_read(ws, capsys):
