@@ -199,7 +199,7 @@ def _read_table(path: Path, columns: int, what: str, form: str) -> np.ndarray:
         try:
             values = [float(c) for c in cells]
         except ValueError:
-            if not rows and n == 1:   # a header
+            if not rows and n == 1 and not any(_is_number(c) for c in cells):   # a header: words only
                 continue
             raise SpectrumError(f"{what} {path}, line {n}: {','.join(cells)[:60]!r} is not {columns} numbers; "
                                 f"{fix}") from None
@@ -223,6 +223,73 @@ def _read_table(path: Path, columns: int, what: str, form: str) -> np.ndarray:
     if not np.any(table[:, 1:] > 0, axis=0).all():
         raise SpectrumError(f"{what} {path}: a column is all zero; {fix}")
     return table
+
+
+def _is_number(cell: str) -> bool:
+    """Whether a CSV cell reads as a number (a first row holding one is data, never a header)."""
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
+
+
+#: Where light is colour (nm): a light's power and a camera channel's response must lie mostly inside it.
+VISIBLE_NM = (380.0, 780.0)
+#: The least share of a light's power, or of a camera channel's response, inside ``VISIBLE_NM`` (on ``WAVELENGTHS``,
+#: 360-830 nm: CIE A, the reddest named light, has 0.80; every named camera 1.00).
+MIN_VISIBLE_SHARE = 0.5
+#: A white LED's spread: the least share of its 400-700 nm power in each third (blue 400-490, green 490-580, red
+#: 580-700 nm); the named lights have at least 0.066 (LED-RGB1's blue), a single-wavelength LED 0 in two.
+WHITE_BANDS_NM = ((400.0, 490.0), (490.0, 580.0), (580.0, 700.0))
+MIN_WHITE_BAND_SHARE = 0.03
+#: Two camera channels whose sensitivities point this nearly the same way (cosine) cannot be told apart; the Sigma
+#: SD Merrill's (a Foveon, the most overlapping camera measured) reach 0.92.
+MAX_CHANNEL_COSINE = 0.98
+
+
+def _visible_share(values: np.ndarray) -> np.ndarray:
+    """The share of a spectrum's (or each column's) sum on ``WAVELENGTHS`` that lies inside ``VISIBLE_NM``."""
+    inside = (WAVELENGTHS >= VISIBLE_NM[0]) & (WAVELENGTHS <= VISIBLE_NM[1])
+    total = np.asarray(values, float).sum(0)
+    return np.where(total > 0, np.asarray(values, float)[inside].sum(0) / np.where(total > 0, total, 1.0), 0.0)
+
+
+def white_light_problem(name: str) -> str | None:
+    """Why a light cannot be a rig's white LEDs (too little power in one of ``WHITE_BANDS_NM``), or None."""
+    spd = illuminant_spd(name)
+    window = (WAVELENGTHS >= WHITE_BANDS_NM[0][0]) & (WAVELENGTHS <= WHITE_BANDS_NM[-1][1])
+    total = float(spd[window].sum())
+    shares = [float(spd[(WAVELENGTHS >= lo) & (WAVELENGTHS < hi)].sum()) / total for lo, hi in WHITE_BANDS_NM]
+    low = [f"{lo:g}-{hi:g} nm {share:.0%}" for (lo, hi), share in zip(WHITE_BANDS_NM, shares)
+           if share < MIN_WHITE_BAND_SHARE]
+    if not low:
+        return None
+    return (f"illuminant {name}: not a white light (of its 400-700 nm power: {', '.join(low)}; a white LED has at "
+            f"least {MIN_WHITE_BAND_SHARE:.0%} in each of blue, green and red); give the rig's white LEDs' SPD")
+
+
+def _camera_problem(name: str, bands: np.ndarray) -> str | None:
+    """Why a camera's sensitivities (n, 3) cannot read colour: a channel with no response inside ``VISIBLE_NM``, two
+    channels alike, or channels out of r, g, b order; None when they can."""
+    share = _visible_share(bands)
+    weak = [c for c, v in zip("rgb", share) if v < MIN_VISIBLE_SHARE]
+    if weak:
+        return (f"camera {name}: channel {', '.join(weak)} responds mostly outside {VISIBLE_NM[0]:g}-{VISIBLE_NM[1]:g} "
+                f"nm (" + ", ".join(f"{c} {v:.0%}" for c, v in zip("rgb", share)) + " inside); a camera's three "
+                "channels respond to visible light: check the file's columns and units")
+    unit = bands / np.linalg.norm(bands, axis=0)
+    cosine = unit.T @ unit
+    alike = [f"{a} and {b} ({cosine[i, j]:.3f})" for i, j, a, b in ((0, 1, "r", "g"), (1, 2, "g", "b"), (0, 2, "r", "b"))
+             if cosine[i, j] > MAX_CHANNEL_COSINE]
+    if alike:
+        return (f"camera {name}: channels {', '.join(alike)} respond alike, so colour cannot be read; give three "
+                "distinct channels, r, g, b")
+    centre = (WAVELENGTHS[:, None] * bands).sum(0) / bands.sum(0)
+    if not centre[0] > centre[1] > centre[2]:
+        return (f"camera {name}: its channels' centres (r {centre[0]:.0f}, g {centre[1]:.0f}, b {centre[2]:.0f} nm) "
+                "are not red above green above blue; give the columns as wavelength, r, g, b")
+    return None
 
 
 #: A Planckian radiator named by its temperature: "3200K" (1000-25000 K).
@@ -250,8 +317,11 @@ def illuminant_spd(name: str) -> np.ndarray:
         raise SpectrumError(f"unknown illuminant {name!r}; choose one of {', '.join(ILLUMINANTS)}, a "
                             f"temperature from 1000K to 25000K, or a CSV file of wavelength (nm), power")
     y = float(spectrum_to_xyz(values)[1])
-    if y <= 0:
-        raise SpectrumError(f"illuminant {name}: no power where the eye sees (380–780 nm); check the file")
+    share = float(_visible_share(values))
+    if y <= 0 or share < MIN_VISIBLE_SHARE:
+        raise SpectrumError(f"illuminant {name}: {share:.0%} of its power lies where the eye sees "
+                            f"({VISIBLE_NM[0]:g}-{VISIBLE_NM[1]:g} nm), too little to light a colour (infrared or "
+                            "ultraviolet only?); give a visible light's SPD, wavelength (nm), power")
     return values / y
 
 
@@ -271,6 +341,9 @@ def camera_sensitivities(name: str) -> np.ndarray:
         raise SpectrumError(f"unknown camera {name!r}; choose one of {', '.join(CAMERAS)} "
                             f"or give a CSV file of wavelength (nm), r, g, b")
     out = np.stack([np.interp(WAVELENGTHS, wl, values[:, k], left=0.0, right=0.0) for k in range(3)], axis=1)
+    problem = _camera_problem(name, out)
+    if problem is not None:
+        raise SpectrumError(problem)
     return out / out.max(0)
 
 

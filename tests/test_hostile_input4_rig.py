@@ -126,3 +126,93 @@ def test_a_still_that_cannot_be_read_leaves_nothing_in_the_session(ws, capsys):
             one_line(main(["rig", "--still", str(still), "--session", session]), capsys, name, "nothing was kept")
             assert snapshot(ws) == before, (name, session)
             assert not (ws / "new").exists(), name
+
+
+# --- 11. spectral inputs checked for what the physics needs (and 4: a light that is not visible) -------------
+NM = np.arange(300, 905, 5)
+
+
+def spectrum_csv(path: Path, *columns: np.ndarray, header: str | None = "nm,value") -> Path:
+    rows = [",".join(f"{v:g}" for v in row) for row in zip(NM, *columns)]
+    path.write_text("\n".join(([header] if header else []) + rows) + "\n")
+    return path
+
+
+def bump(centre: float, width: float = 30.0) -> np.ndarray:
+    return np.exp(-0.5 * ((NM - centre) / width) ** 2)
+
+
+def where(mask) -> np.ndarray:
+    return np.asarray(mask, float)
+
+
+@pytest.fixture
+def spectra_files(ws) -> dict[str, Path]:
+    """Lights and cameras a careless user might declare, and a sound pair."""
+    r, g, b = bump(600), bump(540), bump(460)
+    return {
+        "infrared.csv": spectrum_csv(ws / "infrared.csv", where(NM >= 820)),
+        "ir780.csv": spectrum_csv(ws / "ir780.csv", where(NM >= 780)),
+        "uv.csv": spectrum_csv(ws / "uv.csv", where(NM <= 365)),
+        "mono.csv": spectrum_csv(ws / "mono.csv", bump(590, 3)),
+        "white.csv": spectrum_csv(ws / "white.csv", bump(450, 12) + 0.8 * bump(570, 60)),
+        "red-ir.csv": spectrum_csv(ws / "red-ir.csv", where(NM > 830), g, b),
+        "red-uv.csv": spectrum_csv(ws / "red-uv.csv", where(NM < 360), g, b),
+        "alike.csv": spectrum_csv(ws / "alike.csv", g, g, g * 0.9),
+        "bgr.csv": spectrum_csv(ws / "bgr.csv", b, g, r),
+        "camera.csv": spectrum_csv(ws / "camera.csv", r, g, b),
+    }
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["rig", "--sim", "--spectral", "--sensor", "red-ir.csv"], "channel r"),
+    (["rig", "--sim", "--spectral", "--sensor", "red-uv.csv"], "channel r"),
+    (["rig", "--sim", "--spectral", "--sensor", "alike.csv"], "respond alike"),
+    (["rig", "--sim", "--spectral", "--sensor", "bgr.csv"], "wavelength, r, g, b"),
+    (["rig", "--sim", "--spectral", "--led", "ir780.csv"], "where the eye sees"),
+    (["rig", "--sim", "--spectral", "--led", "uv.csv"], "where the eye sees"),
+    (["rig", "--sim", "--spectral", "--led", "mono.csv"], "not a white light"),
+    (["rig", "--led", "mono.csv", "--sensor", "camera.csv"], "not a white light"),
+    (["estimate", "grey.dng", "--out", "o.json", "--calibration", "cal.json", "--led", "white.csv", "--sensor",
+      "red-ir.csv"], "channel r"),
+    (["render", "--params", "p.json", "--out", "o.png", "--size", "16", "--spp", "1", "--illuminant", "infrared.csv"],
+     "where the eye sees"),
+    (["render", "--params", "p.json", "--out", "o.png", "--size", "16", "--spp", "1", "--illuminant", "uv.csv"],
+     "where the eye sees"),
+])
+def test_spectra_the_physics_cannot_use_are_refused_in_one_line(ws, spectra_files, capsys, argv, needle):
+    from hairdigi.render.domain.params import HairParams
+    from hairdigi.render.domain.records import CalibrationProfile, write_record
+
+    (ws / "p.json").write_text(json.dumps(HairParams((190.0, 70.0, 40.0), 0.5, 0.3, 0.4).to_dict()))
+    write_record(ws / "cal.json", CalibrationProfile("c", "Finlayson 2015", tuple(map(tuple, np.eye(3))), 1.7e9))
+    before = snapshot(ws)
+    one_line(main([*argv, "--session", "s"] if argv[0] == "rig" else argv), capsys, needle)
+    assert snapshot(ws) == before and not (ws / "s").exists()
+
+
+def test_sound_spectra_and_every_named_light_and_camera_still_pass(spectra_files):
+    from hairdigi.app.session.spectra import spectra_problem
+    from hairdigi.render import spectra
+    from hairdigi.render.domain.bounds import CAMERAS, ILLUMINANTS
+
+    assert spectra_problem(str(spectra_files["white.csv"]), str(spectra_files["camera.csv"])) is None
+    for camera in CAMERAS:
+        assert spectra_problem("LED-B4", camera) is None
+    for light in ILLUMINANTS:
+        assert np.all(np.isfinite(spectra.illuminant_spd(light))), light
+        assert light.startswith(("FL", "LED", "D", "A", "tungsten", "shop", "day")) and \
+            spectra.white_light_problem(light) is None, light
+
+
+# --- 6. a spectral CSV's malformed first row is an error, not a header ------------------------------------
+def test_a_malformed_first_row_of_a_headerless_csv_is_named_not_dropped(ws):
+    from hairdigi.render.spectra import SpectrumError, illuminant_spd
+
+    good = [f"{w},{1.0 + w / 1000:.3f}" for w in range(360, 835, 5)]
+    (ws / "bad-first.csv").write_text("\n".join(["360,1.2x", *good[1:]]) + "\n")
+    with pytest.raises(SpectrumError, match=r"line 1: '360,1.2x'"):
+        illuminant_spd(str(ws / "bad-first.csv"))
+    (ws / "header.csv").write_text("\n".join(["wavelength (nm),power", *good]) + "\n")
+    (ws / "bare.csv").write_text("\n".join(good) + "\n")
+    assert np.allclose(illuminant_spd(str(ws / "header.csv")), illuminant_spd(str(ws / "bare.csv")))

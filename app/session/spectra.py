@@ -32,15 +32,18 @@ def rig_spectra(sim: bool, spectral: bool, led: str | None, sensor: str | None) 
 
 def spectra_problem(led: str | None, sensor: str | None) -> str | None:
     """What is wrong with a real rig's declared LEDs and camera (both or neither; each a known spectrum or
-    a readable CSV), in one line, or None."""
+    a readable CSV; the LEDs white, the camera's three channels visible and distinct), in one line, or None."""
     if (led is None) != (sensor is None):
         return PAIR_PROBLEM
     from hairdigi.render import spectra
 
-    for flag, value, read in (("led", led, spectra.illuminant_spd), ("sensor", sensor, spectra.camera_sensitivities)):
+    for flag, value, read in (("led", led, spectra.white_light_problem),
+                              ("sensor", sensor, spectra.camera_sensitivities)):
         if value is not None and value != "cie":
             try:
-                read(value)
+                problem = read(value)
             except spectra.SpectrumError as exc:
                 return f"--{flag}: {exc}"
+            if isinstance(problem, str):   # the LEDs read, but not white: a rig's colour needs white light
+                return f"--{flag}: {problem}"
     return None
