@@ -138,8 +138,26 @@ def spectral_record(record, spectra: RigSpectra | None, profile, curve=None, tab
         measured = curve(sigma)
     reading = read_spectral(record.hair, np.asarray(measured, float), curve, ccm, spectra.led,
                             spectra.sensitivities, rig_chart_targets()[0], profile.patches)
-    return replace(record, spectral=reading,
+    return replace(record, spectral=reading, warnings=(*record.warnings, *residual_warnings(reading)),
                    uncertainty=with_spectral(record.uncertainty, table, reading.camera))
+
+
+#: The camera answer's colour residual (CIELAB ΔE76) beyond which the declared spectra do not explain the capture:
+#: held-out spectral-rig captures read at most 0.41 (``packaging/evaluation/spectral-heldout*``: nikon-5100,
+#: sigma-sdmerill, CIE observer; a normal one 0.01); a single-wavelength LED read 21.4.
+MAX_CAMERA_RESIDUAL = 1.0
+
+
+def residual_warnings(reading: SpectralReading) -> list[EstimateWarning]:
+    """An unreliable-making warning where the camera answer misses the capture's colour by more than any held-out
+    capture did (``MAX_CAMERA_RESIDUAL``), naming the likely causes; none otherwise."""
+    if reading.residual <= MAX_CAMERA_RESIDUAL:
+        return []
+    return [EstimateWarning(WarningKind.UNREACHABLE, (
+        f"spectral: no hair seen through the declared camera ({reading.camera}) under the declared LEDs "
+        f"({reading.led}) has this capture's colour (residual ΔE76 {reading.residual:.2f}; held-out captures "
+        f"{MAX_CAMERA_RESIDUAL:g} at most): LEDs that are not white, or a camera CSV that is not this camera's "
+        "(its columns or units); check --led and --sensor against the rig"))]
 
 
 def read_spectral(rgb_answer: HairParams, target_linear: np.ndarray, curve, ccm: np.ndarray, led: str,

@@ -216,3 +216,29 @@ def test_a_malformed_first_row_of_a_headerless_csv_is_named_not_dropped(ws):
     (ws / "header.csv").write_text("\n".join(["wavelength (nm),power", *good]) + "\n")
     (ws / "bare.csv").write_text("\n".join(good) + "\n")
     assert np.allclose(illuminant_spd(str(ws / "header.csv")), illuminant_spd(str(ws / "bare.csv")))
+
+
+# --- 4. a camera reading the declared spectra cannot explain is unreliable, with its cause ----------------
+def test_a_camera_reading_far_beyond_the_held_out_residuals_makes_the_record_unreliable():
+    from media import chart_profile
+
+    from hairdigi.inference.refine import RefineSettings, response_curve
+    from hairdigi.inference.spectral import RigSpectra, spectral_record
+    from hairdigi.render.domain.params import HairParams
+    from hairdigi.render.domain.records import EstimateRecord, RefinementRecord, WarningKind
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
+
+    curve = response_curve(RIG_SWATCH_POSE, RefineSettings())
+    spectra, profile = RigSpectra("LED-B4", "nikon-5100"), chart_profile(np.eye(3))
+
+    def read(target):
+        record = EstimateRecord(hair=HairParams(), refinement=RefinementRecord(ran=True, sigma_a=(0.6, 0.9, 1.4),
+                                                                               target_linear_rgb=target))
+        return spectral_record(record, spectra, profile, curve)
+
+    brown = read((0.1, 0.06, 0.04))
+    assert brown.reliable and brown.spectral.residual < 0.41 and not brown.warnings
+    green = read((0.02, 0.3, 0.02))    # no hair is this colour: the declared spectra cannot explain it
+    assert green.spectral.residual > 10 and not green.reliable
+    (warning,) = [w for w in green.warnings if w.kind is WarningKind.UNREACHABLE]
+    assert "LEDs that are not white" in warning.message and "camera CSV" in warning.message
