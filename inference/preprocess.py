@@ -258,9 +258,12 @@ def swatch_score(img: np.ndarray) -> np.ndarray:
     holder differs in texture; a smooth dark swatch in colour). A pixel's score is its least
     unlikeness to any background group; values above 1 count as swatch.
     """
-    sigma = max(1.5, min(img.shape[:2]) / 50.0)
-    f = img.astype(np.float32)
-    local = cv2.GaussianBlur(f, (0, 0), sigma)
+    return _unlike_background(img, max(1.5, min(img.shape[:2]) / 50.0))[0]
+
+
+def _unlike_background(img: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``swatch_score`` at the blur ``sigma``, and the local colour and detail energy it was judged on."""
+    local = cv2.GaussianBlur(img.astype(np.float32), (0, 0), sigma)
     detail = _detail_energy(img)
     energy = np.sqrt(cv2.GaussianBlur(detail * detail, (0, 0), sigma))
     score = None
@@ -268,7 +271,7 @@ def swatch_score(img: np.ndarray) -> np.ndarray:
         colour_distance = np.linalg.norm(local - colour.astype(np.float32), axis=2)
         unlike = np.maximum(colour_distance / 12.0, energy / (1.8 * background_energy + 1.5))
         score = unlike if score is None else np.minimum(score, unlike)
-    return score
+    return score, local, energy
 
 
 #: Strand coherence (0 to 1) above which the frame's border counts as hair: the border of an all-hair
@@ -442,10 +445,27 @@ def _hull_area(region: np.ndarray) -> float:
 def find_swatch(img: np.ndarray) -> tuple[Roi, np.ndarray | None]:
     """:func:`find_swatch_roi`'s ROI, and the outline of the swatch found (its four corners in the
     frame's pixels: ``region_outline``), or None when the image is taken whole or has no such outline."""
+    roi, outline, _ = _find(img)
+    return roi, outline
+
+
+@dataclass(frozen=True)
+class _Found:
+    """What :func:`_find` saw of a swatch found on its holder: the searched image (``_search_image``), its
+    scale, the swatch's region there (boolean) and its box (x, y, w, h in the searched image's pixels)."""
+
+    small: np.ndarray
+    scale: float
+    region: np.ndarray
+    box: tuple[int, int, int, int]
+
+
+def _find(img: np.ndarray) -> tuple[Roi, np.ndarray | None, _Found | None]:
+    """:func:`find_swatch`'s ROI and outline, and what the search saw of the swatch (None: taken whole)."""
     h, w = img.shape[:2]
     small, scale = _search_image(img)
     sh, sw = small.shape[:2]
-    whole = Roi(0, 0, w, h), None
+    whole = Roi(0, 0, w, h), None, None
     if border_is_hair(small):
         return whole
     score = swatch_score(small)
@@ -482,10 +502,12 @@ def find_swatch(img: np.ndarray) -> tuple[Roi, np.ndarray | None]:
     # contrast (platinum's glints) would round it out
     region = labels == best
     outline = region_outline(region & (score > 0.5 * float(np.median(score[region]))))
-    return Roi(x0, y0, x1 - x0, y1 - y0), None if outline is None else (outline + 0.5) / scale - 0.5
+    return (Roi(x0, y0, x1 - x0, y1 - y0), None if outline is None else (outline + 0.5) / scale - 0.5,
+            _Found(small, scale, region, (x, y, bw, bh)))
 
 
-#: The share of a found swatch's box cut from each side (x, y) before a rig region is estimated from it:
+#: The share of a found swatch's box cut from each side (x, y) before a rig region is estimated from it, where
+#: its hair is not told apart (``find_swatch_core``; ``hair_core`` finds the hair's own box otherwise):
 #: the box carries the score's blur halo (holder) and the swatch's edges, where fibres thin out (a spread,
 #: loose or coarse swatch's sides, the binding). On RAW stills of the family's seven structures (copper, the
 #: bench camera at twice the feed's resolution) the whole box's mean colour lay 1.5-3.4 ΔE2000 from the rig's
@@ -505,10 +527,99 @@ def swatch_core(roi: Roi, size: tuple[int, int]) -> Roi:
 
 
 def find_swatch_core(img: np.ndarray) -> tuple[Roi, np.ndarray | None]:
-    """The area a rig region is estimated from (:func:`swatch_core` of :func:`find_swatch`'s box), and the
-    swatch's outline as :func:`find_swatch` found it."""
-    roi, outline = find_swatch(img)
-    return swatch_core(roi, (img.shape[1], img.shape[0])), outline
+    """The area a rig region is estimated from, and the swatch's outline as :func:`find_swatch` found it.
+
+    The area is the swatch's hair alone (:func:`hair_core`): the largest box of pixels like the swatch's
+    interior, inside its edges. Where no such box is found, :func:`swatch_core` of :func:`find_swatch`'s box."""
+    roi, outline, found = _find(img)
+    core = hair_core(found) if found is not None else None
+    return core if core is not None else swatch_core(roi, (img.shape[1], img.shape[0])), outline
+
+
+#: The hair's own edge is judged at a blur of the searched frame's shorter side over ``HAIR_EDGE_BLUR`` (the
+#: score's blur is its 50th part, whose halo of holder is what the found box holds beyond the hair).
+HAIR_EDGE_BLUR = 150.0
+#: A pixel is like the swatch's interior when its colour (at that blur) lies within ``HAIR_LIKE`` times the
+#: interior's own 90th-percentile distance from the interior's median colour, and at least ``HAIR_LIKE_FLOOR``
+#: 8-bit codes (RGB norm). The shadow a thick swatch casts on the holder is unlike both the holder (in the
+#: found region) and the hair (here).
+HAIR_LIKE, HAIR_LIKE_FLOOR = 2.0, 10.0
+#: ... and not smoother than ``HAIR_ENERGY`` of the interior's median detail energy (a light swatch's shadow
+#: is within its colour spread of it, but as smooth as the holder it falls on).
+HAIR_ENERGY = 0.5
+#: The share of the hair's box cut from each side (x, y): the swatch's edge fibres, lit and seen unlike its
+#: interior (a spread swatch's thin sides, a thick swatch's side wall).
+HAIR_MARGIN = (0.06, 0.04)
+#: A hair box under this share of the found box's area is not trusted (the interior too varied to judge).
+HAIR_LEAST_SHARE = 0.25
+
+
+def hair_mask(found: _Found) -> np.ndarray:
+    """Over ``found.box`` of the searched frame: the pixels of hair like the swatch's interior (boolean), its
+    holes filled (grey fibres, glints), specks removed. The interior is the found region's deepest half
+    (distance from its edge); a pixel is hair when it is unlike the holder (``swatch_score`` at the finer
+    blur ``HAIR_EDGE_BLUR``), like the interior in colour (``HAIR_LIKE``) and not smoother (``HAIR_ENERGY``).
+    What the found region holds besides hair is unlike it: the holder in its halo, a thick swatch's shadow
+    on the holder, a binding across its end."""
+    small, (x, y, w, h) = found.small, found.box
+    sigma = max(1.0, min(small.shape[:2]) / HAIR_EDGE_BLUR)
+    score, local, energy = (a[y:y + h, x:x + w] for a in _unlike_background(small, sigma))
+    # depth: the distance from the region's edge, or the box's (the region may fill its box)
+    depth = cv2.distanceTransform(np.pad(found.region[y:y + h, x:x + w], 1).astype(np.uint8), cv2.DIST_L2, 5)
+    interior = depth[1:-1, 1:-1] >= 0.5 * depth.max()
+    distance = np.linalg.norm(local - np.median(local[interior], axis=0), axis=2)
+    tolerance = max(HAIR_LIKE * float(np.percentile(distance[interior], 90)), HAIR_LIKE_FLOOR)
+    smooth = energy < HAIR_ENERGY * float(np.median(energy[interior]))
+    hair = (distance <= tolerance) & ~smooth & (score > 1.0)
+    hair = _filled(hair)
+    side = int(2 * np.ceil(sigma) + 1)
+    hair = cv2.morphologyEx(hair.astype(np.uint8), cv2.MORPH_OPEN, np.ones((side, side), np.uint8)) > 0
+    return hair
+
+
+def _filled(mask: np.ndarray) -> np.ndarray:
+    """A boolean mask with its holes (what it encloses) filled."""
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    return cv2.drawContours(np.zeros(mask.shape, np.uint8), contours, -1, 1, cv2.FILLED) > 0
+
+
+def largest_box(mask: np.ndarray) -> tuple[int, int, int, int]:
+    """The largest axis-aligned box (x, y, w, h) all inside the boolean ``mask``; (0, 0, 0, 0) when it is empty."""
+    rows, cols = mask.shape
+    heights = np.zeros(cols + 1, np.int64)     # a sentinel column of height 0 closes every run
+    best, found = 0, (0, 0, 0, 0)
+    for r in range(rows):
+        heights[:cols] = np.where(mask[r], heights[:cols] + 1, 0)
+        stack: list[int] = []
+        for c in range(cols + 1):
+            while stack and heights[stack[-1]] >= heights[c]:
+                top = stack.pop()
+                left = stack[-1] + 1 if stack else 0
+                area = int(heights[top]) * (c - left)
+                if area > best:
+                    best, found = area, (left, r - int(heights[top]) + 1, c - left, int(heights[top]))
+            stack.append(c)
+    return found
+
+
+def hair_core(found: _Found) -> Roi | None:
+    """The region a rig still is estimated from: the largest box of hair (``hair_mask``, judged on a grid of
+    at most 200 cells a side, a cell hair when all of it is) less ``HAIR_MARGIN``, in the frame's pixels; None
+    when it is under ``HAIR_LEAST_SHARE`` of the found box or ``MIN_SIDE`` a side."""
+    hair = hair_mask(found)
+    h, w = hair.shape
+    cell = max(1, int(np.ceil(max(h, w) / 200)))
+    grid = hair[:h // cell * cell, :w // cell * cell].reshape(h // cell, cell, w // cell, cell).all(axis=(1, 3))
+    gx, gy, gw, gh = (v * cell for v in largest_box(grid))
+    if gw * gh < HAIR_LEAST_SHARE * h * w:
+        return None
+    dx, dy = HAIR_MARGIN[0] * gw, HAIR_MARGIN[1] * gh
+    x0, y0 = (found.box[0] + gx + dx) / found.scale, (found.box[1] + gy + dy) / found.scale
+    x1, y1 = (found.box[0] + gx + gw - dx) / found.scale, (found.box[1] + gy + gh - dy) / found.scale
+    x0, y0, x1, y1 = int(np.ceil(x0)), int(np.ceil(y0)), int(np.floor(x1)), int(np.floor(y1))
+    if min(x1 - x0, y1 - y0) < MIN_SIDE:
+        return None
+    return Roi(x0, y0, x1 - x0, y1 - y0)
 
 
 def central_square(img: np.ndarray, share: float = ROI_CENTRAL) -> np.ndarray:
