@@ -242,3 +242,48 @@ def test_a_camera_reading_far_beyond_the_held_out_residuals_makes_the_record_unr
     assert green.spectral.residual > 10 and not green.reliable
     (warning,) = [w for w in green.warnings if w.kind is WarningKind.UNREACHABLE]
     assert "LEDs that are not white" in warning.message and "camera CSV" in warning.message
+
+
+# --- 3. light frames in the wrong order, or that fit no shine, make the record unreliable ------------------
+def test_light_frames_in_the_wrong_order_or_fitting_no_shine_are_named():
+    from hairdigi.inference.appearance import read_appearance
+    from hairdigi.inference.refine import RefineSettings
+    from hairdigi.inference.shine import shine_tables
+    from hairdigi.render.domain.records import UNRELIABLE
+    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
+
+    settings = RefineSettings(size=16, spp=4)     # small real tables: the reading is the same at any size
+    tables = shine_tables(RIG_SWATCH_POSE, settings)
+    noise = np.exp(np.random.default_rng(1).normal(0, 0.01, (3, 3)))
+    means = tables.predict(np.array([0.6, 0.9, 1.4]), 0.2) * noise     # glossy brown hair, in light order
+
+    def unreliable(frames) -> list[str]:
+        reading = read_appearance(frames, RIG_SWATCH_POSE, settings)
+        return [w.message for w in reading.warnings if w.kind in UNRELIABLE]
+
+    assert unreliable(means) == []
+    (wrong,) = unreliable(means[[2, 0, 1]])     # estimate --lights L2,L0,L1
+    assert "wrong order" in wrong and "L1,L2,L0" in wrong
+    off = means.copy()
+    off[2] *= 0.05                              # light 2 far too weak in its frame
+    (weak,) = unreliable(off)
+    assert "fit no shine" in weak and "a light off" in weak
+
+
+# --- 6. render --params renders a record's measured shine, as export does -----------------------------------
+def test_render_params_uses_the_records_measured_shine(ws, capsys):
+    from hairdigi.render.domain.appearance import Appearance, AppearanceEstimate
+    from hairdigi.render.domain.records import write_record
+    from hostile import estimate_record
+
+    for name, shine in (("glossy", 0.15), ("rough", 0.5)):
+        look = AppearanceEstimate(Appearance(longitudinal_roughness=shine), measured=("longitudinal_roughness",))
+        write_record(ws / f"{name}.json", estimate_record(appearance=look))
+        assert main(["render", "--params", f"{name}.json", "--out", f"{name}.png", "--size", "24", "--spp", "2",
+                     "--strands", "60"]) == 0
+    assert (ws / "glossy.png").read_bytes() != (ws / "rough.png").read_bytes()
+    (ws / "bad.json").write_text(json.dumps({**json.loads((ws / "glossy.json").read_text()), "appearance": [0.2]}))
+    capsys.readouterr()
+    one_line(main(["render", "--params", "bad.json", "--out", "bad.png", "--size", "24", "--spp", "2"]), capsys,
+             "bad.json", "appearance")
+    assert not (ws / "bad.png").exists()

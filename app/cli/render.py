@@ -50,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
     distance = PORTRAIT_CAMERA.distance if SceneKind.of(args.scene).on_head else CAMERA_DISTANCE
     camera = CameraPose.parse(args.camera, distance) if args.camera else None
     spec = SceneSpec(name=args.scene, camera=camera, env=args.env, framing=args.framing,
-                     strands=args.strands, max_depth=args.depth, strand_seed=args.seed, illuminant=args.illuminant)
+                     strands=args.strands, max_depth=args.depth, strand_seed=args.seed, illuminant=args.illuminant,
+                     appearance=measured_appearance(args.params))
     result = render(params, spec, args.size, args.spp, args.seed)
     if args.illuminant is not None and args.balance == "light":
         from hairdigi.render.spectra import balanced
@@ -76,3 +77,28 @@ def run(args: argparse.Namespace) -> int:
     if args.exr:
         print(f"wrote {args.exr} (linear RGB)")
     return 0
+
+
+def measured_appearance(path: str):
+    """What a parameter file's ``appearance`` block measured (an estimate record's shine and grey share, as
+    ``export`` and the app's previews render them; a hidden swatch's block whole), or None: the default look."""
+    from dataclasses import replace
+
+    from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, AppearanceError, AppearanceEstimate
+    from hairdigi.render.domain.files import read_json
+    from hairdigi.render.domain.params import HairParamsError
+
+    data = read_json(path, HairParamsError, "no such parameter file", "not valid JSON ({exc})")
+    block = data.get("appearance") if isinstance(data, dict) else None
+    if block is None:
+        return None
+    if not isinstance(block, dict):
+        raise HairParamsError(f"{path}: appearance must be an object (shine, fibre spread, grey share); fix or "
+                              "remove it")
+    try:
+        estimate = AppearanceEstimate.from_json(block)
+    except (AppearanceError, TypeError, ValueError) as exc:
+        raise HairParamsError(f"{path}: appearance: {exc}; fix or remove the block") from None
+    if not estimate.measured:
+        return None
+    return replace(DEFAULT_APPEARANCE, **{name: getattr(estimate.value, name) for name in estimate.measured})
