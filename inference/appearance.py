@@ -162,6 +162,46 @@ def dark_lights(light_means: np.ndarray, frame_levels: np.ndarray | None = None)
     return dead, [i for i in at_floor if i not in dead]
 
 
+#: The single-light frames' misfit (rms log) held-out captures stay under: the best member's at most 0.036 over 266
+#: captures of drawn structures (``packaging/evaluation/rig-drawn-*``), 0.020 a typical one. Above it, another
+#: order of the frames fitting ``ORDER_GAIN`` times better names frames in the wrong order.
+MAX_FRAMES_MISFIT = 0.05
+ORDER_GAIN = 3.0
+#: Beyond these the frames fit no shine at all (the reading's tables: the members read, or the assumed layered
+#: swatch, whose misfit reached 0.339 on held-out swatches of other structures): a light off or weak, or frames of
+#: another capture. (On the layered tables a light at 5% of its power reads 0.31-0.41, at 1% 0.34-0.44.)
+MAX_MEMBERS_MISFIT, MAX_ASSUMED_MISFIT = 0.1, 0.36
+
+
+def frames_misfit_warnings(light_means: np.ndarray, tables, misfit: float, members: bool) -> list[EstimateWarning]:
+    """Unreliable-making warnings where the single-light frames fit the shine far worse than held-out captures do:
+    another order of them fitting ``ORDER_GAIN`` times better (frames in the wrong order), or a misfit beyond
+    ``MAX_MEMBERS_MISFIT`` (``members``: read over the family's members) or ``MAX_ASSUMED_MISFIT``."""
+    from itertools import permutations
+
+
+    if misfit <= MAX_FRAMES_MISFIT:
+        return []
+    orders = {order: estimate_shine(light_means[list(order)], tables).residual
+              for order in permutations(range(len(light_means))) if list(order) != list(range(len(light_means)))}
+    best = min(orders, key=orders.get)
+    if orders[best] * ORDER_GAIN <= misfit:
+        given = ",".join(f"L{i}" for i in range(len(light_means)))
+        fits = ",".join(f"L{i}" for i in best)
+        return [EstimateWarning(WarningKind.OUT_OF_DOMAIN, (
+            f"light frames: given in the wrong order? as {given} they fit the shine with misfit {misfit:.3f} rms log "
+            f"(held-out captures under {MAX_FRAMES_MISFIT:g}); taken as {fits} they fit {orders[best]:.3f}; give "
+            f"--lights in light order (light 0 along the fibres, then 1 and 2), or capture again on the rig"))]
+    limit = MAX_MEMBERS_MISFIT if members else MAX_ASSUMED_MISFIT
+    if misfit <= limit:
+        return []
+    return [EstimateWarning(WarningKind.OUT_OF_DOMAIN, (
+        f"light frames: they fit no shine (misfit {misfit:.3f} rms log, held-out captures under {limit:g}): a light "
+        "off or weak in its frame, or frames of another capture" + ("" if members else ", or a swatch built unlike "
+        "hairdigi's layered one (try --structure family)") + "; check the lights (Lights > Check) and capture "
+        "again"))]
+
+
 def read_appearance(light_means: np.ndarray | None, view, settings, renderer=None,
                     texture_pixels: np.ndarray | None = None, sigma_guess: np.ndarray | None = None,
                     frame_levels: np.ndarray | None = None, structures: tuple[str, ...] | None = None
@@ -202,6 +242,7 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
             tables = shine_tables(view, settings, renderer=renderer)
             shine = estimate_shine(np.asarray(light_means, float), tables)
         value = Appearance(longitudinal_roughness=round(shine.longitudinal_roughness, 4))
+        warnings += frames_misfit_warnings(np.asarray(light_means, float), tables, shine.residual, bool(structures))
         curve = tables.all_lights_curve(shine.longitudinal_roughness)
         measured.append("longitudinal_roughness")
         method["longitudinal_roughness"] = (f"read from the {N_LIGHTS} single-light frames against the view's "
