@@ -287,3 +287,98 @@ def test_render_params_uses_the_records_measured_shine(ws, capsys):
     one_line(main(["render", "--params", "bad.json", "--out", "bad.png", "--size", "24", "--spp", "2"]), capsys,
              "bad.json", "appearance")
     assert not (ws / "bad.png").exists()
+
+
+# --- 13. a display that answers but is not X ------------------------------------------------------------------
+class FakeXPort:
+    """A TCP server on an X display's port (6000 + N) that accepts, then sends ``reply`` (None: never answers)."""
+
+    def __init__(self, reply: bytes | None):
+        import socket
+        import threading
+
+        self.server, self.number = None, None
+        for number in range(150, 400):
+            candidate = socket.socket()
+            try:
+                candidate.bind(("127.0.0.1", 6000 + number))
+            except OSError:
+                candidate.close()
+                continue
+            self.server, self.number = candidate, number
+            break
+        assert self.server is not None, "no free port for a fake X display"
+        self.server.listen(4)
+        self.reply, self.held = reply, []
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self) -> None:
+        while True:
+            try:
+                conn, _ = self.server.accept()
+            except OSError:
+                return
+            self.held.append(conn)
+            if self.reply is not None:
+                conn.sendall(self.reply)
+
+    def close(self) -> None:
+        self.server.close()
+        for conn in self.held:
+            conn.close()
+
+
+def app_under(display: str, tmp_path: Path, timeout: float = 40) -> subprocess.CompletedProcess:
+    env = {k: v for k, v in os.environ.items() if k not in ("WAYLAND_DISPLAY", "QT_QPA_PLATFORM")}
+    env.update(DISPLAY=display, OMP_WAIT_POLICY="PASSIVE", HOME=str(tmp_path))
+    return subprocess.run([sys.executable, "-m", "hairdigi.app.cli", "app", "--sim", "--session", str(tmp_path / "s")],
+                          capture_output=True, text=True, timeout=timeout, env=env, cwd=tmp_path)
+
+
+@pytest.mark.parametrize("reply, needle", [(b"SSH-2.0-OpenSSH_9.6\r\n", "not an X server"),
+                                           (None, "does not answer as an X server")])
+def test_a_display_port_that_is_not_x_is_one_line_not_an_abort_or_a_hang(tmp_path, reply, needle):
+    fake = FakeXPort(reply)
+    try:
+        run = app_under(f"127.0.0.1:{fake.number}", tmp_path)
+    finally:
+        fake.close()
+    lines = run.stderr.strip().splitlines()
+    assert run.returncode == 2 and len(lines) == 1 and needle in lines[0] and "xvfb-run" in lines[0], run.stderr[-2000:]
+    assert not (tmp_path / "s").exists()
+
+
+def test_the_x_handshake_tells_a_real_x_server_from_an_unroutable_address(tmp_path):
+    import shutil
+    import time
+
+    from hairdigi.app.cli.display import x_handshake_problem
+
+    start = time.monotonic()   # unroutable: no connection, or (behind a proxy that takes every port) not X
+    problem = x_handshake_problem("10.255.255.1:0", timeout=0.5)
+    assert problem is not None and ("no X server accepts" in problem or "not an X server" in problem), problem
+    assert time.monotonic() - start < 3
+    assert "not a display name" in x_handshake_problem("nonsense")
+    if shutil.which("Xvfb") is None:
+        pytest.skip("no Xvfb to answer as a real X server")
+    number = 97
+    xvfb = subprocess.Popen(["Xvfb", f":{number}", "-nolisten", "tcp"], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    try:
+        for _ in range(100):
+            if Path(f"/tmp/.X11-unix/X{number}").exists():
+                break
+            time.sleep(0.05)
+        assert x_handshake_problem(f":{number}") is None
+    finally:
+        xvfb.terminate()
+        xvfb.wait(10)
+
+
+# --- 14b. an empty session folder -----------------------------------------------------------------------------
+@pytest.mark.parametrize("argv", [["rig", "--sim", "--spp", "1"], ["rig", "--still", "grey.dng"], ["app", "--sim"]])
+def test_an_empty_session_path_is_refused(ws, capsys, monkeypatch, argv):
+    monkeypatch.setenv("QT_QPA_PLATFORM", "offscreen")
+    before = snapshot(ws)
+    one_line(main([*argv, "--session", ""]), capsys, "--session ''")
+    assert snapshot(ws) == before and not (ws / "captures").exists()

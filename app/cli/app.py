@@ -18,6 +18,15 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from hairdigi.app.cli.display import display_problem
+    from hairdigi.app.cli.validation import ArgumentError
+
+    if args.session is not None and not str(args.session).strip():
+        raise ArgumentError("--session '': an empty session folder would put captures/ in the current folder; "
+                            "name the session folder, or leave --session out for the settings' one")
+    problem = display_problem()   # before Qt: a display that is not X aborts it or hangs it
+    if problem is not None:
+        raise ArgumentError(problem)
     from hairdigi.app.gui.main import run_app
 
     camera = None if args.genicam is None else f"genicam:{args.genicam}"

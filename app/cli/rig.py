@@ -320,6 +320,9 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if not str(args.session).strip():
+        raise v.ArgumentError("--session '': an empty session folder would put captures/ in the current folder; "
+                              "name the session folder (default out/session)")
     if args.list_ports:
         from hairdigi.hardware.lights import discover
         import serial.tools.list_ports
