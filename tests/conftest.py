@@ -28,10 +28,12 @@ def _private_cache(tmp_path_factory):
     """One cache for the whole run, never ~/.cache: the simulated rig's light renders, the response curves and
     shine tables are made once. Under pytest-xdist the workers of one run share it: every entry is keyed by
     what it holds and written atomically (``render.domain.files.atomic_path``), so two workers that make the
-    same entry at once write the same bytes. A test of the cache itself sets its own."""
+    same entry at once write the same bytes. A test of the cache itself sets its own. ``HAIRDIGI_TEST_CACHE``
+    names one for several runs (CI's two tiers share theirs: ``.ci/run``)."""
     base = tmp_path_factory.getbasetemp()
-    cache = base.parent / "shared-cache" if os.environ.get("PYTEST_XDIST_WORKER") else base / "cache"
-    cache.mkdir(exist_ok=True)
+    cache = Path(os.environ.get("HAIRDIGI_TEST_CACHE") or
+                 (base.parent / "shared-cache" if os.environ.get("PYTEST_XDIST_WORKER") else base / "cache"))
+    cache.mkdir(parents=True, exist_ok=True)
     os.environ["HAIRDIGI_CACHE"] = str(cache)
     # the swatch library: a private file, and no sessions written before it to import
     os.environ["HAIRDIGI_LIBRARY"] = str(tmp_path_factory.mktemp("library") / "library.sqlite")

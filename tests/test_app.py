@@ -33,6 +33,7 @@ def pixmap_array(pixmap):
     return rows[:, :3 * img.width()].reshape(img.height(), img.width(), 3).copy()
 
 
+@pytest.mark.slow
 def test_full_simulated_session(qtbot, tiny_model, tmp_path, test_output, monkeypatch):
     _, onnx_path, _ = tiny_model
     folder = tmp_path / "session"
@@ -192,6 +193,7 @@ def test_uncalibrated_capture_is_kept_and_blocked(qtbot, tiny_model, tmp_path):
     session.close()
 
 
+@pytest.mark.slow
 def test_a_raw_still_is_a_capture_source_in_the_window(qtbot, tiny_model, tmp_path):
     """File > Import RAW still: the still joins the session as a capture, calibrated on its own chart."""
     from hairdigi.hardware.sim_still import write_raw_still

@@ -84,6 +84,7 @@ def test_bad_camera_and_unknown_scene(tmp_path, params_file, capsys):
     assert run.returncode == 2 and "'beehive' is not a scene" in run.stderr
 
 
+@pytest.mark.slow
 def test_demo_quick(tmp_path, capsys):
     """The headless main job: the simulated rig's chain, then renders."""
     assert main(["demo", "--quick", "--out", str(tmp_path)]) == 0
@@ -94,6 +95,7 @@ def test_demo_quick(tmp_path, capsys):
     assert list((tmp_path / "session" / "captures").glob("*.png"))
 
 
+@pytest.mark.slow
 def test_bench_render_quick_writes_a_table_where_depth_matters(tmp_path, capsys):
     """The benchmark's table and plot; too few bounces (depth 4) must show as colour error."""
     import csv

@@ -72,6 +72,7 @@ def local_dataset(tmp_path_factory):
     return root
 
 
+@pytest.mark.slow
 def test_ray_dataset_is_bitwise_the_local_one(ray_instance, local_dataset, tmp_path):
     config = DatasetConfig(**TINY)
     generate(config, tmp_path, workers=2, progress=False, backend="ray")
@@ -183,6 +184,7 @@ def test_a_resume_with_another_variant_is_refused(local_dataset, tmp_path):
     assert not shard_path(root, 2).exists()
 
 
+@pytest.mark.slow
 def test_bench_dataset_quick_writes_csv_and_png(tmp_path):
     pytest.importorskip("ray")
     out = tmp_path / "bench"

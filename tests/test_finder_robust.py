@@ -107,6 +107,7 @@ def test_the_bench_cameras_frame_is_not_warned_but_a_tilted_one_is(renderer):
     assert find_swatch(crop)[1] is None and view_warning(None, 10.3, rig_view=False) is None
 
 
+@pytest.mark.slow
 def test_the_region_estimated_from_a_found_swatch_is_its_core_not_its_sparse_edges(tmp_path):
     """A rig frame of a spread swatch (fibres fanning out, its sides thin, the holder between them). The
     finder's box holds the score's halo and those sides: its mean colour lay 3.1 ΔE2000 from the rig's own

@@ -229,6 +229,7 @@ def test_swatch_area_is_found_in_a_rig_frame_and_crops_are_kept_whole():
 SMALL_JUDGE = dict(size=32, spp=4, seed=5)
 
 
+@pytest.mark.slow
 def test_convergence_sweep_reports_each_input_spp(tiny_model, tmp_path):
     from hairdigi.inference.training.convergence import convergence_sweep
     from hairdigi.inference.training.evaluate import Judge, prepare_heldout
@@ -350,6 +351,7 @@ def alive(pid: int) -> bool:
         return False
 
 
+@pytest.mark.slow
 def test_killed_run_leaves_no_orphan_workers_and_resumes(tmp_path):
     import signal
     import subprocess

@@ -134,6 +134,7 @@ def test_the_delta_e_map_shows_colour_differences_not_noise():
     np.testing.assert_allclose(delta_e_map(base, shifted, 2.0), expected, rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_one_open_rig_serves_the_command_line_and_the_window(tmp_path):
     from hairdigi.hardware.cameras import CameraError
     from hairdigi.app.session.rig_session import open_rig
@@ -183,6 +184,7 @@ def test_model_state_changes_on_its_own_thread_only():
     assert errors and "own thread" in errors[0] and model.style != "bob"
 
 
+@pytest.mark.slow
 def test_a_hairstyle_under_another_light_renders_spectrally_and_is_shown_adapted(calibrated):
     model = review.ReviewModel(calibrated, dataclasses.replace(SMALL, warm=False))
     run_now(model.capture_work(), model.apply)

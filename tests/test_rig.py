@@ -133,6 +133,7 @@ def test_session_replays_a_recorded_frame(tmp_path):
     assert result.image_path.exists() and not result.blocked
 
 
+@pytest.mark.slow
 def test_estimate_of_a_rig_capture_matches_the_rig_chain(tmp_path, tiny_model):
     """``hairdigi estimate`` on a saved rig frame (chart in view, swatch found) gives the rig's estimate."""
     from hairdigi.app.cli import main

@@ -39,6 +39,7 @@ def _read(lights: np.ndarray, case, camera_seed: int = 11, exposure_ev: float = 
     return texture.read_variation(fit_texture.capture(lights, camera_seed, exposure_ev), case[0], case[1])
 
 
+@pytest.mark.slow
 def test_held_out_swatches_are_read_within_the_stated_p95(renders) -> None:
     for name, case in (("varied", VARIED), ("uniform", UNIFORM)):
         reading = _read(renders[name], case)
