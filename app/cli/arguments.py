@@ -45,3 +45,10 @@ def add_structure_argument(p, what: str = "the swatch's") -> None:
                    "renders); 'read', read from the "
                    "single-light frames among them (their per-light tables, 96 renders each) and refined on it. "
                    "hairdigi evaluate --structures measures each")
+
+
+def add_declare_argument(p) -> None:
+    """``--declare``: write the flags given into the session's rig profile (``rig``)."""
+    p.add_argument("--declare", action="store_true", help="write --led, --sensor and --structure into the "
+                   "session's rig profile (<session>/rig-profile.json), in place of what it declares; without it a "
+                   "session's first run writes the profile, and a flag later overrides it for that command only")

@@ -45,6 +45,7 @@ def run(args: argparse.Namespace) -> int:
     from hairdigi.render.domain.records import write_record
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose
 
+    session_profile(args)
     encoder = Encoder(args.model)
     roi = Roi.parse(args.roi) if args.roi else None
     camera = CameraPose.parse(args.camera, RIG_SWATCH_POSE.distance) if args.camera else None
@@ -94,3 +95,37 @@ def in_spectral_world(record, estimate, calibration: str, led: str | None, senso
     spectra = rig_spectra(False, False, led, sensor)[1]
     curve = None if estimate.refinement is None else estimate.refinement.curve
     return spectral_record(record, spectra, profile, curve)
+
+
+def session_profile(args: argparse.Namespace) -> None:
+    """A session's calibration (``--calibration <session>/calibration.json``) brings the session's rig profile
+    (``app.session.profile``): its LEDs, camera and structure mode stand where ``--led``, ``--sensor`` and
+    ``--structure`` are not given; each flag that overrides it says so on stderr. "read" without ``--lights``
+    (the single-light frames it reads) is read with family, and says so."""
+    from pathlib import Path
+
+    from hairdigi.app.session.profile import merged, profile_path, read_profile
+    from hairdigi.app.session.spectra import spectra_problem
+    from hairdigi.render.domain.session_folder import SessionFolder
+
+    if not args.calibration:
+        return
+    folder = Path(args.calibration).parent
+    if SessionFolder(folder).calibration.name != Path(args.calibration).name:
+        return
+    kept = read_profile(folder)
+    if kept is None:
+        return
+    profile, notices = merged(kept, {"sensitivities": args.sensor, "led": args.led, "structure": args.structure})
+    for line in notices:
+        print(line, file=sys.stderr)
+    if args.led is None and profile.led is not None:
+        problem = spectra_problem(profile.led, profile.sensitivities)
+        if problem is not None:
+            raise v.ArgumentError(f"{profile_path(folder)}: {problem}")
+    structure = str(profile.structure)
+    if structure == "read" and not args.lights and args.structure is None:
+        print("rig profile: the session's structure mode (read) reads the single-light frames, which --lights "
+              "does not give: this image is read with family", file=sys.stderr)
+        structure = "family"
+    args.led, args.sensor, args.structure = profile.led, profile.sensitivities, structure

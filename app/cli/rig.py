@@ -2,13 +2,16 @@
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hairdigi.app.cli import validation as v
-from hairdigi.app.cli.arguments import SPP, add_spectra_arguments, add_structure_argument
-from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE
+from hairdigi.app.cli.arguments import SPP, add_declare_argument, add_spectra_arguments, add_structure_argument
+from hairdigi.app.session.profile import RigProfile, merged, profile_path, read_profile, write_profile
+from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
 from hairdigi.render.swatch_family import STRUCTURES
 from hairdigi.app.session.blockers import messages
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
@@ -226,6 +229,42 @@ def check_still_flags(args) -> None:
                               "RAW still does not have: use --structure family (or assumed)")
 
 
+def rig_profile(args, still: bool, say=None) -> RigProfile:
+    """The rig this command works with: the session's profile (``app.session.profile``) with the flags given in
+    its place, each override said on stderr; ``args``' ``led``, ``sensor``, ``structure`` (and ``spectral`` on the
+    simulated rig) are set from it. A live rig's profile, simulated spectra filled in, is what the session keeps."""
+    from hairdigi.app.session.spectra import SIM_LED, SIM_SENSOR, spectra_problem
+
+    say = say or (lambda line: print(line, file=sys.stderr))
+    kept = read_profile(args.session)
+    profile, notices = merged(kept, {"sensitivities": args.sensor, "led": args.led, "structure": args.structure})
+    for line in notices:
+        say(line)
+    sim = not still and args.sim
+    if sim and profile.spectral and not args.spectral:
+        say(f"rig profile: the session declares its LEDs ({profile.led}) and camera ({profile.sensitivities}): "
+            "the simulated rig is spectral")
+        args.spectral = True
+    if sim and args.spectral:
+        profile = replace(profile, led=profile.led or SIM_LED, sensitivities=profile.sensitivities or SIM_SENSOR)
+    if kept is not None and (profile.led, profile.sensitivities) != (args.led, args.sensor):
+        problem = spectra_problem(profile.led, profile.sensitivities)   # the profile's spectra, read now
+        if problem is not None:
+            raise v.ArgumentError(f"{profile_path(args.session)}: {problem}")
+    args.led, args.sensor, args.structure = profile.led, profile.sensitivities, str(profile.structure)
+    return profile
+
+
+def still_structure(structure: str) -> str:
+    """The structure mode a still is read with: the profile's, except "read", which needs the single-light frames
+    a still has not (``family`` in its place, said on stderr)."""
+    if structure != StructureMode.READ:
+        return str(structure)
+    print("rig profile: the session's structure mode (read) reads the single-light frames, which a still has not: "
+          "this still is read with family", file=sys.stderr)
+    return str(StructureMode.FAMILY)
+
+
 def _given(value, default) -> bool:
     """Whether a flag's value differs from its default (a list given for a tuple default compared as one)."""
     return (tuple(value) if isinstance(value, list) else value) != default
@@ -313,6 +352,7 @@ def add_parser(sub) -> None:
                                    "the session and estimate it; needs no camera or light board")
     add_spectra_arguments(p)
     add_structure_argument(p, "how the session's estimates treat the swatch's")
+    add_declare_argument(p)
     p.add_argument("--hidden-structure", choices=STRUCTURES, default=None, metavar="NAME",
                    help="with --sim: the simulated swatch's physical structure (render.swatch_family: "
                    + ", ".join(STRUCTURES) + "; default layered, hairdigi's own); the truth is judged on its strands")
@@ -334,10 +374,16 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.still:
         check_still_flags(args)
-        return report_still(args.session, args.still, structure=getattr(args, "structure", None) or DEFAULT_STRUCTURE,
-                            led=args.led, sensor=args.sensor)
+        profile = rig_profile(args, still=True)
+        if args.declare:
+            write_profile(args.session, profile)
+        return report_still(args.session, args.still, structure=still_structure(profile.structure),
+                            led=profile.led, sensor=profile.sensitivities)
+    profile = rig_profile(args, still=False)
     session = open_session(args)
     try:
+        if not profile_path(args.session).exists() or args.declare:
+            write_profile(args.session, profile)   # declared once: the session's first run, or --declare
         run_chain(session)
     finally:
         session.close()
