@@ -143,6 +143,13 @@ def test_a_still_reads_a_profiles_read_mode_with_family_and_says_so(ws, capsys, 
     assert stills[-1]["structure"] == "family" and "read with family" in capsys.readouterr().err
 
 
+def test_a_profiles_missing_spectrum_file_is_one_line_naming_the_fix(ws, capsys, stills):
+    write_profile(ws / "s", RigProfile("gone-camera.csv", "gone-leds.csv"))
+    one_line(main(["rig", "--still", "grey.dng", "--session", "s"]), capsys, PROFILE_NAME, "gone-leds.csv",
+             "give --led and --sensor")
+    assert not stills
+
+
 @pytest.mark.parametrize("flags, needle", [(["--sim"], "--sim"), (["--roi", "1,1,8,8"], "--roi"),
                                            (["--structure", "read"], "single-light frames")])
 def test_a_flag_that_does_not_apply_to_a_still_is_still_refused_with_a_profile(ws, capsys, stills, flags, needle):

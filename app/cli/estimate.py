@@ -122,7 +122,7 @@ def session_profile(args: argparse.Namespace) -> None:
     if args.led is None and profile.led is not None:
         problem = spectra_problem(profile.led, profile.sensitivities)
         if problem is not None:
-            raise v.ArgumentError(f"{profile_path(folder)}: {problem}")
+            raise v.ArgumentError(f"{profile_path(folder)}: {problem}; fix the profile, or give --led and --sensor for this command")
     structure = str(profile.structure)
     if structure == "read" and not args.lights and args.structure is None:
         print("rig profile: the session's structure mode (read) reads the single-light frames, which --lights "

@@ -250,7 +250,7 @@ def rig_profile(args, still: bool, say=None) -> RigProfile:
     if kept is not None and (profile.led, profile.sensitivities) != (args.led, args.sensor):
         problem = spectra_problem(profile.led, profile.sensitivities)   # the profile's spectra, read now
         if problem is not None:
-            raise v.ArgumentError(f"{profile_path(args.session)}: {problem}")
+            raise v.ArgumentError(f"{profile_path(args.session)}: {problem}; fix the profile, or give --led and --sensor for this command")
     args.led, args.sensor, args.structure = profile.led, profile.sensitivities, str(profile.structure)
     return profile
 
