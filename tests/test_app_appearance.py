@@ -49,6 +49,7 @@ def model_on(session, capture_id):
     return model
 
 
+@pytest.mark.slow
 def test_a_newer_selection_wins_over_an_older_read_that_comes_back_later(captured):
     session, old, new = captured
     model = review.ReviewModel(session, SMALL)

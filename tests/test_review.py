@@ -96,6 +96,7 @@ def run_previews(model):
         run_now(work, model.apply)
 
 
+@pytest.mark.slow
 def test_a_new_capture_cancels_stale_renders(calibrated):
     model = review.ReviewModel(calibrated, dataclasses.replace(SMALL, hairstyle_passes=(1,) * 40, warm=False))
     run_now(model.capture_work(), model.apply)

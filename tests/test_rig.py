@@ -284,6 +284,7 @@ def test_the_shipped_chart_targets_are_the_chart_rendered_in_todays_rig():
     assert de.mean() < 0.5 and de.max() < 1.5, de
 
 
+@pytest.mark.slow
 def test_an_over_exposed_swatch_is_captured_again_as_the_operator_is_told(tmp_path):
     """Glossy white hair's glints clip at the bench's exposure; the evaluations then do what the message
     says (``capture_as_told``): lower the exposure, calibrate again, capture again."""

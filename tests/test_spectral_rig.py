@@ -182,6 +182,7 @@ def _identity_profile():
     return CalibrationProfile(id="test", method="identity", matrix=((1.0, 0, 0), (0, 1.0, 0), (0, 0, 1.0)), time=0.0)
 
 
+@pytest.mark.slow
 def test_a_camera_whose_bands_overlap_is_read_from_its_measured_greys_and_its_noise_is_not_a_warning(tmp_path):
     """The Sigma SD Merrill's CCM has coefficients to -7: a dark pixel's noise turns negative once
     corrected, and the chart's greys stay tinted alike in every frame. The corrected image is not
