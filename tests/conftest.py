@@ -23,6 +23,26 @@ def pytest_collection_modifyitems(items) -> None:
         item.user_properties.append(("tier", "slow" if item.get_closest_marker("slow") else "fast"))
 
 
+#: Cache entries every run starts with: the response curves and shine tables of the views the tests
+#: estimate at (the family's curves of the rig's region alone took 10 minutes to render). Small (JSON and
+#: npz of a few kB each), keyed by everything they depend on (view, settings, scene, renderer variant), so a
+#: change that alters them misses these and renders anew. Made again by ``python tests/data/cache/seed.py``.
+CACHE_SEED = Path(__file__).resolve().parent / "data" / "cache"
+
+
+def _seed(cache: Path) -> None:
+    """Copy ``CACHE_SEED``'s entries that ``cache`` lacks (atomically: parallel workers seed one cache)."""
+    if os.environ.get("CACHE_SEED_OFF"):      # tests/data/cache/seed.py: a cold run that makes the seed
+        return
+    for src in sorted(CACHE_SEED.glob("*/*")):
+        dst = cache / src.relative_to(CACHE_SEED)
+        if src.is_file() and not dst.exists():
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            tmp = dst.with_name(f".{dst.name}.{os.getpid()}")
+            tmp.write_bytes(src.read_bytes())
+            os.replace(tmp, dst)
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _private_cache(tmp_path_factory):
     """One cache for the whole run, never ~/.cache: the simulated rig's light renders, the response curves and
@@ -34,6 +54,7 @@ def _private_cache(tmp_path_factory):
     cache = Path(os.environ.get("HAIRDIGI_TEST_CACHE") or
                  (base.parent / "shared-cache" if os.environ.get("PYTEST_XDIST_WORKER") else base / "cache"))
     cache.mkdir(parents=True, exist_ok=True)
+    _seed(cache)
     os.environ["HAIRDIGI_CACHE"] = str(cache)
     # the swatch library: a private file, and no sessions written before it to import
     os.environ["HAIRDIGI_LIBRARY"] = str(tmp_path_factory.mktemp("library") / "library.sqlite")
