@@ -1,7 +1,6 @@
 """Saving captures: the untouched frame (or RAW file) first, then its metadata, both atomically."""
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import shutil
@@ -11,7 +10,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from hairdigi.render.domain.files import atomic_path
+from hairdigi.render.domain.files import atomic_path, file_sha256
 from hairdigi.render.domain.records import CaptureRecord
 
 
@@ -151,11 +150,3 @@ def _save(folder: Path, capture_id: str, srgb, raw_path, light_frames, mosaic, w
     _atomic_bytes(meta_path, (json.dumps(record.to_json(), indent=2, default=str) + "\n").encode())
     return image_path, meta_path, record
 
-
-def file_sha256(path: Path) -> str:
-    """A file's SHA-256, read in 1 MiB pieces (a RAW still is never held whole for its hash)."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for piece in iter(lambda: f.read(1 << 20), b""):
-            digest.update(piece)
-    return digest.hexdigest()

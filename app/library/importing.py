@@ -11,6 +11,7 @@ import numpy as np
 
 from hairdigi.app.library.store import Library, LibraryError, SwatchRow
 from hairdigi.app.library.swatch_colour import swatch_labs
+from hairdigi.render.domain.files import stream_sha256
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.record_fields import RecordError
 from hairdigi.render.domain.records import EstimateRecord, read_record, read_session_capture, record_sha256
@@ -49,7 +50,6 @@ def _with_colours(rows: list[SwatchRow]) -> list[SwatchRow]:
 
 #: The largest capture image hashed at import (a RAW still is tens of MB; a file this large is no capture).
 MAX_IMAGE_BYTES = 1 << 30
-_CHUNK = 1 << 20
 
 
 def checked_image(session: SessionFolder, name: str, claimed: str, record: Path) -> tuple[Path, str]:
@@ -93,11 +93,8 @@ def _sha256_of(path: Path, record: Path, shown: str) -> str:
         if info.st_size > MAX_IMAGE_BYTES:
             raise LibraryError(f"{record}: its image {shown} is {info.st_size / 1e9:.1f} GB, larger than any "
                                f"capture ({MAX_IMAGE_BYTES / 1e9:.1f} GB); remove that capture, then import again")
-        digest = hashlib.sha256()
         with os.fdopen(fd, "rb", closefd=False) as f:
-            for chunk in iter(lambda: f.read(_CHUNK), b""):
-                digest.update(chunk)
-        return digest.hexdigest()
+            return stream_sha256(f)
     except OSError as exc:
         raise LibraryError(f"{record}: its image {shown} cannot be read ({exc.strerror or exc})") from None
     finally:

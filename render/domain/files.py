@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import errno
+import hashlib
 import json
 import os
 import re
@@ -367,3 +368,18 @@ def refuse_protected(paths, allow: tuple = ()) -> None:
 def cache_dir() -> Path:
     """Where hairdigi keeps what it can make again (datasets, response curves): ``HAIRDIGI_CACHE``."""
     return Path(os.environ.get("HAIRDIGI_CACHE", Path.home() / ".cache" / "hairdigi"))
+
+
+def stream_sha256(f) -> str:
+    """The SHA-256 of what a binary file object holds from where it stands, read in 1 MiB pieces (a RAW
+    still or a capture image is never held whole for its hash)."""
+    digest = hashlib.sha256()
+    for piece in iter(lambda: f.read(1 << 20), b""):
+        digest.update(piece)
+    return digest.hexdigest()
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """A file's SHA-256 (:func:`stream_sha256`)."""
+    with open(path, "rb") as f:
+        return stream_sha256(f)
