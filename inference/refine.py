@@ -8,7 +8,8 @@ curve ``F(sigma; camera pose)`` shared by the three channels (the rig lights are
 1. **Response curve.** Render a ladder of ``sigma`` levels as the capture saw the swatch, three
    levels per render (one per channel), with one sampler seed (common random numbers). 12 levels
    cost 4 small renders; the curve is cached on disk per view and settings, so the rig's fixed
-   camera pays once. The view is the capture's own: for a rig frame, exactly the swatch area whose
+   camera pays once (the bench camera's regions come from the shipped atlas, ``inference.atlas``, with
+   no render at all). The view is the capture's own: for a rig frame, exactly the swatch area whose
    mean is fitted (``RigRegion``: the bench camera, its film cropped to that area, so the lights'
    fall-off across the swatch is in the render too); for an all-hair crop, a camera pose over the
    crop framing's centre.
@@ -35,6 +36,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
+from hairdigi.inference.atlas import curve_means
 from hairdigi.render.domain.absorption import albedo_from_sigma_a, hair_sigma_a
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, GREY_SIGMA_A, Appearance
@@ -44,6 +46,7 @@ from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.estimate_parts import Region
 from hairdigi.render.domain.records import RefinementRecord
 from hairdigi.render.domain.rig_geometry import CameraPose, Framing, RigRegion
+from hairdigi.resources import ROOT
 
 #: Where the refinement looks: a camera pose over the crop framing's centre (an all-hair image), or
 #: a region of a rig-view frame (``RigRegion``: the capture's swatch area, rendered exactly).
@@ -186,6 +189,10 @@ def fitted_pixels(image: np.ndarray, view: View) -> np.ndarray:
     return image
 
 
+#: Response curves shipped as they are cached, for the fixed views an estimate uses most away from the rig (the
+#: rig's swatch pose over an all-hair crop; ``inference.atlas_build.ship_pose``): read where the cache has none.
+SHIPPED_TABLES = ROOT / "tables" / "response"
+
 _CURVE_LOCK = threading.Lock()   # one curve at a time: the app's warm-up and a capture must not both render it
 
 
@@ -231,14 +238,18 @@ def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool,
     spec, size = scene_for(view, settings, swatch_model=swatch_model)
     key = cache_key([2, curve_settings(settings), view_key(view)], spec, renderer.variant)
     path = cache_dir() / "response" / f"curve-{key}.json"
-    if cache and path.exists():
+    found = next((p for p in (path, SHIPPED_TABLES / path.name) if p.exists()), None) if cache else None
+    if found is not None:
         try:
-            data = json.loads(path.read_text())
+            data = json.loads(found.read_text())
             return ResponseCurve(np.array(data["sigma"]), np.array(data["mean"]), data.get("seconds", 0.0), True,
                                  int(data.get("nonfinite", 0)))
         except (ValueError, KeyError, OSError):
             pass   # a damaged cache entry is rebuilt
     levels = np.asarray(settings.levels, float)
+    shipped = curve_means(view, levels, settings.strand_seed, spec.swatch_model, renderer.variant) if cache else None
+    if shipped is not None:     # the bench camera's region: the shipped atlas's cells, no render
+        return ResponseCurve(levels.copy(), shipped, 0.0, True)
     if len(levels) % 3:
         raise ValueError(f"the sigma ladder needs a multiple of 3 levels (one per channel), got {len(levels)}")
     start = time.perf_counter()
@@ -277,6 +288,9 @@ class Refinement:
     nonfinite: int = 0                 # NaN or Inf samples in its renders, the curve's too (counted, replaced by 0)
     region: Region = field(default_factory=Region)        # what it fitted and rendered
     curve: "ResponseCurve | None" = None   # the curve it inverted (the region's, at the swatch's appearance)
+    #: where ``sigma_a`` was mapped to another structure's (``inference.structure.toward_family``): the sigma_a
+    #: fitted on the region's own structure, which renders the capture there (the twin renders it)
+    fitted_sigma_a: "np.ndarray | None" = None
 
     @property
     def polish_seconds(self) -> float:
@@ -290,7 +304,9 @@ class Refinement:
             seconds=round(self.seconds, 3), curve_seconds=round(self.curve_seconds, 3), curve_cached=self.curve_cached,
             target_linear_rgb=tuple(round(float(v), 6) for v in self.target),
             rendered_linear_rgb=tuple(round(float(v), 6) for v in self.rendered),
-            residual_history=tuple(round(v, 4) for v in self.history), nonfinite=self.nonfinite, region=self.region)
+            residual_history=tuple(round(v, 4) for v in self.history), nonfinite=self.nonfinite, region=self.region,
+            fitted_sigma_a=None if self.fitted_sigma_a is None else
+            tuple(round(float(v), 6) for v in self.fitted_sigma_a))
 
 
 def fibre_appearance(sigma: np.ndarray) -> np.ndarray:

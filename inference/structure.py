@@ -316,6 +316,6 @@ def toward_family(refinement, prior, view: View, settings: RefineSettings = Refi
         why = f"{texture.describe()}; {why}"
     mean = (f"the family's mean: {', '.join(family.members)}" if weights is None else
             "the weighted mean of the members the texture leaves")
-    return replaced(refinement, params=params, sigma_a=hair_sigma_a(params),
+    return replaced(refinement, params=params, sigma_a=hair_sigma_a(params), fitted_sigma_a=refinement.sigma_a,
                     seconds=refinement.seconds + time.perf_counter() - start,
                     region=replaced(refinement.region, structure=f"mapped to {mean} ({why})"))

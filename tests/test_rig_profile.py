@@ -192,3 +192,27 @@ def test_estimate_with_a_sessions_calibration_reads_its_profile(ws, capsys):
     args = _estimate_args(ws / "elsewhere.json")   # a calibration outside a session: no profile
     session_profile(args)
     assert args.led is None and args.structure is None
+
+
+def test_the_app_runs_as_the_sessions_profile_declares_and_a_flag_overrides_it_for_one_run(tmp_path):
+    """``hairdigi app``'s rig (``session_rig``): a session's profile gives the camera, LEDs and structure, a flag
+    given overrides it for this run and the status line says so; a session without one keeps what the run
+    used; a damaged profile is named and left as it is."""
+    from hairdigi.app.gui.main import SETTING_DEFAULTS, session_rig
+
+    settings = dict(SETTING_DEFAULTS, structure="read")
+    lab = tmp_path / "lab"
+    write_profile(lab, RigProfile("nikon-5100", "LED-B4", "assumed"))
+    led, sensor, structure, said = session_rig(lab, settings, False, None, None, None)
+    assert (led, sensor, structure) == ("LED-B4", "nikon-5100", "assumed") and "rig-profile.json" in said
+    led, sensor, structure, said = session_rig(lab, settings, False, None, None, "family")
+    assert structure == "family" and "--structure family overrides" in said
+    assert read_profile(lab).structure == "assumed"                        # for this run only
+    fresh = tmp_path / "fresh"
+    assert session_rig(fresh, settings, True, None, None, None)[2] == "read"
+    assert read_profile(fresh) == RigProfile(None, None, "read")          # declared once
+    damaged = tmp_path / "damaged"
+    damaged.mkdir()
+    (damaged / PROFILE_NAME).write_text("{not json")
+    led, sensor, structure, said = session_rig(damaged, settings, True, None, None, None)
+    assert structure == "read" and PROFILE_NAME in said and (damaged / PROFILE_NAME).read_text() == "{not json"

@@ -38,13 +38,13 @@ def add_structure_argument(p, what: str = "the swatch's") -> None:
     from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, STRUCTURE_MODES
 
     p.add_argument("--structure", choices=STRUCTURE_MODES, default=None,
-                   help=f"{what} physical structure (default {DEFAULT_STRUCTURE}): 'assumed', hairdigi's layered swatch; "
-                   "'family', for a lab's swatches built another way: the texture's streaks leave the structures "
-                   "that show them; refined on the one the single-light frames read decisively among them, else the "
-                   "answer mapped to their mean (render.swatch_family's curves render once per rig region, 56 small "
-                   "renders); 'read', read from the "
-                   "single-light frames among them (their per-light tables, 96 renders each) and refined on it. "
-                   "hairdigi evaluate --structures measures each")
+                   help=f"{what} physical structure (default {DEFAULT_STRUCTURE}, or the session's rig profile's): "
+                   "'family', for a lab's swatch, built another way than hairdigi's: the texture's streaks leave the "
+                   "structures that show them; refined on the one the single-light frames read decisively among "
+                   "them, else the answer mapped to their mean; 'assumed', hairdigi's own layered swatch (its "
+                   "synthetic evaluations); 'read', read from the single-light frames among the structures and "
+                   "refined on it. The bench camera's tables are shipped (no render); another camera's render once "
+                   "per region. hairdigi evaluate --structures measures each")
 
 
 def add_declare_argument(p) -> None:

@@ -8,6 +8,7 @@ from pathlib import Path
 from PySide6.QtWidgets import QApplication, QComboBox, QDialog, QDialogButtonBox, QFormLayout, QLineEdit
 
 from hairdigi.app.gui.main_window import MainWindow, settings_store
+from hairdigi.app.session.profile import ProfileError, RigProfile, merged, profile_path, read_profile, write_profile
 from hairdigi.app.session.rig_session import open_rig
 from hairdigi.app.session.spectra import rig_spectra, spectra_problem
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, STRUCTURE_MODES
@@ -99,21 +100,47 @@ def chosen_structure(settings: dict, structure: str | None) -> tuple[str, str | 
                                     f"{', '.join(STRUCTURE_MODES)}; '{DEFAULT_STRUCTURE}' is used (Settings > structure)")
 
 
+def session_rig(folder: Path, settings: dict, sim: bool, led: str | None, sensor: str | None,
+                structure: str | None) -> tuple[str | None, str | None, str, str | None]:
+    """The rig the app runs: the session's rig profile (``app.session.profile``), each flag given overriding it for
+    this run; without a profile, the flags or the settings, kept as the session's profile (declared once).
+    Returns (led, sensor, structure, the status line: the profile read, its overrides and problems; or None)."""
+    try:
+        kept = read_profile(folder)
+    except ProfileError as exc:            # a damaged profile is said, and the settings stand in this once
+        kept, damaged = None, str(exc)
+    else:
+        damaged = None
+    if kept is not None:                   # the session's rig profile, each flag overriding it for this run
+        profile, notices = merged(kept, {"sensitivities": sensor, "led": led, "structure": structure})
+        led, sensor, structure = profile.led, profile.sensitivities, str(profile.structure)
+        problem, wrong = (None if sim else spectra_problem(led, sensor)), None
+        problem = "; ".join(filter(None, [f"rig profile {profile_path(folder)}", *notices, problem]))
+    else:
+        problem = None
+        if not sim:
+            led, sensor, problem = declared_spectra(settings, led, sensor)
+        structure, wrong = chosen_structure(settings, structure)
+        if damaged is None and not problem and not wrong:    # declared once: the session keeps what this run uses
+            folder.mkdir(parents=True, exist_ok=True)
+            write_profile(folder, RigProfile(None if sim else sensor, None if sim else led, structure))
+    problem = "; ".join(filter(None, [damaged, problem, wrong])) or None
+    return led, sensor, structure, problem
+
+
 def run_app(sim: bool = False, session: str | None = None, tour: str | None = None, camera: str | None = None,
             spectral: bool = False, led: str | None = None, sensor: str | None = None,
             structure: str | None = None) -> int:
     """The window on the rig; ``camera`` (an OpenCV index or URL, or ``genicam[:ID]``) overrides the setting.
     ``led`` and ``sensor``: a real rig's declared spectra (remembered), or with ``sim`` and ``spectral``
     the simulated spectral rig's (``session.spectra.rig_spectra``); ``structure``, how estimates treat the
-    swatch's physical structure (remembered)."""
+    swatch's physical structure (remembered). A session with a rig profile (``app.session.profile``) runs as it
+    declares, a flag overriding it for this run (said in the status bar); a session without one keeps what this
+    run uses as its profile."""
     app = QApplication.instance() or QApplication(sys.argv[:1])
     settings = read_settings()
     folder = Path(session or settings["output_folder"])
-    problem = None
-    if not sim:
-        led, sensor, problem = declared_spectra(settings, led, sensor)
-    structure, wrong = chosen_structure(settings, structure)
-    problem = "; ".join(filter(None, [problem, wrong])) or None
+    led, sensor, structure, problem = session_rig(folder, settings, sim, led, sensor, structure)
     simulated, spectra = rig_spectra(sim, spectral, led, sensor)
     rig, reason = open_rig(folder, sim, camera or settings["camera"], settings["serial_port"], fallback=True,
                            spectra=spectra, structure=structure, **simulated)

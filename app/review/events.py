@@ -142,6 +142,23 @@ class Shown:
         """The estimate's shine, fibre spread and grey share (the defaults where there is none)."""
         return record_appearance(self.record)
 
+    @property
+    def twin_hair(self) -> HairParams | np.ndarray | None:
+        """What the twin renders: where the answer was mapped to another structure's (the family's mean), the
+        sigma_a fitted on the structure the estimate was read on, which renders this capture there; else the
+        parameters."""
+        refinement = None if self.record is None else self.record.refinement
+        if refinement is not None and refinement.fitted_sigma_a is not None:
+            return np.asarray(refinement.fitted_sigma_a, float)
+        return self.params
+
+    @property
+    def swatch_model(self) -> str | None:
+        """The swatch structure the estimate was read on (None: the default)."""
+        refinement = None if self.record is None else self.record.refinement
+        region = None if refinement is None else refinement.region
+        return None if region is None else region.swatch_model
+
 
 #: Review keys: one per capture under review, unique in the process.
 KEYS = itertools.count(1)

@@ -298,7 +298,8 @@ class ReviewModel:
         shown = self.shown
         if shown is None:
             return None
-        return twin_view(shown.roi, shown.frame_size, shown.simulated, scale, shown.appearance, self.light)
+        return twin_view(shown.roi, shown.frame_size, shown.simulated, scale, shown.appearance, self.light,
+                         shown.swatch_model)
 
     def view_label(self) -> str:
         light = "" if self.illuminant is None else f", under {self.illuminant}"
@@ -377,8 +378,8 @@ class ReviewModel:
 
         def run():
             view = lambda scale: twin_view(shown.roi, shown.frame_size, shown.simulated, scale,  # noqa: E731
-                                           appearance, light)
-            yield from twin_passes(renderer, shown.params, real, view, settings.twin_passes, settings, on, tag,
+                                           appearance, light, shown.swatch_model)
+            yield from twin_passes(renderer, shown.twin_hair, real, view, settings.twin_passes, settings, on, tag,
                                    self._stale("twin", generation))
         return Work("twin", run, ended=lambda: self._twin_done(generation))
 

@@ -154,17 +154,19 @@ def lights_alone(light: int | None) -> tuple[float, ...]:
 
 def twin_view(roi: tuple[int, int, int, int], frame_size: tuple[int, int], simulated: bool,
               scale: float = 1.0, appearance: Appearance | None = None,
-              light: int | None = None) -> tuple[SceneSpec, tuple[int, int]]:
+              light: int | None = None, swatch_model: str | None = None) -> tuple[SceneSpec, tuple[int, int]]:
     """The twin's scene and size: the rig camera over exactly the ROI (simulated geometry), or a crop;
     ``scale`` < 1 renders the same view with fewer pixels. The hair has the estimate's ``appearance``
-    (shine, fibre spread, greys; None: the default), lit by ``light`` alone (None: all lights)."""
+    (shine, fibre spread, greys; None: the default), lit by ``light`` alone (None: all lights), on the swatch
+    structure the estimate was read on (``swatch_model``; None: the default)."""
     from hairdigi.app.session import rig_session as rs
 
     if simulated:
         spec, size = rs.twin_spec(roi, frame_size, scale)
     else:
         spec, size = SceneSpec("swatch", framing="crop"), (max(8, round(roi[2] * scale)), max(8, round(roi[3] * scale)))
-    return dataclasses.replace(spec, appearance=scene_appearance(appearance), lights=lights_alone(light)), size
+    return dataclasses.replace(spec, appearance=scene_appearance(appearance), lights=lights_alone(light),
+                               swatch_model=swatch_model or spec.swatch_model), size
 
 
 def orbit_pose(azimuth_deg: float, elevation_deg: float, distance: float | None = None) -> CameraPose:

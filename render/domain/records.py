@@ -278,14 +278,19 @@ class RefinementRecord:
     residual_history: tuple[float, ...] = ()
     nonfinite: int = 0
     region: Region | None = None          # what was fitted and rendered (the same region)
+    #: the sigma_a that renders the capture on the region's structure where ``sigma_a`` was mapped from it to
+    #: another structure's (the family's mean, ``inference.structure.toward_family``): what the twin renders
+    fitted_sigma_a: tuple[float, float, float] | None = None
 
     def to_json(self) -> dict:
         if not self.ran:
             return {"ran": False}
         out = {f.name: getattr(self, f.name) for f in fields(self)}
-        for key in ("sigma_a", "target_linear_rgb", "rendered_linear_rgb", "residual_history"):
+        for key in ("sigma_a", "target_linear_rgb", "rendered_linear_rgb", "residual_history", "fitted_sigma_a"):
             if out[key] is not None:
                 out[key] = list(out[key])
+        if out["fitted_sigma_a"] is None:
+            del out["fitted_sigma_a"]
         out["region"] = None if self.region is None else self.region.to_json()
         return out
 
@@ -297,8 +302,9 @@ class RefinementRecord:
         if not data.get("ran"):
             return cls()
         vec = {k: (None if data.get(k) is None else floats(data[k], 3, k, what))
-               for k in ("sigma_a", "target_linear_rgb", "rendered_linear_rgb")}
+               for k in ("sigma_a", "target_linear_rgb", "rendered_linear_rgb", "fitted_sigma_a")}
         check_sigma_a(vec["sigma_a"], f"the {what}'s 'sigma_a'")
+        check_sigma_a(vec["fitted_sigma_a"], f"the {what}'s 'fitted_sigma_a'")
         return cls(ran=True, **vec,
                    residual_de2000=need(data, "residual_de2000", float, what, None, required=False),
                    iterations=need(data, "iterations", int, what, 0, required=False),

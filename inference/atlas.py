@@ -1,0 +1,152 @@
+"""The bench camera's tables, rendered once and shipped: any swatch region's response curves and shine tables
+as sums of cells, with no render at capture time.
+
+A response curve (``inference.refine``) or a shine table (``inference.shine``) is the mean colour of one
+region of the rig frame over a ladder of ``sigma_a`` levels. A mean over a region is the mean of the means of
+the cells that tile it, so rendering the whole swatch area once, as a grid of cells (box-filtered pixels: each
+pixel is its cell's area mean), answers every region on that grid. The atlas holds, for the bench camera on
+the canonical frame (``FRAME``, 4:3; other frames are scaled to its width and centred on its height, as the
+camera's horizontal field of view is fixed):
+
+- every family member's response curve in each of its layouts (``inference.structure.LAYOUTS``), per
+  ``CURVE_CELL`` pixels;
+- every read member's shine tables (``inference.structure.READ_MEMBERS``), per ``SHINE_CELL`` pixels
+  (a shine reading is a ratio of the lights' shares, which hardly moves across the swatch).
+
+A region is snapped to the nearest lines of the atlas's cells. Where the view is not the bench camera's, falls outside
+the atlas, or the renderer is not the atlas's kind, the callers render as before. ``build`` makes it
+(``inference.atlas_build``, resumable); ``hairdigi bench atlas`` measures what it costs in
+error against rendering each region.
+"""
+from __future__ import annotations
+
+import functools
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hairdigi.render.domain.rig_geometry import RIG_HALF_WIDTH, RIG_TARGET, CameraPose, Framing, RigRegion
+from hairdigi.resources import ROOT
+
+#: Where the shipped atlas lies.
+ATLAS_PATH = ROOT / "tables" / "rig_atlas.npz"
+#: The canonical frame (pixels): the family's canonical width (``inference.structure.FAMILY_FRAME``), 4:3.
+FRAME = (400, 300)
+#: Rendered pixels per canonical pixel: one film pixel covers ``PIXEL`` x ``PIXEL`` canonical pixels.
+PIXEL = 4
+#: The curves' and the shine tables' cells (canonical pixels; multiples of ``PIXEL``).
+CURVE_CELL = 8
+SHINE_CELL = 16
+#: The area rendered (x, y, w, h canonical pixels, on the ``SHINE_CELL`` grid): the swatch's visible area on the
+#: holder (``rig_geometry.swatch_roi``, (30, 56, 130, 189) inset 0.05) grown by 0.1 scene units each side.
+BOX = (0, 16, 192, 256)
+
+
+def cells(image: np.ndarray, cell: int) -> np.ndarray:
+    """(H, W) film pixels pooled into (H / c, W / c) cell means (c = cell / PIXEL film pixels)."""
+    c = cell // PIXEL
+    h, w = image.shape[-2] // c, image.shape[-1] // c
+    return image[..., :h * c, :w * c].reshape(*image.shape[:-2], h, c, w, c).mean(axis=(-3, -1))
+
+
+@dataclass(frozen=True)
+class Atlas:
+    """The shipped tables: per-cell means over ``BOX`` and what they were rendered with."""
+
+    levels: np.ndarray                      # (K,) sigma ladder (``RefineSettings.levels``)
+    betas: np.ndarray                       # (B,) shine grid (``inference.shine.BETA_GRID``)
+    curves: dict[tuple[str, int], np.ndarray]   # (member, layout) -> (K, H, W) per CURVE_CELL
+    shine: dict[str, np.ndarray]            # member -> (L, B, K, h, w) per SHINE_CELL
+    meta: dict                              # spp, seed, variant, strands, depth, revisions, seconds
+
+    def cells(self, view, cell: int) -> tuple[slice, slice] | None:
+        """The cells (rows, columns) of ``view``'s region snapped to the nearest ``cell`` lines; None where the
+        view is not the bench camera's or its region leaves the atlas."""
+        if not isinstance(view, RigRegion) or not _bench(view):
+            return None
+        scale = FRAME[0] / view.frame_size[0]
+        offset = (FRAME[1] - view.frame_size[1] * scale) / 2.0
+        x, y, w, h = view.roi
+        x0, x1 = x * scale - BOX[0], (x + w) * scale - BOX[0]
+        y0, y1 = y * scale + offset - BOX[1], (y + h) * scale + offset - BOX[1]
+        c0, c1 = int(np.floor(x0 / cell + 0.5)), int(np.floor(x1 / cell + 0.5))
+        r0, r1 = int(np.floor(y0 / cell + 0.5)), int(np.floor(y1 / cell + 0.5))
+        if c0 < 0 or r0 < 0 or c1 > BOX[2] // cell or r1 > BOX[3] // cell or c1 <= c0 or r1 <= r0:
+            return None
+        return slice(r0, r1), slice(c0, c1)
+
+    def curve(self, view, member: str, layout: int) -> np.ndarray | None:
+        """(K,) mean of ``member``'s curve in ``layout`` over ``view``'s region; None where the atlas lacks it."""
+        cells, table = self.cells(view, CURVE_CELL), self.curves.get((member, int(layout)))
+        return None if cells is None or table is None else table[:, cells[0], cells[1]].mean(axis=(-2, -1))
+
+    def shine_means(self, view, member: str) -> np.ndarray | None:
+        """(L, B, K) shine tables of ``member`` over ``view``'s region; None where the atlas lacks them."""
+        cells, table = self.cells(view, SHINE_CELL), self.shine.get(member)
+        if cells is None or table is None:
+            return None
+        return table[..., cells[0], cells[1]].astype(np.float64).mean(axis=(-2, -1))
+
+
+def _bench(view: RigRegion) -> bool:
+    """The bench camera (the pose, target and field of view the atlas was rendered from)."""
+    return (view.pose == CameraPose() and tuple(view.target) == tuple(RIG_TARGET)
+            and abs(view.half_width - RIG_HALF_WIDTH) < 1e-9)
+
+
+def fingerprint(renderer_variant: str) -> dict:
+    """What the atlas's renders depend on beyond the view: the swatch geometry's revisions, strands, depth and
+    the renderer's colour mode (an rgb atlas answers every rgb variant)."""
+    from hairdigi.render.renderer import SceneSpec
+    from hairdigi.render.swatch_family import REVISIONS
+
+    spec = SceneSpec("swatch", framing=Framing.RIG)
+    return {"revisions": dict(sorted(REVISIONS.items())), "strands": spec.n_strands, "depth": spec.depth,
+            "colour": "spectral" if "spectral" in renderer_variant else "rgb"}
+
+
+@functools.lru_cache(maxsize=4)
+def _load(path: str, mtime: float) -> Atlas | None:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            curves = {(m, int(s)): np.asarray(data[f"curve__{m}__{s}"], np.float64)
+                      for m, s in meta["curves"]}
+            shine = {m: np.asarray(data[f"shine__{m}"]) for m in meta["shine"]}
+            return Atlas(np.asarray(data["levels"], float), np.asarray(data["betas"], float), curves, shine, meta)
+    except (OSError, ValueError, KeyError):   # a damaged atlas answers nothing: the callers render
+        return None
+
+
+def load(path: str | os.PathLike | None = None) -> Atlas | None:
+    """The atlas at ``path`` (None: ``HAIRDIGI_ATLAS``, else the shipped one; ``HAIRDIGI_ATLAS=off``: none)."""
+    chosen = path or os.environ.get("HAIRDIGI_ATLAS") or ATLAS_PATH
+    if str(chosen) == "off" or not Path(chosen).is_file():
+        return None
+    return _load(str(chosen), Path(chosen).stat().st_mtime)
+
+
+def _usable(atlas: Atlas | None, levels, renderer_variant: str) -> bool:
+    return (atlas is not None and len(atlas.levels) == len(levels) and np.allclose(atlas.levels, levels)
+            and atlas.meta.get("fingerprint") == fingerprint(renderer_variant))
+
+
+def curve_means(view, levels, layout: int, member: str, renderer_variant: str) -> np.ndarray | None:
+    """(K,) the atlas's mean colour of ``member`` in ``layout`` over ``view``'s region at the ``levels`` ladder
+    (one channel per level), or None where the shipped atlas does not answer (``Atlas.cells``)."""
+    atlas = load()
+    if not _usable(atlas, levels, renderer_variant):
+        return None
+    return atlas.curve(view, str(member), layout)
+
+
+def shine_means(view, levels, betas, member: str, renderer_variant: str) -> np.ndarray | None:
+    """(L, B, K) the atlas's single-light tables of ``member`` (layout 0) over ``view``'s region, or None."""
+    atlas = load()
+    if not _usable(atlas, levels, renderer_variant) or len(betas) != len(atlas.betas) \
+            or not np.allclose(betas, atlas.betas):
+        return None
+    return atlas.shine_means(view, str(member))

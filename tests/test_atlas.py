@@ -1,0 +1,115 @@
+"""The shipped atlas (``inference.atlas``): any swatch region of the bench camera's frame answered from cells, so
+the first estimate in a fresh session renders no table; and the twin rendered on the structure the estimate
+was read on."""
+import numpy as np
+import pytest
+
+from hairdigi.inference import atlas as A
+from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose, RigRegion, swatch_roi
+
+
+def _pattern() -> A.Atlas:
+    """An atlas whose cell (k, r, c) holds 1000 k + 100 r + c: a region's mean names the cells it took."""
+    k, r, c = np.meshgrid(np.arange(12), np.arange(A.BOX[3] // A.CURVE_CELL), np.arange(A.BOX[2] // A.CURVE_CELL),
+                          indexing="ij")
+    return A.Atlas(np.linspace(0, 1, 12), np.zeros(8), {("layered", 0): 1000.0 * k + 100.0 * r + c}, {}, {})
+
+
+def test_a_regions_means_are_its_cells_on_any_frame_of_the_bench_camera():
+    """A region is snapped to the nearest cell lines of the canonical frame: the feed's frame, a RAW still of
+    twice its size and a 16:9 frame of the same field (the horizontal field fixed, the height centred) take
+    the same cells; a region leaving the atlas, another camera and an all-hair crop's pose take none."""
+    atlas = _pattern()
+    live = atlas.curve(RigRegion((400, 300), (30, 56, 130, 189)), "layered", 0)
+    # x 30..160 -> cells 4..19 (3.75 rounds to 4); y 56..245 -> 40..229 in the box -> cells 5..28 (28.6 -> 29)
+    assert np.allclose(live, 1000.0 * np.arange(12) + 100.0 * (5 + 28) / 2 + (4 + 19) / 2)
+    assert np.allclose(atlas.curve(RigRegion((800, 600), (60, 112, 260, 378)), "layered", 0), live)
+    assert np.allclose(atlas.curve(RigRegion((800, 450), (60, 37, 260, 378)), "layered", 0), live)
+    assert atlas.curve(RigRegion((400, 300), (250, 56, 100, 100)), "layered", 0) is None     # past the atlas
+    assert atlas.curve(RigRegion((400, 300), (30, 56, 130, 189), CameraPose(30.0, 0.0)), "layered", 0) is None
+    assert atlas.curve(RIG_SWATCH_POSE, "layered", 0) is None
+    assert atlas.curve(RigRegion((400, 300), (30, 56, 130, 189)), "spread", 0) is None       # not in it
+
+
+def test_the_shipped_atlas_is_current_and_covers_the_rigs_region():
+    """The shipped atlas was rendered from today's swatch geometry (a structure's revision, the strand count or
+    the depth changed without a rebuild fails here: ``python -m hairdigi.inference.atlas_build``) and answers
+    the simulated rig's region for every family member's layouts and every read member's shine."""
+    from hairdigi.hardware.sim_rig import SIM_SIZE
+    from hairdigi.inference.structure import FAMILY, LAYOUTS, READ_MEMBERS
+    from hairdigi.render.renderer import default_renderer
+
+    atlas = A.load()
+    assert atlas is not None, f"no atlas at {A.ATLAS_PATH}"
+    assert atlas.meta["fingerprint"] == A.fingerprint(default_renderer().variant)
+    region = RigRegion(SIM_SIZE, swatch_roi(SIM_SIZE))
+    for member in FAMILY:
+        for layout in range(LAYOUTS):
+            curve = atlas.curve(region, member, layout)
+            assert curve is not None and np.all(np.diff(curve) < 0.02 * curve[:-1]), (member, layout)
+    for member in READ_MEMBERS:
+        tables = atlas.shine_means(region, member)
+        assert tables is not None and tables.shape == (3, len(atlas.betas), len(atlas.levels)), member
+        assert np.all(tables > 0), member
+
+
+def test_an_atlas_curve_is_the_render_of_its_region(tmp_path, monkeypatch):
+    """In a fresh cache the rig region's response curve comes from the atlas (no render, nothing written) and
+    inverts a colour to the sigma_a a render of that region gives, within its noise."""
+    from hairdigi.hardware.sim_rig import SIM_SIZE
+    from hairdigi.inference.refine import RefineSettings, response_curve
+
+    monkeypatch.setenv("HAIRDIGI_CACHE", str(tmp_path / "cache"))
+    region = RigRegion(SIM_SIZE, swatch_roi(SIM_SIZE))
+    shipped = response_curve(region, RefineSettings())
+    assert shipped.cached and shipped.seconds == 0.0 and not (tmp_path / "cache").exists()
+    rendered = response_curve(region, RefineSettings(), cache=False)
+    assert not rendered.cached and rendered.seconds > 0
+    colours = rendered(np.array([0.05, 0.3, 1.3, 5.5]))
+    sigma, _ = shipped.inverse(colours)
+    assert np.allclose(sigma, [0.05, 0.3, 1.3, 5.5], rtol=0.15, atol=0.02), sigma
+    monkeypatch.setenv("HAIRDIGI_ATLAS", "off")                  # without it, the region is rendered
+    assert not response_curve(region, RefineSettings()).cached
+
+
+@pytest.mark.slow
+def test_a_fresh_sessions_first_capture_of_a_deposited_swatch_renders_no_table_and_its_twin_matches(
+        tmp_path, monkeypatch):
+    """The default mode is the family's. A simulated rig with a deposited swatch, a fresh cache: the capture's
+    estimate takes its curves and shine tables from the atlas (nothing rendered into the cache), and the twin,
+    rendered as the review shows it (on the structure read, at the sigma_a fitted there), matches the capture
+    where the family's answer drawn on hairdigi's layered swatch would not."""
+    from hairdigi.app.review.events import Shown, Stage
+    from hairdigi.app.review.previews import twin_view
+    from hairdigi.app.session.rig_session import RigSession
+    from hairdigi.inference.refine import fitted_pixels
+    from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
+    from hairdigi.render.domain.params import HairParams
+    from hairdigi.render.metrics import mean_colour_delta_e
+    from hairdigi.render.renderer import default_renderer
+
+    assert DEFAULT_STRUCTURE is StructureMode.FAMILY
+    monkeypatch.setenv("HAIRDIGI_CACHE", str(tmp_path / "cache"))
+    session = RigSession.simulated_rig(tmp_path / "s", hidden=HairParams((200, 90, 50), 0.6, 0.35, 0.5), spp=16,
+                                       swatch_model="deposited")
+    try:
+        session.calibrate()
+        result = session.capture()
+    finally:
+        session.close()
+    record = result.record
+    assert record is not None and record.uncertainty.structure.mode == "family"
+    assert not list((tmp_path / "cache").glob("response/*")), "a table was rendered"
+    refinement = record.refinement
+    frame = result.corrected
+    region = refinement.region.rig
+    real = fitted_pixels(frame, region)
+    shown = Shown("c", real, region.roi, region.frame_size, record.hair, Stage.REFINED, record, True)
+    renderer = default_renderer()
+    spec, size = twin_view(region.roi, region.frame_size, True, 1.0, shown.appearance, None, shown.swatch_model)
+    twin = renderer.render(shown.twin_hair, spec, size, 64, 3).linear
+    assert mean_colour_delta_e(real, twin) <= 0.6, refinement
+    if refinement.fitted_sigma_a is not None:          # mapped to the family's mean: the old twin was off
+        old = renderer.render(record.hair, twin_view(region.roi, region.frame_size, True, 1.0, shown.appearance)[0],
+                              size, 64, 3).linear
+        assert mean_colour_delta_e(real, old) > mean_colour_delta_e(real, twin)
