@@ -64,7 +64,7 @@ def build(out: str | os.PathLike = ATLAS_PATH, spp: int = 48, seed: int = 7, ren
         spec = SceneSpec("swatch", camera=region.pose, framing=Framing.RIG, target=region.target,
                          half_width=region.half_width, crop=crop, strand_seed=layout, swatch_model=member)
         if kind == "curve":
-            table = cells(_render_ladder(renderer, spec, film, levels, spp, seed), CURVE_CELL)
+            table = cells(_render_ladder(renderer, spec, film, levels, spp, seed), CURVE_CELL).astype(np.float32)
         else:
             table = np.empty((N_LIGHTS, len(betas), len(levels), BOX[3] // SHINE_CELL, BOX[2] // SHINE_CELL))
             for light in range(N_LIGHTS):

@@ -15,10 +15,12 @@ Strands`` in ``STRUCTURES`` (a registry, as colour-science's method registries):
 - ``wavy``: deposited fibres that wave along their length (amplitude 2-5 fibre diameters);
 - ``tilted``: layers of parallel fibres, each layer tilted a few degrees (``tilted_layers``);
 - ``loose``: layered at a low volume fraction (half the fibres a layer, layers further apart);
-- ``thin``: too few fibres to cover the holder (about 4 deposited layers): the holder shows through.
+- ``thin``: too few fibres to cover the holder (about 4 deposited layers): the holder shows through;
+- ``clumped``: fibres in flat clumps of 40 that sway as one, gaps between them (``clumps``): a structure drawn
+  to evaluate one that no estimate was made robust over, before its figures were seen.
 
 ``FAMILY`` names the members a lab's full swatch may have (``thin`` is a capture to flag, not a
-structure to average over). The swatch spans ``rig_geometry.SWATCH_HALF``; every member takes its
+structure to average over; ``clumped`` is held out of it, for evaluations). The swatch spans ``rig_geometry.SWATCH_HALF``; every member takes its
 fibre radius from its count so that it fills about the same thickness (``strands.layered_radius``).
 """
 from __future__ import annotations
@@ -166,6 +168,36 @@ def tilted_layers(n_strands: int, seed: int, radius: float, tilt_sd_deg: float =
     return Strands.from_grid(np.array(fibres[:n_strands]), radius).through_ends()
 
 
+def clumps(n_strands: int, seed: int, radius: float, per_clump: tuple[int, int] = (8, 5), wave: float = 0.012,
+           points: int = POINTS) -> Strands:
+    """Fibres gathered in clumps, as a combed tress with product dries: each clump a ribbon of ``per_clump``
+    (across, rows) fibres packed hexagonally 2.04 radii apart, the whole clump swaying as one (amplitude up to
+    ``wave`` units, its slope at most 0.13, so its fibres stay over 2 radii apart), clumps side by side with
+    gaps wider than their sways, in layers that do not overlap: none meets another. Drawn for an evaluation of
+    a structure no estimate was made robust over, before its figures were seen; not a family member."""
+    rng = np.random.default_rng(seed)
+    y = np.linspace(-SWATCH_LENGTH / 2, SWATCH_LENGTH / 2, points)
+    across, rows = per_clump
+    dx = (np.arange(across) - (across - 1) / 2) * 2.04 * radius
+    cross = np.array([(x + (r % 2) * 1.02 * radius, r * np.sqrt(3) * 1.02 * radius)
+                      for r in range(rows) for x in dx])                       # (across * rows, 2): x, z
+    clump_width, clump_height = float(np.ptp(cross[:, 0])) + 2.04 * radius, float(np.ptp(cross[:, 1]))
+    fibres: list[np.ndarray] = []
+    z = radius * 1.02
+    while len(fibres) < n_strands:
+        x = -SWATCH_WIDTH / 2 - clump_width / 2
+        while x < SWATCH_WIDTH / 2 + clump_width / 2 and len(fibres) < n_strands:
+            amplitude = rng.uniform(0.2, 1.0) * wave
+            period = rng.uniform(0.6, 1.2)
+            sway = amplitude * np.sin(2 * np.pi * y / period + rng.uniform(0, 2 * np.pi))
+            for cx, cz in cross:
+                fibres.append(np.stack([x + cx + sway, y, np.full_like(y, z + cz)], 1))
+            x += clump_width + 2 * wave + rng.uniform(0.1, 0.6) * clump_width
+        z += clump_height + 2.04 * radius * rng.uniform(1.0, 1.4)
+    kept = [f for f in fibres if np.any(np.abs(f[:, 0]) <= SWATCH_WIDTH / 2)]
+    return Strands.from_grid(np.array(kept[:n_strands]), radius).through_ends()
+
+
 def _radius(n_strands: int, scale: float = 1.0) -> float:
     return layered_radius(n_strands) * scale
 
@@ -183,6 +215,7 @@ STRUCTURES: dict[str, Builder] = {
     "tilted": lambda n, s: tilted_layers(n, s, _radius(n)),
     "loose": lambda n, s: layered_swatch_strands(n, seed=s, radius=layered_radius(n), fill=0.4),
     "thin": lambda n, s: deposit(max(1, n // 5), s, _radius(n)),
+    "clumped": lambda n, s: clumps(n, s, _radius(n)),
 }
 #: The structures ``deposit`` draws: a second or more to build at the default swatch (spread 18 s).
 DEPOSITS = ("deposited", "deposited-coarse", "spread", "wavy", "thin")

@@ -46,7 +46,9 @@ def test_the_shipped_atlas_is_current_and_covers_the_rigs_region():
     for member in FAMILY:
         for layout in range(LAYOUTS):
             curve = atlas.curve(region, member, layout)
-            assert curve is not None and np.all(np.diff(curve) < 0.02 * curve[:-1]), (member, layout)
+            # falling to the fibres' surface reflection, flat within the renders' noise past sigma_a 3
+            assert curve is not None and curve[-1] < 0.1 * curve[0], (member, layout)
+            assert np.all(np.diff(curve) < 0.05 * curve[:-1]), (member, layout)
     for member in READ_MEMBERS:
         tables = atlas.shine_means(region, member)
         assert tables is not None and tables.shape == (3, len(atlas.betas), len(atlas.levels)), member
@@ -55,7 +57,8 @@ def test_the_shipped_atlas_is_current_and_covers_the_rigs_region():
 
 def test_an_atlas_curve_is_the_render_of_its_region(tmp_path, monkeypatch):
     """In a fresh cache the rig region's response curve comes from the atlas (no render, nothing written) and
-    inverts a colour to the sigma_a a render of that region gives, within its noise."""
+    gives the hard cases' hairs the colours a render of that region gives, within the renders' noise (a render
+    with another sampler seed lies 0.1-1.0 ΔE2000 from it at 32 spp: ``hairdigi bench atlas``)."""
     from hairdigi.hardware.sim_rig import SIM_SIZE
     from hairdigi.inference.refine import RefineSettings, response_curve
 
@@ -65,9 +68,11 @@ def test_an_atlas_curve_is_the_render_of_its_region(tmp_path, monkeypatch):
     assert shipped.cached and shipped.seconds == 0.0 and not (tmp_path / "cache").exists()
     rendered = response_curve(region, RefineSettings(), cache=False)
     assert not rendered.cached and rendered.seconds > 0
-    colours = rendered(np.array([0.05, 0.3, 1.3, 5.5]))
-    sigma, _ = shipped.inverse(colours)
-    assert np.allclose(sigma, [0.05, 0.3, 1.3, 5.5], rtol=0.15, atol=0.02), sigma
+    from hairdigi.app.evaluation.bench_atlas import HAIRS
+    from hairdigi.render.metrics import delta_e2000
+
+    apart = {name: float(delta_e2000(shipped(np.asarray(s)), rendered(np.asarray(s)))) for name, s in HAIRS.items()}
+    assert max(apart.values()) < 1.5 and np.median(list(apart.values())) < 0.8, apart
     monkeypatch.setenv("HAIRDIGI_ATLAS", "off")                  # without it, the region is rendered
     assert not response_curve(region, RefineSettings()).cached
 

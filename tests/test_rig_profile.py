@@ -115,7 +115,7 @@ def test_a_flag_on_the_live_rig_overrides_for_one_command_and_declare_writes_it(
 
 def test_a_real_rig_session_without_flags_writes_an_undeclared_profile(ws, live):
     assert main(["rig", "--session", "s"]) == 0
-    assert read_profile(ws / "s") == RigProfile(None, None, "assumed")
+    assert read_profile(ws / "s") == RigProfile(None, None, "family")         # the default mode, declared
     assert live[-1].led is None and live[-1].sensor is None
 
 

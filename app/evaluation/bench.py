@@ -211,6 +211,20 @@ def bench_structure(args: argparse.Namespace) -> int:
     return 0
 
 
+def bench_atlas(args: argparse.Namespace) -> int:
+    """The shipped atlas against rendering each region's tables: cost and colour apart, by region and hair."""
+    from hairdigi.app.evaluation.bench_atlas import HAIRS, atlas_bench
+
+    out = Path("packaging/bench/atlas") if args.out == BENCH_OUT else Path(args.out)
+    summary = atlas_bench(out, end_to_end_too=not args.quick)
+    for r in summary["tables"]:
+        print(f"{r['region']:28s} " + ", ".join(f"{h} {r[f'{h}_de2000']:.2f}" for h in HAIRS if f"{h}_de2000" in r))
+    for r in summary.get("end_to_end", []):
+        print("first capture, fresh session: " + ", ".join(f"{k} {v}" for k, v in r.items()))
+    print(f"wrote {out / 'atlas.csv'}, {out / 'atlas.json'} and {out / 'atlas.png'}")
+    return 0
+
+
 def bench_family(args: argparse.Namespace) -> int:
     """Every physical swatch structure at equal sigma_a, against the layered swatch."""
     from hairdigi.inference.training.bench_structure import FAMILY_HAIRS, family

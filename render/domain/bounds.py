@@ -64,6 +64,7 @@ class SwatchModel(TextEnum):
     TILTED = "tilted"
     LOOSE = "loose"
     THIN = "thin"
+    CLUMPED = "clumped"
 
 
 # Bounds on what a render may ask for: outside them the image is black, or the job cannot finish.
