@@ -495,12 +495,12 @@ def test_contradictory_evaluation_flags_are_refused(ws, capsys, args):
     assert not (ws / "ev").exists()
 
 
-@pytest.mark.parametrize("args, says", [(["--ship", "--structure", "family"], "drop --ship"),
-                                        (["--ship", "--hidden-structures", "deposited"], "drop --ship"),
+@pytest.mark.parametrize("args, says", [(["--ship", "--structure", "assumed"], "drop --ship"),
+                                        (["--ship", "--structure", "read"], "drop --ship"),
                                         (["--hidden-structures", "deposited,stacked"], "unknown structure 'stacked'")])
 def test_a_rig_evaluation_of_other_swatches_is_not_shipped_nor_run_on_a_structure_that_is_not(ws, capsys, args, says):
-    """The chain's shipped interval is measured on hairdigi's own swatch in the default mode; a misspelt
-    hidden structure is named before any capture is rendered."""
+    """The chain's shipped interval is measured in the default mode (across swatch structures, the records'
+    own); a misspelt hidden structure is named before any capture is rendered."""
     assert main(["evaluate", "--rig", *args, "--out", "ev"]) == 2
     assert says in capsys.readouterr().err
     assert not list((ws / "ev").glob("rig_evaluation*"))

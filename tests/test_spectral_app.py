@@ -148,13 +148,13 @@ def test_the_app_remembers_a_real_rigs_spectra_and_names_a_bad_setting(tmp_path)
 
 
 def test_the_app_remembers_how_estimates_treat_the_structure_and_names_a_bad_setting(tmp_path):
-    """``hairdigi app --structure family`` is kept for the next start; a setting that is not a mode is named
-    and the default used; the settings dialog offers the modes as a list, and saves the one picked."""
+    """``hairdigi app --structure assumed`` is kept for the next start (the default is family); a setting that is
+    not a mode is named and the default used; the settings dialog offers the modes as a list, and saves the one picked."""
     probe = ("from PySide6.QtWidgets import QApplication\n"
              "app = QApplication([])\n"
              "from hairdigi.app.gui.main import SettingsDialog, chosen_structure, read_settings, write_settings\n"
              "print(chosen_structure(read_settings(), None))\n"
-             "print(chosen_structure(read_settings(), 'family'))\n"
+             "print(chosen_structure(read_settings(), 'assumed'))\n"
              "print(chosen_structure(read_settings(), None))\n"
              "write_settings({'structure': 'guessed'})\n"
              "print(chosen_structure(read_settings(), None))\n"
@@ -166,7 +166,7 @@ def test_the_app_remembers_how_estimates_treat_the_structure_and_names_a_bad_set
              "dialog._save()\n"
              "print(chosen_structure(read_settings(), None))\n")
     first, given, remembered, bad, shown, saved = _with_own_settings(probe, tmp_path)
-    assert first == "('assumed', None)" and given == remembered == "('family', None)"
-    assert bad.startswith("('assumed', \"the settings' structure 'guessed' is not one of assumed, family, read")
-    assert shown == "assumed ['assumed', 'family', 'read']"
+    assert first == "('family', None)" and given == remembered == "('assumed', None)"
+    assert bad.startswith("('family', \"the settings' structure 'guessed' is not one of assumed, family, read")
+    assert shown == "family ['assumed', 'family', 'read']"
     assert saved == "('read', None)"

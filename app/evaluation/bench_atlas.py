@@ -117,39 +117,47 @@ def _rendered_family(view):
     return FamilyCurves(default, members, time.perf_counter() - start)
 
 
-def end_to_end(out: Path) -> list[dict]:
-    """A fresh session's first capture of a deposited swatch (the demo's copper), with the atlas and without."""
+def end_to_end(out: Path, hairs: tuple[str, ...] = ("copper", "black", "platinum", "saturated red",
+                                                      "saturated blue"), without: int = 1) -> list[dict]:
+    """Each hard case's first capture in a fresh session (a fresh cache: nothing rendered before), a deposited
+    swatch, estimated with the atlas; the first ``without`` of them also without it (every table rendered)."""
+    from hairdigi.app.evaluation.rig import HARD_CASES
     from hairdigi.app.session.rig_session import RigSession
-    from hairdigi.render.domain.params import HairParams
     from hairdigi.render.judge import judge
 
-    hidden = HairParams((190, 80, 40), 0.5, 0.5, 0.6)
-    rows, answers = [], {}
-    for atlas in ("on", "off"):
-        before = dict(os.environ)
-        os.environ["HAIRDIGI_CACHE"] = str(out / f"cache-{atlas}")
-        os.environ["HAIRDIGI_ATLAS"] = "" if atlas == "on" else "off"
-        try:
-            session = RigSession.simulated_rig(out / f"session-{atlas}", hidden=hidden, spp=16,
-                                               swatch_model="deposited")
+    cases = {"copper": "copper (the demo)", "black": "black", "platinum": "platinum", "saturated red": "saturated red",
+             "saturated blue": "saturated blue"}
+    rows = []
+    for k, hair in enumerate(hairs):
+        hidden = HARD_CASES[cases[hair]]
+        answers = {}
+        for atlas in ("on", "off") if k < without else ("on",):
+            before = dict(os.environ)
+            os.environ["HAIRDIGI_CACHE"] = str(out / f"cache-{k}-{atlas}")
+            os.environ["HAIRDIGI_ATLAS"] = "" if atlas == "on" else "off"
             try:
-                session.calibrate()
-                start = time.perf_counter()
-                result = session.capture()
-                seconds = time.perf_counter() - start
+                session = RigSession.simulated_rig(out / f"session-{k}-{atlas}", hidden=hidden, spp=16,
+                                                   swatch_model="deposited")
+                try:
+                    session.calibrate()
+                    result = session.capture()
+                finally:
+                    session.close()
             finally:
-                session.close()
-        finally:
-            os.environ.clear()
-            os.environ.update(before)
-        record = result.record
-        answers[atlas] = np.asarray(record.refinement.sigma_a)
-        verdict = judge(hidden, record.refinement.sigma_a, looks=(None, record.appearance.value))
-        rows.append({"atlas": atlas, "capture_to_estimate_s": round(seconds, 1),
-                     "truth_de2000": round(float(verdict.de2000), 3),
-                     "structure": record.refinement.region.structure or record.refinement.region.swatch_model})
-    rows.append({"atlas": "on vs off", "sigma_rel": round(float(np.max(np.abs(answers["on"] - answers["off"])
-                                                                        / answers["off"])), 3)})
+                os.environ.clear()
+                os.environ.update(before)
+            record = result.record
+            if record is None:
+                rows.append({"hair": hair, "atlas": atlas, "blocked": "; ".join(str(b) for b in result.blocked)})
+                continue
+            answers[atlas] = np.asarray(record.refinement.sigma_a)
+            verdict = judge(hidden, record.refinement.sigma_a, looks=(None, record.appearance.value))
+            rows.append({"hair": hair, "atlas": atlas, "estimate_s": record.provenance.seconds,
+                         "truth_de2000": round(float(verdict.de2000), 3),
+                         "structure": (record.refinement.region.structure or "")[:60]})
+        if len(answers) == 2:
+            rows.append({"hair": hair, "atlas": "on vs off", "sigma_rel": round(float(
+                np.max(np.abs(answers["on"] - answers["off"]) / answers["off"])), 3)})
     return rows
 
 

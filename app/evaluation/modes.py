@@ -85,9 +85,9 @@ def rig(args: argparse.Namespace) -> int:
 
     hidden = tuple(args.hidden_structures.split(",")) if getattr(args, "hidden_structures", None) else ()
     structure = getattr(args, "structure", None) or DEFAULT_STRUCTURE
-    if args.ship and (hidden or structure != DEFAULT_STRUCTURE):
-        print(f"hairdigi evaluate --rig --ship: the chain's colour interval is measured on hairdigi's own swatch with "
-              f"the default structure mode ({DEFAULT_STRUCTURE}); drop --ship, or --hidden-structures and --structure",
+    if args.ship and structure != DEFAULT_STRUCTURE:
+        print(f"hairdigi evaluate --rig --ship: the chain's colour interval is measured in the default structure mode "
+              f"({DEFAULT_STRUCTURE}), the one every record is made in unless told otherwise; drop --ship or --structure",
               file=sys.stderr)
         return 2
     unknown = _unknown_structure(hidden)

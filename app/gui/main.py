@@ -41,7 +41,7 @@ class SettingsDialog(QDialog):
         form = QFormLayout(self)
         self.fields = {}
         for key, value in read_settings().items():
-            self.fields[key] = _choice(CHOICES[key], str(value)) if key in CHOICES else QLineEdit(str(value))
+            self.fields[key] = _choice(CHOICES[key], str(value), str(SETTING_DEFAULTS[key])) if key in CHOICES else QLineEdit(str(value))
             form.addRow(key.replace("_", " "), self.fields[key])
         self.fields["led"].setToolTip("the rig's LEDs: a named light or a CSV of wavelength (nm), power; with the "
                                       "sensor, each capture is read in the camera's RGB (as hairdigi app --led)")
@@ -66,11 +66,12 @@ class SettingsDialog(QDialog):
         self.accept()
 
 
-def _choice(options: tuple[str, ...], value: str) -> QComboBox:
-    """A list to pick one of ``options`` from, showing ``value`` (the default's, when not one of them)."""
+def _choice(options: tuple[str, ...], value: str, default: str) -> QComboBox:
+    """A list to pick one of ``options`` from, showing ``value`` (``default``, when not one of them)."""
     box = QComboBox()
     box.addItems(list(options))
-    box.setCurrentIndex(max(0, box.findText(value)))
+    found = box.findText(value)
+    box.setCurrentIndex(found if found >= 0 else max(0, box.findText(default)))
     return box
 
 
