@@ -3,7 +3,7 @@ read member's shine tables, rendered once over the atlas's area at the bench cam
 curves at the rig's swatch pose (an all-hair crop's view), as cache entries (``ship_pose``).
 
 ``python -m hairdigi.inference.atlas_build`` (resumable: each table waits in ``--work`` once done); about
-20 minutes on 2 cores at 48 spp."""
+20 minutes on 2 cores (curves at 192 spp, shine tables at 48)."""
 from __future__ import annotations
 
 import argparse
@@ -42,10 +42,12 @@ def _render_ladder(renderer, spec, film, levels: np.ndarray, spp: int, seed: int
     return out
 
 
-def build(out: str | os.PathLike = ATLAS_PATH, spp: int = 48, seed: int = 7, renderer=None,
-          work: str | os.PathLike | None = None, say=print) -> Path:
+def build(out: str | os.PathLike = ATLAS_PATH, spp: int = 192, seed: int = 7, renderer=None,
+          work: str | os.PathLike | None = None, say=print, shine_spp: int = 48) -> Path:
     """Render the atlas (every family member's curves in each layout, every read member's shine tables) and
-    write it to ``out``; each table is kept in ``work`` as it is done, so a stopped build resumes there."""
+    write it to ``out``; each table is kept in ``work`` as it is done, so a stopped build resumes there. The curves
+    are rendered at ``spp``, the shine tables (24 times as many renders, read as ratios) at ``shine_spp``: the
+    family's map is a ratio of one curve to the mean of 14, and the one curve's noise is most of its noise."""
     renderer = renderer or default_renderer()
     work = Path(work or cache_dir() / "atlas-work")
     work.mkdir(parents=True, exist_ok=True)
@@ -55,7 +57,8 @@ def build(out: str | os.PathLike = ATLAS_PATH, spp: int = 48, seed: int = 7, ren
     arrays, seconds = {}, {}
     for i, (kind, member, layout) in enumerate(jobs, 1):
         name = f"{kind}__{member}__{layout}" if kind == "curve" else f"{kind}__{member}"
-        part = work / f"{name}-{spp}-{seed}.npy"
+        samples = spp if kind == "curve" else shine_spp
+        part = work / f"{name}-{samples}-{seed}.npy"
         if part.exists():
             arrays[name] = np.load(part)
             say(f"[{i}/{len(jobs)}] {name}: done before")
@@ -64,14 +67,14 @@ def build(out: str | os.PathLike = ATLAS_PATH, spp: int = 48, seed: int = 7, ren
         spec = SceneSpec("swatch", camera=region.pose, framing=Framing.RIG, target=region.target,
                          half_width=region.half_width, crop=crop, strand_seed=layout, swatch_model=member)
         if kind == "curve":
-            table = cells(_render_ladder(renderer, spec, film, levels, spp, seed), CURVE_CELL).astype(np.float32)
+            table = cells(_render_ladder(renderer, spec, film, levels, samples, seed), CURVE_CELL).astype(np.float32)
         else:
             table = np.empty((N_LIGHTS, len(betas), len(levels), BOX[3] // SHINE_CELL, BOX[2] // SHINE_CELL))
             for light in range(N_LIGHTS):
                 lights = tuple(1.0 if j == light else 0.0 for j in range(N_LIGHTS))
                 for b, beta in enumerate(betas):
                     one = replace(spec, lights=lights, appearance=Appearance(float(beta)))
-                    table[light, b] = cells(_render_ladder(renderer, one, film, levels, spp, seed), SHINE_CELL)
+                    table[light, b] = cells(_render_ladder(renderer, one, film, levels, samples, seed), SHINE_CELL)
             table = table.astype(np.float32)
         with atomic_path(part, ".npy") as tmp:
             np.save(tmp, table)
@@ -79,7 +82,8 @@ def build(out: str | os.PathLike = ATLAS_PATH, spp: int = 48, seed: int = 7, ren
         seconds[name] = round(time.perf_counter() - start, 1)
         say(f"[{i}/{len(jobs)}] {name}: {seconds[name]:.0f} s")
     meta = {"curves": [[m, s] for _, m, s in jobs if _ == "curve"], "shine": list(READ_MEMBERS),
-            "spp": spp, "seed": seed, "variant": renderer.variant, "fingerprint": fingerprint(renderer.variant),
+            "spp": spp, "shine_spp": shine_spp, "seed": seed, "variant": renderer.variant,
+            "fingerprint": fingerprint(renderer.variant),
             "frame": list(FRAME), "box": list(BOX), "pixel": PIXEL, "curve_cell": CURVE_CELL,
             "shine_cell": SHINE_CELL, "seconds": seconds, "built": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
     out = Path(out)
@@ -111,12 +115,13 @@ def ship_pose(pose: CameraPose = RIG_SWATCH_POSE, out: str | os.PathLike = SHIPP
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m hairdigi.inference.atlas_build", description=build.__doc__)
     parser.add_argument("--out", default=str(ATLAS_PATH))
-    parser.add_argument("--spp", type=int, default=48)
+    parser.add_argument("--spp", type=int, default=192, help="the curves' samples per pixel")
+    parser.add_argument("--shine-spp", type=int, default=48, help="the shine tables' samples per pixel")
     parser.add_argument("--work", default=None, help="where finished tables wait (default: the cache's atlas-work)")
     parser.add_argument("--pose-only", action="store_true", help="only the rig's swatch pose's curves (ship_pose)")
     args = parser.parse_args(argv)
     if not args.pose_only:
-        build(args.out, args.spp, work=args.work)
+        build(args.out, args.spp, work=args.work, shine_spp=args.shine_spp)
     ship_pose()
     return 0
 

@@ -80,7 +80,8 @@ def tables_bench(regions: dict = REGIONS) -> list[dict]:
                "atlas_ms_all_tables": round(atlas_s * 1000, 1),
                "render_s_one_curve": round(curve_s, 2), "render_s_one_shine_table": round(shine_s, 2),
                "render_s_all_tables_est": round(curve_s * len(FAMILY) * LAYOUTS + shine_s * len(READ_MEMBERS), 1),
-               "light0_share_atlas": round(float(light_share), 4), "light0_share_render": round(float(rendered_share), 4),
+               "light0_share_atlas": round(float(light_share), 4),
+               "light0_share_render": round(float(rendered_share), 4),
                **_compare(shipped, rendered)}
         if name == "rig live":      # the renders' own noise: the same region rendered with another sampler seed
             other = response_curve(view, RefineSettings(seed=11), cache=False)
@@ -98,7 +99,8 @@ def tables_bench(regions: dict = REGIONS) -> list[dict]:
     for hair, sigma in HAIRS.items():
         a = to_family(np.asarray(sigma), shipped)
         b = to_family(np.asarray(sigma), fresh)
-        mapped[hair] = round(float(delta_e2000(np.clip(fresh.mean(a), 1e-9, None), np.clip(fresh.mean(b), 1e-9, None))), 3)
+        apart = delta_e2000(np.clip(fresh.mean(a), 1e-9, None), np.clip(fresh.mean(b), 1e-9, None))
+        mapped[hair] = round(float(apart), 3)
     rows.append({"region": "rig live: the family map", "frame": "400x300", "roi": list(canonical.roi), "atlas": True,
                  "render_s_all_tables_est": round(fresh.seconds, 1),
                  **{f"{h}_de2000": v for h, v in mapped.items()}})
@@ -118,9 +120,11 @@ def _rendered_family(view):
 
 
 def end_to_end(out: Path, hairs: tuple[str, ...] = ("copper", "black", "platinum", "saturated red",
-                                                      "saturated blue"), without: int = 1) -> list[dict]:
+                                                      "saturated blue"), without: int = 1,
+               atlas_path: str = "") -> list[dict]:
     """Each hard case's first capture in a fresh session (a fresh cache: nothing rendered before), a deposited
-    swatch, estimated with the atlas; the first ``without`` of them also without it (every table rendered)."""
+    swatch, estimated with the atlas (``atlas_path``; "": the shipped one); the first ``without`` of them also
+    without it (every table rendered)."""
     from hairdigi.app.evaluation.rig import HARD_CASES
     from hairdigi.app.session.rig_session import RigSession
     from hairdigi.render.judge import judge
@@ -134,7 +138,7 @@ def end_to_end(out: Path, hairs: tuple[str, ...] = ("copper", "black", "platinum
         for atlas in ("on", "off") if k < without else ("on",):
             before = dict(os.environ)
             os.environ["HAIRDIGI_CACHE"] = str(out / f"cache-{k}-{atlas}")
-            os.environ["HAIRDIGI_ATLAS"] = "" if atlas == "on" else "off"
+            os.environ["HAIRDIGI_ATLAS"] = atlas_path if atlas == "on" else "off"
             try:
                 session = RigSession.simulated_rig(out / f"session-{k}-{atlas}", hidden=hidden, spp=16,
                                                    swatch_model="deposited")

@@ -41,7 +41,8 @@ class SettingsDialog(QDialog):
         form = QFormLayout(self)
         self.fields = {}
         for key, value in read_settings().items():
-            self.fields[key] = _choice(CHOICES[key], str(value), str(SETTING_DEFAULTS[key])) if key in CHOICES else QLineEdit(str(value))
+            default = str(SETTING_DEFAULTS[key])
+            self.fields[key] = _choice(CHOICES[key], str(value), default) if key in CHOICES else QLineEdit(str(value))
             form.addRow(key.replace("_", " "), self.fields[key])
         self.fields["led"].setToolTip("the rig's LEDs: a named light or a CSV of wavelength (nm), power; with the "
                                       "sensor, each capture is read in the camera's RGB (as hairdigi app --led)")
