@@ -384,14 +384,14 @@ def test_a_swatch_out_of_the_layered_swatchs_reach_is_estimated_on_its_structure
     """A held-out hair (``evaluate --structures --held-out 11``'s "random 2") hidden in a swatch of spread
     fibres: no hair on the layered swatch renders its colour (the evaluation, on the former spread swatch
     whose fibres sank into one another: residual 1.28, fit 1.70; the spread swatch now stands looser and
-    darker still), so the default estimate reads the structure from the single-light frames and keeps it
+    darker still), so even the assumed mode's estimate reads the structure from the single-light frames and keeps it
     (residual under 0.3, fit under 1.0); the record says so, and its interval is the read mode's."""
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import UNREACHED_DE, estimate_image
     from hairdigi.render.metrics import delta_e2000
 
     frame, singles = _spread_captures()
-    result = estimate_image(frame, Encoder(), light_images=singles)
+    result = estimate_image(frame, Encoder(), light_images=singles, structure="assumed")
     said = [w.message for w in result.warnings if w.message.startswith("structure:")]
     assert said and "read from the single-light frames" in said[0], [w.message for w in result.warnings]
     assert result.refinement.region.swatch_model != "layered"
@@ -400,9 +400,9 @@ def test_a_swatch_out_of_the_layered_swatchs_reach_is_estimated_on_its_structure
     goal = _spread_shot(SPREAD_TRUTH, spp=128).reshape(-1, 3).mean(0)
     back = _spread_shot(result.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0)
     assert delta_e2000(back, goal) < 1.0
-    # the family mode does not map a swatch its frames tell decisively to the family's mean (where the
-    # spread swatch lies far from it: 3.66 in held out 13 before this rule): it refines on the structure read
-    family = estimate_image(frame, Encoder(), light_images=singles, structure="family")
+    # the family mode (the default) does not map a swatch its frames tell decisively to the family's mean (where
+    # the spread swatch lies far from it: 3.66 in held out 13 before this rule): it refines on the structure read
+    family = estimate_image(frame, Encoder(), light_images=singles)
     assert family.refinement.region.swatch_model == "spread", family.refinement.region
     assert family.refinement.region.structure.startswith("read decisively"), family.refinement.region
     assert family.uncertainty.structure.mode == "family"
