@@ -24,8 +24,8 @@ from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, crop_of, read_image, swatch_crop, to_linear
 from hairdigi.inference.refine import (Refinement, RefineSettings, View, curve_reach, fitted_pixels, mean_linear, refine,
                                       response_curve)
-from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABLE, TextureReading, decisive,
-                                          read_texture, toward_family, with_structure)
+from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABLE, UNMODELLED_MISFIT, TextureReading,
+                                          decisive, read_texture, toward_family, unmodelled, with_structure)
 from hairdigi.inference.uncertainty import intervals, load_table
 from hairdigi.inference.views import swatch_view
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
@@ -143,7 +143,8 @@ def estimate_image(image: np.ndarray, encoder: Encoder, *, roi: Roi | None = Non
     if refinement is not None:   # a swatch's structure: read, or the default assumed (``inference.structure``)
         uncertainty = with_structure(uncertainty, load_table(STRUCTURE_TABLE), structure,
                                      refinement.region.swatch_model,
-                                     frames=light_images is not None or borrowed is not None)
+                                     frames=light_images is not None or borrowed is not None,
+                                     modelled=not any(w.kind is WarningKind.STRUCTURE for w in warnings))
     if refinement is not None:
         warnings += interval_warnings(refinement.residual_de2000, uncertainty)
     return EstimateResult(params, est, refinement, warnings, stats.to_dict(), uncertainty,
@@ -238,6 +239,14 @@ def _refined(fit: _Fit, structure: StructureMode, borrowed: RigReading | None = 
             texture, members, decided = borrowed.texture or texture, borrowed.frames, borrowed.decided
     reading = members if decided else fit.read(READ_MEMBERS if structure is StructureMode.READ else None)
     warnings = list(reading.warnings)
+    read_misfits = (members if members is not None else reading).misfits if structure is not StructureMode.ASSUMED \
+        else None
+    worst = unmodelled(read_misfits)
+    if worst is not None:
+        warnings += _warn(WarningKind.STRUCTURE, [
+            f"structure: no swatch structure hairdigi draws fits the single-light frames (the best misfit {worst:.3f}, "
+            f"over {UNMODELLED_MISFIT:g}; the family's own swatches read at most 0.036): the swatch is built another "
+            f"way, and its colour interval is what such a structure measured"])
     appearance = reading.estimate
     # the colour checks the texture's reading: if hair of the read variation renders the capture's colour
     # worse than the chain's precision, and uniform fibres render it better, the reading is wrong for this

@@ -150,6 +150,23 @@ READ_MEMBERS = ("layered", "tilted", "deposited", "deposited-coarse", "spread", 
 DECISIVE = 2.0
 
 
+#: The single-light frames' best misfit (``StructureReading.misfits``, rms log) over which no structure of the family
+#: fits the swatch: a swatch built in a way hairdigi does not draw. On the simulated rig's live captures, the
+#: family's own swatches read at most 0.036 (``packaging/evaluation/rig-drawn-texture``, 58 captures of six members;
+#: the layered swatch from tilted cameras 0.032); a structure drawn outside the family, before its figures were
+#: seen (``clumped``), read 0.074-0.147 in every capture and was 2.68 / 4.73 ΔE2000 off the truth
+#: (``packaging/evaluation/rig-default-clumped``). Such an estimate is flagged, and states that measured error.
+UNMODELLED_MISFIT = 0.05
+
+
+def unmodelled(misfits: dict[str, float] | None, limit: float = UNMODELLED_MISFIT) -> float | None:
+    """The best member's misfit where even it is over ``limit`` (no structure of the family fits), else None."""
+    if not misfits:
+        return None
+    best = min(misfits.values())
+    return best if best > limit else None
+
+
 def decisive(misfits: dict[str, float], ratio: float = DECISIVE) -> str | None:
     """The member whose misfit is under ``1 / ratio`` of every other's (``StructureReading.misfits``), or None."""
     if len(misfits) < 2:
@@ -272,20 +289,25 @@ _TABLE_KEYS = {"assumed": "shipped", "family": "family", "read": "read"}
 
 
 def with_structure(uncertainty: Uncertainty, table: dict | None, mode: str = "assumed",
-                   swatch_model: str | None = None, frames: bool = True) -> Uncertainty:
+                   swatch_model: str | None = None, frames: bool = True, modelled: bool = True) -> Uncertainty:
     """``uncertainty`` (``inference.uncertainty.intervals``) with its colour interval widened to what
     swatches of other structures measured for ``mode`` (the larger of the two, per level), and a
     ``structure`` entry naming the mode and the structure rendered. ``frames``: the capture had single-light
-    frames to read the structure from (without, the family mode states its figures without a reading)."""
+    frames to read the structure from (without, the family mode states its figures without a reading);
+    ``modelled`` False: they fit no structure of the family (``unmodelled``), and the interval is what a structure
+    outside it measured."""
     key = _TABLE_KEYS[mode]
     if not frames and mode == "family" and table and "family_unread" in table:
         key = "family_unread"
+    if not modelled and table and "unmodelled" in table:
+        key = "unmodelled"
     if not table or key not in table:
         return uncertainty
     measured = table[key]
-    unread = " without single-light frames" if key == "family_unread" else ""
-    out = widen_colour(uncertainty, measured["p68"], measured["p95"],
-                       f"{table.get('source', 'hairdigi evaluate --structures')} (--structure {mode}{unread})")
+    unread = {"family_unread": " without single-light frames",
+              "unmodelled": ", a structure none of the family fits"}.get(key, "")
+    source = measured.get("source") or table.get("source", "hairdigi evaluate --structures")
+    out = widen_colour(uncertainty, measured["p68"], measured["p95"], f"{source} (--structure {mode}{unread})")
     return replace(out, structure=StructureInterval(mode, swatch_model, round(measured["p68"], 3),
                                                     round(measured["p95"], 3), table.get("source", "")))
 

@@ -525,3 +525,48 @@ def test_the_rigs_frames_of_a_layered_and_a_deposited_swatch_read_apart_by_their
     assert len(summary["rows"]) == 6
     assert summary["shares"]["layered"] == {"streak-free": 1.0, "n": 3}
     assert (tmp_path / "streaks.csv").stat().st_size > 0 and (tmp_path / "streaks.png").stat().st_size > 1000
+
+
+def test_frames_no_structure_fits_are_flagged_and_state_a_wider_interval() -> None:
+    """``unmodelled``: where even the best member's misfit is over ``UNMODELLED_MISFIT`` (the family's own swatches
+    read at most 0.036 through the rig), no structure of the family fits; the record's interval is then what a
+    structure outside the family measured, and says so."""
+    from hairdigi.inference.structure import STRUCTURE_TABLE, UNMODELLED_MISFIT, unmodelled, with_structure
+    from hairdigi.render.domain.estimate_parts import Uncertainty
+
+    assert unmodelled({"layered": 0.09, "deposited": 0.074}) == 0.074
+    assert unmodelled({"layered": 0.09, "deposited": 0.036}) is None
+    assert unmodelled({"a": UNMODELLED_MISFIT}) is None and unmodelled(None) is None and unmodelled({}) is None
+    table = json.loads(STRUCTURE_TABLE.read_text())
+    chain = Uncertainty(mean_colour_de2000_p68=0.5, mean_colour_de2000_p95=1.0)
+    known, unknown = (with_structure(chain, table, "family", None, modelled=m) for m in (True, False))
+    assert known.mean_colour_de2000_p95 == pytest.approx(table["family"]["p95"], abs=1e-3)
+    assert unknown.mean_colour_de2000_p95 == pytest.approx(table["unmodelled"]["p95"], abs=1e-3)
+    assert "a structure none of the family fits" in unknown.mean_colour_source and "clumped" in unknown.mean_colour_source
+
+
+@pytest.mark.slow
+def test_a_clumped_swatch_outside_the_family_is_flagged_and_a_deposited_one_is_not(tmp_path) -> None:
+    """Through the simulated rig (the default mode): a swatch of clumped fibres, drawn outside the family, fits no
+    member's per-light tables at the rig's region and is flagged with the wider interval; a deposited one is not.
+    (An all-hair crop of the clumped swatch's centre reads as deposited, misfit 0.011: the rig's whole region, its
+    clumps and the gaps between them, is what no member fits.)"""
+    from hairdigi.app.session.rig_session import RigSession
+    from hairdigi.render.domain.params import HairParams
+    from hairdigi.render.domain.records import WarningKind
+
+    def record(model: str):
+        session = RigSession.simulated_rig(tmp_path / model, hidden=HairParams((190, 80, 40), 0.5, 0.5, 0.6), spp=16,
+                                           swatch_model=model)
+        try:
+            session.calibrate()
+            return session.capture().record
+        finally:
+            session.close()
+
+    clumped, deposited = record("clumped"), record("deposited")
+    flagged = [w.message for w in clumped.warnings if w.kind is WarningKind.STRUCTURE]
+    assert flagged and "no swatch structure hairdigi draws" in flagged[0], [w.message for w in clumped.warnings]
+    assert clumped.uncertainty.mean_colour_de2000_p95 >= 4.7
+    assert not [w for w in deposited.warnings if w.kind is WarningKind.STRUCTURE], deposited.warnings
+    assert deposited.uncertainty.mean_colour_de2000_p95 < 2.0

@@ -59,6 +59,7 @@ class WarningKind(TextEnum):
     NONFINITE = "nonfinite"                  # the path tracer returned NaN or Inf samples
     INTERVAL = "interval"                    # the colour is outside what the record's interval promises
     APPEARANCE = "appearance"                # shine or fibre variation not measured, or measured poorly
+    STRUCTURE = "structure"                  # the single-light frames fit no swatch structure hairdigi draws
     OTHER = "other"
 
 
