@@ -211,6 +211,29 @@ def test_a_raw_still_is_a_capture_source_in_the_window(qtbot, tiny_model, tmp_pa
     session.close()
 
 
+def test_a_capture_cancelled_before_a_worker_took_it_is_still_taken():
+    """Closing the window right after Capture cancels every task; one cancelled before a worker picked it up
+    never started, so the capture asked for was lost (the window-close test failed so under load). A task
+    that must start takes its first step anyway, and its generator runs the capture to its end; any other
+    cancelled task does not start."""
+    from hairdigi.app.gui.workers import Task
+
+    for must_start, expected in ((True, ["started", "finished"]), (False, [])):
+        steps: list[str] = []
+
+        def work():
+            steps.append("started")
+            try:
+                yield "first look"
+            finally:
+                steps.append("finished")      # the capture's thread is joined here, as capture_passes does
+
+        task = Task(work, "capture", must_start=must_start)
+        task.cancel()                         # before any worker ran it
+        task.run()
+        assert steps == expected, must_start
+
+
 def test_a_capture_that_ends_after_its_window_is_gone_touches_nothing(qtbot, tiny_model, tmp_path):
     """A capture still in flight when the window closes finishes later: its slots must not touch the
     deleted window (it raised 'Internal C++ object (QPushButton) already deleted'); the capture is kept."""

@@ -484,7 +484,7 @@ class MainWindow(QMainWindow):
     def run_task(self, work: Work, on_done=None, on_progress=None) -> Task:
         """Run the model's ``work`` in a worker; what it yields and returns goes to the model by default,
         and its ``ended`` runs here on the UI thread when it is over."""
-        task = Task(work.run, work.name)
+        task = Task(work.run, work.name, work.must_start)
         task.signals.done.connect(self.while_open(on_done or self.model.apply))
         task.signals.progress.connect(self.while_open(on_progress or self.model.apply))
         task.signals.failed.connect(self.while_open(self.show_banner))

@@ -21,13 +21,16 @@ class Task(QRunnable):
 
     When ``fn()`` returns a generator, each value it yields is emitted as ``progress``, and
     :meth:`cancel` stops it at its next yield (the generator is closed there); its return value is
-    emitted as ``done`` unless cancelled. A plain function's return value is ``done``.
+    emitted as ``done`` unless cancelled. A plain function's return value is ``done``. With ``must_start``
+    the generator takes its first step even when cancelled before a worker picked it up (a capture the
+    operator asked for is taken, and its generator then runs it to its end).
     """
 
-    def __init__(self, fn: Callable[[], object], name: str = "task") -> None:
+    def __init__(self, fn: Callable[[], object], name: str = "task", must_start: bool = False) -> None:
         super().__init__()
         self.fn = fn
         self.name = name
+        self.must_start = must_start
         self.signals = TaskSignals()
         self._cancel = threading.Event()
         self.setAutoDelete(False)
@@ -53,10 +56,12 @@ class Task(QRunnable):
             self.signals.finished.emit()
 
     def _iterate(self, generator) -> object:
+        first = True
         while True:
-            if self._cancel.is_set():      # stop at a yield
+            if self._cancel.is_set() and not (first and self.must_start):      # stop at a yield
                 generator.close()
                 return None
+            first = False
             try:
                 value = next(generator)
             except StopIteration as stop:
@@ -101,7 +106,7 @@ class Jobs:
             old.cancel()
         if work is None or not self.alive:
             return None
-        task = Task(work.run, work.name)
+        task = Task(work.run, work.name, work.must_start)
         task.signals.progress.connect(self._apply)
         task.signals.done.connect(self._apply)
         task.signals.failed.connect(lambda text: self.alive and self.failed(text))

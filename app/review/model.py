@@ -354,7 +354,7 @@ class ReviewModel:
         style_tag = PassTag(self._generation["hairstyle"], tag.key, Stage.ENCODER)
         tags, renderers = (tag, style_tag), (self.twin_renderer, self.style_renderer)
         return Work("capture", lambda: capture_passes(session, settings, spec, label, on, tags, renderers),
-                    ended=self._capture_ended)
+                    ended=self._capture_ended, must_start=True)
 
     def import_still_work(self, path: str | Path) -> Work:
         """A RAW still of the rig as a capture (copied, calibrated on its own chart, estimated)."""

@@ -20,11 +20,13 @@ class Work:
     """A generator function run by a worker: its yields are progress, its return value the result.
 
     ``ended`` (when given) runs on the model's thread once the work is over: done, failed or cancelled.
+    ``must_start``: the work begins even when cancelled before a worker picked it up (a capture asked for is taken).
     """
 
     name: str
     run: Callable[[], Generator[object, None, object]]
     ended: Callable[[], None] | None = None
+    must_start: bool = False
 
 
 def run_now(work: Work | None, apply: Callable[[object], None], cancelled: Cancelled = lambda: False) -> object:
