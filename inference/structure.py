@@ -87,10 +87,11 @@ def family_view(view: View, frame: tuple[int, int] = FAMILY_FRAME) -> View:
 
 
 def family_curves(view: View, settings: RefineSettings = RefineSettings(), renderer=None,
-                  members: tuple[str, ...] = FAMILY, layouts: int = LAYOUTS) -> FamilyCurves:
-    """The family's response curves at ``view`` (``len(members) * layouts`` curves, cached on disk)."""
-    default = response_curve(view, settings, renderer)
-    curves = {m: _averaged([response_curve(view, replace(settings, strand_seed=s), renderer, swatch_model=m)
+                  members: tuple[str, ...] = FAMILY, layouts: int = LAYOUTS, cache: bool = True) -> FamilyCurves:
+    """The family's response curves at ``view`` (``len(members) * layouts`` curves, cached on disk or read from the
+    shipped atlas; ``cache`` False: every one rendered now)."""
+    default = response_curve(view, settings, renderer, cache)
+    curves = {m: _averaged([response_curve(view, replace(settings, strand_seed=s), renderer, cache, swatch_model=m)
                             for s in range(layouts)]) for m in members}
     seconds = sum(c.seconds for c in curves.values() if not c.cached)
     return FamilyCurves(default, curves, seconds)

@@ -94,7 +94,7 @@ def tables_bench(regions: dict = REGIONS) -> list[dict]:
     view = RigRegion(*regions["rig live"])
     canonical = family_view(view)
     shipped = family_curves(canonical, RefineSettings())
-    fresh = _rendered_family(canonical)
+    fresh = family_curves(canonical, RefineSettings(), cache=False)
     mapped = {}
     for hair, sigma in HAIRS.items():
         a = to_family(np.asarray(sigma), shipped)
@@ -105,18 +105,6 @@ def tables_bench(regions: dict = REGIONS) -> list[dict]:
                  "render_s_all_tables_est": round(fresh.seconds, 1),
                  **{f"{h}_de2000": v for h, v in mapped.items()}})
     return rows
-
-
-def _rendered_family(view):
-    """The family's curves at ``view`` rendered now (no cache, no atlas)."""
-    from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.inference.structure import FAMILY, LAYOUTS, FamilyCurves, _averaged
-
-    start = time.perf_counter()
-    default = response_curve(view, RefineSettings(), cache=False)
-    members = {m: _averaged([response_curve(view, RefineSettings(strand_seed=s), cache=False, swatch_model=m)
-                             for s in range(LAYOUTS)]) for m in FAMILY}
-    return FamilyCurves(default, members, time.perf_counter() - start)
 
 
 def end_to_end(out: Path, hairs: tuple[str, ...] = ("copper", "black", "platinum", "saturated red",
