@@ -122,11 +122,24 @@ def _load(path: str, mtime: float) -> Atlas | None:
 
 
 def load(path: str | os.PathLike | None = None) -> Atlas | None:
-    """The atlas at ``path`` (None: ``HAIRDIGI_ATLAS``, else the shipped one; ``HAIRDIGI_ATLAS=off``: none)."""
+    """The atlas at ``path`` (None: ``HAIRDIGI_ATLAS``, else the shipped one; ``HAIRDIGI_ATLAS=off``: none). One
+    that is missing or damaged answers nothing (the tables are rendered), and is said once."""
     chosen = path or os.environ.get("HAIRDIGI_ATLAS") or ATLAS_PATH
-    if str(chosen) == "off" or not Path(chosen).is_file():
+    if str(chosen) == "off":
         return None
-    return _load(str(chosen), Path(chosen).stat().st_mtime)
+    atlas = _load(str(chosen), Path(chosen).stat().st_mtime) if Path(chosen).is_file() else None
+    if atlas is None:
+        _say_missing(str(chosen))
+    return atlas
+
+
+@functools.lru_cache(maxsize=None)
+def _say_missing(path: str) -> None:
+    import warnings
+
+    warnings.warn(f"atlas {path}: missing or damaged, so every new region's tables are rendered (minutes on 2 cores); "
+                  f"reinstall hairdigi, rebuild it (python -m hairdigi.inference.atlas_build), or set HAIRDIGI_ATLAS to "
+                  f"a good one", stacklevel=3)
 
 
 def _usable(atlas: Atlas | None, levels, renderer_variant: str) -> bool:

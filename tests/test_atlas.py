@@ -118,3 +118,17 @@ def test_a_fresh_sessions_first_capture_of_a_deposited_swatch_renders_no_table_a
         old = renderer.render(record.hair, twin_view(region.roi, region.frame_size, True, 1.0, shown.appearance)[0],
                               size, 64, 3).linear
         assert mean_colour_delta_e(real, old) > mean_colour_delta_e(real, twin)
+
+
+def test_a_missing_or_damaged_atlas_is_said_once_and_the_tables_are_rendered(tmp_path, monkeypatch):
+    """``HAIRDIGI_ATLAS`` naming a file that is not there, or is not an atlas: nothing is answered from it, and a
+    warning names the file and the fix (the estimate still runs, rendering its tables)."""
+    bad = tmp_path / "atlas.npz"
+    bad.write_bytes(b"not an atlas")
+    for path in (tmp_path / "nowhere.npz", bad):
+        monkeypatch.setenv("HAIRDIGI_ATLAS", str(path))
+        with pytest.warns(UserWarning, match="missing or damaged.*atlas_build"):
+            assert A.load() is None
+        assert A.curve_means(RigRegion((400, 300), (30, 56, 130, 189)), np.linspace(0, 1, 12), 0, "layered",
+                             "llvm_ad_rgb") is None
+
