@@ -180,8 +180,11 @@ def atlas_bench(out: Path, end_to_end_too: bool = False) -> dict:
     rows = tables_bench()
     write_csv_atomic(out / "atlas.csv", rows)
     summary = {"tables": rows}
-    if end_to_end_too:
-        summary["end_to_end"] = end_to_end(out / "work")
+    if end_to_end_too:      # its sessions and fresh caches go to a temporary folder, not beside the table
+        import tempfile
+
+        with tempfile.TemporaryDirectory(prefix="hairdigi-bench-atlas-") as work:
+            summary["end_to_end"] = end_to_end(Path(work))
     write_json_atomic(out / "atlas.json", summary)
     plot(rows, out / "atlas.png")
     return summary
