@@ -156,10 +156,11 @@ def curve_means(view, levels, layout: int, member: str, renderer_variant: str) -
     return atlas.curve(view, str(member), layout)
 
 
-def shine_means(view, levels, betas, member: str, renderer_variant: str) -> np.ndarray | None:
-    """(L, B, K) the atlas's single-light tables of ``member`` (layout 0) over ``view``'s region, or None."""
+def shine_means(view, levels, betas, layout: int, member: str, renderer_variant: str) -> np.ndarray | None:
+    """(L, B, K) the atlas's single-light tables of ``member`` in ``layout`` over ``view``'s region, or None (the
+    atlas holds layout 0's)."""
     atlas = load()
-    if not _usable(atlas, levels, renderer_variant) or len(betas) != len(atlas.betas) \
+    if layout != 0 or not _usable(atlas, levels, renderer_variant) or len(betas) != len(atlas.betas) \
             or not np.allclose(betas, atlas.betas):
         return None
     return atlas.shine_means(view, str(member))

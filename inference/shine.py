@@ -96,8 +96,8 @@ def _shine_tables(view: View, settings: RefineSettings, betas, renderer, cache: 
         return ShineTables(data["betas"], data["sigma"], data["means"], float(data["seconds"]),
                            int(data["nonfinite"]) if "nonfinite" in data.files else 0)
     levels = np.asarray(settings.levels, float)
-    shipped = shine_means(view, levels, betas, spec.swatch_model, renderer.variant) \
-        if cache and not settings.strand_seed else None
+    shipped = shine_means(view, levels, betas, settings.strand_seed, spec.swatch_model, renderer.variant) \
+        if cache else None
     if shipped is not None:     # the bench camera's region: the shipped atlas's cells, no render
         return ShineTables(np.asarray(betas, float), levels.copy(), shipped, 0.0)
     start = time.perf_counter()

@@ -107,21 +107,16 @@ def tables_bench(regions: dict = REGIONS) -> list[dict]:
     return rows
 
 
-def end_to_end(out: Path, hairs: tuple[str, ...] = ("copper", "black", "platinum", "saturated red",
-                                                      "saturated blue"), without: int = 1,
-               atlas_path: str = "") -> list[dict]:
-    """Each hard case's first capture in a fresh session (a fresh cache: nothing rendered before), a deposited
-    swatch, estimated with the atlas (``atlas_path``; "": the shipped one); the first ``without`` of them also
-    without it (every table rendered)."""
+def end_to_end(out: Path, without: int = 1, atlas_path: str = "") -> list[dict]:
+    """Each hard case's (``app.evaluation.rig.HARD_CASES``) first capture in a fresh session (a fresh cache: nothing
+    rendered before), a deposited swatch, estimated with the atlas (``atlas_path``; "": the shipped one); the first
+    ``without`` of them also without it (every table rendered)."""
     from hairdigi.app.evaluation.rig import HARD_CASES
     from hairdigi.app.session.rig_session import RigSession
     from hairdigi.render.judge import judge
 
-    cases = {"copper": "copper (the demo)", "black": "black", "platinum": "platinum", "saturated red": "saturated red",
-             "saturated blue": "saturated blue"}
     rows = []
-    for k, hair in enumerate(hairs):
-        hidden = HARD_CASES[cases[hair]]
+    for k, (hair, hidden) in enumerate(HARD_CASES.items()):
         answers = {}
         for atlas in ("on", "off") if k < without else ("on",):
             before = dict(os.environ)

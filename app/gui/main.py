@@ -116,8 +116,8 @@ def session_rig(folder: Path, settings: dict, sim: bool, led: str | None, sensor
     if kept is not None:                   # the session's rig profile, each flag overriding it for this run
         profile, notices = merged(kept, {"sensitivities": sensor, "led": led, "structure": structure})
         led, sensor, structure = profile.led, profile.sensitivities, str(profile.structure)
-        problem, wrong = (None if sim else spectra_problem(led, sensor)), None
-        problem = "; ".join(filter(None, [f"rig profile {profile_path(folder)}", *notices, problem]))
+        spectra = None if sim else spectra_problem(led, sensor)
+        problem, wrong = "; ".join(filter(None, [f"rig profile {profile_path(folder)}", *notices, spectra])), None
     else:
         problem = None
         if not sim:
