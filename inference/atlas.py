@@ -14,7 +14,11 @@ camera's horizontal field of view is fixed):
   (a shine reading is a ratio of the lights' shares, which hardly moves across the swatch).
 
 A region is snapped to the nearest lines of the atlas's cells. Where the view is not the bench camera's, falls outside
-the atlas, or the renderer is not the atlas's kind, the callers render as before. ``build`` makes it
+the atlas, or the renderer is not the atlas's kind, the callers render as before.
+
+Away from the rig (an all-hair crop, ``hairdigi estimate photo.png --camera POLAR,AZIMUTH``) the view is a camera
+pose. The pose tables (``PoseAtlas``, ``POSES_PATH``) hold the family's curves over a grid of poses (``POSE_POLARS``
+by ``POSE_AZIMUTHS``); a pose between them reads its curves interpolated (bilinearly in the logs of the means). ``build`` makes it
 (``inference.atlas_build``, resumable); ``hairdigi bench atlas`` measures what it costs in
 error against rendering each region.
 """
@@ -91,6 +95,58 @@ class Atlas:
         return table[..., cells[0], cells[1]].astype(np.float64).mean(axis=(-2, -1))
 
 
+#: Where the shipped pose tables lie (``inference.atlas_build.build_poses``).
+POSES_PATH = ROOT / "tables" / "pose_atlas.npz"
+#: The pose tables' grid (degrees). The rig is symmetric across the holder's x = 0 plane (the lights at 90°, 210° and
+#: 330°, the swatch's fibres along y), so a camera at azimuth φ sees what one at 180° − φ does (renders the same
+#: means), and the azimuths run over one side: -90° to 90°. The spacing is measured (the layered swatch, whose
+#: aligned fibres' highlight moves fastest, at 30°): a pose halfway between two 15° polar steps is read within 0.3-0.7
+#: ΔE2000 of its render (a sampler seed's own noise 0.1-0.9), halfway between two 45° azimuth steps 1.7-2.3 off, so the
+#: azimuths step by 15°.
+POSE_POLARS = (0.0, 15.0, 30.0, 45.0, 60.0, 75.0)
+POSE_AZIMUTHS = tuple(float(a) for a in range(-90, 91, 15))
+#: How far a pose's distance may be from the grid's (``CAMERA_DISTANCE``) and still read it (a crop's field of view
+#: is fixed at the swatch, so the distance moves only the perspective).
+POSE_DISTANCE_TOLERANCE = 0.05
+
+
+def mirrored_azimuth(azimuth_deg: float) -> float:
+    """The azimuth in [-90°, 90°] that sees what ``azimuth_deg`` does (the rig's mirror plane, ``POSE_AZIMUTHS``)."""
+    a = (float(azimuth_deg) + 180.0) % 360.0 - 180.0          # (-180, 180]
+    return 180.0 - a if a > 90.0 else (-180.0 - a if a < -90.0 else a)
+
+
+def _bracket(grid: np.ndarray, value: float) -> tuple[int, float]:
+    """The grid cell holding ``value`` (its lower index) and the fraction across it."""
+    i = int(np.clip(np.searchsorted(grid, value, side="right") - 1, 0, len(grid) - 2))
+    return i, float(np.clip((value - grid[i]) / (grid[i + 1] - grid[i]), 0.0, 1.0))
+
+
+@dataclass(frozen=True)
+class PoseAtlas:
+    """The shipped family curves over a grid of all-hair camera poses, interpolated between them."""
+
+    levels: np.ndarray                      # (K,)
+    polars: np.ndarray                      # (P,) degrees, increasing from 0
+    azimuths: np.ndarray                    # (A,) degrees, -90 to 90
+    curves: dict[tuple[str, int], np.ndarray]   # (member, layout) -> (P, A, K) means
+    meta: dict                              # settings, distance, spp, fingerprint, seconds
+
+    def curve(self, pose: CameraPose, member: str, layout: int) -> np.ndarray | None:
+        """(K,) ``member``'s curve in ``layout`` at ``pose``, interpolated; None off the grid (steeper than its
+        last polar angle, another distance) or for a curve it lacks."""
+        table = self.curves.get((member, int(layout)))
+        distance = float(self.meta["distance"])
+        if table is None or pose.polar_deg > self.polars[-1] + 1e-9 \
+                or abs(pose.distance - distance) > POSE_DISTANCE_TOLERANCE * distance:
+            return None
+        i, s = _bracket(self.polars, pose.polar_deg)
+        j, t = _bracket(self.azimuths, mirrored_azimuth(pose.azimuth_deg))
+        logs = np.log(np.clip(table, 1e-12, None))
+        row = lambda k: (1 - t) * logs[k, j] + t * logs[k, j + 1]
+        return np.exp((1 - s) * row(i) + s * row(i + 1))
+
+
 def _bench(view: RigRegion) -> bool:
     """The bench camera (the pose, target and field of view the atlas was rendered from)."""
     return (view.pose == CameraPose() and tuple(view.target) == tuple(RIG_TARGET)
@@ -121,6 +177,30 @@ def _load(path: str, mtime: float) -> Atlas | None:
         return None
 
 
+@functools.lru_cache(maxsize=2)
+def _load_poses(path: str, mtime: float) -> PoseAtlas | None:
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["meta"]))
+            curves = {(m, int(s)): np.asarray(data[f"curve__{m}__{s}"], np.float64) for m, s in meta["curves"]}
+            return PoseAtlas(np.asarray(data["levels"], float), np.asarray(data["polars"], float),
+                             np.asarray(data["azimuths"], float), curves, meta)
+    except (OSError, ValueError, KeyError):   # damaged: the callers render
+        return None
+
+
+def load_poses(path: str | os.PathLike | None = None) -> PoseAtlas | None:
+    """The pose tables at ``path`` (None: the shipped ones; ``HAIRDIGI_ATLAS=off``: none); missing or damaged, said
+    once, they answer nothing."""
+    if os.environ.get("HAIRDIGI_ATLAS") == "off":
+        return None
+    chosen = path or POSES_PATH
+    atlas = _load_poses(str(chosen), Path(chosen).stat().st_mtime) if Path(chosen).is_file() else None
+    if atlas is None:
+        _say_missing(str(chosen))
+    return atlas
+
+
 def load(path: str | os.PathLike | None = None) -> Atlas | None:
     """The atlas at ``path`` (None: ``HAIRDIGI_ATLAS``, else the shipped one; ``HAIRDIGI_ATLAS=off``: none). One
     that is missing or damaged answers nothing (the tables are rendered), and is said once."""
@@ -142,14 +222,23 @@ def _say_missing(path: str) -> None:
                   f"a good one", stacklevel=3)
 
 
-def _usable(atlas: Atlas | None, levels, renderer_variant: str) -> bool:
+def _usable(atlas: Atlas | PoseAtlas | None, levels, renderer_variant: str) -> bool:
     return (atlas is not None and len(atlas.levels) == len(levels) and np.allclose(atlas.levels, levels)
             and atlas.meta.get("fingerprint") == fingerprint(renderer_variant))
 
 
-def curve_means(view, levels, layout: int, member: str, renderer_variant: str) -> np.ndarray | None:
+def curve_means(view, levels, layout: int, member: str, renderer_variant: str,
+                settings: dict | None = None) -> np.ndarray | None:
     """(K,) the atlas's mean colour of ``member`` in ``layout`` over ``view``'s region at the ``levels`` ladder
-    (one channel per level), or None where the shipped atlas does not answer (``Atlas.cells``)."""
+    (one channel per level), or None where the shipped atlas does not answer (``Atlas.cells``). A camera pose (an
+    all-hair crop) is read from the pose tables where they were rendered with ``settings``
+    (``inference.refine.curve_settings`` without the layout)."""
+    if isinstance(view, CameraPose):
+        poses = load_poses()
+        if not _usable(poses, levels, renderer_variant) or settings is None \
+                or json.dumps(poses.meta.get("settings"), sort_keys=True) != json.dumps(settings, sort_keys=True, default=str):
+            return None
+        return poses.curve(view, str(member), layout)
     atlas = load()
     if not _usable(atlas, levels, renderer_variant):
         return None

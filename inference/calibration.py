@@ -22,13 +22,12 @@ import colour
 import cv2
 import numpy as np
 
-from hairdigi.inference.preprocess import to_linear
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.record_fields import RecordError
 from hairdigi.render.domain.records import CalibrationProfile, CaptureRecord, read_record, write_record
 from hairdigi.render.chart import WHITE_PATCH, colorchecker_reflectances, rig_chart_targets
 from hairdigi.render.metrics import delta_e2000
-from hairdigi.render.srgb import srgb8_to_linear
+from hairdigi.render.srgb import srgb8_to_linear, to_linear
 
 METHODS = ("Cheung 2004", "Finlayson 2015", "Vandermonde")
 DEFAULT_METHOD = "Finlayson 2015"

@@ -15,7 +15,8 @@ import numpy as np
 
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.files import read_bytes
-from hairdigi.render.srgb import linear_to_srgb, linear_to_srgb8, srgb8_to_linear
+from hairdigi.inference.calibration import CalibrationError, detect_chart
+from hairdigi.render.srgb import linear_to_srgb, linear_to_srgb8, to_linear
 
 MIN_SIDE = 32          # smaller images hold too few strands to judge a colour
 ROI_CENTRAL = 0.7      # share of the swatch area's shorter side kept at inference, away from its edges
@@ -149,11 +150,6 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
 def to_srgb8(img: np.ndarray) -> np.ndarray:
     """8-bit sRGB of an image: 8-bit sRGB as it is, linear float RGB (a corrected capture) encoded."""
     return img if img.dtype == np.uint8 else linear_to_srgb8(img)
-
-
-def to_linear(img: np.ndarray) -> np.ndarray:
-    """Linear float32 RGB of an image: 8-bit sRGB decoded, linear float as it is."""
-    return _LINEAR_LUT[img] if img.dtype == np.uint8 else np.asarray(img, np.float32)
 
 
 def validate_image(img: np.ndarray, name: str = "image") -> np.ndarray:
@@ -302,8 +298,6 @@ def border_is_hair(img: np.ndarray) -> bool:
 def chart_mask(img: np.ndarray, margin: float) -> np.ndarray | None:
     """A mask (uint8, 1 inside) over the ColorChecker in view, grown by ``margin`` pixels and by a
     tenth of its size to take in its board; None when no chart is found (detection as in calibration)."""
-    from hairdigi.inference.calibration import CalibrationError, detect_chart
-
     try:
         box = detect_chart(img).box
     except (CalibrationError, cv2.error):
@@ -646,10 +640,6 @@ def crop_of(values: np.ndarray, roi: Roi) -> np.ndarray:
     """What :func:`swatch_crop` keeps of ``values`` (an image, or a per-pixel mask of its size) in ``roi``."""
     full = roi.w == values.shape[1] and roi.h == values.shape[0]
     return central_square(roi.clip(values), 1.0 if full else ROI_CENTRAL)
-
-
-#: 8-bit sRGB code to linear light (colour-science's sRGB curve), as a lookup table.
-_LINEAR_LUT = srgb8_to_linear(np.arange(256)).astype(np.float32)
 
 
 def encode(img: np.ndarray, size: int) -> np.ndarray:

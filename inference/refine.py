@@ -247,8 +247,9 @@ def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool,
         except (ValueError, KeyError, OSError):
             pass   # a damaged cache entry is rebuilt
     levels = np.asarray(settings.levels, float)
-    shipped = curve_means(view, levels, settings.strand_seed, spec.swatch_model, renderer.variant) if cache else None
-    if shipped is not None:     # the bench camera's region: the shipped atlas's cells, no render
+    grid = {k: v for k, v in curve_settings(settings).items() if k != "strand_seed"}
+    shipped = curve_means(view, levels, settings.strand_seed, spec.swatch_model, renderer.variant, grid) if cache else None
+    if shipped is not None:     # the bench camera's region (the atlas's cells) or a crop's pose (the pose tables): no render
         return ResponseCurve(levels.copy(), shipped, 0.0, True)
     if len(levels) % 3:
         raise ValueError(f"the sigma ladder needs a multiple of 3 levels (one per channel), got {len(levels)}")

@@ -22,6 +22,7 @@ import numpy as np
 
 from hairdigi.inference.refine import RefineSettings, ResponseCurve, View, response_curve
 from hairdigi.inference.uncertainty import widen_colour
+from hairdigi.render.domain.bounds import StructureMode
 from hairdigi.render.domain.estimate_parts import StructureInterval, Uncertainty
 from hairdigi.render.domain.rig_geometry import RigRegion
 from hairdigi.render.metrics import delta_e2000
@@ -286,10 +287,10 @@ STRUCTURE_TABLE = MODELS / "structure_uncertainty.json"
 
 #: The evaluation's name of each mode's figures in ``STRUCTURE_TABLE``; "family_unread": the family mode
 #: without single-light frames (a RAW still), every answer mapped to the whole family's mean.
-_TABLE_KEYS = {"assumed": "shipped", "family": "family", "read": "read"}
+_TABLE_KEYS = {StructureMode.ASSUMED: "shipped", StructureMode.FAMILY: "family", StructureMode.READ: "read"}
 
 
-def with_structure(uncertainty: Uncertainty, table: dict | None, mode: str = "assumed",
+def with_structure(uncertainty: Uncertainty, table: dict | None, mode: StructureMode = StructureMode.ASSUMED,
                    swatch_model: str | None = None, frames: bool = True, modelled: bool = True) -> Uncertainty:
     """``uncertainty`` (``inference.uncertainty.intervals``) with its colour interval widened to what
     swatches of other structures measured for ``mode`` (the larger of the two, per level), and a
@@ -297,8 +298,9 @@ def with_structure(uncertainty: Uncertainty, table: dict | None, mode: str = "as
     frames to read the structure from (without, the family mode states its figures without a reading);
     ``modelled`` False: they fit no structure of the family (``unmodelled``), and the interval is what a structure
     outside it measured."""
+    mode = StructureMode(mode)              # the text at an edge (a record, a flag), the enum inside
     key = _TABLE_KEYS[mode]
-    if not frames and mode == "family" and table and "family_unread" in table:
+    if not frames and mode is StructureMode.FAMILY and table and "family_unread" in table:
         key = "family_unread"
     if not modelled and table and "unmodelled" in table:
         key = "unmodelled"

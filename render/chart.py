@@ -2,7 +2,8 @@
 
 Calibration maps a camera's view of the chart onto the chart **as the renderer renders it in the
 rig** (:func:`rig_chart_targets`), not onto the chart's published values: the encoder was trained
-on renders, so a corrected capture must land in the renderer's colour space, lighting included.
+on renders, so a corrected capture must land in the renderer's colour space, lighting included
+(``render.chart_targets`` renders them; this module renders nothing).
 The published values (:func:`colorchecker_reflectances`) are the fallback when no rig render is
 available; they agree with the rendered ones up to the rig's irradiance.
 """
@@ -84,20 +85,6 @@ def patch_boxes(size: tuple[int, int], inset: float = 0.6) -> list[tuple[int, in
 def patch_means(image: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """(24, 3) mean of each patch's centre in a rig-view image of ``size``."""
     return np.array([image[y0:y1, x0:x1].reshape(-1, 3).mean(0) for x0, y0, x1, y1 in patch_boxes(size)])
-
-
-def render_chart_targets(size: tuple[int, int] = (400, 300), spp: int = 256) -> np.ndarray:
-    """Render the rig with the chart under all three lights at full power; (24, 3) linear patch values
-    (ValueError when the render had NaN or Inf samples)."""
-    from hairdigi.render.domain.params import HairParams
-    from hairdigi.render.renderer import Renderer, SceneSpec
-
-    spec = SceneSpec("swatch", framing="rig", chart=tuple(map(tuple, colorchecker_reflectances())),
-                     target=rig_geometry.RIG_TARGET, half_width=rig_geometry.RIG_HALF_WIDTH, strands=200)
-    result = Renderer(max_cached=1).render(HairParams(), spec, size, spp, seed=0)
-    if result.nonfinite:    # a zeroed sample would darken a patch: targets must not be made from it
-        raise ValueError(f"the chart render returned {result.nonfinite} NaN or Inf values; targets not made")
-    return patch_means(result.linear, size)
 
 
 def rig_chart_targets() -> tuple[np.ndarray, str]:

@@ -21,6 +21,7 @@ from hairdigi.render.domain import rig_geometry
 from hairdigi.render.domain.bounds import (MAX_DEPTH, MAX_STRANDS, MIN_DEPTH, SCENE_NAMES, check_camera,
                                            check_size_spp, defaults_for, is_whole)
 from hairdigi.render import scenes
+from hairdigi.render.chart import colorchecker_spectra, is_colorchecker
 from hairdigi.render.domain.absorption import hair_bsdf, hair_sigma_a
 from hairdigi.render.hairfile import hair_model_strands
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance
@@ -391,8 +392,6 @@ class Renderer:
             scene_dict, files = self._scene_dict(spec, size, bsdf)
             if "scalp" in scene_dict:   # portraits: the scalp under the hair takes its colour
                 scene_dict["scalp"]["bsdf"]["reflectance"]["value"] = scenes.scalp_albedo(rgb_projection(sigma))
-            from hairdigi.render.chart import colorchecker_spectra, is_colorchecker
-
             chart = colorchecker_spectra() if is_colorchecker(spec.chart) else None   # its measured spectra
             scenes.spectralise(scene_dict, dict(zip(keys, values)), illuminant_spd(spec.illuminant), chart)
             if spec.sensitivities is not None:

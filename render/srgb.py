@@ -16,6 +16,15 @@ def srgb8_to_linear(srgb8: np.ndarray) -> np.ndarray:
     return colour.cctf_decoding(np.asarray(srgb8, dtype=np.float64) / 255.0, function="sRGB")
 
 
+#: 8-bit sRGB code to linear light, as a lookup table (``to_linear``).
+_LINEAR_LUT = srgb8_to_linear(np.arange(256)).astype(np.float32)
+
+
+def to_linear(img: np.ndarray) -> np.ndarray:
+    """Linear float32 RGB of an image: 8-bit sRGB decoded, linear float as it is."""
+    return _LINEAR_LUT[img] if img.dtype == np.uint8 else np.asarray(img, np.float32)
+
+
 def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
     """Linear RGB to sRGB-encoded values in [0, 1], float32 and unquantised (for the encoder's input)."""
     return colour.cctf_encoding(np.clip(np.asarray(linear, dtype=np.float32), 0.0, 1.0),

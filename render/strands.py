@@ -18,6 +18,7 @@ import numpy as np
 
 from hairdigi.render import head
 from hairdigi.render.domain.rig_geometry import SWATCH_HALF
+from hairdigi.render.domain.text_enum import TextEnum
 
 
 @dataclass(frozen=True)
@@ -233,13 +234,21 @@ HAIR_RADIUS = 0.007
 CROWN = head.CROWN
 
 
+class Growth(TextEnum):
+    """How a hairstyle's strands grow from the scalp."""
+
+    DRAPE = "drape"           # fall under gravity
+    PONYTAIL = "ponytail"     # gathered at the back of the head
+    AFRO = "afro"             # grow outward
+
+
 @dataclass(frozen=True)
 class Style:
     """How one hairstyle grows. Lengths are in scene units (1 unit ≈ 9 cm)."""
 
     length: float                 #: guide length from the scalp
     points: int                   #: control points per strand
-    kind: str = "drape"           #: "drape" (falls under gravity), "ponytail" or "afro" (grows outward)
+    kind: Growth = Growth.DRAPE   #: how its strands grow
     length_jitter: float = 0.1    #: each strand is up to this fraction shorter than its guide
     part_x: float | None = None   #: a parting at this x, from the front hairline to the crown; None: none
     bend: float = 0.5             #: arc length over which a strand turns from its growth direction to gravity
@@ -266,9 +275,9 @@ STYLES = {
     "bob": Style(length=1.8, points=26, part_x=-0.3, bend=0.3, lift=0.25, layer=0.08,
                  strands_per_clump=14, clump=0.3, wave=(0.006, 0.8), frizz=0.004, length_jitter=0.03,
                  cut_y=-1.3, curl_under=0.12),
-    "ponytail": Style(length=1.7, points=40, kind="ponytail", bend=0.5, layer=0.05,
+    "ponytail": Style(length=1.7, points=40, kind=Growth.PONYTAIL, bend=0.5, layer=0.05,
                       strands_per_clump=16, clump=-1.5, wave=(0.02, 0.6), frizz=0.01, length_jitter=0.15),
-    "afro": Style(length=0.8, points=96, kind="afro", lift=1.0, layer=0.02, strands_per_clump=6, clump=0.25,
+    "afro": Style(length=0.8, points=96, kind=Growth.AFRO, lift=1.0, layer=0.02, strands_per_clump=6, clump=0.25,
                   curl=(0.05, 0.08), curl_jitter=0.25, frizz=0.07, length_jitter=0.1, thickness=1.15),
 }
 assert tuple(STYLES) == HAIRSTYLES
@@ -498,10 +507,10 @@ def grow(style: Style, n_strands: int, seed: int = 0, radius: float = HAIR_RADIU
     comb, side = _comb(roots, normals, style.part_x)
     g_comb, g_side = _comb(g_roots, g_normals, style.part_x)
     g_len = style.length * guide_rng.uniform(0.95, 1.0, n_guides)
-    if style.kind == "ponytail":
+    if style.kind is Growth.PONYTAIL:
         curves = _ponytail(roots, normals, style, n_strands, fraction, margin, rng)
     else:
-        if style.kind == "afro":
+        if style.kind is Growth.AFRO:
             guides = _afro_guides(g_roots, g_normals, g_len, k, guide_rng)
         else:
             guides = _drape(g_roots, g_normals, g_comb, g_side, g_len, k, style, g_margin)
@@ -526,7 +535,7 @@ def grow(style: Style, n_strands: int, seed: int = 0, radius: float = HAIR_RADIU
                           np.cumsum(np.linalg.norm(np.diff(curves, axis=1), axis=-1), axis=1)], axis=1)
     m = _ramp(margin, arc).reshape(-1)
     flat = curves.reshape(-1, 3)
-    if style.kind != "afro":
+    if style.kind is not Growth.AFRO:
         flat = _keep_off_face(flat, np.repeat(side, k), m, arc.reshape(-1) > 0.2)
     curves = head.push_out(flat, m, iterations=8).reshape(curves.shape)
     # a B-spline starts near its second point: mirrored end points make it start at the root

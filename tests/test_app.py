@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from hairdigi.app.review import thumbnails
+from hairdigi.app.review.previews import Stage
 from hairdigi.app.gui.main_window import MainWindow
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.inference.encoder import Encoder
@@ -82,7 +83,7 @@ def _capture(qtbot, win):
     assert result.image_path.exists() and result.meta_path.exists()
     qtbot.waitUntil(lambda: "ΔE2000" in win.match_label.text(), timeout=120000)
     qtbot.waitUntil(lambda: win.render_progress.value() == len(FAST["hairstyle_passes"]), timeout=120000)
-    qtbot.waitUntil(lambda: win.model.twin is not None and win.model.twin.stage == "refined"
+    qtbot.waitUntil(lambda: win.model.twin is not None and win.model.twin.stage is Stage.REFINED
                     and win.model.twin.final, timeout=120000)
     # the scenes were built by the warm-up: the capture only updated parameters
     # (a grey share read makes fibre groups: a new structure, built once more at each scale)
@@ -232,6 +233,27 @@ def test_a_capture_cancelled_before_a_worker_took_it_is_still_taken():
         task.cancel()                         # before any worker ran it
         task.run()
         assert steps == expected, must_start
+
+
+def test_a_tasks_expected_failure_says_its_fix_and_a_bug_says_it_is_one(capsys):
+    """A task that fails with a ``HairdigiError`` shows its message (the problem and the fix) as it is; any other
+    exception is a bug: the banner says so and names it, and its traceback goes to the log."""
+    from hairdigi.app.gui.workers import Task
+    from hairdigi.app.library.store import LibraryError
+
+    for error, expected in ((LibraryError("the library is read-only; make it writable"),
+                             "library: the library is read-only; make it writable"),
+                            (KeyError("rows"), "library failed: KeyError: 'rows' (a bug in hairdigi")):
+        said: list[str] = []
+
+        def fail(error=error):
+            raise error
+
+        task = Task(fail, "library")
+        task.signals.failed.connect(said.append)
+        task.run()
+        assert len(said) == 1 and said[0].startswith(expected), said
+        assert ("Traceback" in capsys.readouterr().err) == isinstance(error, KeyError)
 
 
 def test_a_capture_that_ends_after_its_window_is_gone_touches_nothing(qtbot, tiny_model, tmp_path):

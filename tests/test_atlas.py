@@ -1,6 +1,8 @@
 """The shipped atlas (``inference.atlas``): any swatch region of the bench camera's frame answered from cells, so
 the first estimate in a fresh session renders no table; and the twin rendered on the structure the estimate
 was read on."""
+import os
+
 import numpy as np
 import pytest
 
@@ -132,3 +134,63 @@ def test_a_missing_or_damaged_atlas_is_said_once_and_the_tables_are_rendered(tmp
         assert A.curve_means(RigRegion((400, 300), (30, 56, 130, 189)), np.linspace(0, 1, 12), 0, "layered",
                              "llvm_ad_rgb") is None
 
+
+
+def _poses() -> A.PoseAtlas:
+    """Pose tables whose every mean is exp(polar / 100 + azimuth / 1000) times the level's index + 1."""
+    polars, azimuths = np.array(A.POSE_POLARS), np.array(A.POSE_AZIMUTHS)
+    grid = np.exp(polars[:, None, None] / 100 + azimuths[None, :, None] / 1000) * np.arange(1, 13)[None, None, :]
+    return A.PoseAtlas(np.linspace(0, 1, 12), polars, azimuths, {("layered", 0): grid}, {"distance": 4.0})
+
+
+def test_a_crops_pose_reads_the_pose_tables_interpolated_and_mirrored():
+    """A pose on a node reads it; between nodes the logs interpolate (so exp(polar / 100 + azimuth / 1000) comes
+    back exactly); an azimuth past ±90° reads its mirror image across the holder's x = 0 plane (φ -> 180° - φ);
+    steeper than the grid, at another distance, or a curve the tables lack: nothing (the caller renders)."""
+    poses, k = _poses(), np.arange(1, 13)
+    assert np.allclose(poses.curve(CameraPose(30.0, 45.0), "layered", 0), np.exp(0.3 + 0.045) * k)
+    assert np.allclose(poses.curve(CameraPose(37.5, 22.5), "layered", 0), np.exp(0.375 + 0.0225) * k)
+    assert np.allclose(poses.curve(CameraPose(30.0, 135.0), "layered", 0), poses.curve(CameraPose(30.0, 45.0),
+                                                                                       "layered", 0))
+    assert [A.mirrored_azimuth(a) for a in (135.0, -135.0, 180.0, 270.0, 90.0, -30.0, 390.0)] == \
+        [45.0, -45.0, 0.0, -90.0, 90.0, -30.0, 30.0]
+    assert poses.curve(CameraPose(80.0, 0.0), "layered", 0) is None
+    assert poses.curve(CameraPose(30.0, 0.0, 6.0), "layered", 0) is None
+    assert poses.curve(CameraPose(30.0, 0.0, 4.1), "layered", 0) is not None
+    assert poses.curve(CameraPose(30.0, 0.0), "spread", 0) is None
+
+
+def test_the_shipped_pose_tables_are_current_and_answer_a_crop_between_nodes_as_a_render_does(tmp_path,
+                                                                                               monkeypatch):
+    """The shipped pose tables were rendered from today's swatch geometry and settings (``python -m
+    hairdigi.inference.atlas_build --poses-only`` rebuilds them); in a fresh cache a crop at a pose between their
+    nodes reads its curve from them (no render, nothing written) and gives the hard cases the colours a render at
+    that pose gives, within the renders' noise; other render settings, or ``HAIRDIGI_ATLAS=off``, render."""
+    from dataclasses import replace
+
+    from hairdigi.app.evaluation.bench_atlas import HAIRS
+    from hairdigi.inference import atlas_build
+    from hairdigi.inference.refine import RefineSettings, response_curve
+    from hairdigi.inference.structure import FAMILY, LAYOUTS
+    from hairdigi.render.metrics import delta_e2000
+    from hairdigi.render.renderer import default_renderer
+
+    poses = A.load_poses()
+    assert poses is not None, f"no pose tables at {A.POSES_PATH}"
+    assert poses.meta["fingerprint"] == A.fingerprint(default_renderer().variant)
+    assert {(m, s) for m in FAMILY for s in range(LAYOUTS)} <= set(poses.curves)
+    monkeypatch.setenv("HAIRDIGI_CACHE", str(tmp_path / "cache"))
+    monkeypatch.delenv("HAIRDIGI_ATLAS", raising=False)
+    pose = CameraPose(52.5, -67.5)
+    shipped = response_curve(pose, RefineSettings())
+    assert shipped.cached and shipped.seconds == 0.0 and not (tmp_path / "cache").exists()
+    with atlas_build.atlases_off():            # what a build ships is rendered, never read back from the tables
+        rendered = response_curve(pose, RefineSettings())
+    assert not rendered.cached and rendered.seconds > 0 and "HAIRDIGI_ATLAS" not in os.environ
+    assert response_curve(pose, RefineSettings()).cached          # the render, now in the cache
+    apart = {name: float(delta_e2000(shipped(np.asarray(s)), rendered(np.asarray(s)))) for name, s in HAIRS.items()}
+    assert max(apart.values()) < 1.5 and np.median(list(apart.values())) < 0.8, apart
+    assert A.curve_means(pose, shipped.sigma, 0, "layered", default_renderer().variant,
+                         {**replace(RefineSettings(), size=32).__dict__}) is None
+    monkeypatch.setenv("HAIRDIGI_ATLAS", "off")
+    assert A.load_poses() is None

@@ -274,7 +274,7 @@ def test_rig_still_on_the_command_line(tmp_path, capsys):
 def test_the_shipped_chart_targets_are_the_chart_rendered_in_todays_rig():
     """``resources/charts/rig_chart_targets.json`` is ``render_chart_targets``' output: a change to the
     rig's lights, holder or chart that would make calibration aim at stale targets fails here."""
-    from hairdigi.render.chart import render_chart_targets
+    from hairdigi.render.chart_targets import render_chart_targets
     from hairdigi.render.metrics import delta_e2000
 
     shipped, source = rig_chart_targets()

@@ -221,6 +221,8 @@ def bench_atlas(args: argparse.Namespace) -> int:
         print(f"{r['region']:28s} " + ", ".join(f"{h} {r[f'{h}_de2000']:.2f}" for h in HAIRS if f"{h}_de2000" in r))
     for r in summary.get("end_to_end", []):
         print("first capture, fresh session: " + ", ".join(f"{k} {v}" for k, v in r.items()))
+    for r in summary.get("poses_end_to_end", []):
+        print("image file at a pose, fresh session: " + ", ".join(f"{k} {v}" for k, v in r.items()))
     print(f"wrote {out / 'atlas.csv'}, {out / 'atlas.json'} and {out / 'atlas.png'}")
     return 0
 

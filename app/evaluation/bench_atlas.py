@@ -6,6 +6,11 @@ and how far apart they put hairs of the hard cases (black, platinum, copper, sat
 ΔE2000 of the colour each predicts for the hair and as the relative sigma_a each reads from one colour.
 With ``end_to_end``, a fresh session's first capture of a deposited swatch, estimated with the atlas and
 without it (every table rendered in a fresh cache): the time to the estimate and the two answers' distance.
+
+Away from the rig, the pose tables (``inference.atlas.PoseAtlas``): at all-hair camera poses between the grid's
+nodes (and one mirrored), the interpolated curves and family map against rendering them at the pose; and with
+``end_to_end``, an image file of a deposited swatch seen from such a pose estimated in a fresh session, with the
+pose tables and without them, against the truth.
 """
 from __future__ import annotations
 
@@ -148,6 +153,88 @@ def end_to_end(out: Path, without: int = 1, atlas_path: str = "") -> list[dict]:
     return rows
 
 
+#: All-hair crops' camera poses (polar°, azimuth°) off the pose tables' grid: between its nodes, grazing, mirrored.
+POSES = {"pose 37.5°, 22.5° (between)": (37.5, 22.5), "pose 52.5°, -67.5° (between)": (52.5, -67.5),
+         "pose 67.5°, 67.5° (grazing, between)": (67.5, 67.5), "pose 30°, 135° (mirrored)": (30.0, 135.0)}
+
+
+def _pose_family(pose, settings):
+    """The family's curves at ``pose`` as the pose tables give them (interpolated)."""
+    from hairdigi.inference.atlas import load_poses
+    from hairdigi.inference.refine import ResponseCurve
+    from hairdigi.inference.structure import FAMILY, LAYOUTS, FamilyCurves, _averaged
+
+    tables, levels = load_poses(), np.asarray(settings.levels, float)
+    members = {m: _averaged([ResponseCurve(levels.copy(), tables.curve(pose, m, s)) for s in range(LAYOUTS)])
+               for m in FAMILY}
+    return FamilyCurves(ResponseCurve(levels.copy(), tables.curve(pose, "layered", 0)), members)
+
+
+def poses_bench(poses: dict = POSES) -> list[dict]:
+    """Per pose off the grid: the pose tables' curve and family map against rendering them there, and their costs."""
+    from hairdigi.inference.refine import RefineSettings, response_curve
+    from hairdigi.inference.structure import family_curves, to_family
+    from hairdigi.render.domain.rig_geometry import CameraPose
+    from hairdigi.render.metrics import delta_e2000
+
+    rows = []
+    for name, (polar, azimuth) in poses.items():
+        pose, settings = CameraPose(polar, azimuth), RefineSettings()
+        start = time.perf_counter()
+        shipped = _pose_family(pose, settings)
+        tables_ms = (time.perf_counter() - start) * 1000
+        start = time.perf_counter()
+        rendered = response_curve(pose, settings, cache=False)
+        curve_s = time.perf_counter() - start
+        fresh = family_curves(pose, settings, cache=False)
+        mapped = {}
+        for hair, sigma in HAIRS.items():
+            a, b = to_family(np.asarray(sigma), shipped), to_family(np.asarray(sigma), fresh)
+            mapped[f"{hair}_family_de2000"] = round(float(delta_e2000(np.clip(fresh.mean(a), 1e-9, None),
+                                                                      np.clip(fresh.mean(b), 1e-9, None))), 3)
+        rows.append({"region": name, "frame": "crop", "roi": [polar, azimuth], "atlas": True,
+                     "atlas_ms_all_tables": round(tables_ms, 1), "render_s_one_curve": round(curve_s, 2),
+                     "render_s_all_tables_est": round(curve_s * (1 + len(fresh.members) * 2), 1),
+                     **_compare(shipped.default, rendered), **mapped})
+    return rows
+
+
+def poses_end_to_end(out: Path, pose: tuple[float, float] = (52.5, -67.5), without: int = 1) -> list[dict]:
+    """Each hard case's all-hair crop of a deposited swatch seen from ``pose``, estimated in a fresh session (a fresh
+    cache) with the pose tables; the first ``without`` also without them (every curve rendered): time and truth."""
+    from hairdigi.app.evaluation.rig import HARD_CASES
+    from hairdigi.inference.encoder import Encoder
+    from hairdigi.inference.estimate import estimate_image
+    from hairdigi.render.domain.rig_geometry import CameraPose
+    from hairdigi.render.judge import judge
+    from hairdigi.render.renderer import SceneSpec, render
+
+    camera, encoder, rows = CameraPose(*pose), Encoder(), []
+    for k, (hair, hidden) in enumerate(HARD_CASES.items()):
+        image = render(hidden, SceneSpec("swatch", camera=camera, framing="crop", swatch_model="deposited"),
+                       96, 128, seed=3).linear
+        answers = {}
+        for tables in ("on", "off") if k < without else ("on",):
+            before = dict(os.environ)
+            os.environ["HAIRDIGI_CACHE"] = str(out / f"pose-cache-{k}-{tables}")
+            os.environ["HAIRDIGI_ATLAS"] = "" if tables == "on" else "off"
+            try:
+                start = time.perf_counter()
+                result = estimate_image(image, encoder, view=camera)
+                seconds = time.perf_counter() - start
+            finally:
+                os.environ.clear()
+                os.environ.update(before)
+            answers[tables] = np.asarray(result.refinement.sigma_a)
+            verdict = judge(hidden, result.refinement.sigma_a)
+            rows.append({"hair": hair, "pose": list(pose), "pose_tables": tables, "estimate_s": round(seconds, 2),
+                         "truth_de2000": round(float(verdict.de2000), 3)})
+        if len(answers) == 2:
+            rows.append({"hair": hair, "pose": list(pose), "pose_tables": "on vs off", "sigma_rel": round(float(
+                np.max(np.abs(answers["on"] - answers["off"]) / answers["off"])), 3)})
+    return rows
+
+
 def plot(rows: list[dict], path: Path) -> None:
     import matplotlib
 
@@ -172,7 +259,7 @@ def plot(rows: list[dict], path: Path) -> None:
 def atlas_bench(out: Path, end_to_end_too: bool = False) -> dict:
     """Run the bench; write ``atlas.csv``, ``atlas.json`` and ``atlas.png`` under ``out``."""
     out.mkdir(parents=True, exist_ok=True)
-    rows = tables_bench()
+    rows = tables_bench() + poses_bench()
     write_csv_atomic(out / "atlas.csv", rows)
     summary = {"tables": rows}
     if end_to_end_too:      # its sessions and fresh caches go to a temporary folder, not beside the table
@@ -180,6 +267,7 @@ def atlas_bench(out: Path, end_to_end_too: bool = False) -> dict:
 
         with tempfile.TemporaryDirectory(prefix="hairdigi-bench-atlas-") as work:
             summary["end_to_end"] = end_to_end(Path(work))
+            summary["poses_end_to_end"] = poses_end_to_end(Path(work))
     write_json_atomic(out / "atlas.json", summary)
     plot(rows, out / "atlas.png")
     return summary

@@ -7,14 +7,10 @@ import sys
 from pathlib import Path
 
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE
-from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.errors import EvaluationError
 
 #: Fewer predictions than this give no p95 to judge ``evaluate --dye``'s goal by.
 MIN_GOAL_PREDICTIONS = 20
-
-
-class EvaluationError(HairdigiError):
-    """An evaluation that ran but judged nothing: one line, exit status 2."""
 
 
 def held_out_folder(args: argparse.Namespace) -> Path:

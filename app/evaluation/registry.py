@@ -94,6 +94,9 @@ BENCHES: dict[str, Entry] = _modes(
           f"{_BENCH}:bench_fibres"),
     Entry("atlas", "the shipped atlas against rendering each region's tables: cost and colour apart (no --quick: "
                    "also a fresh session's first capture with and without it)", f"{_BENCH}:bench_atlas"),
+    Entry("structure-reading", "the family's mean against continuous readings of the structure, on members left "
+                               "out and structures outside the family",
+          "hairdigi.app.evaluation.bench_structure_reading:bench_structure_reading"),
     Entry("family", "every physical swatch structure at equal sigma_a, against the layered swatch",
           f"{_BENCH}:bench_family"),
     Entry("streaks", "the swatch area's texture (streaks along the fibres) by physical structure, live, RAW and tilted",

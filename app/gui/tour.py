@@ -15,6 +15,7 @@ from pathlib import Path
 from PySide6.QtCore import QObject, QTimer
 from PySide6.QtWidgets import QApplication
 
+from hairdigi.app.review.previews import Stage
 from hairdigi.app.session.blockers import messages
 from hairdigi.render.domain.files import write_json_atomic
 
@@ -80,7 +81,7 @@ class Tour(QObject):
     def on_shown(self, shown) -> None:
         if shown.params is not None:
             self.mark("parameters")
-        if shown.stage == "refined":
+        if shown.stage is Stage.REFINED:
             self.mark("refined")
 
     def on_captured(self, result) -> None:
@@ -91,7 +92,7 @@ class Tour(QObject):
 
     def on_twin(self, t) -> None:
         self.mark("first_twin")
-        if t.stage == "refined":
+        if t.stage is Stage.REFINED:
             self.mark("first_refined_twin")
             if t.clean_enough:
                 self.mark("clean_twin")
@@ -104,7 +105,7 @@ class Tour(QObject):
 
     def on_hairstyle(self, p) -> None:
         self.mark("first_hairstyle")
-        if p.stage == "refined":
+        if p.stage is Stage.REFINED:
             if p.clean_enough:
                 self.mark("clean_hairstyle")
                 self.info.setdefault("clean_hairstyle_spp", p.spp)

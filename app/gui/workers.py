@@ -8,6 +8,8 @@ from typing import Callable
 
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, Signal
 
+from hairdigi.render.domain.errors import HairdigiError
+
 
 class TaskSignals(QObject):
     progress = Signal(object)   # whatever the task reports (a partial result, a fraction)
@@ -49,9 +51,12 @@ class Task(QRunnable):
                 result = self._iterate(result)
             if not self._cancel.is_set():
                 self.signals.done.emit(result)
-        except Exception as exc:  # shown to the operator as a banner, never swallowed
-            traceback.print_exc()
+        except HairdigiError as exc:        # an expected failure: its message names the problem and the fix
             self.signals.failed.emit(f"{self.name}: {exc}")
+        except Exception as exc:            # a bug: shown as a banner, never swallowed; its traceback kept in the log
+            traceback.print_exc()
+            self.signals.failed.emit(f"{self.name} failed: {type(exc).__name__}: {exc} (a bug in hairdigi; the "
+                                     f"traceback is in the log)")
         finally:
             self.signals.finished.emit()
 

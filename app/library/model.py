@@ -20,10 +20,11 @@ import numpy as np
 
 from hairdigi.app.library import view
 from hairdigi.app.review.events import EventGroup, Status
-from hairdigi.app.library.store import Library, Swatch, redact
+from hairdigi.app.library.store import Library, LibraryError, Swatch, redact
 from hairdigi.app.review.panel_model import PanelModel
 from hairdigi.app.review.work import Work
 from hairdigi.app.library.swatch_colour import ILLUMINANTS, hex_lab
+from hairdigi.render.domain.errors import HairdigiError
 
 __all__ = ["LibraryModel", "Query", "Rows", "Selection", "SwatchImage", "Imported", "Exported", "Events",
            "ORDERS", "MAX_ROWS", "NEAR_K"]
@@ -95,7 +96,7 @@ class Events(EventGroup):
 
 
 def run_query(library: Library, query: Query) -> tuple[list[Swatch], dict[str, float]]:
-    """The swatches ``query`` asks for, and their ΔE2000 to its colour (raises ValueError: a bad colour)."""
+    """The swatches ``query`` asks for, and their ΔE2000 to its colour (raises ColourError: a bad colour)."""
     if query.near:
         matches = library.find(hex_lab(query.near), query.under, k=NEAR_K)
         text = query.text.lower()
@@ -130,7 +131,7 @@ class LibraryModel(PanelModel):
         """The library, for one work at a time; after :meth:`close`, the last work closes it."""
         with self._lock:
             if self._closed:
-                raise ValueError("the library is closed")
+                raise LibraryError("the library is closed (its window was closed); open the Library panel again")
             try:
                 yield self.library
             finally:
@@ -177,7 +178,7 @@ class LibraryModel(PanelModel):
                         return None
                     swatches, distances = run_query(library, query)
                     count = library.count()
-            except ValueError as exc:          # a bad colour, a closed or unavailable library
+            except HairdigiError as exc:       # a bad colour, a closed or unavailable library; a bug keeps its traceback
                 return Rows(generation, query, error=" ".join(str(exc).split()))
             return Rows(generation, query, tuple(swatches), distances, count)
             yield  # noqa: unreachable: makes this a generator

@@ -24,8 +24,7 @@ from hairdigi.render.metrics import delta_e_map, mean_colour_delta_e
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
 from hairdigi.render.domain.text_enum import TextEnum
-
-Cancelled = Callable[[], bool]
+from hairdigi.app.review.work import Cancelled
 
 
 class Stage(TextEnum):

@@ -18,13 +18,9 @@ worker dies is run again, up to ``MAX_RETRIES`` times; an exception raised by th
 """
 from __future__ import annotations
 
-from dataclasses import asdict
-from typing import TYPE_CHECKING, Callable
+from typing import Callable
 
 from hairdigi.render.domain.errors import HairdigiError
-
-if TYPE_CHECKING:
-    from hairdigi.inference.training.dataset import DatasetConfig
 
 INSTALL_HINT = "pip install 'hairdigi[cluster]'"
 #: How often Ray runs a shard's task again after its worker died (a node lost, out of memory).
@@ -69,13 +65,6 @@ def check_address(address: str | None, timeout: float = CONNECT_TIMEOUT_S) -> No
                            f"instance") from None
 
 
-def _render_task(config_dict: dict, shard: int, variant: str, threads: int) -> dict:
-    """One Ray task: render shard ``shard`` with ``variant`` and return its arrays."""
-    from hairdigi.inference.training.dataset import DatasetConfig, render_shard
-
-    return render_shard(DatasetConfig(**config_dict), shard, variant, threads)
-
-
 def _start(ray, address: str | None, num_cpus: int | None) -> bool:
     """Connect to the cluster at ``address``, or start a local instance; True when this run started
     (and so must stop) it. A Ray already initialised in this process is used as it is."""
@@ -96,11 +85,12 @@ def _start(ray, address: str | None, num_cpus: int | None) -> bool:
     return not address
 
 
-def render_shards(config: "DatasetConfig", shards: list[int], variant: str,
+def render_shards(task_fn: Callable[[dict, int, str, int], dict], config: dict, shards: list[int], variant: str,
                   arrived: Callable[[int, dict], None], address: str | None = None,
                   num_cpus: int | None = None, cpus_per_task: int = 1) -> None:
-    """Render ``shards`` of ``config`` as Ray tasks, calling ``arrived(shard, arrays)`` on this
-    process as each one completes (in completion order).
+    """Render ``shards`` of a dataset as Ray tasks, each ``task_fn(config, shard, variant, threads)`` (a
+    module-level function, so Ray's workers import it; ``config`` a plain dict), calling ``arrived(shard,
+    arrays)`` on this process as each one completes (in completion order).
 
     ``address``: a running cluster (``auto``, ``HOST:6379``, ``ray://HOST:10001``); None starts a
     local instance with ``num_cpus`` CPUs and stops it at the end. Each task asks for
@@ -116,10 +106,9 @@ def render_shards(config: "DatasetConfig", shards: list[int], variant: str,
         if gpus and ray.cluster_resources().get("GPU", 0) < 1:
             raise ClusterError(f"Mitsuba variant {variant} needs a GPU, and the Ray cluster has none; use "
                                f"--variant llvm_ad_rgb, or add GPU nodes")
-        task = ray.remote(_render_task).options(num_cpus=cpus_per_task, num_gpus=gpus,
+        task = ray.remote(task_fn).options(num_cpus=cpus_per_task, num_gpus=gpus,
                                                 max_retries=MAX_RETRIES, retry_exceptions=False)
-        config_dict = asdict(config)
-        shard_of = {task.remote(config_dict, s, variant, 0 if gpus else cpus_per_task): s for s in shards}
+        shard_of = {task.remote(config, s, variant, 0 if gpus else cpus_per_task): s for s in shards}
         pending = list(shard_of)
         while pending:
             ready, pending = ray.wait(pending, num_returns=1)

@@ -337,6 +337,12 @@ def _resolve_variant(variant: str | None, set_here: bool) -> str:
     return variant
 
 
+def shard_task(config: dict, shard: int, variant: str, threads: int) -> dict:
+    """One Ray task (``inference.training.cluster.render_shards``): render shard ``shard`` of the dataset
+    ``config`` (its fields as a dict) with ``variant`` and return its arrays."""
+    return render_shard(DatasetConfig(**config), shard, variant, threads)
+
+
 def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, progress: bool = True,
              backend: str = "local", address: str | None = None, variant: str | None = None) -> Path:
     """Render every missing shard of the dataset into ``root``; resumable and deterministic.
@@ -390,7 +396,8 @@ def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, p
                         write_shard(root, shard, arrays)
                         bar.update(len(arrays["indices"]))
 
-                    render_shards(config, todo, variant, arrived, address=address, num_cpus=workers)
+                    render_shards(shard_task, asdict(config), todo, variant, arrived, address=address,
+                                  num_cpus=workers)
                 else:
                     with mp.get_context("spawn").Pool(workers, initializer=_die_with_parent) as pool:
                         for _, count, _ in pool.imap_unordered(_render_shard, jobs):

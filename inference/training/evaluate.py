@@ -31,17 +31,12 @@ from hairdigi.inference.training.dataset import DatasetConfig, generate, load, s
 from hairdigi.inference.refine import RefineSettings, mean_linear, refine
 from hairdigi.render.metrics import delta_e2000, l1_255, ms_ssim
 from hairdigi.render.domain.params import VECTOR_FIELDS, HairParams
-from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.errors import EvaluationError
 from hairdigi.render.domain.files import atomic_path, write_json_atomic
 
 EVAL_SEED = 1_000_003  # training datasets use small seeds; this one is disjoint by construction
 SPANS = np.array([hi - lo for _, lo, hi in VECTOR_FIELDS])
 NAMES = [name for name, _, _ in VECTOR_FIELDS]
-
-
-class EvaluationError(HairdigiError, ValueError):
-    """An evaluation cannot run with the settings asked (sizes that cannot be compared); the message says
-    which settings to change."""
 
 
 @dataclass(frozen=True)

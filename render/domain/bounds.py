@@ -29,9 +29,11 @@ class SceneKind(TextEnum):
     def of(cls, name: str) -> SceneKind:
         """The kind of the scene named ``name``: the swatch, a hair model (or a ``.hair`` file's path), else a
         hairstyle."""
+        if isinstance(name, cls):
+            return name
         if isinstance(name, str) and name.lower().endswith(".hair"):
             return cls.HAIR_FILE
-        return cls(name) if name in (cls.SWATCH, cls.HAIR_FILE) else cls.HAIRSTYLE
+        return cls(name) if name in (cls.SWATCH.value, cls.HAIR_FILE.value) else cls.HAIRSTYLE
 
     @property
     def on_head(self) -> bool:

@@ -19,3 +19,8 @@ from __future__ import annotations
 
 class HairdigiError(Exception):
     """A failure the user can fix; its message names the problem and the fix."""
+
+
+class EvaluationError(HairdigiError, ValueError):
+    """An evaluation that cannot run with the settings asked (sizes that cannot be compared), or that ran and
+    judged nothing; the message says which settings to change. One class for every evaluation and bench."""

@@ -1,8 +1,22 @@
 """The base of hairdigi's enums of names: each member is its text at the edges (JSON, the command line,
-messages), and a value of its own kind inside."""
+messages), and a value of its own kind inside.
+
+Text is parsed into its enum once, at the edge (``StructureMode(args.structure)``); inside, a member is
+compared with members (``mode is StructureMode.FAMILY``). A member still equals its text, so a record or a
+flag's text reads the same; with ``HAIRDIGI_STRICT_ENUMS=1`` (the test suite's setting) comparing a member
+with a plain string raises instead, so a comparison with a misspelt text cannot pass silently.
+"""
 from __future__ import annotations
 
 import enum
+import os
+
+#: Comparing a member with a plain string raises (``HAIRDIGI_STRICT_ENUMS=1``; read once, at import).
+STRICT = os.environ.get("HAIRDIGI_STRICT_ENUMS") == "1"
+
+
+class EnumComparedToText(TypeError):
+    """A member compared with a plain string inside the packages (strict mode): parse the text at the edge."""
 
 
 class TextEnum(str, enum.Enum):
@@ -13,6 +27,17 @@ class TextEnum(str, enum.Enum):
         return str.__str__(self)
 
     __format__ = str.__format__
+
+    def __eq__(self, other: object) -> bool:
+        if STRICT and isinstance(other, str) and not isinstance(other, TextEnum):
+            raise EnumComparedToText(f"{type(self).__name__}.{self.name} compared with the text {other!r}: parse the "
+                                     f"text at the edge ({type(self).__name__}({other!r})) and compare members")
+        return str.__eq__(self, other)
+
+    def __ne__(self, other: object) -> bool:
+        return not self.__eq__(other)
+
+    __hash__ = str.__hash__
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
