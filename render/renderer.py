@@ -46,6 +46,11 @@ class SceneError(HairdigiError, ValueError):
     setting out of its range); the message names it and what would work."""
 
 
+def _text(value: object) -> object:
+    """A member's text (a plain str), anything else as it is: what a check against a tuple of names compares."""
+    return str.__str__(value) if isinstance(value, str) else value
+
+
 @dataclass(frozen=True)
 class SceneSpec:
     """What to render, apart from the hair colour.
@@ -108,16 +113,16 @@ class SceneSpec:
             object.__setattr__(self, "hair_file", str(path.resolve()))
         elif self.hair_file is not None:
             raise SceneError(f"hair_file applies to the {SceneKind.HAIR_FILE.value!r} scene, not {self.name!r}")
-        elif self.name not in SCENE_NAMES:
+        elif _text(self.name) not in SCENE_NAMES:
             raise SceneError(f"unknown scene {self.name!r}; choose one of {', '.join(SCENE_NAMES)} "
                              f"or the path of a .hair file")
-        if not swatch and self.env not in ENVIRONMENTS:
+        if not swatch and _text(self.env) not in ENVIRONMENTS:
             raise SceneError(f"unknown environment {self.env!r}; choose one of {', '.join(ENVIRONMENTS)}")
-        if swatch and self.env not in SWATCH_ENVIRONMENTS:
+        if swatch and _text(self.env) not in SWATCH_ENVIRONMENTS:
             raise SceneError(f"unknown swatch environment {self.env!r}; choose 'studio' (the rig) or "
                              f"{Environment.KEY_SKY.value!r} (a key light and a grey sky)")
         object.__setattr__(self, "env", Environment(self.env))
-        if self.framing in rig_geometry.Framing.names():
+        if rig_geometry.Framing.knows(self.framing):
             object.__setattr__(self, "framing", rig_geometry.Framing(self.framing))
         elif swatch:
             raise SceneError(f"unknown framing {self.framing!r}; choose one of "
@@ -137,7 +142,7 @@ class SceneSpec:
         if swatch and self.swatch_model is None:
             object.__setattr__(self, "swatch_model", DEFAULT_SWATCH_MODEL)
         if self.swatch_model is not None:
-            if self.swatch_model not in SwatchModel.names() or not swatch:
+            if not SwatchModel.knows(self.swatch_model) or not swatch:
                 raise SceneError(f"swatch_model {self.swatch_model!r}: choose one of "
                                  f"{', '.join(SwatchModel.names())} (it applies to the swatch scene only)")
             object.__setattr__(self, "swatch_model", SwatchModel(self.swatch_model))

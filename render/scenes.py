@@ -158,9 +158,10 @@ def portrait_camera_position(pose: CameraPose) -> np.ndarray:
 
 
 def portrait_lights(env: Environment) -> dict:
-    if env not in ENVIRONMENTS:
+    if not Environment.knows(env) or Environment(env).value not in ENVIRONMENTS:
         raise ValueError(f"unknown environment {env!r}; choose one of {', '.join(ENVIRONMENTS)}")
-    if env == Environment.STUDIO:  # three-point: key front-right-high, fill front-left, rim behind
+    env = Environment(env)
+    if env is Environment.STUDIO:  # three-point: key front-right-high, fill front-left, rim behind
         return {
             "key": area_light(np.array([3.5, 3.0, 5.0]), PORTRAIT_TARGET, 2.0, 9.0),
             "fill": area_light(np.array([-5.0, 0.5, 4.0]), PORTRAIT_TARGET, 2.5, 2.5),

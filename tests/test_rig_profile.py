@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from hairdigi.render.domain.bounds import StructureMode
 from hairdigi.app.cli import main
 from hairdigi.app.cli import rig as rig_cli
 from hairdigi.app.session.profile import (PROFILE_NAME, ProfileError, RigProfile, merged, read_profile,
@@ -110,7 +111,7 @@ def test_a_flag_on_the_live_rig_overrides_for_one_command_and_declare_writes_it(
     err = capsys.readouterr().err
     assert "rig profile: --structure assumed overrides the session's structure mode (family)" in err
     assert main(["rig", "--sim", "--session", "s", "--structure", "assumed", "--declare"]) == 0
-    assert read_profile(ws / "s").structure == "assumed"
+    assert read_profile(ws / "s").structure is StructureMode.ASSUMED
 
 
 def test_a_real_rig_session_without_flags_writes_an_undeclared_profile(ws, live):
@@ -204,12 +205,12 @@ def test_the_app_runs_as_the_sessions_profile_declares_and_a_flag_overrides_it_f
     lab = tmp_path / "lab"
     write_profile(lab, RigProfile("nikon-5100", "LED-B4", "assumed"))
     led, sensor, structure, said = session_rig(lab, settings, False, None, None, None)
-    assert (led, sensor, structure) == ("LED-B4", "nikon-5100", "assumed") and "rig-profile.json" in said
+    assert (led, sensor, structure) == ("LED-B4", "nikon-5100", StructureMode.ASSUMED) and "rig-profile.json" in said
     led, sensor, structure, said = session_rig(lab, settings, False, None, None, "family")
-    assert structure == "family" and "--structure family overrides" in said
-    assert read_profile(lab).structure == "assumed"                        # for this run only
+    assert structure is StructureMode.FAMILY and "--structure family overrides" in said
+    assert read_profile(lab).structure is StructureMode.ASSUMED             # for this run only
     fresh = tmp_path / "fresh"
-    assert session_rig(fresh, settings, True, None, None, None)[2] == "read"
+    assert session_rig(fresh, settings, True, None, None, None)[2] is StructureMode.READ
     assert read_profile(fresh) == RigProfile(None, None, "read")          # declared once
     damaged = tmp_path / "damaged"
     damaged.mkdir()

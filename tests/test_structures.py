@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from hairdigi.render.domain.bounds import StructureMode, SwatchModel
 from hairdigi.render.strands import SWATCH_WIDTH, layered_radius
 from hairdigi.render.swatch_family import FAMILY, STRUCTURES, deposit, inside_share, structure_strands
 
@@ -81,7 +82,7 @@ def test_unknown_structure_is_refused_in_one_line() -> None:
         structure_strands("combed", 100)
     with pytest.raises(ValueError, match="swatch_model 'combed'"):
         SceneSpec("swatch", swatch_model="combed")
-    assert SceneSpec("swatch", swatch_model="deposited").swatch_model == "deposited"
+    assert SceneSpec("swatch", swatch_model="deposited").swatch_model is SwatchModel.DEPOSITED
 
 
 def test_a_structure_mode_without_what_it_needs_is_refused_in_one_line(tmp_path, capsys) -> None:
@@ -111,7 +112,7 @@ def test_a_records_colour_interval_carries_the_unknown_structure() -> None:
     chain = Uncertainty(mean_colour_de2000_p68=0.49, mean_colour_de2000_p95=0.71, mean_colour_source="the chain")
     assumed = with_structure(chain, table, "assumed", "layered")
     assert (assumed.mean_colour_de2000_p68, assumed.mean_colour_de2000_p95) == (2.0, 2.9)
-    assert "--structure assumed" in assumed.mean_colour_source and assumed.structure.mode == "assumed"
+    assert "--structure assumed" in assumed.mean_colour_source and assumed.structure.mode is StructureMode.ASSUMED
     wide = replace(chain, mean_colour_de2000_p68=3.38, mean_colour_de2000_p95=5.11)   # an unknown camera's
     family = with_structure(wide, table, "family")
     assert (family.mean_colour_de2000_p68, family.mean_colour_source) == (3.38, "the chain")

@@ -11,7 +11,7 @@ from hairdigi.app.gui.main_window import MainWindow, settings_store
 from hairdigi.app.session.profile import ProfileError, RigProfile, merged, profile_path, read_profile, write_profile
 from hairdigi.app.session.rig_session import open_rig
 from hairdigi.app.session.spectra import rig_spectra, spectra_problem
-from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, STRUCTURE_MODES
+from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, STRUCTURE_MODES, StructureMode
 
 SETTING_DEFAULTS = {"camera": "0", "serial_port": "", "output_folder": str(Path.home() / "hairdigi-sessions" / "default"),
                     "hairstyle_size": 512, "led": "", "sensor": "", "structure": str(DEFAULT_STRUCTURE)}
@@ -103,7 +103,7 @@ def chosen_structure(settings: dict, structure: str | None) -> tuple[str, str | 
 
 
 def session_rig(folder: Path, settings: dict, sim: bool, led: str | None, sensor: str | None,
-                structure: str | None) -> tuple[str | None, str | None, str, str | None]:
+                structure: str | None) -> tuple[str | None, str | None, StructureMode, str | None]:
     """The rig the app runs: the session's rig profile (``app.session.profile``), each flag given overriding it for
     this run; without a profile, the flags or the settings, kept as the session's profile (declared once).
     Returns (led, sensor, structure, the status line: the profile read, its overrides and problems; or None)."""
@@ -115,7 +115,7 @@ def session_rig(folder: Path, settings: dict, sim: bool, led: str | None, sensor
         damaged = None
     if kept is not None:                   # the session's rig profile, each flag overriding it for this run
         profile, notices = merged(kept, {"sensitivities": sensor, "led": led, "structure": structure})
-        led, sensor, structure = profile.led, profile.sensitivities, str(profile.structure)
+        led, sensor, structure = profile.led, profile.sensitivities, profile.structure
         spectra = None if sim else spectra_problem(led, sensor)
         problem, wrong = "; ".join(filter(None, [f"rig profile {profile_path(folder)}", *notices, spectra])), None
     else:
@@ -127,7 +127,7 @@ def session_rig(folder: Path, settings: dict, sim: bool, led: str | None, sensor
             folder.mkdir(parents=True, exist_ok=True)
             write_profile(folder, RigProfile(None if sim else sensor, None if sim else led, structure))
     problem = "; ".join(filter(None, [damaged, problem, wrong])) or None
-    return led, sensor, structure, problem
+    return led, sensor, StructureMode(structure), problem
 
 
 def run_app(sim: bool = False, session: str | None = None, tour: str | None = None, camera: str | None = None,

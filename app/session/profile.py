@@ -95,7 +95,7 @@ def read_profile(session_folder: str | os.PathLike) -> RigProfile | None:
 def _field_problem(data: dict) -> str | None:
     """What is wrong with a profile's fields, in a few words, or None."""
     sensor, led, structure = data.get("sensitivities"), data.get("led"), data.get("structure", str(DEFAULT_STRUCTURE))
-    if structure not in StructureMode.names():
+    if not StructureMode.knows(structure):
         return f"structure {structure!r} is not one of {', '.join(StructureMode.names())}"
     for name, value, known in (("sensitivities", sensor, (*CAMERAS, "cie")), ("led", led, ILLUMINANTS)):
         if value is not None and (not isinstance(value, str)

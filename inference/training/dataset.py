@@ -63,10 +63,10 @@ class DatasetConfig:
     def __post_init__(self) -> None:
         if self.store not in STORES:
             raise DatasetError(f"dataset store {self.store!r} is not one of {', '.join(STORES)}")
-        if self.swatch_model not in SwatchModel.names():
+        if not SwatchModel.knows(self.swatch_model):
             raise DatasetError(f"dataset swatch_model {self.swatch_model!r} is not one of "
                                f"{', '.join(SwatchModel.names())}")
-        if self.framing not in Framing.names():
+        if not Framing.knows(self.framing):
             raise DatasetError(f"dataset framing {self.framing!r} is not one of {', '.join(Framing.names())}")
         object.__setattr__(self, "swatch_model", SwatchModel(self.swatch_model))
         object.__setattr__(self, "framing", Framing(self.framing))
@@ -116,7 +116,7 @@ def sample_spec(config: DatasetConfig, index: int) -> SampleSpec:
 
 def camera_is_clear(camera: CameraPose, framing: Framing = Framing.CROP) -> bool:
     """Whether the camera sees the framed swatch rather than the back of a rig light."""
-    return not light_blocks_view(camera, FRAMING_HALF_WIDTH.get(framing, FRAMING_HALF_WIDTH[Framing.CROP]))
+    return not light_blocks_view(camera, FRAMING_HALF_WIDTH[Framing(framing)])
 
 
 def usable(cameras: np.ndarray, framing: Framing = Framing.CROP) -> np.ndarray:

@@ -249,7 +249,7 @@ def _bad(what: str, key: str, value):
 
 
 def _source(value: str, what: str) -> CaptureSource:
-    if value not in CaptureSource.names():
+    if not CaptureSource.knows(value):
         raise RecordError(f"the {what}'s 'source' is {value!r}, not one of {', '.join(CaptureSource.names())}")
     return CaptureSource(value)
 

@@ -15,10 +15,6 @@ import os
 STRICT = os.environ.get("HAIRDIGI_STRICT_ENUMS") == "1"
 
 
-class EnumComparedToText(TypeError):
-    """A member compared with a plain string inside the packages (strict mode): parse the text at the edge."""
-
-
 class TextEnum(str, enum.Enum):
     """An enum whose members are their text: equal to it, hashed as it, and printed, formatted and
     written to JSON as it (``str(Framing.CROP) == "crop"``), on every Python hairdigi supports."""
@@ -30,14 +26,19 @@ class TextEnum(str, enum.Enum):
 
     def __eq__(self, other: object) -> bool:
         if STRICT and isinstance(other, str) and not isinstance(other, TextEnum):
-            raise EnumComparedToText(f"{type(self).__name__}.{self.name} compared with the text {other!r}: parse the "
-                                     f"text at the edge ({type(self).__name__}({other!r})) and compare members")
+            raise TypeError(f"{type(self).__name__}.{self.name} compared with the text {other!r}: parse the "
+                            f"text at the edge ({type(self).__name__}({other!r})) and compare members")
         return str.__eq__(self, other)
 
     def __ne__(self, other: object) -> bool:
         return not self.__eq__(other)
 
     __hash__ = str.__hash__
+
+    @classmethod
+    def knows(cls, value: object) -> bool:
+        """Whether ``value`` is a member, or a text that names one (an edge's check before parsing)."""
+        return isinstance(value, cls) or (isinstance(value, str) and str.__str__(value) in cls._value2member_map_)
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
