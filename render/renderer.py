@@ -6,6 +6,8 @@ instead of being rebuilt, which is what makes rendering thousands of dataset swa
 """
 from __future__ import annotations
 
+import contextlib
+import gc
 import os
 import tempfile
 import threading
@@ -480,11 +482,26 @@ def render_in_passes(scene, size: int | tuple[int, int], spp: int, seed: int):
     return (total / spp).astype(np.float32)
 
 
+@contextlib.contextmanager
+def _collector_paused():
+    """Python's cyclic garbage collector off for the block (on again after, where it was on)."""
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was:
+            gc.enable()
+
+
 def trace(scene, size: int | tuple[int, int], spp: int, seed: int, integrator=None) -> tuple[np.ndarray, int]:
     """The one call of Mitsuba's path tracer in hairdigi: a loaded ``scene`` rendered under :data:`RENDER_LOCK`
     (``render_in_passes``; with an ``integrator``, such as an AOV one, in one call), its NaN and Inf values
-    counted and replaced by 0 (``finite_image``) and added to :data:`TALLY`. The image and that count."""
-    with RENDER_LOCK:
+    counted and replaced by 0 (``finite_image``) and added to :data:`TALLY`. The image and that count.
+    Python's cyclic garbage collector waits while it renders: run from another thread, it would free an unreachable
+    Mitsuba object (a dropped renderer's scene) while Dr.Jit's registry is in use ("jit_registry_id: pointer is not
+    registered", then a crash: two threads' renders under the full test suite)."""
+    with RENDER_LOCK, _collector_paused():
         if integrator is None:
             image = render_in_passes(scene, size, spp, seed)
         else:

@@ -199,7 +199,12 @@ def poses_bench(poses: dict = POSES) -> list[dict]:
     return rows
 
 
-def poses_end_to_end(out: Path, pose: tuple[float, float] = (52.5, -67.5), without: int = 1) -> list[dict]:
+#: The poses an image file is estimated from end to end: halfway between the tables' nodes in both angles (their
+#: worst), and the transfer check's camera (``rig_geometry.TRANSFER_POSE``: between polar nodes, on an azimuth one).
+POSES_END_TO_END = ((37.5, 22.5), (40.0, 30.0))
+
+
+def poses_end_to_end(out: Path, pose: tuple[float, float] = POSES_END_TO_END[0], without: int = 1) -> list[dict]:
     """Each hard case's all-hair crop of a deposited swatch seen from ``pose``, estimated in a fresh session (a fresh
     cache) with the pose tables; the first ``without`` also without them (every curve rendered): time and truth."""
     from hairdigi.app.evaluation.rig import HARD_CASES
@@ -262,12 +267,18 @@ def atlas_bench(out: Path, end_to_end_too: bool = False) -> dict:
     rows = tables_bench() + poses_bench()
     write_csv_atomic(out / "atlas.csv", rows)
     summary = {"tables": rows}
+    if not end_to_end_too and (out / "atlas.json").exists():   # --quick: the last full run's end to end is kept
+        import json
+
+        last = json.loads((out / "atlas.json").read_text())
+        summary.update({k: last[k] for k in ("end_to_end", "poses_end_to_end") if k in last})
     if end_to_end_too:      # its sessions and fresh caches go to a temporary folder, not beside the table
         import tempfile
 
         with tempfile.TemporaryDirectory(prefix="hairdigi-bench-atlas-") as work:
             summary["end_to_end"] = end_to_end(Path(work))
-            summary["poses_end_to_end"] = poses_end_to_end(Path(work))
+            summary["poses_end_to_end"] = [row for pose in POSES_END_TO_END
+                                           for row in poses_end_to_end(Path(work), pose)]
     write_json_atomic(out / "atlas.json", summary)
     plot(rows, out / "atlas.png")
     return summary

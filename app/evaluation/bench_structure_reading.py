@@ -144,7 +144,7 @@ def plot(rows: list[dict], path: Path) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
     for ax, outside in zip(axes, (False, True)):
         chosen = [r for r in rows if r["outside"] == outside]
-        ax.boxplot([[r[f"{name}_de2000"] for r in chosen] for name in READINGS], labels=READINGS)
+        ax.boxplot([[r[f"{name}_de2000"] for r in chosen] for name in READINGS], tick_labels=READINGS)
         ax.set_title("outside the family" if outside else "each member left out")
     axes[0].set_ylabel("ΔE2000 against the truth")
     fig.suptitle("hairdigi bench structure-reading: continuous readings of the structure")
