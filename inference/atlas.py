@@ -18,9 +18,10 @@ the atlas, or the renderer is not the atlas's kind, the callers render as before
 
 Away from the rig (an all-hair crop, ``hairdigi estimate photo.png --camera POLAR,AZIMUTH``) the view is a camera
 pose. The pose tables (``PoseAtlas``, ``POSES_PATH``) hold the family's curves over a grid of poses (``POSE_POLARS``
-by ``POSE_AZIMUTHS``); a pose between them reads its curves interpolated (bilinearly in the logs of the means). ``build`` makes it
-(``inference.atlas_build``, resumable); ``hairdigi bench atlas`` measures what it costs in
-error against rendering each region.
+by ``POSE_AZIMUTHS``); a pose between them reads its curves interpolated (bilinearly in the logs of the means).
+
+``inference.atlas_build`` makes both (resumable); ``hairdigi bench atlas`` measures what they cost in error
+against rendering each region or pose.
 """
 from __future__ import annotations
 

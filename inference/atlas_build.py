@@ -18,7 +18,7 @@ import numpy as np
 
 from hairdigi.inference.atlas import (ATLAS_PATH, BOX, CURVE_CELL, FRAME, PIXEL, POSE_AZIMUTHS, POSE_POLARS, POSES_PATH,
                                      SHINE_CELL, cells, fingerprint)
-from hairdigi.inference.refine import SHIPPED_TABLES, RefineSettings, curve_settings, response_curve, view_key
+from hairdigi.inference.refine import SHIPPED_TABLES, RefineSettings, grid_settings, response_curve, view_key
 from hairdigi.inference.shine import BETA_GRID
 from hairdigi.inference.structure import FAMILY, LAYOUTS, READ_MEMBERS, family_curves
 from hairdigi.render.domain.appearance import Appearance
@@ -139,8 +139,7 @@ def build_poses(out: str | os.PathLike = POSES_PATH, settings: RefineSettings = 
     with atlases_off():
         tables, seconds = _pose_tables(settings, renderer, say)
     keys = list(tables)
-    grid = {k: v for k, v in curve_settings(settings).items() if k != "strand_seed"}
-    meta = {"curves": [list(k) for k in keys], "settings": json.loads(json.dumps(grid, default=str)),
+    meta = {"curves": [list(k) for k in keys], "settings": json.loads(json.dumps(grid_settings(settings), default=str)),
             "distance": CAMERA_DISTANCE, "variant": renderer.variant, "fingerprint": fingerprint(renderer.variant),
             "seconds": round(seconds, 1), "built": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
     out = Path(out)

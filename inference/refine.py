@@ -213,6 +213,11 @@ def curve_settings(settings: RefineSettings) -> dict:
     return data
 
 
+def grid_settings(settings: RefineSettings) -> dict:
+    """``curve_settings`` without the layout: what a shipped table of every layout was rendered with."""
+    return {k: v for k, v in curve_settings(settings).items() if k != "strand_seed"}
+
+
 def view_key(view: View) -> dict:
     """What identifies a view in a cache key."""
     return view.to_dict() if isinstance(view, RigRegion) else asdict(view)
@@ -247,8 +252,8 @@ def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool,
         except (ValueError, KeyError, OSError):
             pass   # a damaged cache entry is rebuilt
     levels = np.asarray(settings.levels, float)
-    grid = {k: v for k, v in curve_settings(settings).items() if k != "strand_seed"}
-    shipped = curve_means(view, levels, settings.strand_seed, spec.swatch_model, renderer.variant, grid) if cache else None
+    shipped = curve_means(view, levels, settings.strand_seed, spec.swatch_model, renderer.variant,
+                          grid_settings(settings)) if cache else None
     if shipped is not None:     # the bench camera's region (the atlas's cells) or a crop's pose (the pose tables): no render
         return ResponseCurve(levels.copy(), shipped, 0.0, True)
     if len(levels) % 3:
