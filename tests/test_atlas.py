@@ -194,3 +194,15 @@ def test_the_shipped_pose_tables_are_current_and_answer_a_crop_between_nodes_as_
                          {**replace(RefineSettings(), size=32).__dict__}) is None
     monkeypatch.setenv("HAIRDIGI_ATLAS", "off")
     assert A.load_poses() is None
+
+
+def test_estimate_says_when_a_pose_is_off_the_tables_before_the_wait(capsys):
+    """``hairdigi estimate --camera``: a pose the tables answer starts at once, silently; a steeper one says that its
+    curves render first (about a minute) before it starts."""
+    from hairdigi.app.cli.estimate import say_pose_tables
+
+    say_pose_tables(CameraPose(40.0, 30.0))
+    assert capsys.readouterr().err == ""
+    say_pose_tables(CameraPose(82.0, 30.0))
+    said = capsys.readouterr().err
+    assert "82°, 30°" in said and "up to 75°" in said and "render first" in said

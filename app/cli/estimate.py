@@ -49,6 +49,8 @@ def run(args: argparse.Namespace) -> int:
     encoder = Encoder(args.model)
     roi = Roi.parse(args.roi) if args.roi else None
     camera = CameraPose.parse(args.camera, RIG_SWATCH_POSE.distance) if args.camera else None
+    if camera is not None and not args.no_refine:
+        say_pose_tables(camera)
     # a pose given means an all-hair view from there; else a frame with the chart in view is the rig's, and
     # an image of the swatch on its holder without the chart is warned of (its camera is unknown)
     lights = args.lights.split(",") if args.lights else None
@@ -81,6 +83,18 @@ def run(args: argparse.Namespace) -> int:
         save_png(args.render, result.srgb)
         print(f"wrote {args.render}")
     return 0
+
+
+def say_pose_tables(camera) -> None:
+    """A pose the shipped pose tables do not answer renders its curves first (about a minute on 2 cores): say so
+    before the wait."""
+    from hairdigi.inference.atlas import POSE_POLARS, load_poses
+
+    tables = load_poses()
+    if tables is None or tables.curve(camera, "layered", 0) is None:
+        print(f"camera {camera.polar_deg:g}°, {camera.azimuth_deg:g}°: the shipped pose tables do not reach it (up to "
+              f"{POSE_POLARS[-1]:g}° from the swatch's normal, at their distance), so its curves render first, about "
+              f"a minute on 2 cores; they are cached for the next estimate there", file=sys.stderr)
 
 
 def in_spectral_world(record, estimate, calibration: str, led: str | None, sensor: str | None):
