@@ -206,3 +206,18 @@ def test_estimate_says_when_a_pose_is_off_the_tables_before_the_wait(capsys):
     say_pose_tables(CameraPose(82.0, 30.0))
     said = capsys.readouterr().err
     assert "82°, 30°" in said and "up to 75°" in said and "render first" in said
+
+
+def test_a_bench_session_is_fresh_and_leaves_the_environment_as_it_was(tmp_path, monkeypatch):
+    """The atlas bench's end to end runs each estimate in a fresh cache with the atlas on or off, and puts the
+    process's environment back after, even when the estimate fails."""
+    from hairdigi.app.evaluation.bench_atlas import fresh_session
+
+    monkeypatch.setenv("HAIRDIGI_CACHE", "/kept")
+    monkeypatch.delenv("HAIRDIGI_ATLAS", raising=False)
+    with pytest.raises(RuntimeError):
+        with fresh_session(tmp_path / "c", "off"):
+            assert (os.environ["HAIRDIGI_CACHE"], os.environ["HAIRDIGI_ATLAS"]) == (str(tmp_path / "c"), "off")
+            assert A.load_poses() is None and A.load() is None
+            raise RuntimeError("an estimate failed")
+    assert os.environ["HAIRDIGI_CACHE"] == "/kept" and "HAIRDIGI_ATLAS" not in os.environ

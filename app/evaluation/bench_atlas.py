@@ -14,6 +14,7 @@ pose tables and without them, against the truth.
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from pathlib import Path
@@ -35,6 +36,19 @@ REGIONS = {
 #: The hard cases' sigma_a (per fibre radius): black, platinum, copper, saturated red and blue.
 HAIRS = {"black": (4.5, 6.0, 8.2), "platinum": (0.02, 0.03, 0.06), "copper": (0.25, 0.6, 1.3),
          "saturated red": (0.05, 1.8, 2.5), "saturated blue": (2.0, 0.9, 0.12)}
+
+
+@contextlib.contextmanager
+def fresh_session(cache: Path, atlas: str):
+    """Within it the process renders as a fresh session would: an empty cache at ``cache`` and ``HAIRDIGI_ATLAS`` set
+    to ``atlas`` ("": the shipped atlas; "off": none); the environment as it was after."""
+    before = dict(os.environ)
+    os.environ["HAIRDIGI_CACHE"], os.environ["HAIRDIGI_ATLAS"] = str(cache), atlas
+    try:
+        yield
+    finally:
+        os.environ.clear()
+        os.environ.update(before)
 
 
 def _compare(atlas_curve, rendered) -> dict:
@@ -124,10 +138,7 @@ def end_to_end(out: Path, without: int = 1, atlas_path: str = "") -> list[dict]:
     for k, (hair, hidden) in enumerate(HARD_CASES.items()):
         answers = {}
         for atlas in ("on", "off") if k < without else ("on",):
-            before = dict(os.environ)
-            os.environ["HAIRDIGI_CACHE"] = str(out / f"cache-{k}-{atlas}")
-            os.environ["HAIRDIGI_ATLAS"] = atlas_path if atlas == "on" else "off"
-            try:
+            with fresh_session(out / f"cache-{k}-{atlas}", atlas_path if atlas == "on" else "off"):
                 session = RigSession.simulated_rig(out / f"session-{k}-{atlas}", hidden=hidden, spp=16,
                                                    swatch_model="deposited")
                 try:
@@ -135,9 +146,6 @@ def end_to_end(out: Path, without: int = 1, atlas_path: str = "") -> list[dict]:
                     result = session.capture()
                 finally:
                     session.close()
-            finally:
-                os.environ.clear()
-                os.environ.update(before)
             record = result.record
             if record is None:
                 rows.append({"hair": hair, "atlas": atlas, "blocked": "; ".join(str(b) for b in result.blocked)})
@@ -220,16 +228,10 @@ def poses_end_to_end(out: Path, pose: tuple[float, float] = POSES_END_TO_END[0],
                        96, 128, seed=3).linear
         answers = {}
         for tables in ("on", "off") if k < without else ("on",):
-            before = dict(os.environ)
-            os.environ["HAIRDIGI_CACHE"] = str(out / f"pose-cache-{k}-{tables}")
-            os.environ["HAIRDIGI_ATLAS"] = "" if tables == "on" else "off"
-            try:
+            with fresh_session(out / f"pose-cache-{k}-{tables}", "" if tables == "on" else "off"):
                 start = time.perf_counter()
                 result = estimate_image(image, encoder, view=camera)
                 seconds = time.perf_counter() - start
-            finally:
-                os.environ.clear()
-                os.environ.update(before)
             answers[tables] = np.asarray(result.refinement.sigma_a)
             verdict = judge(hidden, result.refinement.sigma_a)
             rows.append({"hair": hair, "pose": list(pose), "pose_tables": tables, "estimate_s": round(seconds, 2),
