@@ -32,6 +32,7 @@ from hairdigi.render.domain.bounds import (ENVIRONMENTS, SWATCH_ENVIRONMENTS, En
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.interrupt import sigint_held
 from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.text_enum import text_of
 from hairdigi.render.fibres import FIBRE_GROUPS, group_keys, group_sigma_a, split_strands
 from hairdigi.render.srgb import linear_to_srgb8
 from hairdigi.render.strands import (STYLES, Strands, hairstyle_strands, layered_radius,
@@ -46,11 +47,6 @@ DEFAULT_SWATCH_MODEL = SwatchModel.LAYERED
 class SceneError(HairdigiError, ValueError):
     """A scene cannot be built as asked (an unknown name, environment or framing, a missing .hair file, a
     setting out of its range); the message names it and what would work."""
-
-
-def _text(value: object) -> object:
-    """A member's text (a plain str), anything else as it is: what a check against a tuple of names compares."""
-    return str.__str__(value) if isinstance(value, str) else value
 
 
 @dataclass(frozen=True)
@@ -115,12 +111,12 @@ class SceneSpec:
             object.__setattr__(self, "hair_file", str(path.resolve()))
         elif self.hair_file is not None:
             raise SceneError(f"hair_file applies to the {SceneKind.HAIR_FILE.value!r} scene, not {self.name!r}")
-        elif _text(self.name) not in SCENE_NAMES:
+        elif text_of(self.name) not in SCENE_NAMES:
             raise SceneError(f"unknown scene {self.name!r}; choose one of {', '.join(SCENE_NAMES)} "
                              f"or the path of a .hair file")
-        if not swatch and _text(self.env) not in ENVIRONMENTS:
+        if not swatch and text_of(self.env) not in ENVIRONMENTS:
             raise SceneError(f"unknown environment {self.env!r}; choose one of {', '.join(ENVIRONMENTS)}")
-        if swatch and _text(self.env) not in SWATCH_ENVIRONMENTS:
+        if swatch and text_of(self.env) not in SWATCH_ENVIRONMENTS:
             raise SceneError(f"unknown swatch environment {self.env!r}; choose 'studio' (the rig) or "
                              f"{Environment.KEY_SKY.value!r} (a key light and a grey sky)")
         object.__setattr__(self, "env", Environment(self.env))

@@ -19,6 +19,7 @@ LIGHT_RADIANCE = 16.0
 
 from hairdigi.render.domain.bounds import ENVIRONMENTS, Environment  # noqa: E402  (without Mitsuba, for the command line)
 from hairdigi.render.domain.rig_geometry import Framing  # noqa: E402
+from hairdigi.render.domain.text_enum import text_of  # noqa: E402
 SKIN_ALBEDO = (0.55, 0.38, 0.30)
 
 
@@ -158,7 +159,7 @@ def portrait_camera_position(pose: CameraPose) -> np.ndarray:
 
 
 def portrait_lights(env: Environment) -> dict:
-    if not Environment.knows(env) or Environment(env).value not in ENVIRONMENTS:
+    if text_of(env) not in ENVIRONMENTS:
         raise ValueError(f"unknown environment {env!r}; choose one of {', '.join(ENVIRONMENTS)}")
     env = Environment(env)
     if env is Environment.STUDIO:  # three-point: key front-right-high, fill front-left, rim behind

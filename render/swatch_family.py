@@ -30,6 +30,7 @@ from typing import Callable
 
 import numpy as np
 
+from hairdigi.render.domain.text_enum import text_of
 from hairdigi.render.strands import (SWATCH_LENGTH, SWATCH_WIDTH, Strands, layered_radius,
                                      layered_swatch_strands)
 
@@ -246,7 +247,7 @@ def inside_share(strands: Strands, per_segment: int = 32, sample: int = 100_000,
 def structure_strands(name: str, n_strands: int, seed: int = 0) -> Strands:
     """The strands of structure ``name`` (one of ``STRUCTURES``); the last few built are kept (a deposit
     of 8,000 fibres takes 2.6 s, a spread one 18 s, and an evaluation renders each swatch many times)."""
-    name = str.__str__(name) if isinstance(name, str) else name      # a SwatchModel's text, or the text itself
+    name = text_of(name)                # a SwatchModel's text, or the text itself
     if name not in STRUCTURES:
         raise ValueError(f"unknown swatch structure {name!r}; choose one of {', '.join(STRUCTURES)}")
     if int(n_strands) < 1:
