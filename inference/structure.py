@@ -343,4 +343,6 @@ def toward_family(refinement, prior, view: View, settings: RefineSettings = Refi
             "the weighted mean of the members the texture leaves")
     return replaced(refinement, params=params, sigma_a=hair_sigma_a(params), fitted_sigma_a=refinement.sigma_a,
                     seconds=refinement.seconds + time.perf_counter() - start,
-                    region=replaced(refinement.region, structure=f"mapped to {mean} ({why})"))
+                    region=replaced(refinement.region, structure=f"mapped to {mean} ({why})",
+                                    members=({m: 1.0 for m in family.members} if weights is None else
+                                             {m: float(w) for m, w in weights.items() if m in family.members and w > 0})))

@@ -34,6 +34,30 @@ def error_stats(values) -> dict:
             "worst": round(float(v.max()), 3)}
 
 
+def delta_e2000_lab(lab_a: np.ndarray, lab_b: np.ndarray) -> np.ndarray:
+    """ΔE2000 between CIELAB colours (any shape ending in 3): an instrument's readings."""
+    return colour.delta_E(np.asarray(lab_a, float), np.asarray(lab_b, float), method="CIE 2000")
+
+
+def bland_altman(a: np.ndarray, b: np.ndarray) -> dict:
+    """Bland & Altman (1986)'s agreement of two methods measuring the same items: the mean difference
+    ``a - b`` (the bias), its standard deviation, and the 95% limits of agreement (bias ± 1.96 SD)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    diff = a - b
+    bias = float(diff.mean()) if len(diff) else float("nan")
+    sd = float(diff.std(ddof=1)) if len(diff) > 1 else 0.0
+    return {"n": int(len(diff)), "bias": round(bias, 3), "sd": round(sd, 3),
+            "lower": round(bias - 1.96 * sd, 3), "upper": round(bias + 1.96 * sd, 3)}
+
+
+def quantiles(values) -> dict:
+    """n, median, p68, p95 and worst of the values that are not None (an interval's figures)."""
+    v = np.asarray([x for x in values if x is not None], float)
+    if not len(v):
+        return {"n": 0}
+    return {**error_stats(v), "p68": round(float(np.quantile(v, 0.68)), 3)}
+
+
 def mean_colour_delta_e(image_a: np.ndarray, image_b: np.ndarray) -> float:
     """ΔE2000 between the mean linear colours of two images (what a viewer sees from afar)."""
     return float(delta_e2000(image_a.reshape(-1, 3).mean(0), image_b.reshape(-1, 3).mean(0)))

@@ -109,11 +109,11 @@ def test_migrations_apply_once_in_order_and_keep_data(lib_env):
         assert not old.db.has_table("tags")
         old.db.execute("INSERT INTO swatches (id, kind, imported, record) VALUES ('x1', 'estimate', 'now', '{}')")
     with Library(str(lib_env)) as lib:
-        assert lib.version == SCHEMA_VERSION == 2
+        assert lib.version == SCHEMA_VERSION == 3
         assert lib.count() == 1 and lib.tag("x1", ["kept"]) == ("kept",)
         assert lib.migrate() == []
         rows = lib.db.query("SELECT version FROM schema_version ORDER BY version")
-        assert [r[0] for r in rows] == [1, 2]
+        assert [r[0] for r in rows] == [1, 2, 3]
     conn = sqlite3.connect(lib_env)
     assert conn.execute("PRAGMA journal_mode").fetchone()[0] == "wal"
     conn.execute("INSERT INTO schema_version VALUES (99, 'from the future', 'now')")

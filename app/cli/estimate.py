@@ -41,6 +41,7 @@ def add_parser(sub) -> None:
 def run(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_file
+    from hairdigi.inference.instrument import with_instrument
     from hairdigi.inference.preprocess import Roi
     from hairdigi.render.domain.records import write_record
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose
@@ -61,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
                                         structure=args.structure or DEFAULT_STRUCTURE)
     if args.calibration:    # the spectral world: the declared camera's reading, or an undeclared camera's metamerism
         record = in_spectral_world(record, estimate, args.calibration, args.led, args.sensor)
+    record = with_instrument(record)      # what the lab's colour instrument would read of the swatch
     write_record(args.out, record)
     p = estimate.params
     refined = estimate.refinement
@@ -68,11 +70,12 @@ def run(args: argparse.Namespace) -> int:
            else "encoder alone")
     print(f"dye rgb {tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
           f"{p.melanin_concentration:.2f} (ratio {p.melanin_ratio:.2f}); {how}; wrote {args.out}")
-    from hairdigi.app.cli.rig import appearance_lines, say_spectral
+    from hairdigi.app.cli.rig import appearance_lines, say_instrument, say_spectral
 
     if record.appearance is not None:
         print("appearance: " + "; ".join(appearance_lines(record.appearance)))
     say_spectral(record)
+    say_instrument(record)
     for warning in record.warnings:
         print(f"warning: {warning.message}", file=sys.stderr)
     if args.render:

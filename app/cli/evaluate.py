@@ -60,7 +60,11 @@ def _add_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ship", action="store_true", help="with --rig: ship the measured colour interval "
                    "(resources/models/chain_uncertainty.json); with --appearance, the appearance's intervals; with "
                    "--structures, the colour interval of a swatch of unknown structure (structure_uncertainty.json); with "
-                   "--spectral, the spectral world's intervals by camera (spectral_uncertainty.json)")
+                   "--spectral, the spectral world's intervals by camera (spectral_uncertainty.json); with --instrument, the instrument "
+                   "readings' intervals (instrument_uncertainty.json)")
+    p.add_argument("--lab", metavar="DIR", help="with --instrument: keep the rig sessions in DIR/sessions and write a "
+                   "simulated lab's instrument export of the same tresses (DIR/readings.csv), for hairdigi library "
+                   "import and hairdigi library readings")
     p.add_argument("--no-variation", action="store_true", help="with --appearance: read the shine only, not the "
                    "fibre spread and greys (what the texture reading adds)")
 

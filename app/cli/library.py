@@ -12,11 +12,14 @@ import numpy as np
 
 from hairdigi.app.cli import validation as v
 from hairdigi.app.library.store import Library, LibraryError, Swatch, open_library, redact
-from hairdigi.app.library.swatch_colour import ILLUMINANTS, hex_lab, lab_hex
+from hairdigi.app.library.swatch_colour import COLOURS, ILLUMINANTS, INSTRUMENT, hex_lab, lab_hex
 
+#: An instrument geometry's prefix in the export's columns.
+INSTRUMENT_COLUMNS = {"d/8 SCI": "sci", "d/8 SCE": "sce", "45/0": "g45_0"}
 EXPORT_COLUMNS = ("id", "kind", "session", "capture_id", "captured", "imported", "reliable", "tags", "note",
                   "sigma_r", "sigma_g", "sigma_b", "daylight_L", "daylight_a", "daylight_b", "daylight_hex",
-                  "studio_L", "studio_a", "studio_b", "studio_hex", "dye_r", "dye_g", "dye_b", "dye_concentration",
+                  "studio_L", "studio_a", "studio_b", "studio_hex", *(f"{INSTRUMENT_COLUMNS[g]}_{c}" for g in INSTRUMENT for c in "Lab"),
+                  "dye_r", "dye_g", "dye_b", "dye_concentration",
                   "melanin_concentration", "melanin_ratio", "image_path", "record_path")
 
 
@@ -53,6 +56,9 @@ def query_lab(near: str, under: str) -> np.ndarray:
     row = record_row(text)
     if not row.labs:
         raise LibraryError(f"{text}: the record has no estimate, so no colour to search near")
+    if under not in row.labs:
+        raise LibraryError(f"{text}: the record has no {under} reading (written before hairdigi read instruments); "
+                           f"estimate it again, or search --under daylight")
     return np.asarray(row.labs[under])
 
 
@@ -82,6 +88,8 @@ def export_rows(library: Library) -> list[dict]:
             lab = s.labs.get(ill)
             row.update(dict(zip((f"{ill}_L", f"{ill}_a", f"{ill}_b"), lab or (None,) * 3)))
             row[f"{ill}_hex"] = lab_hex(lab) if lab else None
+        for g in INSTRUMENT:
+            row.update(dict(zip((f"{INSTRUMENT_COLUMNS[g]}_{c}" for c in "Lab"), s.labs.get(g) or (None,) * 3)))
         row.update({"dye_r": dye[0], "dye_g": dye[1], "dye_b": dye[2],
                     "dye_concentration": hair.get("dye_concentration"),
                     "melanin_concentration": hair.get("melanin_concentration"),
@@ -219,13 +227,26 @@ def _export(library: Library, args) -> int:
     return 0
 
 
+def _readings(library: Library, args) -> int:
+    from hairdigi.app.library.readings import import_readings, parse_columns
+
+    start = time.perf_counter()
+    readings = import_readings(library, args.file, allow_unknown=args.allow_unknown, columns=parse_columns(args.columns),
+                               default_geometry=args.geometry, observer=args.observer, illuminant=args.illuminant)
+    tresses = len({r.tress for r in readings})
+    print(f"imported {len(readings)} readings of {tresses} tresses from {Path(args.file).name} in "
+          f"{time.perf_counter() - start:.2f} s; compare them with hairdigi evaluate --readings --out DIR")
+    return 0
+
+
 def _info(library: Library, args) -> int:
     print(f"library: {redact(library.where)}\nschema version: {library.version}\nswatches: {library.count()}\n"
           f"sessions imported: {len(library.sessions())}")
     return 0
 
 
-COMMANDS = {"import": _import, "find": _find, "tag": _tag, "note": _note, "export": _export, "info": _info}
+COMMANDS = {"import": _import, "find": _find, "tag": _tag, "note": _note, "export": _export, "info": _info,
+            "readings": _readings}
 
 
 def add_parser(sub) -> None:
@@ -236,8 +257,9 @@ def add_parser(sub) -> None:
     q.add_argument("paths", nargs="+", metavar="SESSION")
     q = lib.add_parser("find", help="the swatches nearest a colour, by mean-colour ΔE2000, one a line")
     q.add_argument("--near", required=True, help="an estimate record (JSON) or #RRGGBB")
-    q.add_argument("--under", choices=ILLUMINANTS, default="daylight",
-                   help="the light the colours are compared under (approximations; see app/library/swatch_colour.py)")
+    q.add_argument("--under", choices=COLOURS, default="daylight",
+                   help="the light the colours are compared under (approximations; see app/library/swatch_colour.py), "
+                        "or an instrument geometry's reading (D65, 10°)")
     q.add_argument("--k", type=v.int_in(1, MAX_K), default=10, help=f"how many matches (1 to {MAX_K}; default 10)")
     q = lib.add_parser("tag", help="tag a swatch (its id or a unique start of it, or its capture id)")
     q.add_argument("swatch")
@@ -250,4 +272,14 @@ def add_parser(sub) -> None:
     q.add_argument("--csv", help="CSV file to write")
     q.add_argument("--xlsx", help="Excel file to write (openpyxl)")
     lib.add_parser("info", help="where the library is, its schema version and size")
+    q = lib.add_parser("readings", help="import the lab's instrument readings of its tresses (CSV or CxF3), keyed by "
+                                        "tress id: a swatch's id, capture id or tag")
+    q.add_argument("file", help="the instrument's export: .csv (columns found by name; see --columns) or .cxf")
+    q.add_argument("--columns", help="FIELD=HEADER,... where the headers are not recognised (fields: id, L, a, b, "
+                                     "geometry, observer, illuminant)")
+    q.add_argument("--geometry", default="d/8 SCI", help="the geometry of readings that do not name one "
+                                                          "(d/8 SCI, d/8 SCE, 45/0; default d/8 SCI)")
+    q.add_argument("--observer", default="10", choices=("10", "2"), help="the observer of readings that do not name one")
+    q.add_argument("--illuminant", default="D65", help="the illuminant of readings that do not name one (default D65)")
+    q.add_argument("--allow-unknown", action="store_true", help="keep readings of tresses no swatch is tagged with yet")
     p.set_defaults(func=run)

@@ -190,6 +190,7 @@ def say_record(record, say=print) -> None:
         say(f"stated colour interval: within ΔE2000 {u.mean_colour_de2000_p68:.2f} of the truth in 68% and "
             f"{u.mean_colour_de2000_p95:.2f} in 95% of held-out captures ({u.mean_colour_source or ''})")
     say_spectral(record, say)
+    say_instrument(record, say)
     if record.appearance is not None:
         say("appearance: " + "; ".join(appearance_lines(record.appearance)))
     for warning in record.warnings:
@@ -207,6 +208,21 @@ def say_spectral(record, say=print) -> None:
         say(f"read in the camera's RGB ({r.camera} under {r.led}, residual {r.residual:.2f}, {r.seconds:.1f} s): "
             f"{hair_line(r.hair)}; seen under "
             + ", ".join(f"{light} L*a*b* {lab[0]:.1f} {lab[1]:.1f} {lab[2]:.1f}" for light, lab in r.under.items()))
+
+
+def instrument_line(reading) -> str:
+    """One instrument reading as the lab writes it: geometry, light/observer, aperture, L*a*b*, interval."""
+    interval = (f", within ΔE2000 {reading.p68:.2f} (68%) / {reading.p95:.2f} (95%)" if reading.p68 is not None
+                else ", interval not measured")
+    return (f"{reading.geometry} {reading.illuminant}/{reading.observer}° {reading.aperture_mm:g} mm: L*a*b* "
+            f"{reading.lab[0]:.1f} {reading.lab[1]:.1f} {reading.lab[2]:.1f}{interval}; the family's structures "
+            f"{reading.spread:.2f} apart")
+
+
+def say_instrument(record, say=print) -> None:
+    """A record's instrument readings, one line each."""
+    for reading in record.instrument:
+        say("as an instrument reads it: " + instrument_line(reading))
 
 
 #: ``rig``'s flags that act on the live rig only, each with its default: with ``--still`` they are refused.

@@ -287,3 +287,57 @@ def _unknown_structure(names) -> str | None:
 
     unknown = [name for name in names if name not in STRUCTURES]
     return f"unknown structure {unknown[0]!r}; choose among {', '.join(STRUCTURES)}" if unknown else None
+
+
+def instrument(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --instrument``: instrument readings through the chain against a virtual instrument."""
+    from hairdigi.app.evaluation.instrument import InstrumentSet, evaluate_instrument
+
+    hidden = tuple(args.hidden_structures.split(",")) if getattr(args, "hidden_structures", None) else None
+    unknown = _unknown_structure(hidden or ())
+    if unknown:
+        print(f"hairdigi evaluate --instrument: {unknown}", file=sys.stderr)
+        return 2
+    config = InstrumentSet(random=args.rig_random) if hidden is None else \
+        InstrumentSet(random=args.rig_random, structures=hidden)
+    s = evaluate_instrument(args.out, config, ship=args.ship, lab_dir=getattr(args, "lab", None))
+    print(f"{s['swatches']} hidden swatches ({', '.join(config.structures)}) captured, estimated in the default mode "
+          f"and read; against a virtual instrument's spectral render of the truth, ΔE2000:")
+    for geom, st in s["by_geometry"].items():
+        if st["n"]:
+            bias = s["bias"].get(geom, {})
+            print(f"  {geom}: median {st['median']:.2f}, p68 {st['p68']:.2f}, p95 {st['p95']:.2f}, worst "
+                  f"{st['worst']:.2f} ({st['n']}); bias L* {bias.get('dL', 0):+.2f} a* {bias.get('da', 0):+.2f} "
+                  f"b* {bias.get('db', 0):+.2f}")
+    for name, st in s["by_structure"].items():
+        if st["n"]:
+            print(f"  on {name} swatches: median {st['median']:.2f}, p95 {st['p95']:.2f} ({st['n']})")
+    for row in s["errors"]:
+        print(f"not read: {row['hidden']} ({row['structure']}): {row['error']}")
+    if args.ship:
+        from hairdigi.app.evaluation.instrument import ship_intervals
+
+        print(f"shipped the instrument readings' intervals: {ship_intervals(s)}")
+    print(f"instrument_evaluation.csv, .json and .png in {args.out}")
+    return 0
+
+
+def readings(args: argparse.Namespace) -> int:
+    """``hairdigi evaluate --readings``: the lab's instrument readings against hairdigi's, with a Bland-Altman plot."""
+    from hairdigi.app.evaluation.readings import compare_readings
+    from hairdigi.app.library.store import open_library
+
+    with open_library() as library:
+        s = compare_readings(library, args.out)
+    if not s["by_geometry"]:
+        print("no tress has both a lab reading and a hairdigi capture: import the sessions (hairdigi library import) and "
+              "the readings (hairdigi library readings FILE), keyed by the same ids", file=sys.stderr)
+        return 1
+    print(f"{s['tresses']} tresses read by the lab's instrument and by hairdigi:")
+    for geom, st in s["by_geometry"].items():
+        d = st["de2000"]
+        print(f"  {geom}: ΔE2000 median {d['median']:.2f}, p95 {d['p95']:.2f} ({d['n']}); " + "; ".join(
+            f"{c}* bias {st[f'bland_altman_{c}']['bias']:+.2f}, limits {st[f'bland_altman_{c}']['lower']:+.2f} to "
+            f"{st[f'bland_altman_{c}']['upper']:+.2f}" for c in ("L", "a", "b")))
+    print(f"readings_comparison.csv, .json and the Bland-Altman plot (.png) in {args.out}")
+    return 0

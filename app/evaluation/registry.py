@@ -52,6 +52,13 @@ EVALUATIONS: dict[str, Entry] = _modes(
     Entry("spectral", "instead: hidden spectral hairs (melanins, Table 1 dyes and banded dyes) through a spectral "
           "simulated rig (real cameras' sensitivities, white LEDs, the chart's measured spectra), judged by the CIE "
           "observer under daylight, tungsten and a shop LED, at the rig and away", f"{_MODES}:spectral"),
+    Entry("instrument", "instead: hidden swatches on structures hairdigi did not build, captured on the simulated rig "
+          "and estimated in the default mode; their instrument readings (d/8 SCI, d/8 SCE, 45/0; D65, 10°) against a "
+          "virtual instrument's spectral render of the truth (--rig-random N random hairs beside the hard cases; --ship "
+          "writes the readings' interval)", f"{_MODES}:instrument"),
+    Entry("readings", "instead: a lab's instrument readings (hairdigi library readings) against hairdigi's of the same "
+          "swatches in --library: per swatch ΔE2000, the bias in L*, a*, b* and a Bland-Altman plot",
+          f"{_MODES}:readings"),
     Entry("convergence", "instead: estimate the first --sweep-n swatches from inputs rendered at these spp",
           f"{_MODES}:convergence"),
     Entry("prepare_only", "render the held-out set and the truth's judge renders only (no model needed); resumable",
@@ -107,6 +114,11 @@ BENCHES: dict[str, Entry] = _modes(
           f"{_BENCH}:bench_structure"),
     Entry("spectral", "the RGB fast path against the spectral render under daylight, tungsten and shop lights",
           f"{_BENCH}:bench_spectral"),
+    Entry("repeatability", "one swatch lifted and laid down again: hairdigi's instrument reading's spread beside an "
+                           "8 mm instrument spot's (--quick: two hairs, three placements)",
+          "hairdigi.app.evaluation.bench_repeatability:bench_repeatability"),
+    Entry("instrument", "the instrument tables: spp and layouts against the curve's noise, and a reading's cost",
+          "hairdigi.app.evaluation.bench_instrument:bench_instrument"),
     Entry("genicam", "a GenICam camera's frame rate and capture latency",
           "hairdigi.app.evaluation.bench_genicam:bench_genicam"),
 )

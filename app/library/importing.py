@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.app.library.store import Library, LibraryError, SwatchRow
-from hairdigi.app.library.swatch_colour import swatch_labs
+from hairdigi.app.library.swatch_colour import INSTRUMENT, swatch_labs
 from hairdigi.render.domain.files import stream_sha256
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.record_fields import RecordError
@@ -37,14 +37,24 @@ def _spectral_hair(row: SwatchRow) -> HairParams | None:
     return None if hair is None else HairParams.from_dict(hair)
 
 
+def _instrument_labs(row: SwatchRow) -> dict[str, tuple[float, float, float]]:
+    """A row's instrument readings in D65/10° (the record's ``instrument`` block), by geometry."""
+    result = row.record.get("result", row.record) if isinstance(row.record, dict) else {}
+    readings = (result or {}).get("instrument") or []
+    return {r["geometry"]: tuple(float(v) for v in r["lab"]) for r in readings
+            if r.get("geometry") in INSTRUMENT and r.get("illuminant", "D65") == "D65" and r.get("observer", "10") == "10"}
+
+
 def _with_colours(rows: list[SwatchRow]) -> list[SwatchRow]:
     """Fill every row's CIELAB under each light from its ``sigma_a`` (the studio light's change from its
-    Table 1 hair's spectrum, where it has one), all at once."""
+    Table 1 hair's spectrum, where it has one), all at once; and its instrument readings, where its record has them."""
     coloured = [r for r in rows if r.sigma_a is not None]
     if coloured:
         labs = swatch_labs(np.array([r.sigma_a for r in coloured]), [_spectral_hair(r) for r in coloured])
         for i, r in enumerate(coloured):
             r.labs = {ill: tuple(float(v) for v in lab[i]) for ill, lab in labs.items()}
+    for r in rows:
+        r.labs.update(_instrument_labs(r))
     return rows
 
 

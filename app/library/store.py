@@ -264,6 +264,19 @@ MIGRATIONS: tuple[tuple[int, str, tuple[str, ...]], ...] = (
         "CREATE INDEX tags_by_tag ON tags (tag)",
         "CREATE TABLE settings (key TEXT PRIMARY KEY, value TEXT NOT NULL)",
     )),
+    (3, "the lab's own instrument readings of its tresses", (
+        """CREATE TABLE readings (
+            tress TEXT NOT NULL,
+            geometry TEXT NOT NULL,
+            observer TEXT NOT NULL,
+            illuminant TEXT NOT NULL,
+            l DOUBLE PRECISION NOT NULL, a DOUBLE PRECISION NOT NULL, b DOUBLE PRECISION NOT NULL,
+            source TEXT NOT NULL,
+            line INTEGER NOT NULL,
+            imported TEXT NOT NULL,
+            PRIMARY KEY (source, line, geometry))""",
+        "CREATE INDEX readings_by_tress ON readings (tress)",
+    )),
 )
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 
@@ -588,6 +601,28 @@ class Library:
         with self.db.transaction():
             self.db.execute("UPDATE swatches SET note = ? WHERE id = ?", (text, swatch_id))
         return swatch_id
+
+    def add_readings(self, rows: list[tuple], source: str) -> int:
+        """Replace the readings of ``source`` (a file's name) with ``rows`` of (tress, geometry, observer,
+        illuminant, L*, a*, b*, line), in one transaction."""
+        imported = _now()
+        with self.db.transaction():
+            self.db.execute("DELETE FROM readings WHERE source = ?", (source,))
+            self.db.executemany("INSERT INTO readings (tress, geometry, observer, illuminant, l, a, b, source, line, "
+                                "imported) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                                [(*r[:7], source, r[7], imported) for r in rows])
+        return len(rows)
+
+    def readings(self, tress: str | None = None) -> list[tuple]:
+        """The lab's readings as (tress, geometry, observer, illuminant, L*, a*, b*, source, line); of one tress, or all."""
+        where, params = ("WHERE tress = ?", (tress,)) if tress is not None else ("", ())
+        return [tuple(r) for r in self.db.query(f"SELECT tress, geometry, observer, illuminant, l, a, b, source, line "
+                                                 f"FROM readings {where} ORDER BY tress, source, line", params)]
+
+    def swatches_of(self, tress: str) -> list[Swatch]:
+        """The swatches a lab's tress id names: by swatch id, capture id or tag, exactly."""
+        return self._swatches("WHERE id = ? OR capture_id = ? OR id IN (SELECT swatch_id FROM tags WHERE tag = ?) "
+                              "ORDER BY id", (tress, tress, tress))
 
     def set_setting(self, key: str, value: str) -> None:
         with self.db.transaction():

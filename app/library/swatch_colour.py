@@ -24,6 +24,10 @@ import numpy as np
 from hairdigi.render.domain.errors import HairdigiError
 
 ILLUMINANTS = ("daylight", "studio")
+#: The instrument geometries a record's readings are stored under (``inference.instrument``; D65, 10°), beside the lights.
+INSTRUMENT = ("d/8 SCI", "d/8 SCE", "45/0")
+#: Every colour a swatch is stored and searched by.
+COLOURS = ILLUMINANTS + INSTRUMENT
 STUDIO_CCT = 3200.0
 #: The studio lamps as a spectrum (``render.spectra.illuminant_spd``).
 STUDIO_LIGHT = f"{STUDIO_CCT:.0f}K"

@@ -23,6 +23,7 @@ from hairdigi.app.session.blockers import Blocker, BlockerKind, messages
 from hairdigi.hardware.exposure import ExposureReport, ExposureStatus, check_exposure, dead_lights
 from hairdigi.hardware.frame_source import FrameSource
 from hairdigi.hardware.lights import N_LIGHTS, LightController, LightError
+from hairdigi.inference.instrument import with_instrument
 from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, correction_warnings,
                                             detect_chart, light_colour_warnings, load_profile, profile_warnings,
                                             save_profile, staleness)
@@ -360,7 +361,7 @@ class RigSession:
                       structure=self.structure)
         result.seconds = time.perf_counter() - start    # capture to parameters; the spectral reading follows
         if result.record is not None:
-            result.record = self.in_spectral_world(result.record, curve=result.curve)
+            result.record = with_instrument(self.in_spectral_world(result.record, curve=result.curve))
         _write_result(self.folder, result, roi)
         return result
 
@@ -637,6 +638,8 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
     result.seconds = time.perf_counter() - start
     if result.record is not None and in_spectral_world is not None:
         result.record = in_spectral_world(result.record, profile, result.curve)
+    if result.record is not None:
+        result.record = with_instrument(result.record)
     _write_result(Path(folder), result, roi)
     return result
 

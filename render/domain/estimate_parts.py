@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 from hairdigi.render.domain.params import HairParams, HairParamsError
-from hairdigi.render.domain.record_fields import RecordError, check_interval, floats, need
+from hairdigi.render.domain.record_fields import RecordError, check_interval, floats, need, real
 from hairdigi.render.domain.rig_geometry import CameraPose, GeometryError, RigRegion
 
 
@@ -290,13 +290,14 @@ class Region:
     swatch_model: str | None = None         # the swatch structure rendered (render.renderer.SWATCH_MODELS)
     structure: str | None = None            # the structure mapping applied after (inference.structure)
     source: str | None = None               # what stands in for a fit and render (a dye prediction's)
+    members: dict | None = None             # the family members the structure map averaged: member -> weight
 
     def to_json(self) -> dict:
         out = self.rig.to_dict() if self.rig is not None else {}
         if self.crop_pose is not None:
             out["crop_pose"] = asdict(self.crop_pose)
         return {**out, **_compact({"swatch_model": self.swatch_model, "structure": self.structure,
-                                   "source": self.source})}
+                                   "source": self.source, "members": self.members})}
 
     @classmethod
     def from_json(cls, data) -> "Region":
@@ -307,4 +308,14 @@ class Region:
                    crop_pose=None if pose is None else _pose(pose, "crop_pose", what),
                    swatch_model=need(data, "swatch_model", str, what, None, required=False),
                    structure=need(data, "structure", str, what, None, required=False),
-                   source=need(data, "source", str, what, None, required=False))
+                   source=need(data, "source", str, what, None, required=False),
+                   members=_members(data.get("members"), what))
+
+
+def _members(data, what: str) -> dict | None:
+    """A region's ``members``: family member -> weight (a number > 0), or None."""
+    if data is None:
+        return None
+    if not isinstance(data, dict) or not all(isinstance(k, str) and real(v) and v > 0 for k, v in data.items()):
+        raise RecordError(f"the {what}'s 'members' must map member names to weights > 0, got {data!r}")
+    return {k: float(v) for k, v in data.items()}

@@ -357,6 +357,43 @@ class SpectralReading:
 
 
 @dataclass(frozen=True)
+class InstrumentReading:
+    """The swatch's CIELAB as a lab's colour instrument reads it (``inference.instrument``): a named
+    geometry (``render.instrument.GEOMETRIES``), observer and illuminant, over an aperture on the
+    swatch's centre, with its interval (ΔE2000, 68% and 95%) and how it was obtained."""
+
+    geometry: str                   # "d/8 SCI", "d/8 SCE", "45/0"
+    lab: tuple[float, float, float]
+    observer: str = "10"            # "10" (CIE 1964) or "2" (CIE 1931)
+    illuminant: str = "D65"
+    aperture_mm: float = 8.0
+    p68: float | None = None        # ΔE2000 interval, where measured
+    p95: float | None = None
+    spread: float = 0.0             # ΔE2000: how far the family members' readings lie from their mean, at most
+    method: str = ""
+
+    def to_json(self) -> dict:
+        return {"geometry": self.geometry, "observer": self.observer, "illuminant": self.illuminant,
+                "aperture_mm": self.aperture_mm, "lab": [round(float(v), 3) for v in self.lab],
+                "de2000_p68": self.p68, "de2000_p95": self.p95, "spread": round(self.spread, 3),
+                "method": self.method}
+
+    @classmethod
+    def from_json(cls, data) -> "InstrumentReading":
+        what = "instrument reading"
+        if not isinstance(data, dict):
+            raise RecordError(f"an {what} is an object, not {type(data).__name__}")
+        return cls(geometry=need(data, "geometry", str, what), lab=floats(need(data, "lab", list, what), 3, "lab", what),
+                   observer=need(data, "observer", str, what, "10", required=False),
+                   illuminant=need(data, "illuminant", str, what, "D65", required=False),
+                   aperture_mm=need(data, "aperture_mm", float, what, 8.0, required=False),
+                   p68=need(data, "de2000_p68", float, what, None, required=False),
+                   p95=need(data, "de2000_p95", float, what, None, required=False),
+                   spread=need(data, "spread", float, what, 0.0, required=False),
+                   method=need(data, "method", str, what, "", required=False))
+
+
+@dataclass(frozen=True)
 class EstimateRecord:
     """An estimate and where it came from: parameters, warnings, intervals, refinement, provenance.
 
@@ -375,6 +412,7 @@ class EstimateRecord:
     swatch_roi: tuple[int, int, int, int] | None = None
     appearance: AppearanceEstimate | None = None   # shine and fibre variation; None: not read
     spectral: SpectralReading | None = None        # read in the camera's RGB; None: the rig's spectra unknown
+    instrument: tuple[InstrumentReading, ...] = ()  # what a lab's colour instrument reads of the swatch
     schema_version: int = SCHEMA_VERSION
 
     KIND = "estimate"
@@ -410,7 +448,13 @@ class EstimateRecord:
                 out["appearance"] = self.appearance.to_json()
             if self.spectral is not None:
                 out["spectral"] = self.spectral.to_json()
+            if self.instrument:
+                out["instrument"] = [r.to_json() for r in self.instrument]
         return out
+
+    def instrument_reading(self, geometry: str) -> InstrumentReading | None:
+        """The record's reading in ``geometry`` (its name), or None."""
+        return next((r for r in self.instrument if r.geometry == geometry), None)
 
     @classmethod
     def from_json(cls, data) -> "EstimateRecord":
@@ -434,7 +478,8 @@ class EstimateRecord:
                    blocked=tuple(str(b) for b in blocked),
                    swatch_roi=None if roi is None else _roi(roi, what),
                    appearance=_appearance(data.get("appearance"), what),
-                   spectral=None if data.get("spectral") is None else _spectral(data["spectral"], what))
+                   spectral=None if data.get("spectral") is None else _spectral(data["spectral"], what),
+                   instrument=_instrument(data.get("instrument"), what))
 
 
 def _part(cls, data, what: str, key: str):
@@ -463,6 +508,17 @@ def _spectral(data, what: str) -> SpectralReading:
         return SpectralReading.from_json(data)
     except RecordError as exc:
         raise RecordError(f"the {what}'s 'spectral': {exc}") from None
+
+
+def _instrument(data, what: str) -> tuple[InstrumentReading, ...]:
+    if data is None:
+        return ()
+    if not isinstance(data, list):
+        raise RecordError(f"the {what}'s 'instrument' is a list of readings, not {type(data).__name__}")
+    try:
+        return tuple(InstrumentReading.from_json(item) for item in data)
+    except RecordError as exc:
+        raise RecordError(f"the {what}'s 'instrument': {exc}") from None
 
 
 def _appearance(data, what: str) -> AppearanceEstimate | None:

@@ -1,0 +1,273 @@
+"""The estimate as the lab's colour instrument reads it: instrument-equivalent CIELAB with an interval.
+
+A lab records a tress as its spectrophotometer reads it (d/8° SCI or SCE, or 45°/0°; D65 and the 10°
+observer; ``render.instrument``). The swatch's reflectance factor in a geometry depends on each
+wavelength's absorption alone, so each family member's response in each geometry is one curve of a flat
+``sigma_a`` (``render.instrument.reflectance_ladder``), rendered once and shipped
+(``INSTRUMENT_TABLES``, built by ``python -m hairdigi.inference.instrument``). A record's reading is then
+its hair's ``sigma_a(λ)`` (``render.spectra.hair_sigma_a_spectrum``: the spectral answer where the rig's
+spectra are declared, else the record's Table 1 hair) read per wavelength through the curve of the
+structure its estimate was read on (the geometric mean of the members its structure map averaged, as
+``inference.structure`` averages the rig's curves), weighed by the illuminant and the observer: no
+render, a few milliseconds.
+
+Its interval is what ``hairdigi evaluate --instrument`` measured against a virtual instrument (a
+spectral render of the truth in the same geometry, on structures hairdigi did not build), shipped in
+``INSTRUMENT_UNCERTAINTY``; the record's ``spread`` says how far the family's members read apart at
+the answer.
+"""
+from __future__ import annotations
+
+import functools
+import os
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from hairdigi.inference.refine import SIGMA_LEVELS, ResponseCurve
+from hairdigi.render.domain.files import cache_dir, read_json, write_json_atomic
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import EstimateRecord, InstrumentReading
+from hairdigi.render.instrument import (DEFAULT_APERTURE_MM, GEOMETRIES, InstrumentError, check_aperture,
+                                        check_illuminant, check_observer, geometry, lab_of_reflectance)
+from hairdigi.render.metrics import delta_e2000_lab
+from hairdigi.render.swatch_family import FAMILY
+from hairdigi.resources import MODELS, ROOT
+
+#: The shipped curves: every family member in every geometry.
+INSTRUMENT_TABLES = ROOT / "tables" / "instrument_curves.npz"
+#: The measured intervals, per geometry (``hairdigi evaluate --instrument --ship``).
+INSTRUMENT_UNCERTAINTY = MODELS / "instrument_uncertainty.json"
+
+
+@dataclass(frozen=True)
+class BuildSettings:
+    """How the tables are rendered. Measured on the layered swatch at 48² (``hairdigi bench instrument``):
+    64 spp left the curve 1-2% from a 256-spp one; two layouts of 256 spp each average the spot's fibres."""
+
+    size: int = 48
+    spp: int = 256
+    layouts: int = 2
+    strands: int = 8000
+    aperture_mm: float = DEFAULT_APERTURE_MM
+    levels: tuple[float, ...] = SIGMA_LEVELS
+
+
+@dataclass(frozen=True)
+class InstrumentCurves:
+    """Reflectance factor against flat ``sigma_a``: ``means[g, m, k]`` for geometry ``geometries[g]``,
+    member ``members[m]``, level ``levels[k]``."""
+
+    levels: np.ndarray
+    geometries: tuple[str, ...]
+    members: tuple[str, ...]
+    means: np.ndarray
+
+    def curve(self, geom: str, weights: dict[str, float] | None = None) -> ResponseCurve:
+        """The (weighted) geometric mean of the members' curves in ``geom``; None weights: the whole family."""
+        g = self.geometries.index(geometry(geom).name)
+        chosen = {m: w for m, w in (weights or {}).items() if m in self.members and w > 0}
+        if not chosen:
+            chosen = {m: 1.0 for m in self.members}
+        logs = np.average([np.log(np.clip(self.means[g, self.members.index(m)], 1e-12, None)) for m in chosen],
+                          axis=0, weights=list(chosen.values()))
+        return ResponseCurve(np.asarray(self.levels, float).copy(), np.exp(logs), 0.0, True)
+
+    def member_curve(self, geom: str, member: str) -> ResponseCurve:
+        g = self.geometries.index(geometry(geom).name)
+        return ResponseCurve(np.asarray(self.levels, float).copy(), self.means[g, self.members.index(member)].copy(),
+                             0.0, True)
+
+
+# -- the tables -----------------------------------------------------------------------------------
+def member_ladder(geom: str, member: str, layout: int, settings: BuildSettings = BuildSettings()) -> np.ndarray:
+    """One member's reflectance at ``settings.levels`` in ``geom``, strand layout ``layout``; cached on disk."""
+    from hairdigi.render.instrument import reflectance_ladder
+    from hairdigi.render.swatch_family import structure_strands
+
+    key = f"{geometry(geom).name.replace('/', '-').replace(' ', '_')}-{member}-{layout}-" \
+          f"{settings.size}-{settings.spp}-{settings.strands}-{settings.aperture_mm:g}"
+    path = cache_dir() / "instrument" / f"ladder-{key}.json"
+    if path.exists():
+        try:
+            data = read_json(path, InstrumentError, "no ladder", "a damaged ladder ({exc})")
+            if data["levels"] == list(settings.levels):
+                return np.asarray(data["means"], float)
+        except (InstrumentError, KeyError, TypeError):
+            pass   # rebuilt
+    means = reflectance_ladder(structure_strands(member, settings.strands, seed=layout), geom,
+                               np.asarray(settings.levels, float), settings.aperture_mm, settings.size,
+                               settings.spp, seed=7 + 101 * layout)
+    write_json_atomic(path, {"levels": list(settings.levels), "means": means.tolist()})
+    return means
+
+
+def build(out: str | os.PathLike = INSTRUMENT_TABLES, settings: BuildSettings = BuildSettings(),
+          members: tuple[str, ...] = FAMILY, say=print) -> Path:
+    """Render every member's curve in every geometry (resumable: each ladder is cached) and write the table."""
+    means = np.empty((len(GEOMETRIES), len(members), len(settings.levels)))
+    start = time.perf_counter()
+    for g, geom in enumerate(GEOMETRIES):
+        for m, member in enumerate(members):
+            ladders = [member_ladder(geom, member, k, settings) for k in range(settings.layouts)]
+            means[g, m] = np.exp(np.mean(np.log(np.clip(ladders, 1e-12, None)), axis=0))
+            say(f"{geom} {member}: {np.round(means[g, m], 4).tolist()} ({time.perf_counter() - start:.0f} s)")
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.stem + ".tmp.npz")
+    np.savez_compressed(tmp, levels=np.asarray(settings.levels, float), geometries=np.array(list(GEOMETRIES)),
+                        members=np.array(list(members)), means=means,
+                        settings=np.array([settings.size, settings.spp, settings.layouts, settings.strands,
+                                           settings.aperture_mm], float))
+    os.replace(tmp, out)
+    return out
+
+
+@functools.lru_cache(maxsize=4)
+def _load(path: str, mtime: float) -> InstrumentCurves:
+    with np.load(path) as data:
+        return InstrumentCurves(data["levels"], tuple(str(g) for g in data["geometries"]),
+                                tuple(str(m) for m in data["members"]), data["means"])
+
+
+def load_curves(path: str | os.PathLike | None = None) -> InstrumentCurves | None:
+    """The shipped instrument curves (None when the table is missing: ``python -m hairdigi.inference.instrument``)."""
+    path = Path(path or INSTRUMENT_TABLES)
+    if not path.exists():
+        return None
+    return _load(str(path), path.stat().st_mtime)
+
+
+@functools.lru_cache(maxsize=1)
+def _intervals(path: str, mtime: float) -> dict:
+    return read_json(Path(path), InstrumentError, "no interval table", "a damaged interval table ({exc})")
+
+
+def measured_intervals(path: str | os.PathLike | None = None) -> dict:
+    """geometry -> {"p68", "p95", "source"}: what ``hairdigi evaluate --instrument --ship`` measured; {} if none."""
+    path = Path(path or INSTRUMENT_UNCERTAINTY)
+    if not path.exists():
+        return {}
+    return _intervals(str(path), path.stat().st_mtime)
+
+
+# -- a record's reading ---------------------------------------------------------------------------
+#: The geometries a record carries by default: the integrating sphere's two and the 45°/0° colorimeter's.
+DEFAULT_GEOMETRIES = tuple(GEOMETRIES)
+
+
+def hair_of(record: EstimateRecord) -> HairParams | None:
+    """The hair whose spectrum the reading takes: the spectral world's answer where the rig declared its
+    spectra, else the record's Table 1 answer."""
+    return record.spectral.hair if record.spectral is not None else record.hair
+
+
+def member_reflectances(sigma: np.ndarray, geom: str, curves: InstrumentCurves, members: tuple[str, ...],
+                        rig=None, family_share: float = 1.0) -> dict[str, np.ndarray]:
+    """Each member's reflectance in ``geom`` of a hair whose answer is ``sigma`` (per wavelength, or any shape).
+
+    Without ``rig`` (``inference.structure.FamilyCurves`` at the capture's view): each member's curve at
+    ``sigma``. With it, each member's reading of the colour the capture showed: the estimate's answer
+    gives, per wavelength, the colour the rig saw (``target``: the mean curve of ``members`` the answer was
+    read through, blended toward the default structure's by ``family_share``, as ``to_family`` blends dark
+    hair); member ``m`` shows that colour at ``F_m^-1(target)``, and reads ``I_m`` of it in the instrument.
+    Where ``m`` cannot show it (a black swatch below its floor), the shortfall scales its reading: both
+    are the same fibres' surface reflection."""
+    sigma = np.asarray(sigma, float)
+    if rig is None:
+        return {m: curves.member_curve(geom, m)(sigma) for m in members}
+    mean = rig.mean_of({m: 1.0 for m in members})
+    target = mean(sigma) ** family_share * rig.default(sigma) ** (1.0 - family_share)
+    out = {}
+    for m in members:
+        shown, _ = rig.members[m].inverse(target)
+        ratio = target / np.clip(rig.members[m](shown), 1e-12, None)
+        out[m] = curves.member_curve(geom, m)(shown) * ratio
+    return out
+
+
+def read_instrument(hair: HairParams, members: dict[str, float] | None = None, rig=None, family_share: float = 1.0,
+                    geometries: tuple[str, ...] = DEFAULT_GEOMETRIES, aperture_mm: float = DEFAULT_APERTURE_MM,
+                    illuminant: str = "D65", observer: str = "10", curves: InstrumentCurves | None = None,
+                    intervals: dict | None = None) -> tuple[InstrumentReading, ...]:
+    """``hair``'s readings in ``geometries``: the (weighted) geometric mean of the ``members``' readings
+    (:func:`member_reflectances`; None: the whole family), with ``rig`` the family's curves at the capture's
+    view, so that each member reads the colour the capture showed. Raises InstrumentError when the tables are missing."""
+    from hairdigi.render.spectra import hair_sigma_a_spectrum
+
+    curves = curves if curves is not None else load_curves()
+    if curves is None:
+        raise InstrumentError(f"no instrument tables at {INSTRUMENT_TABLES}; build them with "
+                              f"python -m hairdigi.inference.instrument (about 30 minutes)")
+    check_aperture(aperture_mm)
+    observer, illuminant = check_observer(observer), check_illuminant(illuminant)
+    intervals = measured_intervals() if intervals is None else intervals
+    sigma = hair_sigma_a_spectrum(hair)
+    weights = {m: w for m, w in (members or {}).items() if m in curves.members and w > 0} or \
+        {m: 1.0 for m in curves.members}
+    if rig is not None:
+        weights = {m: w for m, w in weights.items() if m in rig.members}
+    out = []
+    for name in geometries:
+        geom = geometry(name).name
+        each = member_reflectances(sigma, geom, curves, tuple(weights), rig, family_share)
+        mean = np.exp(np.average([np.log(np.clip(r, 1e-12, None)) for r in each.values()], axis=0,
+                                 weights=list(weights.values())))
+        lab = lab_of_reflectance(mean, illuminant, observer)
+        spread = float(max(delta_e2000_lab(lab_of_reflectance(r, illuminant, observer), lab) for r in each.values()))
+        measured = intervals.get(geom, {})
+        how = "each reading the colour the capture showed" if rig is not None else "at the answer's absorption"
+        out.append(InstrumentReading(
+            geometry=geom, lab=tuple(float(v) for v in lab), observer=observer, illuminant=illuminant,
+            aperture_mm=float(aperture_mm), p68=measured.get("p68"), p95=measured.get("p95"), spread=spread,
+            method=(f"the hair's spectral absorption read per wavelength through the {geom} reflectance curves of "
+                    f"{', '.join(weights)} ({how}; geometric mean); interval: "
+                    f"{measured.get('source', 'not measured')}")))
+    return tuple(out)
+
+
+def record_view(record: EstimateRecord):
+    """The view the record's estimate was read at (a rig region or an all-hair crop's pose), or None."""
+    region = record.refinement.region
+    if region is None:
+        return None
+    return region.rig if region.rig is not None else region.crop_pose
+
+
+def with_instrument(record: EstimateRecord, path: str | os.PathLike | None = None, **kwargs) -> EstimateRecord:
+    """``record`` with its instrument readings (``read_instrument`` through the family's curves at its view);
+    unchanged when it has no hair or no tables are shipped."""
+    from hairdigi.inference.structure import family_curves, family_view, family_weight
+
+    hair = hair_of(record)
+    curves = load_curves(path)
+    if hair is None or curves is None:
+        return record
+    view = record_view(record)
+    rig = family_curves(family_view(view)) if view is not None and record.refinement.ran else None
+    share = family_weight(np.asarray(record.refinement.fitted_sigma_a or record.sigma_a, float)) \
+        if record.refinement.region is not None and record.refinement.region.members else 0.0
+    members = record.refinement.region.members if record.refinement.region is not None else None
+    return replace(record, instrument=read_instrument(hair, members, rig, share, curves=curves, **kwargs))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m hairdigi.inference.instrument [--out PATH] [--spp N]``: build the instrument tables."""
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m hairdigi.inference.instrument", description=main.__doc__)
+    parser.add_argument("--out", default=str(INSTRUMENT_TABLES))
+    parser.add_argument("--spp", type=int, default=BuildSettings.spp)
+    parser.add_argument("--layouts", type=int, default=BuildSettings.layouts)
+    args = parser.parse_args(argv)
+    from hairdigi.render.variant import select_variant
+
+    select_variant()
+    print(build(args.out, BuildSettings(spp=args.spp, layouts=args.layouts)), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
