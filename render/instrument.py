@@ -48,6 +48,8 @@ TRAP_HALF_ANGLE_DEG = 5.0
 TRAP_DISTANCE = 50.0
 #: Directional lights that make the 45° ring.
 RING_LIGHTS = 36
+#: How far apart (scene units: 12.5 mm) the spots of a multi-spot reading lie along the fibres.
+SPOT_STEP = 0.25
 #: The observers and illuminants a reading may be made in (colour-science's names).
 OBSERVERS = {"10": "CIE 1964 10 Degree Standard Observer", "2": "CIE 1931 2 Degree Standard Observer"}
 ILLUMINANTS = ("D65", "D50", "A", "F2", "F11")
@@ -122,13 +124,13 @@ def view_direction(geom: Geometry) -> np.ndarray:
     return np.array([np.sin(t), 0.0, np.cos(t)])
 
 
-def _sensor(geom: Geometry, aperture_mm: float, size: int, spp: int) -> dict:
+def _sensor(geom: Geometry, aperture_mm: float, size: int, spp: int, centre: tuple[float, float] = (0.0, 0.0)) -> dict:
     from hairdigi.render.domain.rig_geometry import look_at_matrix
     from hairdigi.render.variant import transform
 
     radius = aperture_mm / 2.0 / MM_PER_UNIT
-    origin = 2.0 * view_direction(geom)
-    to_world = transform(look_at_matrix(origin, np.zeros(3)) @ np.diag([radius, radius, 1.0, 1.0]))
+    spot = np.array([centre[0], centre[1], 0.0])
+    to_world = transform(look_at_matrix(spot + 2.0 * view_direction(geom), spot) @ np.diag([radius, radius, 1.0, 1.0]))
     return {"type": "orthographic", "to_world": to_world,
             "film": {"type": "hdrfilm", "width": size, "height": size, "pixel_format": "rgb",
                      "rfilter": {"type": "box"}},
@@ -163,10 +165,11 @@ def _lights(geom: Geometry, flat) -> dict:
 
 def instrument_scene(geom: Geometry, aperture_mm: float, size: int, spp: int, max_depth: int = 32,
                      curve_file: str | None = None, bsdf: dict | None = None, tile: str | None = None,
-                     spectral: bool = False) -> dict:
+                     spectral: bool = False, centre: tuple[float, float] = (0.0, 0.0)) -> dict:
     """The instrument's scene: the hair of ``curve_file`` (its ``bsdf``) on the rig's holder, or a
     calibration ``tile`` ("white": a perfect diffuser; "black glass": a smooth dielectric of index 1.5
-    over black) filling the port. ``spectral``: flat spectra written for a spectral variant."""
+    over black) filling the port. ``spectral``: flat spectra written for a spectral variant. ``centre``: the
+    spot's centre on the holder (x, y scene units; the swatch's centre is 0, 0; its fibres run along y)."""
     from hairdigi.render.domain.rig_geometry import HOLDER_CENTER, HOLDER_SIZE
     from hairdigi.render.scenes import hair_shape, integrator, placed
 
@@ -179,7 +182,7 @@ def instrument_scene(geom: Geometry, aperture_mm: float, size: int, spp: int, ma
         def flat(v: float) -> dict:
             return {"type": "rgb", "value": [float(v)] * 3}
     scene = {"type": "scene", "integrator": integrator(max_depth),
-             "sensor": _sensor(geom, check_aperture(aperture_mm), size, spp), **_lights(geom, flat)}
+             "sensor": _sensor(geom, check_aperture(aperture_mm), size, spp, centre), **_lights(geom, flat)}
     if tile is None:
         scene["holder"] = {"type": "rectangle", "to_world": placed(HOLDER_CENTER, (HOLDER_SIZE[0] / 2, HOLDER_SIZE[1] / 2)),
                            "bsdf": {"type": "diffuse", "reflectance": flat(HOLDER_ALBEDO)}}
@@ -291,11 +294,13 @@ def lab_of_tristimulus(relative: np.ndarray, illuminant: str = "D65", observer: 
 def spectral_tristimulus(strands, sigma_spectrum: np.ndarray | None, geom: Geometry | str,
                          aperture_mm: float = DEFAULT_APERTURE_MM, illuminant: str = "D65", observer: str = "10",
                          size: int = 48, spp: int = 256, seed: int = 11, max_depth: int = 32,
-                         tile: str | None = None) -> np.ndarray:
+                         tile: str | None = None, spots: int = 1) -> np.ndarray:
     """The virtual instrument: ``geom`` rendered spectrally (Mitsuba's spectral twin of the variant),
     the hair of ``strands`` absorbing ``sigma_spectrum`` (on ``render.spectra.WAVELENGTHS``), seen through
     ``specfilm`` bands of ``observer`` under ``illuminant``. Returns (X/Xn, Y/Yn, Z/Zn) over the aperture:
-    :func:`lab_of_tristimulus` turns it into CIELAB. ``tile`` renders a calibration tile instead."""
+    :func:`lab_of_tristimulus` turns it into CIELAB. ``tile`` renders a calibration tile instead. ``spots``:
+    the mean of that many readings along the fibres (``SPOT_STEP`` apart, centred on the swatch), as a lab
+    reads a tress at three places and averages."""
     import mitsuba as mi
 
     from hairdigi.render.domain.absorption import hair_bsdf
@@ -314,11 +319,16 @@ def spectral_tristimulus(strands, sigma_spectrum: np.ndarray | None, geom: Geome
             curve_file.write_text(strands.with_dummy().to_curve_text())
             bsdf = hair_bsdf(HairParams())
             bsdf["sigma_a"] = mitsuba_spectrum(np.asarray(sigma_spectrum, float))
-        scene = instrument_scene(geom, aperture_mm, size, spp, max_depth, None if curve_file is None else str(curve_file),
-                                 bsdf, tile=tile, spectral=True)
-        film = scene["sensor"]["film"]
-        film.update(type="specfilm", component_format="float32")
-        film.pop("pixel_format", None)
-        for k, band in enumerate(("band1_x", "band2_y", "band3_z")):   # specfilm orders channels by name
-            film[band] = mitsuba_spectrum(bands[:, k] / 5.0)
-        return aperture_mean(_render(scene, size, spp, seed))
+        readings = []
+        for k in range(spots):
+            centre = (0.0, (k - (spots - 1) / 2) * SPOT_STEP)
+            scene = instrument_scene(geom, aperture_mm, size, spp, max_depth,
+                                     None if curve_file is None else str(curve_file), bsdf, tile=tile, spectral=True,
+                                     centre=centre)
+            film = scene["sensor"]["film"]
+            film.update(type="specfilm", component_format="float32")
+            film.pop("pixel_format", None)
+            for c, band in enumerate(("band1_x", "band2_y", "band3_z")):   # specfilm orders channels by name
+                film[band] = mitsuba_spectrum(bands[:, c] / 5.0)           # flat 1 then reads 1 (measured: tiles)
+            readings.append(aperture_mean(_render(scene, size, spp, seed + k)))
+        return np.mean(readings, axis=0)

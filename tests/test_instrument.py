@@ -202,3 +202,48 @@ def test_bland_altman_limits():
     ba = bland_altman([1.0, 2.0, 3.0, 4.0], [0.0, 2.0, 2.0, 4.0])
     assert ba["bias"] == 0.5 and ba["sd"] == pytest.approx(np.std([1, 0, 1, 0], ddof=1), abs=1e-3)
     assert ba["lower"] == pytest.approx(0.5 - 1.96 * ba["sd"], abs=2e-3)
+
+
+@pytest.mark.slow
+def test_a_rig_capture_reads_as_the_virtual_instrument_reads_the_same_swatch(tmp_path):
+    """The whole chain in the default mode on a deposited swatch in a layout no table saw: the record's d/8 SCI and
+    SCE readings lie within 2.0 ΔE2000 (the goal's p95) of a spectral render of the truth in the sphere, and the
+    record on disk carries them."""
+    from hairdigi.app.session.rig_session import RigSession
+    from hairdigi.render.domain.records import read_record
+    from hairdigi.render.spectra import hair_sigma_a_spectrum
+    from hairdigi.render.swatch_family import structure_strands
+
+    hidden = HairParams((190, 80, 40), 0.5, 0.5, 0.6)
+    session = RigSession.simulated_rig(tmp_path / "s", hidden=hidden, spp=16, swatch_model="deposited", strand_seed=5)
+    try:
+        session.calibrate()
+        result = session.capture()
+    finally:
+        session.close()
+    saved = read_record(result.image_path.with_suffix(".result.json"), EstimateRecord)
+    assert [r.geometry for r in saved.instrument] == list(GEOMETRIES)
+    strands = structure_strands("deposited", 8000, seed=5)
+    for geom in ("d/8 SCI", "d/8 SCE"):
+        truth = lab_of_tristimulus(spectral_tristimulus(strands, hair_sigma_a_spectrum(hidden), geom, spp=64, size=32,
+                                                        spots=3))
+        from hairdigi.render.metrics import delta_e2000_lab
+
+        assert float(delta_e2000_lab(saved.instrument_reading(geom).lab, truth)) < 2.0, (geom, saved.instrument_reading(geom), truth)
+
+
+def test_the_command_line_imports_readings_and_refuses_a_bad_file_in_one_line(tmp_path, monkeypatch, capsys):
+    from hairdigi.app.cli import main
+
+    monkeypatch.setenv("HAIRDIGI_LIBRARY", str(tmp_path / "library.sqlite"))
+    monkeypatch.setenv("HAIRDIGI_SESSIONS", str(tmp_path / "no-sessions"))
+    _library(tmp_path).close()
+    good = _write(tmp_path / "good.csv", "Sample Name,Mode,L*,a*,b*\nT-001,SCI,30.1,8,12\nT-001,SCE,29.8,8,12\n")
+    assert main(["library", "readings", str(good)]) == 0
+    assert "imported 2 readings of 1 tresses" in capsys.readouterr().out
+    bad = _write(tmp_path / "bad.csv", "Sample Name,X,Y,Z\nT-001,20,21,18\n")
+    assert main(["library", "readings", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--columns L=HEADER" in err
+    with Library(str(tmp_path / "library.sqlite")) as lib:
+        assert len(lib.readings()) == 2

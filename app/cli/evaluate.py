@@ -31,7 +31,7 @@ def add_parser(sub) -> None:
     p.add_argument("--no-refine", action="store_true", help="judge the encoder alone")
     _add_modes(p, "rig")
     p.add_argument("--rig-random", type=v.int_in(0, 200), default=5)
-    _add_modes(p, "appearance", "cycles", "structures", "spectral")
+    _add_modes(p, "appearance", "cycles", "structures", "spectral", "instrument", "readings")
     _add_options(p)
     _add_modes(p, "dye")
     p.add_argument("--workers", type=WORKERS, default=2)

@@ -23,6 +23,11 @@ from hairdigi.app.evaluation.rig import CONDITIONS, hidden_set, RigSet
 from hairdigi.render.io.figures import save_table
 from hairdigi.render.metrics import delta_e2000_lab, quantiles
 
+#: The virtual instrument reads each tress at this many places along its fibres and averages, as a lab does.
+SPOTS = 3
+#: The rig evaluation's casts and exposures, less the over-exposures an operator is told to undo (+0.5 EV
+#: clips platinum and saturated red): the readings are judged, not the exposure check.
+EXPOSED = tuple(c for c in CONDITIONS if c[1] <= 0.0)
 #: A layout of the hidden swatch's fibres that no instrument table or family curve was rendered on.
 HIDDEN_LAYOUT = 5
 
@@ -32,7 +37,7 @@ class InstrumentSet:
     random: int = 3                                  # random Table 1 draws beside the hard cases
     structures: tuple[str, ...] = ("clumped", "deposited", "wavy")   # the hidden swatches' structures, in turn
     rig_spp: int = 32                                # the simulated rig's light renders
-    truth_spp: int = 256                             # the virtual instrument's spectral renders
+    truth_spp: int = 128                             # the virtual instrument's spectral renders (each of SPOTS)
     truth_size: int = 48
     geometries: tuple[str, ...] = ("d/8 SCI", "d/8 SCE", "45/0")
 
@@ -45,7 +50,8 @@ def truth_readings(params, structure: str, geometries, spp: int, size: int) -> d
 
     strands = structure_strands(structure, 8000, seed=HIDDEN_LAYOUT)
     sigma = hair_sigma_a_spectrum(params)
-    return {g: lab_of_tristimulus(spectral_tristimulus(strands, sigma, g, spp=spp, size=size)) for g in geometries}
+    return {g: lab_of_tristimulus(spectral_tristimulus(strands, sigma, g, spp=spp, size=size, spots=SPOTS))
+            for g in geometries}
 
 
 #: A lab instrument's repeatability when a tress is lifted and laid under its port again (SD of one reading,
@@ -87,7 +93,7 @@ def evaluate_instrument(out_dir: str | os.PathLike, config: InstrumentSet = Inst
         root = Path(lab_dir) / "sessions" if lab_dir is not None else Path(tmp)
         for k, (name, params) in enumerate(hidden):
             structure = config.structures[k % len(config.structures)]
-            cast, ev = CONDITIONS[k % len(CONDITIONS)]
+            cast, ev = EXPOSED[k % len(EXPOSED)]
             session = RigSession.simulated_rig(root / f"s{k}", hidden=params, spp=config.rig_spp,
                                                camera_model=CameraModel(exposure_ev=ev, cast=cast), encoder=encoder,
                                                swatch_model=structure, strand_seed=HIDDEN_LAYOUT)

@@ -54,8 +54,8 @@ EVALUATIONS: dict[str, Entry] = _modes(
           "observer under daylight, tungsten and a shop LED, at the rig and away", f"{_MODES}:spectral"),
     Entry("instrument", "instead: hidden swatches on structures hairdigi did not build, captured on the simulated rig "
           "and estimated in the default mode; their instrument readings (d/8 SCI, d/8 SCE, 45/0; D65, 10°) against a "
-          "virtual instrument's spectral render of the truth (--rig-random N random hairs beside the hard cases; --ship "
-          "writes the readings' interval)", f"{_MODES}:instrument"),
+          "virtual instrument's spectral render of the truth; random hairs beside the hard cases: --rig-random N; "
+          "--ship writes the readings' interval", f"{_MODES}:instrument"),
     Entry("readings", "instead: a lab's instrument readings (hairdigi library readings) against hairdigi's of the same "
           "swatches in --library: per swatch ΔE2000, the bias in L*, a*, b* and a Bland-Altman plot",
           f"{_MODES}:readings"),

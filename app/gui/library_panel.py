@@ -21,7 +21,7 @@ from hairdigi.app.gui.images import to_pixmap
 from hairdigi.app.gui.workers import POOL, Jobs, Task, start
 from hairdigi.app.library.store import Library, Swatch
 from hairdigi.app.library.model import MAX_ROWS, LibraryModel
-from hairdigi.app.library.swatch_colour import ILLUMINANTS
+from hairdigi.app.library.swatch_colour import COLOURS
 
 COLUMNS = ("colour", "ΔE2000", "captured", "where", "tags", "note", "id")
 SORTS = {"newest first": "captured", "by colour (light to dark)": "colour"}
@@ -148,14 +148,14 @@ class LibraryPanel(QWidget):
         self.search.setPlaceholderText("search id, capture, session, tag, note")
         self.search.textChanged.connect(self._typed)
         self.near = QLineEdit()
-        self.near.setPlaceholderText("near #RRGGBB")
+        self.near.setPlaceholderText("near #RRGGBB or a tress")
         self.near.setMaximumWidth(110)
         self.near.returnPressed.connect(self.refresh)
         self.sort = QComboBox()
         self.sort.addItems(list(SORTS))
         self.sort.currentIndexChanged.connect(lambda _: self.refresh())
         self.light = QComboBox()
-        self.light.addItems(list(ILLUMINANTS))
+        self.light.addItems(list(COLOURS))   # the lights, and the instrument readings (D65, 10°)
         self.light.currentIndexChanged.connect(lambda _: self.refresh())
         for w in (self.search, self.near, self.sort, self.light):
             row.addWidget(w)

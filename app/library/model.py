@@ -23,7 +23,7 @@ from hairdigi.app.review.events import EventGroup, Status
 from hairdigi.app.library.store import Library, LibraryError, Swatch, redact
 from hairdigi.app.review.panel_model import PanelModel
 from hairdigi.app.review.work import Work
-from hairdigi.app.library.swatch_colour import ILLUMINANTS, hex_lab
+from hairdigi.app.library.swatch_colour import COLOURS, ILLUMINANTS, ColourError, hex_lab
 from hairdigi.render.domain.errors import HairdigiError
 
 __all__ = ["LibraryModel", "Query", "Rows", "Selection", "SwatchImage", "Imported", "Exported", "Events",
@@ -95,10 +95,26 @@ class Events(EventGroup):
               "status": str}              # one line (the library and what it shows, or what went wrong)
 
 
+def near_lab(library: Library, near: str, under: str):
+    """The colour ``near`` names: ``#RRGGBB``, or a reference tress (a swatch's id, capture id or tag) read under
+    ``under`` (a light, or an instrument geometry); raises ColourError naming the fix."""
+    try:
+        return hex_lab(near)
+    except ColourError:
+        found = library.swatches_of(near.strip())
+        if not found:
+            raise ColourError(f"{near!r} is neither #RRGGBB nor a swatch's id, capture id or tag") from None
+        lab = found[0].labs.get(under)
+        if lab is None:
+            raise ColourError(f"the reference {near!r} has no {under} colour; choose another light or reading") from None
+        return lab
+
+
 def run_query(library: Library, query: Query) -> tuple[list[Swatch], dict[str, float]]:
-    """The swatches ``query`` asks for, and their ΔE2000 to its colour (raises ColourError: a bad colour)."""
+    """The swatches ``query`` asks for, and their ΔE2000 to its colour, a ``#RRGGBB`` or a reference tress
+    (raises ColourError: a bad colour)."""
     if query.near:
-        matches = library.find(hex_lab(query.near), query.under, k=NEAR_K)
+        matches = library.find(near_lab(library, query.near, query.under), query.under, k=NEAR_K)
         text = query.text.lower()
         matches = [(s, d) for s, d in matches if not text or text in
                    " ".join([s.id, s.capture_id or "", s.session or "", s.note, *s.tags]).lower()]
@@ -154,8 +170,8 @@ class LibraryModel(PanelModel):
         self._owner()
         if "order" in changes and changes["order"] not in ORDERS:
             raise ValueError(f"order {changes['order']!r}: one of {', '.join(ORDERS)}")
-        if "under" in changes and changes["under"] not in ILLUMINANTS:
-            raise ValueError(f"light {changes['under']!r}: one of {', '.join(ILLUMINANTS)}")
+        if "under" in changes and changes["under"] not in COLOURS:
+            raise ValueError(f"light {changes['under']!r}: one of {', '.join(COLOURS)}")
         before = self.query
         self.query = replace(before, **{k: v.strip() if isinstance(v, str) else v for k, v in changes.items()})
         if self.query.under != before.under:     # the chips and the comparison are under the light chosen

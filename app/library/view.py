@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.app.library.store import Swatch
-from hairdigi.app.library.swatch_colour import ILLUMINANTS, delta_e, lab_hex
+from hairdigi.app.library.swatch_colour import COLOURS, ILLUMINANTS, delta_e, lab_hex
 
 
 def chip_hex(swatch: Swatch, under: str = "daylight") -> str | None:
@@ -67,7 +67,9 @@ class Comparison:
 
 def compare(left: Swatch, right: Swatch) -> Comparison:
     des = {}
-    for ill in ILLUMINANTS:
+    for ill in COLOURS:      # the lights always; an instrument's reading where either swatch has it
         a, b = left.labs.get(ill), right.labs.get(ill)
+        if ill not in ILLUMINANTS and a is None and b is None:
+            continue
         des[ill] = None if a is None or b is None else float(delta_e(np.asarray(a), np.asarray(b)))
     return Comparison(left, right, des)

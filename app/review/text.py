@@ -110,6 +110,7 @@ def parameter_view(shown: Shown, extra: tuple[EstimateWarning, ...] = ()) -> Par
         info.append(f"colour within ΔE2000 {colour:.2f} of the truth in 68% of held-out captures "
                     f"({rec.uncertainty.mean_colour_source or 'held-out clean crop renders'})")
     info += spectral_lines(rec)
+    info += instrument_lines(rec)
     info += [f"⚠ {w.message}" for w in (*rec.warnings, *extra)]
     return ParameterView(lines, tuple(int(v) for v in p.dye_rgb), tooltip, "\n".join(info),
                          appearance_lines(rec.appearance))
@@ -136,6 +137,16 @@ def spectral_lines(rec: EstimateRecord) -> list[str]:
     if stated is not None:
         lines.append(f"spectral world ({stated.camera} camera): within ΔE2000 {stated.mean_colour_de2000_p68:.2f} "
                      f"in 68% for {stated.holds_for}")
+    return lines
+
+
+def instrument_lines(rec: EstimateRecord) -> list[str]:
+    """A record's instrument readings, as the lab's instrument would give them, with their interval."""
+    lines = []
+    for r in rec.instrument:
+        interval = f" (within ΔE2000 {r.p68:.2f} in 68%)" if r.p68 is not None else ""
+        lines.append(f"instrument {r.geometry} {r.illuminant}/{r.observer}°, {r.aperture_mm:g} mm: L* {r.lab[0]:.1f} "
+                     f"a* {r.lab[1]:.1f} b* {r.lab[2]:.1f}{interval}")
     return lines
 
 
