@@ -23,6 +23,7 @@ import os
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -33,6 +34,7 @@ from hairdigi.render.domain.records import EstimateRecord, InstrumentReading
 from hairdigi.render.instrument import (DEFAULT_APERTURE_MM, GEOMETRIES, InstrumentError, check_aperture,
                                         check_illuminant, check_observer, geometry, lab_of_reflectance)
 from hairdigi.render.metrics import delta_e2000_lab
+from hairdigi.render.domain.bounds import SwatchModel
 from hairdigi.render.swatch_family import FAMILY
 from hairdigi.resources import MODELS, ROOT
 
@@ -164,23 +166,30 @@ def hair_of(record: EstimateRecord) -> HairParams | None:
     return record.spectral.hair if record.spectral is not None else record.hair
 
 
-def rig_reflectance(sigma: np.ndarray, rig, members: tuple[str, ...], family_share: float) -> np.ndarray:
-    """The rig's reflectance of absorption ``sigma`` (any shape) through the curve an answer was read with: the
-    mean curve of ``members``, blended toward the default structure's by ``family_share``."""
-    mean = rig.mean_of({m: 1.0 for m in members})
-    return mean(sigma) ** family_share * rig.default(sigma) ** (1.0 - family_share)
+def answer_curve(rig, members: dict[str, float] | None, swatch_model: str | None,
+                 family_share: float = 1.0) -> Callable[[np.ndarray], np.ndarray]:
+    """The rig's reflectance of an absorption through the curve the record's answer was read with, at its view
+    (``rig``: ``inference.structure.FamilyCurves``): the mean curve of the ``members`` its family map averaged,
+    blended toward the default structure's by ``family_share`` (as ``to_family`` blends dark hair); else the
+    curve of the structure its refinement rendered (``swatch_model``: a member the frames read, or the default)."""
+    if members:
+        mean = rig.mean_of(members)
+        return lambda sigma: mean(sigma) ** family_share * rig.default(sigma) ** (1.0 - family_share)
+    if swatch_model in rig.members and swatch_model != SwatchModel.LAYERED.value:
+        return rig.members[swatch_model]
+    return rig.default
 
 
-def measured_ratio(measured_rgb, sigma_rgb, rig, members: tuple[str, ...], family_share: float) -> np.ndarray:
+def measured_ratio(measured_rgb, sigma_rgb, reference: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
     """Per wavelength, the capture's measured rig colour over the colour the answer's ``sigma_rgb`` renders
-    through the curve it was read with (:func:`rig_reflectance`): 1 where the answer reaches the capture; below
-    1 where the capture is darker than any hair of that structure (a black deposited swatch under the layered
-    floor). Each channel's ratio is spread over the wavelengths that channel sees (linear sRGB's weights, their
-    negative lobes dropped). (Against the answer's spectral colour instead, the RGB and spectral mappings'
-    difference entered the ratio and a saturated dye's a* moved by 8-10: ``hairdigi evaluate --instrument``.)"""
+    through the curve it was read with (``reference``, :func:`answer_curve`): 1 where the answer reaches the
+    capture; below 1 where the capture is darker than any hair of that structure (a black deposited swatch under
+    the layered floor). Each channel's ratio is spread over the wavelengths that channel sees (linear sRGB's
+    weights, their negative lobes dropped). (Against the answer's spectral colour instead, the RGB and spectral
+    mappings' difference entered the ratio and a saturated dye's a* moved by 8-10: ``hairdigi evaluate --instrument``.)"""
     from hairdigi.render.spectra import _srgb_weights
 
-    shown = rig_reflectance(np.asarray(sigma_rgb, float), rig, members, family_share)
+    shown = reference(np.asarray(sigma_rgb, float))
     ratio = np.clip(np.asarray(measured_rgb, float) / np.clip(shown, 1e-12, None), 0.25, 4.0)
     weights = np.clip(_srgb_weights(), 0.0, None)
     weights = weights / np.clip(weights.sum(1, keepdims=True), 1e-12, None)
@@ -188,26 +197,26 @@ def measured_ratio(measured_rgb, sigma_rgb, rig, members: tuple[str, ...], famil
 
 
 def member_reflectances(sigma: np.ndarray, geom: str, curves: InstrumentCurves, members: tuple[str, ...],
-                        rig=None, family_share: float = 1.0, ratio: np.ndarray | float = 1.0) -> dict[str, np.ndarray]:
-    """Each member's reflectance in ``geom`` of a hair whose answer is ``sigma`` (per wavelength, or any shape).
+                        rig=None, reference: Callable[[np.ndarray], np.ndarray] | None = None,
+                        ratio: np.ndarray | float = 1.0) -> dict[str, np.ndarray]:
+    """Each member's reflectance in ``geom`` of a hair whose answer is ``sigma`` (per wavelength).
 
     Without ``rig`` (``inference.structure.FamilyCurves`` at the capture's view): each member's curve at
-    ``sigma``. With it, each member's reading of the colour the capture showed: the estimate's answer
-    gives, per wavelength, the colour the rig saw (``target``: the mean curve of ``members`` the answer was
-    read through, blended toward the default structure's by ``family_share``, as ``to_family`` blends dark
-    hair), times ``ratio`` (:func:`measured_ratio`: what the capture measured over what the answer renders);
-    member ``m`` shows that colour at ``F_m^-1(target)``, and reads ``I_m`` of it in the instrument.
-    Where ``m`` cannot show it (a black swatch below its floor), the shortfall scales its reading: both
-    are the same fibres' surface reflection."""
+    ``sigma``. With it, each member's reading of the colour the capture showed: per wavelength the colour the
+    answer gives through the curve it was read with (``reference``, :func:`answer_curve`; default: the rig's
+    default structure's), times ``ratio`` (:func:`measured_ratio`: what the capture measured over that);
+    member ``m`` shows that colour at ``F_m^-1(target)``, and reads ``I_m`` of it in the instrument. Where ``m``
+    cannot show it (a black swatch below its floor), the shortfall scales its reading: both are the same
+    fibres' surface reflection."""
     sigma = np.asarray(sigma, float)
     if rig is None:
         return {m: curves.member_curve(geom, m)(sigma) for m in members}
-    target = rig_reflectance(sigma, rig, members, family_share) * ratio
+    target = (reference or rig.default)(sigma) * ratio
     out = {}
     for m in members:
         shown, _ = rig.members[m].inverse(target)
-        ratio = target / np.clip(rig.members[m](shown), 1e-12, None)
-        out[m] = curves.member_curve(geom, m)(shown) * ratio
+        scale = target / np.clip(rig.members[m](shown), 1e-12, None)
+        out[m] = curves.member_curve(geom, m)(shown) * scale
     return out
 
 
@@ -221,23 +230,23 @@ def weighted_median(values: np.ndarray, weights: np.ndarray) -> np.ndarray:
     return values[order[pick, columns], columns]
 
 
-def read_instrument(hair: HairParams, members: dict[str, float] | None = None, rig=None, family_share: float = 1.0,
-                    ratio: np.ndarray | float = 1.0, geometries: tuple[str, ...] = DEFAULT_GEOMETRIES, aperture_mm: float = DEFAULT_APERTURE_MM,
+def read_instrument(hair: HairParams, members: dict[str, float] | None = None, rig=None,
+                    reference: Callable[[np.ndarray], np.ndarray] | None = None, ratio: np.ndarray | float = 1.0,
+                    geometries: tuple[str, ...] = DEFAULT_GEOMETRIES, aperture_mm: float = DEFAULT_APERTURE_MM,
                     illuminant: str = "D65", observer: str = "10", curves: InstrumentCurves | None = None,
                     intervals: dict | None = None) -> tuple[InstrumentReading, ...]:
     """``hair``'s readings in ``geometries``: per wavelength, the weighted median of the ``members``' readings
     (:func:`member_reflectances`; None: the whole family), with ``rig`` the family's curves at the capture's
-    view, so that each member reads the colour the capture showed (``ratio``: :func:`measured_ratio`, the
-    capture's measured colour over the answer's). The median, not the mean: in the sphere one
-    member (``spread``) reads black hair 6 L* below the others even after the transfer, where the median of the
-    members' readings lies within 0.1-0.7 L* of the truth on the deposited and layered swatches of the hard
-    cases. Raises InstrumentError when the tables are missing."""
+    view, so that each member reads the colour the capture showed. The median, not the mean: in the sphere one
+    member (``spread``) reads black hair 6 L* below the others even after the transfer; the geometric mean of
+    the members read 2.43 / 2.99 ΔE2000 (median / p95, d/8 SCI, ``hairdigi evaluate --instrument``), the median
+    1.69 / 2.22. Raises InstrumentError when the tables are missing."""
     from hairdigi.render.spectra import hair_sigma_a_spectrum
 
     curves = curves if curves is not None else load_curves()
     if curves is None:
         raise InstrumentError(f"no instrument tables at {INSTRUMENT_TABLES}; build them with "
-                              f"python -m hairdigi.inference.instrument (about 30 minutes)")
+                              f"python -m hairdigi.inference.instrument (about 10 minutes)")
     check_aperture(aperture_mm)
     observer, illuminant = check_observer(observer), check_illuminant(illuminant)
     intervals = measured_intervals() if intervals is None else intervals
@@ -249,7 +258,7 @@ def read_instrument(hair: HairParams, members: dict[str, float] | None = None, r
     out = []
     for name in geometries:
         geom = geometry(name).name
-        each = member_reflectances(sigma, geom, curves, tuple(weights), rig, family_share, ratio)
+        each = member_reflectances(sigma, geom, curves, tuple(weights), rig, reference, ratio)
         centre = weighted_median(np.array(list(each.values())), np.array(list(weights.values())))
         lab = lab_of_reflectance(centre, illuminant, observer)
         spread = float(max(delta_e2000_lab(lab_of_reflectance(r, illuminant, observer), lab) for r in each.values()))
@@ -272,9 +281,22 @@ def record_view(record: EstimateRecord):
     return region.rig if region.rig is not None else region.crop_pose
 
 
+def reading_members(record: EstimateRecord) -> dict[str, float] | None:
+    """The structures a record's reading weighs: those its family map averaged; the one member its frames read
+    (its refinement rendered that member); else None, the whole family (a swatch assumed layered may be any)."""
+    region = record.refinement.region
+    if region is None:
+        return None
+    if region.members:
+        return region.members
+    if region.swatch_model in FAMILY and region.swatch_model != SwatchModel.LAYERED.value:
+        return {region.swatch_model: 1.0}
+    return None
+
+
 def with_instrument(record: EstimateRecord, path: str | os.PathLike | None = None, **kwargs) -> EstimateRecord:
-    """``record`` with its instrument readings (``read_instrument`` through the family's curves at its view);
-    unchanged when it has no hair or no tables are shipped."""
+    """``record`` with its instrument readings (``read_instrument``: each structure reading the colour the capture
+    measured, through the family's curves at its view); unchanged when it has no hair or no tables are shipped."""
     from hairdigi.inference.structure import family_curves, family_view, family_weight
 
     hair = hair_of(record)
@@ -282,16 +304,17 @@ def with_instrument(record: EstimateRecord, path: str | os.PathLike | None = Non
     if hair is None or curves is None:
         return record
     view = record_view(record)
-    rig = family_curves(family_view(view)) if view is not None and record.refinement.ran else None
-    share = family_weight(np.asarray(record.refinement.fitted_sigma_a or record.sigma_a, float)) \
-        if record.refinement.region is not None and record.refinement.region.members else 0.0
-    members = record.refinement.region.members if record.refinement.region is not None else None
-    ratio = 1.0
+    members = reading_members(record)
+    if view is None or not record.refinement.ran:
+        return replace(record, instrument=read_instrument(hair, members, curves=curves, **kwargs))
+    rig = family_curves(family_view(view))
+    region = record.refinement.region
+    share = family_weight(np.asarray(record.refinement.fitted_sigma_a or record.sigma_a, float)) if region.members \
+        else 0.0
+    reference = answer_curve(rig, region.members, region.swatch_model, share)
     measured = record.refinement.target_linear_rgb
-    if rig is not None and measured is not None and record.sigma_a is not None:
-        used = tuple(m for m in (members or curves.members) if m in rig.members)
-        ratio = measured_ratio(measured, record.sigma_a, rig, used, share)
-    return replace(record, instrument=read_instrument(hair, members, rig, share, ratio=ratio, curves=curves, **kwargs))
+    ratio = 1.0 if measured is None else measured_ratio(measured, record.sigma_a, reference)
+    return replace(record, instrument=read_instrument(hair, members, rig, reference, ratio, curves=curves, **kwargs))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -247,3 +247,46 @@ def test_the_command_line_imports_readings_and_refuses_a_bad_file_in_one_line(tm
     assert len(err.splitlines()) == 1 and "--columns L=HEADER" in err
     with Library(str(tmp_path / "library.sqlite")) as lib:
         assert len(lib.readings()) == 2
+
+
+def test_each_structure_reads_the_colour_the_capture_showed():
+    """Two structures, one 20% darker than the other at equal absorption at the rig and in the sphere: read
+    through the rig's curves, both give one reading of the colour a capture showed (the transfer), where read
+    at the answer's absorption they part by the 20%."""
+    from hairdigi.inference.instrument import answer_curve, measured_ratio, member_reflectances
+    from hairdigi.inference.refine import ResponseCurve
+    from hairdigi.inference.structure import FamilyCurves
+
+    levels = np.asarray(SIGMA_LEVELS)
+    base = 0.01 + 0.4 * np.exp(-1.1 * levels)
+    rig = FamilyCurves(ResponseCurve(levels, base * 1.1),
+                       {"deposited": ResponseCurve(levels, base * 0.9), "layered": ResponseCurve(levels, base * 1.1)})
+    sphere = np.stack([np.stack([1.4 * base * 0.9, 1.4 * base * 1.1]) for _ in GEOMETRIES])
+    curves = InstrumentCurves(levels, tuple(GEOMETRIES), ("deposited", "layered"), sphere)
+    sigma = np.full(len(WAVELENGTHS), 0.4)
+    direct = member_reflectances(sigma, "d/8 SCI", curves, ("deposited", "layered"))
+    assert direct["layered"][0] / direct["deposited"][0] == pytest.approx(1.1 / 0.9, rel=1e-6)
+    reference = answer_curve(rig, None, "layered")               # the answer was read on the layered swatch
+    moved = member_reflectances(sigma, "d/8 SCI", curves, ("deposited", "layered"), rig, reference)
+    assert moved["deposited"] == pytest.approx(moved["layered"], rel=0.005)
+    # a capture 10% darker than the answer renders (a black below the floor): every reading 10% darker
+    ratio = measured_ratio(0.9 * reference(np.full(3, 0.4)), np.full(3, 0.4), reference)
+    assert ratio == pytest.approx(np.full(len(WAVELENGTHS), 0.9), rel=1e-6)
+    darker = member_reflectances(sigma, "d/8 SCI", curves, ("deposited", "layered"), rig, reference, ratio)
+    assert darker["layered"] == pytest.approx(0.9 * moved["layered"], rel=0.03)
+
+
+def test_a_record_reads_through_the_structures_its_estimate_was_read_on():
+    from hairdigi.inference.instrument import reading_members
+    from hairdigi.render.domain.estimate_parts import Region
+    from hairdigi.render.domain.records import RefinementRecord
+
+    def record(**region):
+        return EstimateRecord(hair=HairParams(), refinement=RefinementRecord(ran=True, region=Region(**region)))
+
+    assert reading_members(record(swatch_model="layered")) is None                   # assumed: any of the family
+    assert reading_members(record(swatch_model="deposited")) == {"deposited": 1.0}   # the frames read it
+    mapped = {"layered": 1.0, "tilted": 1.0, "loose": 0.85}
+    assert reading_members(record(swatch_model="layered", members=mapped)) == mapped
+    back = EstimateRecord.from_json(record(swatch_model="layered", members=mapped).to_json())
+    assert back.refinement.region.members == mapped

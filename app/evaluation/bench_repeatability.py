@@ -68,6 +68,7 @@ def bench_repeatability(args: argparse.Namespace) -> int:
                     session.close()
                 seconds = time.perf_counter() - start
                 truth = _placed_truth(params, seed, geometries)
+                print(f"{name}, placement {k + 1} of {placements}: estimated in {seconds:.1f} s", flush=True)
                 for geom in geometries:
                     mine = record.instrument_reading(geom).lab if record is not None and record.instrument else None
                     slot = readings.setdefault((name, geom), {"hairdigi": [], "instrument": []})
