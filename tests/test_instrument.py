@@ -290,3 +290,26 @@ def test_a_record_reads_through_the_structures_its_estimate_was_read_on():
     assert reading_members(record(swatch_model="layered", members=mapped)) == mapped
     back = EstimateRecord.from_json(record(swatch_model="layered", members=mapped).to_json())
     assert back.refinement.region.members == mapped
+
+
+def test_the_record_panel_and_the_library_show_the_instrument_reading(tmp_path):
+    from hairdigi.app.library.model import near_lab
+    from hairdigi.app.library.swatch_colour import ColourError
+    from hairdigi.app.library.view import compare
+    from hairdigi.app.review.text import instrument_lines
+
+    readings = read_instrument(HairParams(), curves=_curves(), intervals={"d/8 SCI": {"p68": 1.9, "p95": 2.2}})
+    lines = instrument_lines(EstimateRecord(hair=HairParams(), instrument=readings))
+    assert len(lines) == 3 and lines[0].startswith("instrument d/8 SCI D65/10°, 8 mm: L* ")
+    assert "within ΔE2000 1.90 in 68%" in lines[0] and "within" not in lines[2]
+    lib = _library(tmp_path)
+    swatches = lib.all()
+    assert near_lab(lib, "T-002", "d/8 SCI") == pytest.approx((40.0, 8.0, 12.0))       # a reference tress
+    with pytest.raises(ColourError, match="no d/8 SCE colour"):
+        near_lab(lib, "T-002", "d/8 SCE")
+    with pytest.raises(ColourError, match="neither #RRGGBB nor a swatch"):
+        near_lab(lib, "T-999", "d/8 SCI")
+    found = lib.find(np.array(near_lab(lib, "T-002", "d/8 SCI")), "d/8 SCI", k=3)
+    assert [s.capture_id for s, _ in found][0] == "T-002" and found[1][1] > 5
+    side = compare(swatches[0], swatches[1]).delta_e
+    assert set(side) == {"daylight", "studio", "d/8 SCI"} and side["d/8 SCI"] > 5

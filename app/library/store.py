@@ -24,7 +24,7 @@ from typing import Iterator
 
 import numpy as np
 
-from hairdigi.app.library.swatch_colour import ILLUMINANTS, delta_e
+from hairdigi.app.library.swatch_colour import COLOURS, delta_e
 from hairdigi.render.domain.errors import HairdigiError
 
 KINDS = ("capture", "estimate", "dye")   # dye: predictions of issue "Hair-dye development", same layout
@@ -696,8 +696,8 @@ class Library:
         swatch further than ``SL_MAX * d`` in L* cannot beat a distance ``d`` already found; the band
         of L* read widens until the k-th distance fits in it.
         """
-        if under not in ILLUMINANTS:
-            raise LibraryError(f"unknown light {under!r}; choose one of {', '.join(ILLUMINANTS)}")
+        if under not in COLOURS:
+            raise LibraryError(f"unknown light or reading {under!r}; choose one of {', '.join(COLOURS)}")
         lab = np.asarray(lab, float)
         if int(k) < 1:
             raise LibraryError(f"k {k}: ask for at least one match")
