@@ -313,3 +313,21 @@ def test_the_record_panel_and_the_library_show_the_instrument_reading(tmp_path):
     assert [s.capture_id for s, _ in found][0] == "T-002" and found[1][1] > 5
     side = compare(swatches[0], swatches[1]).delta_e
     assert set(side) == {"daylight", "studio", "d/8 SCI"} and side["d/8 SCI"] > 5
+
+
+def test_estimate_states_its_instrument_readings_for_the_observer_and_aperture_asked(tmp_path, capsys):
+    from hairdigi.app.cli import main
+    from hairdigi.render.domain.records import read_record
+    from hairdigi.resources import ROOT
+
+    image = ROOT / "samples" / "auburn-swatch.png"
+    ten, two = tmp_path / "ten.json", tmp_path / "two.json"
+    assert main(["estimate", str(image), "--no-refine", "--out", str(ten)]) == 0
+    assert capsys.readouterr().out.count("as an instrument reads it: ") == 3
+    assert main(["estimate", str(image), "--no-refine", "--observer", "2", "--aperture", "25", "--out", str(two)]) == 0
+    a, b = read_record(ten, EstimateRecord).instrument[0], read_record(two, EstimateRecord).instrument[0]
+    assert (a.observer, a.aperture_mm, b.observer, b.aperture_mm) == ("10", 8.0, "2", 25.0)
+    assert a.lab != b.lab and abs(a.lab[0] - b.lab[0]) < 2.0      # another observer, nearly the same lightness
+    with pytest.raises(SystemExit) as refused:        # argparse refuses it, naming the range
+        main(["estimate", str(image), "--no-refine", "--aperture", "40", "--out", str(two)])
+    assert refused.value.code == 2 and "outside [3, 25]" in capsys.readouterr().err

@@ -52,3 +52,22 @@ def add_declare_argument(p) -> None:
     p.add_argument("--declare", action="store_true", help="write --led, --sensor and --structure into the "
                    "session's rig profile (<session>/rig-profile.json), in place of what it declares; without it a "
                    "session's first run writes the profile, and a flag later overrides it for that command only")
+
+
+def add_instrument_arguments(p) -> None:
+    """``--observer`` and ``--aperture``: how the record's instrument readings are stated (``estimate``, ``rig``)."""
+    from hairdigi.app.cli import validation as v
+    from hairdigi.render.instrument import APERTURE_RANGE_MM, DEFAULT_APERTURE_MM
+
+    p.add_argument("--observer", choices=("10", "2"), default="10",
+                   help="the record's instrument readings (d/8 SCI, d/8 SCE, 45/0; D65) for the CIE 1964 10° observer "
+                        "(default) or the CIE 1931 2°")
+    p.add_argument("--aperture", type=v.float_in(*APERTURE_RANGE_MM), default=DEFAULT_APERTURE_MM, metavar="MM",
+                   help=f"the instrument's aperture on the swatch's centre, mm ({APERTURE_RANGE_MM[0]:g}-"
+                        f"{APERTURE_RANGE_MM[1]:g}; default {DEFAULT_APERTURE_MM:g}): a swatch's mean is the same "
+                        f"over any spot, so the reading states it")
+
+
+def instrument_options(args) -> dict:
+    """The instrument readings' options from ``add_instrument_arguments``'s flags."""
+    return {"observer": getattr(args, "observer", "10"), "aperture_mm": float(getattr(args, "aperture", 8.0))}

@@ -9,7 +9,7 @@ from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE
 
 
 def add_parser(sub) -> None:
-    from hairdigi.app.cli.arguments import add_structure_argument
+    from hairdigi.app.cli.arguments import add_instrument_arguments, add_structure_argument
 
     p = sub.add_parser("estimate", help="estimate hair parameters from an image")
     p.add_argument("image")
@@ -35,12 +35,14 @@ def add_parser(sub) -> None:
     p.add_argument("--sensor", type=v.camera_sensitivities, default=None, help="with --led: the camera's "
                    "sensitivities: nikon-5100, sigma-sdmerill, cie (the CIE observer), or a CSV of wavelength (nm), "
                    "r, g, b")
+    add_instrument_arguments(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_file
+    from hairdigi.app.cli.arguments import instrument_options
     from hairdigi.inference.instrument import with_instrument
     from hairdigi.inference.preprocess import Roi
     from hairdigi.render.domain.records import write_record
@@ -62,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
                                         structure=args.structure or DEFAULT_STRUCTURE)
     if args.calibration:    # the spectral world: the declared camera's reading, or an undeclared camera's metamerism
         record = in_spectral_world(record, estimate, args.calibration, args.led, args.sensor)
-    record = with_instrument(record)      # what the lab's colour instrument would read of the swatch
+    record = with_instrument(record, **instrument_options(args))   # what the lab's colour instrument would read
     write_record(args.out, record)
     p = estimate.params
     refined = estimate.refinement

@@ -9,7 +9,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hairdigi.app.cli import validation as v
-from hairdigi.app.cli.arguments import SPP, add_declare_argument, add_spectra_arguments, add_structure_argument
+from hairdigi.app.cli.arguments import (SPP, add_declare_argument, add_instrument_arguments, add_spectra_arguments,
+                                       add_structure_argument, instrument_options)
 from hairdigi.app.session.profile import RigProfile, merged, profile_path, read_profile, write_profile
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
 from hairdigi.render.swatch_family import STRUCTURES
@@ -300,7 +301,7 @@ def still_spectra(led: str | None, sensor: str | None):
 
 
 def report_still(session_folder: str | Path, still: str | Path, say=print, structure: str = DEFAULT_STRUCTURE,
-                 led: str | None = None, sensor: str | None = None) -> int:
+                 led: str | None = None, sensor: str | None = None, instrument: dict | None = None) -> int:
     """``hairdigi rig --still``: import a RAW still into the session, estimate it (``structure``: ``--structure``;
     ``led`` and ``sensor``, the declared spectra it is read under), and say what came out. No rig is opened, so the
     still's structure is not read from the rig's frames."""
@@ -313,7 +314,8 @@ def report_still(session_folder: str | Path, still: str | Path, say=print, struc
         except ModelError as exc:
             return str(exc)
 
-    result = import_still(session_folder, still, encoder, still_spectra(led, sensor), structure=structure)
+    result = import_still(session_folder, still, encoder, still_spectra(led, sensor), structure=structure,
+                          instrument=instrument)
     say(f"still: {result.image_path} (+ {result.meta_path.name}), copied before processing")
     from hairdigi.render.domain.records import CaptureRecord, read_record
 
@@ -369,6 +371,7 @@ def add_parser(sub) -> None:
     add_spectra_arguments(p)
     add_structure_argument(p, "how the session's estimates treat the swatch's")
     add_declare_argument(p)
+    add_instrument_arguments(p)
     p.add_argument("--hidden-structure", choices=STRUCTURES, default=None, metavar="NAME",
                    help="with --sim: the simulated swatch's physical structure (render.swatch_family: "
                    + ", ".join(STRUCTURES) + "; default layered, hairdigi's own); the truth is judged on its strands")
@@ -394,9 +397,10 @@ def run(args: argparse.Namespace) -> int:
         if args.declare:
             write_profile(args.session, profile)
         return report_still(args.session, args.still, structure=still_structure(profile.structure),
-                            led=profile.led, sensor=profile.sensitivities)
+                            led=profile.led, sensor=profile.sensitivities, instrument=instrument_options(args))
     profile = rig_profile(args, still=False)
     session = open_session(args)
+    session.instrument = instrument_options(args)
     try:
         if not profile_path(args.session).exists() or args.declare:
             write_profile(args.session, profile)   # declared once: the session's first run, or --declare

@@ -116,6 +116,9 @@ class RigSession:
         #: record carries its reading in the camera's RGB and colour under other lights; None on a real rig,
         #: its colour interval carries the metamerism of an undeclared camera
         self.spectra = spectra
+        #: how the records' instrument readings are stated (``inference.instrument.with_instrument``'s options:
+        #: observer, aperture_mm); empty: D65, 10°, 8 mm
+        self.instrument: dict = {}
         self.frames = FrameSource(camera)   # every read of the camera goes through here
         self.lights = lights
         self.folder = Path(folder)
@@ -361,7 +364,7 @@ class RigSession:
                       structure=self.structure)
         result.seconds = time.perf_counter() - start    # capture to parameters; the spectral reading follows
         if result.record is not None:
-            result.record = with_instrument(self.in_spectral_world(result.record, curve=result.curve))
+            result.record = with_instrument(self.in_spectral_world(result.record, curve=result.curve), **self.instrument)
         _write_result(self.folder, result, roi)
         return result
 
@@ -416,7 +419,7 @@ class RigSession:
         rig's lights and camera read the swatch's structure and shine as it is imported (``borrowed_reading``)."""
         borrowed = self.borrowed_reading() if self.structure is StructureMode.FAMILY else None
         return import_still(self.folder, path, self.encoder_or_reason, self.in_spectral_world, self.structure,
-                            borrowed)
+                            borrowed, self.instrument)
 
     def borrowed_reading(self):
         """The texture, and the structure and shine the rig's single-light frames read decisively, of the swatch on
@@ -589,7 +592,7 @@ class _native_stderr_silenced:
 
 def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
                  in_spectral_world: Callable[..., EstimateRecord] | None = None,
-                 structure: str = DEFAULT_STRUCTURE, borrowed=None) -> CaptureResult:
+                 structure: str = DEFAULT_STRUCTURE, borrowed=None, instrument: dict | None = None) -> CaptureResult:
     """A RAW still (DNG, CR2, NEF, ...) of the rig, taken with the chart in view, as a capture.
 
     The file is copied into the session first, untouched. Then rawpy decodes it (linear, the
@@ -639,7 +642,7 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
     if result.record is not None and in_spectral_world is not None:
         result.record = in_spectral_world(result.record, profile, result.curve)
     if result.record is not None:
-        result.record = with_instrument(result.record)
+        result.record = with_instrument(result.record, **(instrument or {}))
     _write_result(Path(folder), result, roi)
     return result
 
