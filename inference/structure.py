@@ -322,7 +322,7 @@ def toward_family(refinement, prior, view: View, settings: RefineSettings = Refi
     structure; ``misfits``, the single-light frames' undecided reading (None: none), is recorded with it;
     ``texture`` (``read_texture``), where it reads a class, weights the members the map averages.
     (Leaving out the members the frames rule out, misfit ten times the best's, helped the layered swatch and
-    hurt the deposited ones through the rig: ``packaging/evaluation/structures-heldout14/family_ruled_out_replay.*``
+    hurt the deposited ones through the rig: ``packaging/evaluation/structures-held-out-check/family_ruled_out_replay.*``
     and the manual's figures.) The family's curves render once per canonical view (``family_view``;
     cached)."""
     import time

@@ -18,7 +18,7 @@ from hairdigi.render.metrics import delta_e2000
 
 #: Judge renders: 64² at 64 spp with a common seed, so most noise cancels. On the layered swatch (8000
 #: thin fibres, sparse glints) 16 spp did not: the demo's copper estimate judged 0.68 with this seed and
-#: 0.26 with another, 0.44 / 0.37 at 128 spp (the rig's chain, session 8); 16 spp was chosen on the first swatch.
+#: 0.26 with another, 0.44 / 0.37 at 128 spp (the rig's chain on the layered swatch); 16 spp was chosen on the first swatch.
 JUDGE_SIZE, JUDGE_SPP, JUDGE_SEED = 64, 64, 424_242
 
 

@@ -1,7 +1,7 @@
-"""Careless and hostile input, fourth round (issue 45): the files a command writes, library addresses and
+"""Careless and hostile input, fourth round: the files a command writes, library addresses and
 their passwords, session records that lie, exported tables, stored text echoed to the terminal.
 
-One numbered class of the issue per section. Every refused case is one stderr line and exit 2, and leaves
+One numbered class of such input per section. Every refused case is one stderr line and exit 2, and leaves
 the working folder (and the library) as it was. Addresses of a PostgreSQL library point at a closed port
 of this machine, so the driver's own connection error is produced for real, at once.
 """

@@ -1,6 +1,6 @@
-"""Careless and hostile input, fourth round (issue 45): stills, spectra, light frames and the display.
+"""Careless and hostile input, fourth round: stills, spectra, light frames and the display.
 
-One numbered class of the issue per section. Most cases run the command line in this process (``main``);
+One numbered class of such input per section. Most cases run the command line in this process (``main``);
 the races and the display run real processes and real sockets. Every refused case is one stderr line and
 exit 2, and leaves the working folder byte for byte as it was. Shared helpers: ``tests/hostile.py``.
 """

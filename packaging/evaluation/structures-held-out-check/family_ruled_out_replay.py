@@ -2,8 +2,8 @@
 mean of the members the single-light frames do not rule out (misfit under R times the best's), R in RULES.
 
 Run from packaging/evaluation (about 30 minutes on 2 cores; the family's curves at the rig's pose cached):
-  python structures-heldout14/family_ruled_out_replay.py OUT.json structures-heldout13/structures_evaluation.json \
-      structures-heldout14/structures_evaluation.json
+  python structures-held-out-check/family_ruled_out_replay.py OUT.json structures-held-out-tuning/structures_evaluation.json \
+      structures-held-out-check/structures_evaluation.json
 Rows "decided" take the read mode's figures, "reread" the recorded family figures (the out-of-reach rule read them),
 "mapped" are rendered again on their hidden strands at the evaluation's size and samples. The summary is in
 family_ruled_out_replay.txt ("all" is the whole family, the rule before this one)."""

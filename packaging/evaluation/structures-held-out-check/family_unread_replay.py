@@ -3,8 +3,8 @@ family's mean, rendered on its hidden strands. Rows the ruled-out replay already
 its figures.
 
 Run from packaging/evaluation after family_ruled_out_replay.py (about 15 minutes on 2 cores):
-  python structures-heldout14/family_unread_replay.py OUT.json family_ruled_out_replay.json \
-      structures-heldout13/structures_evaluation.json structures-heldout14/structures_evaluation.json
+  python structures-held-out-check/family_unread_replay.py OUT.json family_ruled_out_replay.json \
+      structures-held-out-tuning/structures_evaluation.json structures-held-out-check/structures_evaluation.json
 Its last two lines (family_unread_replay.txt) are the shipped "family_unread" interval and the figures on other
 structures. hairdigi evaluate --structures now measures this column itself ("family_unread")."""
 import json, sys

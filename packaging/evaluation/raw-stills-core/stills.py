@@ -1,4 +1,4 @@
-"""RAW stills only, as evaluate --rig makes them (session 18, issue 28): python stills.py OUT.json structure hidden_structures(comma or 'layered')"""
+"""RAW stills only, as evaluate --rig makes them (through the rig session's import_still): python stills.py OUT.json structure hidden_structures(comma or 'layered')"""
 import sys, tempfile, time, json
 from pathlib import Path
 import numpy as np

@@ -1,4 +1,4 @@
-"""Session 18 (issue 28): RAW stills through the simulated rig, estimated on the swatch core.
+"""RAW stills through the simulated rig, estimated on the swatch core (the study behind `inference.preprocess.swatch_core`).
 
 stills.py: the rig evaluation's ten stills alone (python stills.py OUT.json MODE STRUCTURES): stills_drawn_core.json
 (the core, mapped to the family's mean), stills_drawn_borrow.json (the rig's reading borrowed).
