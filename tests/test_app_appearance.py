@@ -12,10 +12,10 @@ import threading
 import numpy as np
 import pytest
 
+from hairdigi.app.models.work import run_now
 from hairdigi.app.review import model as review
-from hairdigi.app.review.events import LightView
+from hairdigi.app.review.payloads import LightView
 from hairdigi.app.review.previews import PreviewSettings
-from hairdigi.app.review.work import run_now
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.inference.calibration import apply_profile
 from hairdigi.inference.encoder import Encoder

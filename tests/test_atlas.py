@@ -86,8 +86,8 @@ def test_a_fresh_sessions_first_capture_of_a_deposited_swatch_renders_no_table_a
     estimate takes its curves and shine tables from the atlas (nothing rendered into the cache), and the twin,
     rendered as the review shows it (on the structure read, at the sigma_a fitted there), matches the capture
     where the family's answer drawn on hairdigi's layered swatch would not."""
-    from hairdigi.app.review.events import Shown, Stage
-    from hairdigi.app.review.previews import twin_view
+    from hairdigi.app.review.payloads import Shown
+    from hairdigi.app.review.previews import Stage, twin_view
     from hairdigi.app.session.rig_session import RigSession
     from hairdigi.inference.refine import fitted_pixels
     from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode

@@ -27,8 +27,8 @@ def wheel(tmp_path_factory) -> Path:
 def test_the_wheel_installs_one_top_level_package(wheel):
     names = zipfile.ZipFile(wheel).namelist()
     assert {n.split("/")[0] for n in names if not n.split("/")[0].endswith(".dist-info")} == {"hairdigi"}
-    for sub in ("app", "app/cli", "app/dye", "app/evaluation", "app/gui", "app/library", "app/review", "app/session",
-                "hardware", "inference", "render", "resources"):
+    for sub in ("app", "app/cli", "app/dye", "app/evaluation", "app/gui", "app/library", "app/models", "app/review",
+                "app/session", "hardware", "inference", "render", "resources"):
         assert f"hairdigi/{sub}/__init__.py" in names
     assert "hairdigi/resources/models/encoder.onnx" in names
     assert not [n for n in names if n.endswith((".log", ".pyc"))]
@@ -51,16 +51,18 @@ def site(wheel, tmp_path_factory) -> Path:
 def test_import_contracts_hold_on_the_built_package(site):
     result = lint_imports(site)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-2000:]
-    assert "5 kept, 0 broken" in result.stdout
+    assert "6 kept, 0 broken" in result.stdout
     assert "Analyzed 0 files" not in result.stdout
 
 
 def test_a_stray_import_breaks_the_contracts(site, tmp_path):
-    """The contracts are rules: a copy of the package with an ``app.review.model -> PySide6``, a
-    ``render -> inference``, an ``app.gui -> app.cli`` and an ``app.session -> app.cli`` import (modules no
-    contract lists) fails them."""
+    """The contracts are rules: a copy of the package with an ``app.review.model -> PySide6``, an
+    ``app.models.panel -> PySide6``, a ``render -> inference``, an ``app.gui -> app.cli`` and an
+    ``app.session -> app.cli`` import (modules no contract lists) fails them."""
     shutil.copytree(site / "hairdigi", tmp_path / "hairdigi")
     with open(tmp_path / "hairdigi" / "app" / "review" / "model.py", "a") as f:
+        f.write("\nimport PySide6  # stray\n")
+    with open(tmp_path / "hairdigi" / "app" / "models" / "panel.py", "a") as f:
         f.write("\nimport PySide6  # stray\n")
     with open(tmp_path / "hairdigi" / "render" / "metrics.py", "a") as f:
         f.write("\nfrom hairdigi.inference import estimate  # stray\n")
@@ -69,8 +71,9 @@ def test_a_stray_import_breaks_the_contracts(site, tmp_path):
     with open(tmp_path / "hairdigi" / "app" / "session" / "blockers.py", "a") as f:
         f.write("\nimport hairdigi.app.cli.validation  # stray\n")
     result = lint_imports(tmp_path)
-    assert result.returncode != 0 and "3 broken" in result.stdout, result.stdout[-3000:]
+    assert result.returncode != 0 and "4 broken" in result.stdout, result.stdout[-3000:]
     assert "hairdigi.app.review.model -> PySide6" in result.stdout
+    assert "hairdigi.app.models.panel -> PySide6" in result.stdout
     assert "hairdigi.render.metrics -> hairdigi.inference.estimate" in result.stdout
     assert "hairdigi.app.gui.images -> hairdigi.app.cli" in result.stdout
     assert "hairdigi.app.session.blockers -> hairdigi.app.cli.validation" in result.stdout

@@ -231,7 +231,7 @@ def test_the_dye_dock_offers_a_new_capture_once_the_window_has_saved_it(tmp_path
 # --- the models without Qt -----------------------------------------------------------------------------
 from hairdigi.app.dye import model as dm  # noqa: E402
 from hairdigi.app.library import model as lm  # noqa: E402
-from hairdigi.app.review.work import run_now  # noqa: E402
+from hairdigi.app.models.work import run_now  # noqa: E402
 
 SMALL = dm.DyeSettings(preview_size=24, preview_spp=2, hairstyle_size=24, hairstyle_spp=1, card_size=16, card_spp=2)
 

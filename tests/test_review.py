@@ -8,10 +8,11 @@ import threading
 import numpy as np
 import pytest
 
+from hairdigi.app.models.events import Status
+from hairdigi.app.models.work import run_now
 from hairdigi.app.review import model as review
-from hairdigi.app.review.events import Captured, Events, Shown, Status
+from hairdigi.app.review.payloads import Captured, Events, Shown
 from hairdigi.app.review.previews import PreviewSettings, Stage, TwinPreview
-from hairdigi.app.review.work import run_now
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.inference.encoder import Encoder
 from hairdigi.render.domain.estimate_parts import ParameterInterval, SpectralInterval, Uncertainty

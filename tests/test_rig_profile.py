@@ -1,4 +1,4 @@
-"""The rig profile (issue 43): declared once in the session, read by ``rig`` (live and ``--still``) and by
+"""The rig profile: declared once in the session, read by ``rig`` (live and ``--still``) and by
 ``estimate`` with the session's calibration; a flag overrides it for one command and says so."""
 import argparse
 import json
@@ -31,8 +31,9 @@ def stills(monkeypatch) -> list[dict]:
     """``rig --still``'s reading, recorded instead of run: the structure and spectra it is given."""
     calls: list[dict] = []
 
-    def report_still(session, still, say=print, structure="assumed", led=None, sensor=None):
-        calls.append({"structure": structure, "led": led, "sensor": sensor})
+    def report_still(session, still, say=print, structure="assumed", led=None, sensor=None, instrument=None):
+        calls.append({"structure": structure, "led": led, "sensor": sensor, **({"instrument": instrument}
+                                                                               if instrument != DEFAULT_READING else {})})
         return 0
 
     monkeypatch.setattr(rig_cli, "report_still", report_still)
@@ -121,6 +122,15 @@ def test_a_real_rig_session_without_flags_writes_an_undeclared_profile(ws, live)
 
 
 # --- rig --still -----------------------------------------------------------------------------------------
+#: The instrument readings' options a still is read with unless told (D65 is the only light: 10°, 8 mm).
+DEFAULT_READING = {"observer": "10", "aperture_mm": 8.0}
+
+
+def test_a_still_states_its_instrument_readings_as_asked(ws, stills):
+    assert main(["rig", "--still", "grey.dng", "--session", "s", "--observer", "2", "--aperture", "20"]) == 0
+    assert stills[-1]["instrument"] == {"observer": "2", "aperture_mm": 20.0}
+
+
 def test_a_still_is_read_with_the_sessions_declared_camera_leds_and_structure(ws, capsys, stills):
     write_profile(ws / "s", LAB)
     assert main(["rig", "--still", "grey.dng", "--session", "s"]) == 0

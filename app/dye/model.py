@@ -1,9 +1,9 @@
 """The Dye panel's model, free of Qt: the session's estimated captures, the pairs, the saved dyes, and the
 work behind them (reading the records, characterising, previews and shade cards).
 
-The science is ``inference/dye.py`` and ``inference/dye_card.py``. Widgets subscribe to the model's
-events (``model.events.preview.connect(callback)``) and run its works in their workers (see
-``app/review/panel_model.py``); nothing here reads a file, renders or fits on the caller's thread.
+The science is ``inference/dye.py`` and ``inference/dye_card.py``. The model is a ``PanelModel``
+(``app/models/``): widgets subscribe to its events (``model.events.preview.connect(callback)``) and run
+its works in their workers; nothing here reads a file, renders or fits on the caller's thread.
 """
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.review.events import EventGroup, Status
-from hairdigi.app.review.panel_model import PanelModel
-from hairdigi.app.review.work import Work
+from hairdigi.app.models.events import EventGroup, Status
+from hairdigi.app.models.panel import PanelModel
+from hairdigi.app.models.work import Work
 from hairdigi.render.domain.dye_record import DyeRecord
 from hairdigi.render.domain.session_folder import SessionFolder, capture_id_of
 

@@ -28,7 +28,10 @@ SPOTS = 3
 #: The rig evaluation's casts and exposures, less the over-exposures an operator is told to undo (+0.5 EV
 #: clips platinum and saturated red): the readings are judged, not the exposure check.
 EXPOSED = tuple(c for c in CONDITIONS if c[1] <= 0.0)
-#: A layout of the hidden swatch's fibres that no instrument table or family curve was rendered on.
+#: The first hidden swatch's fibre layout (strand seed); the k-th swatch's is ``HIDDEN_LAYOUT + k``: layouts no
+#: instrument table or family curve was rendered on (those are 0 and 1), one a swatch, so that one layout's
+#: luck is not every swatch's (a deposited swatch's 8 mm spot reads L* 42.3-43.6 over layouts 0-7; layout 5,
+#: the one every swatch first shared, 43.55).
 HIDDEN_LAYOUT = 5
 
 
@@ -42,13 +45,14 @@ class InstrumentSet:
     geometries: tuple[str, ...] = ("d/8 SCI", "d/8 SCE", "45/0")
 
 
-def truth_readings(params, structure: str, geometries, spp: int, size: int) -> dict[str, np.ndarray]:
-    """The virtual instrument's CIELAB of the hidden swatch in each geometry (D65, 10°)."""
+def truth_readings(params, structure: str, geometries, spp: int, size: int,
+                   layout: int = HIDDEN_LAYOUT) -> dict[str, np.ndarray]:
+    """The virtual instrument's CIELAB of the hidden swatch (its fibres in ``layout``) in each geometry (D65, 10°)."""
     from hairdigi.render.instrument import lab_of_tristimulus, spectral_tristimulus
     from hairdigi.render.spectra import hair_sigma_a_spectrum
     from hairdigi.render.swatch_family import structure_strands
 
-    strands = structure_strands(structure, 8000, seed=HIDDEN_LAYOUT)
+    strands = structure_strands(structure, 8000, seed=layout)
     sigma = hair_sigma_a_spectrum(params)
     return {g: lab_of_tristimulus(spectral_tristimulus(strands, sigma, g, spp=spp, size=size, spots=SPOTS))
             for g in geometries}
@@ -96,7 +100,7 @@ def evaluate_instrument(out_dir: str | os.PathLike, config: InstrumentSet = Inst
             cast, ev = EXPOSED[k % len(EXPOSED)]
             session = RigSession.simulated_rig(root / f"s{k}", hidden=params, spp=config.rig_spp,
                                                camera_model=CameraModel(exposure_ev=ev, cast=cast), encoder=encoder,
-                                               swatch_model=structure, strand_seed=HIDDEN_LAYOUT)
+                                               swatch_model=structure, strand_seed=HIDDEN_LAYOUT + k)
             start = time.perf_counter()
             try:
                 session.calibrate()
@@ -104,14 +108,16 @@ def evaluate_instrument(out_dir: str | os.PathLike, config: InstrumentSet = Inst
             finally:
                 session.close()
             seconds = time.perf_counter() - start
-            head = {"hidden": name, "structure": structure, "cast": "/".join(f"{c:g}" for c in cast), "exposure_ev": ev}
+            head = {"hidden": name, "structure": structure, "layout": HIDDEN_LAYOUT + k,
+                    "cast": "/".join(f"{c:g}" for c in cast), "exposure_ev": ev}
             record = result.record
             if record is None or not record.instrument:
                 rows.append({**head, "error": "; ".join(str(b) for b in result.blocked) or "no instrument reading"})
                 bar.update()
                 continue
             start_truth = time.perf_counter()
-            truth = truth_readings(params, structure, config.geometries, config.truth_spp, config.truth_size)
+            truth = truth_readings(params, structure, config.geometries, config.truth_spp, config.truth_size,
+                                   HIDDEN_LAYOUT + k)
             truth_seconds = time.perf_counter() - start_truth
             lab_rows += lab_csv_rows(result.capture_id, truth, rng)
             for geom in config.geometries:
@@ -151,7 +157,8 @@ def summarise(rows: list[dict], config: InstrumentSet) -> dict:
             "by_geometry": by_geometry, "by_structure": by_structure,
             "by_case": {k: quantiles(v) for k, v in by_case.items()}, "bias": bias,
             "settings": {"random": config.random, "structures": list(config.structures), "rig_spp": config.rig_spp,
-                         "truth_spp": config.truth_spp, "truth_size": config.truth_size, "layout": HIDDEN_LAYOUT}}
+                         "truth_spp": config.truth_spp, "truth_size": config.truth_size,
+                         "layouts": f"{HIDDEN_LAYOUT} + k"}}
 
 
 def ship_intervals(summary: dict, path: str | os.PathLike | None = None) -> Path:

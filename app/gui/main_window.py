@@ -23,15 +23,15 @@ from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QFileDialog, 
                                QSplitter, QVBoxLayout, QWidget)
 
 from hairdigi.app.review import model as review, previews
-from hairdigi.app.review.events import (Calibrated, Captured, FrameCheck, HairModel, LightView, Lights, Records,
-                                        Shown, StrandPreview, Thumbnail)
+from hairdigi.app.review.payloads import (Calibrated, Captured, FrameCheck, HairModel, LightView, Lights, Records,
+                                          Shown, StrandPreview, Thumbnail)
 from hairdigi.app.session import rig_session as rs
 from hairdigi.app.gui.images import DELTA_E_MAX, colour_scale, delta_e_colours, overlay, to_pixmap
 from hairdigi.app.gui.workers import POOL, FrameFeed, Task, start
 from hairdigi.app.review.previews import HairstylePass, Stage, TwinPreview, hair_colour_rgb8
 from hairdigi.app.review.model import HAIRSTYLE_LIGHTS
 from hairdigi.app.review.text import APPEARANCE_LABELS, light_name
-from hairdigi.app.review.work import Work
+from hairdigi.app.models.work import Work
 from hairdigi.hardware.exposure import ExposureStatus
 from hairdigi.render.domain.bounds import ENVIRONMENTS
 from hairdigi.render.domain.params import VECTOR_FIELDS

@@ -1,4 +1,9 @@
-"""Work off the UI thread: a cancellable task runner, and the live feed relayed from the frame source."""
+"""Work off the UI thread: a cancellable task runner, and the live feed relayed from the frame source.
+
+The Qt side of the worker protocol only: how a model's ``Work`` is stepped (what a cancel stops, what
+``must_start`` starts) is ``app/models/work.py``'s ``drive``, which ``run_now`` shares; here it runs in a
+thread pool and reports through signals.
+"""
 from __future__ import annotations
 
 import inspect
@@ -8,6 +13,7 @@ from typing import Callable
 
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, Signal
 
+from hairdigi.app.models.work import Work, drive
 from hairdigi.render.domain.errors import HairdigiError
 
 
@@ -21,11 +27,11 @@ class TaskSignals(QObject):
 class Task(QRunnable):
     """Runs ``fn()`` in a thread pool (:data:`POOL` for the window), napari ``thread_worker`` style.
 
-    When ``fn()`` returns a generator, each value it yields is emitted as ``progress``, and
-    :meth:`cancel` stops it at its next yield (the generator is closed there); its return value is
-    emitted as ``done`` unless cancelled. A plain function's return value is ``done``. With ``must_start``
-    the generator takes its first step even when cancelled before a worker picked it up (a capture the
-    operator asked for is taken, and its generator then runs it to its end).
+    When ``fn()`` returns a generator, it is stepped by ``app/models/work.py``'s ``drive``: each value it
+    yields is emitted as ``progress``, and :meth:`cancel` stops it at its next yield (the generator is
+    closed there); its return value is emitted as ``done`` unless cancelled. A plain function's return
+    value is ``done``. With ``must_start`` the generator takes its first step even when cancelled before a
+    worker picked it up (a capture the operator asked for is taken, and its generator then runs it to its end).
     """
 
     def __init__(self, fn: Callable[[], object], name: str = "task", must_start: bool = False) -> None:
@@ -48,7 +54,7 @@ class Task(QRunnable):
         try:
             result = self.fn()
             if inspect.isgenerator(result):
-                result = self._iterate(result)
+                result = drive(result, self.signals.progress.emit, self._cancel.is_set, self.must_start)
             if not self._cancel.is_set():
                 self.signals.done.emit(result)
         except HairdigiError as exc:        # an expected failure: its message names the problem and the fix
@@ -59,20 +65,6 @@ class Task(QRunnable):
                                      f"traceback is in the log)")
         finally:
             self.signals.finished.emit()
-
-    def _iterate(self, generator) -> object:
-        first = True
-        while True:
-            if self._cancel.is_set() and not (first and self.must_start):      # stop at a yield
-                generator.close()
-                return None
-            first = False
-            try:
-                value = next(generator)
-            except StopIteration as stop:
-                return stop.value
-            if not self._cancel.is_set():
-                self.signals.progress.emit(value)
 
 
 #: The window's workers. More threads than cores: most tasks wait (on Mitsuba's own thread pool, the
@@ -88,7 +80,7 @@ def start(task: Task, pool: QThreadPool | None = None) -> Task:
 
 
 class Jobs:
-    """A view's running model works (``review.Work``), at most one per name: a new one cancels the one it
+    """A view's running model works (``Work``), at most one per name: a new one cancels the one it
     replaces. What a work yields and returns goes to ``apply`` (the model's) on the UI thread, a failure's
     one line to ``failed``, and its ``ended`` runs there when it is over. Each task is kept until it
     finishes (a :class:`Task` does not delete itself); once ``owner`` is destroyed, every task is
@@ -103,7 +95,7 @@ class Jobs:
         if owner is not None:
             owner.destroyed.connect(lambda *_: self.close())
 
-    def run(self, name: str | None, work) -> Task | None:
+    def run(self, name: str | None, work: Work | None) -> Task | None:
         """Run ``work`` as the job ``name``, or as one no other replaces (``name`` None); ``work`` None:
         only cancel the job ``name``."""
         old = self.named.pop(name, None) if name is not None else None

@@ -2,10 +2,10 @@
 swatches it found, the chosen ones compared, their captured images, and the work behind them
 (library queries, image reads, imports and exports).
 
-The library is ``app/library/store.py``; what a row shows is ``app/library/view.py``. Widgets subscribe to
-the model's events and run its works in their workers (see ``app/review/panel_model.py``): nothing here
-queries the library or reads a file on the caller's thread. The works share the panel's one
-connection, one at a time (a lock); imports open their own. A newer query supersedes an older one:
+The library is ``app/library/store.py``; what a row shows is ``app/library/view.py``. The model is a
+``PanelModel`` (``app/models/``): widgets subscribe to its events and run its works in their workers;
+nothing here queries the library or reads a file on the caller's thread. The works share the panel's
+one connection, one at a time (a lock); imports open their own. A newer query supersedes an older one:
 its result is dropped when it comes back (a stale result never overwrites a newer one).
 """
 from __future__ import annotations
@@ -19,11 +19,11 @@ from typing import Iterator
 import numpy as np
 
 from hairdigi.app.library import view
-from hairdigi.app.review.events import EventGroup, Status
 from hairdigi.app.library.store import Library, LibraryError, Swatch, redact
-from hairdigi.app.review.panel_model import PanelModel
-from hairdigi.app.review.work import Work
 from hairdigi.app.library.swatch_colour import COLOURS, ILLUMINANTS, ColourError, hex_lab
+from hairdigi.app.models.events import EventGroup, Status
+from hairdigi.app.models.panel import PanelModel
+from hairdigi.app.models.work import Work
 from hairdigi.render.domain.errors import HairdigiError
 
 __all__ = ["LibraryModel", "Query", "Rows", "Selection", "SwatchImage", "Imported", "Exported", "Events",

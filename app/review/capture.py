@@ -10,7 +10,7 @@ from typing import Generator
 
 import numpy as np
 
-from hairdigi.app.review.events import Captured, FirstLook, FrameCheck, Warmed
+from hairdigi.app.review.payloads import Captured, FirstLook, FrameCheck, Warmed
 from hairdigi.app.review.previews import PassTag, PreviewSettings, hairstyle_passes, twin_passes, twin_view
 from hairdigi.app.review.reads import read_capture, read_records
 from hairdigi.app.session import rig_session as rs

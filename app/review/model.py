@@ -5,15 +5,16 @@ own calibration profile), its parameters, the twin preview (real, synthetic raw 
 ΔE2000 map, the mean-colour ΔE2000), the hairstyle choice, camera orbit and passes, the strand
 preview, the lights and the feed rate, and the light the capture and its twin are compared under (all
 lights, or one alone: :meth:`ReviewModel.set_light_view`). Widgets subscribe to its typed events
-(``app/review/events.py``: ``model.events.twin.connect(callback)``) and read its views
+(``app/review/payloads.py``: ``model.events.twin.connect(callback)``) and read its views
 (:meth:`ReviewModel.parameter_view`, written by ``app/review/text.py``).
 
-Everything slow is a ``work.Work`` a worker runs off the UI thread: reading the records, a capture and
-the thumbnails (``reads.py``, ``thumbnails.py``), the capture and warm-up (``capture.py``), the
-previews. Its values come back to :meth:`ReviewModel.apply` on the model's thread, the only thread
-that changes the model's state; it stops at a yield when cancelled, and ``Work.ended`` runs on the
-model's thread at the end. A new capture, selection or parameters bump the model's generation: stale
-work stops before its next pass, and whatever it still yields is dropped.
+It is a :class:`~hairdigi.app.models.panel.PanelModel` (``app/models/``), as the Dye and Library panels'
+models are: everything slow is a ``Work`` a worker runs off the UI thread: reading the records, a capture
+and the thumbnails (``reads.py``, ``thumbnails.py``), the capture and warm-up (``capture.py``), the
+previews. Its values come back to ``apply`` on the model's thread, the only thread that changes the
+model's state; it stops at a yield when cancelled, and ``Work.ended`` runs on the model's thread at the
+end. A new capture, selection or parameters bump the generation of the work they make stale: stale work
+stops before its next pass, and whatever it still yields is dropped.
 
 The order after a capture: the capture's work yields the encoder's estimate (the first look, from the
 session's ``on_encoder_estimate`` hook) and its first twin and hairstyle passes, then the refined
@@ -29,10 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.app.models.events import Status
+from hairdigi.app.models.panel import PanelModel
+from hairdigi.app.models.work import Work, returns
 from hairdigi.app.review.capture import capture_passes, check_frame, read_back, warm_scenes
-from hairdigi.app.review.events import (KEYS, CaptureRead, Calibrated, Captured, Display, Entry, Events, FeedRate,
-                                        FirstLook, FrameCheck, HairModel, LightView, Lights, Problem, Records, Shown,
-                                        Status, StrandPreview, Thumbnail, View, Warmed, Warnings)
+from hairdigi.app.review.payloads import (KEYS, CaptureRead, Calibrated, Captured, Display, Entry, Events, FeedRate,
+                                          FirstLook, FrameCheck, HairModel, LightView, Lights, Problem, Records, Shown,
+                                          StrandPreview, Thumbnail, View, Warmed, Warnings)
 from hairdigi.app.review.previews import (HairstylePass, PassTag, PreviewSettings, Stage, TwinPreview,
                                           hairstyle_passes, orbit_pose, scalp_linear, scene_appearance,
                                           strand_colour, twin_passes, twin_view)
@@ -40,7 +44,6 @@ from hairdigi.app.review.reads import read_capture, read_hair_model, read_record
 from hairdigi.app.review.text import (ParameterView, as_profile, calibration_text, light_name, nonfinite_warning,
                                       parameter_view)
 from hairdigi.app.review.thumbnails import thumbnail_work
-from hairdigi.app.review.work import Cancelled, Work, returns
 from hairdigi.app.session import rig_session as rs
 from hairdigi.render import denoise as dn
 from hairdigi.render.domain.bounds import ENVIRONMENTS, HAIRSTYLES, ILLUMINANTS, SceneKind
@@ -64,13 +67,15 @@ class ReviewError(HairdigiError, ValueError):
     """What the review cannot do for the operator now (nothing to export yet), with what to do."""
 
 
-class ReviewModel:
+class ReviewModel(PanelModel):
     """The review state of one rig session, and the work that updates it (see the module's note)."""
 
+    Events = Events
+
     def __init__(self, session: rs.RigSession, settings: PreviewSettings | None = None) -> None:
+        super().__init__()
         self.session = session
         self.settings = settings or PreviewSettings()
-        self.events = Events()
         self.records: list[Entry] = []
         self.thumbnails: dict[str, np.ndarray | None] = {}
         self.shown: Shown | None = None
@@ -87,8 +92,8 @@ class ReviewModel:
         self.show_denoised = self.settings.denoise and dn.available()
         self.twin_renderer = Renderer(max_cached=4)      # the twin at each scale
         self.style_renderer = Renderer(max_cached=4)
-        self._thread = threading.get_ident()       # the one thread that changes this state
-        self._generation = {"twin": 0, "hairstyle": 0, "records": 0, "select": 0}
+        # the kinds of work a generation makes stale, there before any work reads them from its thread
+        self._generation.update(dict.fromkeys(("twin", "hairstyle", "records", "select"), 0))
         self._twin_state = threading.Condition()
         self._twin_ready = 0                    # the twin generation that is clean (or done): the hairstyle waits for it
         self._capturing = False
@@ -97,20 +102,7 @@ class ReviewModel:
         self._checking = False
         self._feed_fps = self.settings.feed_fps
 
-    def _owner(self) -> None:
-        if threading.get_ident() != self._thread:
-            raise RuntimeError("the review model's state changes on its own thread only: hand work results "
-                               "to apply() there")
-
-    # -- generations: what makes running work stale ------------------------------------------
-    def _bump(self, *kinds: str) -> int:
-        for kind in kinds:
-            self._generation[kind] += 1
-        return self._generation[kinds[-1]]
-
-    def _stale(self, kind: str, generation: int) -> Cancelled:
-        return lambda: self._generation[kind] != generation
-
+    # -- the twin goes first: the hairstyle and the 3-D view wait until it is clean -------------
     def _twin_is_ready(self, generation: int) -> None:
         with self._twin_state:
             self._twin_ready = max(self._twin_ready, generation)
@@ -122,8 +114,8 @@ class ReviewModel:
             self._twin_state.wait_for(lambda: self._twin_ready >= self._generation["twin"], timeout_s)
 
     def stop(self) -> None:
-        """Make all running preview work stale (closing the window)."""
-        self._bump("twin", "hairstyle")
+        """Make all running work stale (closing the window), and let no one wait for the twin."""
+        super().stop()
         self._twin_is_ready(self._generation["twin"])
 
     # -- the live feed and the lights ----------------------------------------------------------
@@ -175,7 +167,7 @@ class ReviewModel:
         return Work("records", returns(lambda: read_records(folder, generation)))
 
     def _apply_records(self, records: Records) -> None:
-        if records.generation and records.generation != self._generation["records"]:
+        if records.generation and not self._current("records", records.generation):
             return
         for line in records.left_out:
             self.events.error.emit(Problem(line))
@@ -194,7 +186,7 @@ class ReviewModel:
 
     def _apply_read(self, read: CaptureRead) -> None:
         """Review the capture read: the same estimate again (a reload) keeps the previews running."""
-        if read.generation and read.generation != self._generation["select"]:
+        if read.generation and not self._current("select", read.generation):
             return
         if read.problems:
             self.events.error.emit(Problem("; ".join(read.problems)))
@@ -224,10 +216,10 @@ class ReviewModel:
         if previews:
             self.events.parameters.emit(shown)
 
-    def _current(self, payload, kind: str, showing) -> bool:
+    def _shows(self, payload, kind: str, showing) -> bool:
         """A pass is shown when its work is current, or when it is the first pass of the shown capture
         (a first-look pass that finished after the refined estimate came beats an empty panel)."""
-        if payload.generation == self._generation[kind]:
+        if self._current(kind, payload.generation):
             return True
         return self.shown is not None and payload.key == self.shown.key and showing is None
 
@@ -459,22 +451,17 @@ class ReviewModel:
         session = self.session
         return Work("calibration", returns(lambda: Calibrated(as_profile(session.calibrate()))))
 
-    # -- results back from work (the model's thread) --------------------------------------------
-    def apply(self, payload: object) -> None:
-        """Store what a work yielded or returned, and emit its event; stale passes are dropped."""
-        self._owner()
-        if payload is None:
-            return
-        handler = self._HANDLERS.get(type(payload))
-        if handler is None:
-            raise TypeError(f"the review model has no use for {type(payload).__name__}")
-        handler(self, payload)
+    # -- results back from work (the model's thread: PanelModel.apply hands them here) ---------
+    def show_status(self, text: str) -> None:
+        """The status line: the review's ``status`` event carries a :class:`Status` (the panels' a str)."""
+        self.status = text
+        self.events.status.emit(Status(text))
 
     def _apply_twin(self, t: TwinPreview) -> None:
-        if not self._current(t, "twin", self.twin):
+        if not self._shows(t, "twin", self.twin):
             return
         self.twin = t
-        if t.clean_enough and t.stage == Stage.REFINED and t.generation == self._generation["twin"]:
+        if t.clean_enough and t.stage == Stage.REFINED and self._current("twin", t.generation):
             self._twin_is_ready(t.generation)   # clean: the hairstyle's passes may take turns with the twin
             self._update_feed()
         if t.nonfinite:
@@ -482,7 +469,7 @@ class ReviewModel:
         self.events.twin.emit(t)
 
     def _apply_hairstyle(self, p: HairstylePass) -> None:
-        if not self._current(p, "hairstyle", self.hairstyle):
+        if not self._shows(p, "hairstyle", self.hairstyle):
             return
         self.hairstyle = p
         if p.nonfinite:
@@ -519,7 +506,7 @@ class ReviewModel:
 
     def _apply_hair_model(self, model: HairModel) -> None:
         self.events.hair_model.emit(model)
-        self.events.status.emit(Status(model.summary))
+        self.show_status(model.summary)
         self.set_view(hair_file=model.path)
 
     def _apply_frame_check(self, check: FrameCheck) -> None:
@@ -530,7 +517,7 @@ class ReviewModel:
 
     def _apply_warmed(self, warmed: Warmed) -> None:
         parts = ", ".join(f"{k} {v:.1f} s" for k, v in warmed.seconds.items())
-        self.events.status.emit(Status(f"previews ready ({parts})"))
+        self.show_status(f"previews ready ({parts})")
         self.events.warmed.emit(warmed)
 
     def _apply_calibrated(self, calibrated: Calibrated) -> None:

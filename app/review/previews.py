@@ -15,6 +15,7 @@ from typing import Callable, Iterator
 
 import numpy as np
 
+from hairdigi.app.models.work import Cancelled
 from hairdigi.render import denoise as dn
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance
 from hairdigi.render.domain.params import HairParams
@@ -24,7 +25,6 @@ from hairdigi.render.metrics import delta_e_map, mean_colour_delta_e
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
 from hairdigi.render.domain.text_enum import TextEnum
-from hairdigi.app.review.work import Cancelled
 
 
 class Stage(TextEnum):

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.review.events import CaptureRead, Entry, HairModel, Problem, Records
+from hairdigi.app.review.payloads import CaptureRead, Entry, HairModel, Problem, Records
 from hairdigi.app.session import rig_session as rs
 from hairdigi.render.domain.records import EstimateRecord
 from hairdigi.render.srgb import linear_to_srgb8

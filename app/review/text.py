@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from hairdigi.app.review.events import Shown
+from hairdigi.app.review.payloads import Shown
 from hairdigi.app.review.previews import Stage
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, AppearanceEstimate
 from hairdigi.render.domain.estimate_parts import Uncertainty

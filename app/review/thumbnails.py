@@ -5,8 +5,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.review.events import Entry, Thumbnail
-from hairdigi.app.review.work import Work
+from hairdigi.app.models.work import Work
+from hairdigi.app.review.payloads import Entry, Thumbnail
 from hairdigi.render.domain.session_folder import SessionFolder
 
 

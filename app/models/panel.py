@@ -1,11 +1,12 @@
-"""What the Dye and Library panels' models share, free of Qt: events, one owner thread, and generations.
+"""What every panel's model shares, free of Qt: events, one owner thread, generations, and ``apply``.
 
-A panel's model holds its state and hands out its slow work as :class:`hairdigi.app.review.work.Work` (a
-generator function: its yields are progress, its return the result). A worker runs the work and hands
-each value to :meth:`PanelModel.apply` on the model's thread, the only thread that changes the
-model's state; :func:`hairdigi.app.review.work.run_now` does the same in the calling thread (tests,
-headless use). Each kind of work has a generation: asking again bumps it, so the older work stops at
-its next pass and whatever it still hands back is dropped (a stale result never overwrites a newer one).
+A panel's model (the review's, the Dye panel's, the Library panel's) holds its state and hands out its
+slow work as :class:`hairdigi.app.models.work.Work` (a generator function: its yields are progress, its
+return the result). A worker runs the work and hands each value to :meth:`PanelModel.apply` on the
+model's thread, the only thread that changes the model's state; :func:`hairdigi.app.models.work.run_now`
+does the same in the calling thread (tests, headless use). Each kind of work has a generation: asking
+again bumps it, so the older work stops at its next pass and whatever it still hands back is dropped (a
+stale result never overwrites a newer one).
 """
 from __future__ import annotations
 
@@ -13,8 +14,10 @@ import threading
 from collections import defaultdict
 from typing import Callable
 
-from hairdigi.app.review.events import EventGroup, Status
-from hairdigi.app.review.work import Cancelled
+from hairdigi.app.models.events import EventGroup, Status
+from hairdigi.app.models.work import Cancelled
+
+__all__ = ["PanelModel"]
 
 
 class PanelModel:
@@ -36,9 +39,11 @@ class PanelModel:
                                "results to apply() there")
 
     # -- generations: what makes running work stale ------------------------------------------
-    def _bump(self, kind: str) -> int:
-        self._generation[kind] += 1
-        return self._generation[kind]
+    def _bump(self, *kinds: str) -> int:
+        """A new generation of each kind of work in ``kinds`` (their running work goes stale); the last one's."""
+        for kind in kinds:
+            self._generation[kind] += 1
+        return self._generation[kinds[-1]]
 
     def _current(self, kind: str, generation: int) -> bool:
         return self._generation[kind] == generation
@@ -67,5 +72,7 @@ class PanelModel:
         handler(self, payload)
 
     def show_status(self, text: str) -> None:
+        """The status line: kept as ``status`` and emitted as the ``status`` event (a str; a model whose
+        event carries a :class:`Status` says so by overriding this)."""
         self.status = text
         self.events.status.emit(text)

@@ -1,18 +1,20 @@
-"""Typed events, free of Qt (napari's evented-model idea): ``events.twin.connect(callback)``.
+"""The review model's events and their payloads, free of Qt: small frozen dataclasses, one per kind of value
+the review's works hand back and its events carry.
 
-Each event names the one type it carries, and :meth:`Event.emit` refuses anything else, so what a
-subscriber receives is declared in code, not in a comment. The review model's events and their payloads
-(small frozen dataclasses) are below; the Dye and Library panels' models declare theirs beside them.
+The event machinery (``Event``, ``EventGroup``) and the :class:`~hairdigi.app.models.events.Status` line
+every model shares are ``app/models/events.py``'s; what is here is the review's alone. Widgets subscribe
+with ``model.events.twin.connect(callback)``.
 """
 from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from hairdigi.app.models.events import EventGroup, Status
 from hairdigi.app.review.previews import HairstylePass, Stage, TwinPreview
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance
 from hairdigi.render.domain.params import HairParams
@@ -20,48 +22,6 @@ from hairdigi.render.domain.records import CalibrationProfile, EstimateRecord, E
 
 if TYPE_CHECKING:
     from hairdigi.app.session.rig_session import CaptureResult
-
-Callback = Callable[[object], None]
-
-
-class Event:
-    """Callbacks called with one value of the event's ``payload`` type, in the order they connected."""
-
-    def __init__(self, name: str, payload: type | tuple[type, ...] = object) -> None:
-        self.name, self.payload = name, payload
-        self._callbacks: list[Callback] = []
-
-    def connect(self, callback: Callback) -> Callback:
-        self._callbacks.append(callback)
-        return callback
-
-    def disconnect(self, callback: Callback) -> None:
-        if callback in self._callbacks:
-            self._callbacks.remove(callback)
-
-    def emit(self, value: object) -> None:
-        if not isinstance(value, self.payload):
-            raise TypeError(f"the {self.name} event carries {self.payload}, not {type(value).__name__}")
-        for callback in list(self._callbacks):
-            callback(value)
-
-
-class EventGroup:
-    """One :class:`Event` per name, as attributes; subclasses declare ``EVENTS``: name -> payload type."""
-
-    EVENTS: dict[str, type | tuple[type, ...]] = {}
-
-    def __init__(self) -> None:
-        for name, payload in self.EVENTS.items():
-            setattr(self, name, Event(name, payload))
-
-
-# --- the review model's payloads ------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Status:
-    """One line for the status bar: what a work is doing, or why it could not (the user's to fix)."""
-
-    text: str
 
 
 @dataclass(frozen=True)
