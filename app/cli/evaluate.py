@@ -62,6 +62,9 @@ def _add_options(p: argparse.ArgumentParser) -> None:
                    "--structures, the colour interval of a swatch of unknown structure (structure_uncertainty.json); with "
                    "--spectral, the spectral world's intervals by camera (spectral_uncertainty.json); with --instrument, the instrument "
                    "readings' intervals (instrument_uncertainty.json)")
+    p.add_argument("--spectral-rig", metavar="CAMERA,LED", help="with --instrument: a spectral simulated rig, its "
+                   "camera's sensitivities (nikon-5100, sigma-sdmerill, cie) and LEDs (LED-B4, ...) declared, in place "
+                   "of the RGB one")
     p.add_argument("--lab", metavar="DIR", help="with --instrument: keep the rig sessions in DIR/sessions and write a "
                    "simulated lab's instrument export of the same tresses (DIR/readings.csv), for hairdigi library "
                    "import and hairdigi library readings")

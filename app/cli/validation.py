@@ -526,7 +526,7 @@ def check_export(args: argparse.Namespace) -> None:
 #: ``evaluate``'s modes: at most one runs (``--dye --rig`` is the dye protocol on the simulated rig).
 EVALUATE_MODES = tuple(EVALUATIONS)
 #: Flags that go with one mode only.
-EVALUATE_MODE_FLAGS = {"ship": ("rig", "appearance", "structures", "spectral", "instrument"), "lab": ("instrument",), "no_variation": ("appearance",),
+EVALUATE_MODE_FLAGS = {"ship": ("rig", "appearance", "structures", "spectral", "instrument"), "lab": ("instrument",), "spectral_rig": ("instrument",), "no_variation": ("appearance",),
                        "default_shine": ("cycles",), "blender": ("structures",), "hidden_structures": ("structures", "rig", "instrument"),
                        "held_out": ("structures", "spectral")}
 

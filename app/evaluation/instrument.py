@@ -43,6 +43,9 @@ class InstrumentSet:
     truth_spp: int = 128                             # the virtual instrument's spectral renders (each of SPOTS)
     truth_size: int = 48
     geometries: tuple[str, ...] = ("d/8 SCI", "d/8 SCE", "45/0")
+    #: None: hairdigi's RGB simulated rig; (camera sensitivities, LEDs): a spectral one, both declared, whose
+    #: records read the hair in the camera's RGB (``EstimateRecord.spectral``), as a lab's declared rig does
+    world: tuple[str | None, str] | None = None
 
 
 def truth_readings(params, structure: str, geometries, spp: int, size: int,
@@ -98,9 +101,10 @@ def evaluate_instrument(out_dir: str | os.PathLike, config: InstrumentSet = Inst
         for k, (name, params) in enumerate(hidden):
             structure = config.structures[k % len(config.structures)]
             cast, ev = EXPOSED[k % len(EXPOSED)]
+            spectra = {} if config.world is None else {"sensitivities": config.world[0], "illuminant": config.world[1]}
             session = RigSession.simulated_rig(root / f"s{k}", hidden=params, spp=config.rig_spp,
                                                camera_model=CameraModel(exposure_ev=ev, cast=cast), encoder=encoder,
-                                               swatch_model=structure, strand_seed=HIDDEN_LAYOUT + k)
+                                               swatch_model=structure, strand_seed=HIDDEN_LAYOUT + k, **spectra)
             start = time.perf_counter()
             try:
                 session.calibrate()
@@ -158,7 +162,9 @@ def summarise(rows: list[dict], config: InstrumentSet) -> dict:
             "by_case": {k: quantiles(v) for k, v in by_case.items()}, "bias": bias,
             "settings": {"random": config.random, "structures": list(config.structures), "rig_spp": config.rig_spp,
                          "truth_spp": config.truth_spp, "truth_size": config.truth_size,
-                         "layouts": f"{HIDDEN_LAYOUT} + k"}}
+                         "layouts": f"{HIDDEN_LAYOUT} + k",
+                         "rig": "RGB" if config.world is None else f"spectral: {config.world[0] or 'CIE observer'} "
+                                                                    f"under {config.world[1]}"}}
 
 
 def ship_intervals(summary: dict, path: str | os.PathLike | None = None) -> Path:

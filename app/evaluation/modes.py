@@ -298,11 +298,15 @@ def instrument(args: argparse.Namespace) -> int:
     if unknown:
         print(f"hairdigi evaluate --instrument: {unknown}", file=sys.stderr)
         return 2
-    config = InstrumentSet(random=args.rig_random) if hidden is None else \
-        InstrumentSet(random=args.rig_random, structures=hidden)
+    world = None
+    if getattr(args, "spectral_rig", None):
+        camera, _, led = args.spectral_rig.partition(",")
+        world = (None if camera in ("", "cie") else camera, led or "LED-B4")
+    config = InstrumentSet(random=args.rig_random, world=world, **({} if hidden is None else {"structures": hidden}))
     s = evaluate_instrument(args.out, config, ship=args.ship, lab_dir=getattr(args, "lab", None))
-    print(f"{s['swatches']} hidden swatches ({', '.join(config.structures)}) captured, estimated in the default mode "
-          f"and read; against a virtual instrument's spectral render of the truth, ΔE2000:")
+    print(f"{s['swatches']} hidden swatches ({', '.join(config.structures)}) captured on the {s['settings']['rig']} "
+          f"rig, estimated in the default mode and read; against a virtual instrument's spectral render of the truth, "
+          f"ΔE2000:")
     for geom, st in s["by_geometry"].items():
         if st["n"]:
             bias = s["bias"].get(geom, {})
