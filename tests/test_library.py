@@ -384,7 +384,7 @@ def test_library_panel_search_sort_find_compare_review(tmp_path, lib_env, qtbot,
     qtbot.waitUntil(lambda: panel.table.rowCount() == 10, timeout=20_000)
     panel.search.setText("copper")          # run once typing pauses
     qtbot.waitUntil(lambda: panel.table.rowCount() == 1, timeout=20_000)
-    assert "copper" in panel.table.item(0, 4).text()
+    assert "copper" in panel.table.item(0, 5).text()
     panel.search.setText("")
     qtbot.waitUntil(lambda: panel.table.rowCount() == 10, timeout=20_000)
     panel.sort.setCurrentIndex(1)           # by colour, light to dark
@@ -396,6 +396,16 @@ def test_library_panel_search_sort_find_compare_review(tmp_path, lib_env, qtbot,
     qtbot.waitUntil(lambda: panel.table.item(0, 1) is not None and panel.table.item(0, 1).text() != "", timeout=20_000)
     des = [float(panel.table.item(r, 1).text()) for r in range(panel.table.rowCount())]
     assert des == sorted(des) and len(des) == 10
+    lab = panel.swatches[0].labs["daylight"]
+    assert panel.table.item(0, 2).text() == f"{lab[0]:.1f} {lab[1]:.1f} {lab[2]:.1f}"
+    reference = panel.swatches[3]
+    panel.near.setText(reference.capture_id)          # near a reference tress: its own colour first
+    panel.refresh()
+    qtbot.waitUntil(lambda: panel.swatches and panel.swatches[0].id == reference.id, timeout=20_000)
+    assert panel.table.item(0, 1).text() == "0.00"
+    panel.near.setText("#8a4a30")
+    panel.refresh()
+    qtbot.waitUntil(lambda: panel.swatches and panel.swatches[0].id != reference.id, timeout=20_000)
     panel.table.selectRow(0)
     panel.table.setSelectionMode(panel.table.SelectionMode.MultiSelection)
     panel.table.selectRow(3)

@@ -158,7 +158,7 @@ def test_typing_five_characters_quickly_runs_at_most_two_queries(tmp_path, qtbot
     qtbot.waitUntil(lambda: panel.table.rowCount() == 1, timeout=20_000)
     qtbot.wait(int(QUIET_S * 1000))
     assert 1 <= len(queries(statements)) <= 2, queries(statements)
-    assert "copper" in panel.table.item(0, 4).text()
+    assert "copper" in panel.table.item(0, 5).text()
     library.close()
 
 

@@ -23,7 +23,7 @@ from hairdigi.app.library.store import Library, Swatch
 from hairdigi.app.library.model import MAX_ROWS, LibraryModel
 from hairdigi.app.library.swatch_colour import COLOURS
 
-COLUMNS = ("colour", "ΔE2000", "captured", "where", "tags", "note", "id")
+COLUMNS = ("colour", "ΔE2000", "L* a* b*", "captured", "where", "tags", "note", "id")
 SORTS = {"newest first": "captured", "by colour (light to dark)": "colour"}
 SEARCH_DELAY_MS = 250     # the search runs once typing pauses this long
 SELECT_ROW = QItemSelectionModel.SelectionFlag.Select | QItemSelectionModel.SelectionFlag.Rows
@@ -198,7 +198,8 @@ class LibraryPanel(QWidget):
                 chip.setForeground(QColor(_ink(hex_colour)))
             de = rows.distances.get(s.id)
             where = f"{Path(s.session).name}/{s.capture_id}" if s.session else Path(s.record_path or "").name
-            cells = [chip, QTableWidgetItem("" if de is None else f"{de:.2f}"), QTableWidgetItem(s.captured or ""),
+            cells = [chip, QTableWidgetItem("" if de is None else f"{de:.2f}"), QTableWidgetItem(view.lab_text(s, under)),
+                     QTableWidgetItem(s.captured or ""),
                      QTableWidgetItem(where), QTableWidgetItem(", ".join(s.tags)), QTableWidgetItem(s.note),
                      QTableWidgetItem(s.id)]
             for c, item in enumerate(cells):

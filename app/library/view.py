@@ -15,6 +15,12 @@ def chip_hex(swatch: Swatch, under: str = "daylight") -> str | None:
     return None if lab is None else lab_hex(lab)
 
 
+def lab_text(swatch: Swatch, under: str = "daylight") -> str:
+    """The swatch's CIELAB under ``under`` (a light, or an instrument geometry's reading), as a table shows it."""
+    lab = swatch.labs.get(under)
+    return "–" if lab is None else f"{lab[0]:.1f} {lab[1]:.1f} {lab[2]:.1f}"
+
+
 def describe(swatch: Swatch) -> str:
     """Two lines: where it came from, and its Table 1 parameters."""
     where = f"{Path(swatch.session).name} / {swatch.capture_id}" if swatch.session else Path(swatch.record_path or "").name
