@@ -309,11 +309,18 @@ def with_instrument(record: EstimateRecord, path: str | os.PathLike | None = Non
         return replace(record, instrument=read_instrument(hair, members, curves=curves, **kwargs))
     rig = family_curves(family_view(view))
     region = record.refinement.region
-    share = family_weight(np.asarray(record.refinement.fitted_sigma_a or record.sigma_a, float)) if region.members \
-        else 0.0
-    reference = answer_curve(rig, region.members, region.swatch_model, share)
+    if record.spectral is not None:
+        # the camera answer is read through the refinement's own curve, before any family map (its RGB twin is
+        # the refinement's fitted sigma_a): read through the family's mean, a spectral rig's readings were 1.6 L* dark
+        reference = answer_curve(rig, None, region.swatch_model)
+        sigma_rgb = record.refinement.fitted_sigma_a or record.sigma_a
+    else:
+        share = family_weight(np.asarray(record.refinement.fitted_sigma_a or record.sigma_a, float)) \
+            if region.members else 0.0
+        reference = answer_curve(rig, region.members, region.swatch_model, share)
+        sigma_rgb = record.sigma_a
     measured = record.refinement.target_linear_rgb
-    ratio = 1.0 if measured is None else measured_ratio(measured, record.sigma_a, reference)
+    ratio = 1.0 if measured is None or sigma_rgb is None else measured_ratio(measured, sigma_rgb, reference)
     return replace(record, instrument=read_instrument(hair, members, rig, reference, ratio, curves=curves, **kwargs))
 
 
