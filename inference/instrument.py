@@ -35,6 +35,7 @@ from hairdigi.render.instrument import (DEFAULT_APERTURE_MM, GEOMETRIES, Instrum
                                         check_illuminant, check_observer, geometry, lab_of_reflectance)
 from hairdigi.render.metrics import delta_e2000_lab
 from hairdigi.render.domain.bounds import SwatchModel
+from hairdigi.render.domain.text_enum import text_of
 from hairdigi.render.swatch_family import FAMILY
 from hairdigi.resources import MODELS, ROOT
 
@@ -175,8 +176,9 @@ def answer_curve(rig, members: dict[str, float] | None, swatch_model: str | None
     if members:
         mean = rig.mean_of(members)
         return lambda sigma: mean(sigma) ** family_share * rig.default(sigma) ** (1.0 - family_share)
-    if swatch_model in rig.members and swatch_model != SwatchModel.LAYERED.value:
-        return rig.members[swatch_model]
+    name = text_of(swatch_model)          # a member in the process, its text in a record read back
+    if name in rig.members and name != SwatchModel.LAYERED.value:
+        return rig.members[name]
     return rig.default
 
 
@@ -289,8 +291,9 @@ def reading_members(record: EstimateRecord) -> dict[str, float] | None:
         return None
     if region.members:
         return region.members
-    if region.swatch_model in FAMILY and region.swatch_model != SwatchModel.LAYERED.value:
-        return {region.swatch_model: 1.0}
+    name = text_of(region.swatch_model)
+    if name in FAMILY and name != SwatchModel.LAYERED.value:
+        return {name: 1.0}
     return None
 
 

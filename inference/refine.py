@@ -41,6 +41,7 @@ from hairdigi.render.domain.absorption import albedo_from_sigma_a, hair_sigma_a
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, GREY_SIGMA_A, Appearance
 from hairdigi.render.domain.bounds import SwatchModel
+from hairdigi.render.domain.text_enum import text_of
 from hairdigi.render.domain.files import cache_dir
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.estimate_parts import Region
@@ -230,8 +231,9 @@ def cache_key(head: list, spec, variant: str) -> str:
     from hairdigi.render.swatch_family import REVISIONS
 
     model = spec.swatch_model
-    data = [*head, spec.n_strands, spec.depth, variant] + ([model] if model is not SwatchModel.TODAY else []) \
-        + ([REVISIONS[model]] if model in REVISIONS else [])
+    name = text_of(model)                  # REVISIONS is keyed by the structures' text
+    data = [*head, spec.n_strands, spec.depth, variant] + ([name] if model is not SwatchModel.TODAY else []) \
+        + ([REVISIONS[name]] if name in REVISIONS else [])
     return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
 
 

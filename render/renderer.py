@@ -99,6 +99,7 @@ class SceneSpec:
     kind: SceneKind = field(init=False, repr=False, compare=False)   # what ``name`` names, parsed once
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "name", text_of(self.name))   # SceneKind.SWATCH and "swatch" make one spec
         if isinstance(self.name, str) and self.name.lower().endswith(".hair") and self.hair_file is None:
             object.__setattr__(self, "hair_file", self.name)
             object.__setattr__(self, "name", SceneKind.HAIR_FILE.value)

@@ -12,6 +12,9 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _ROOT]
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+# Inside the packages an enum is compared with members, never with its text: the suite (and every process it
+# starts) runs strict, so such a comparison raises (render.domain.text_enum; tests/test_text_enum.py proves it)
+os.environ.setdefault("HAIRDIGI_STRICT_ENUMS", "1")
 
 #: Artifacts (screenshots, reports) that CI keeps live here.
 TEST_OUTPUT = Path(os.environ.get("HAIRDIGI_TEST_OUTPUT", Path(__file__).resolve().parent.parent / "test-output"))

@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
+from hairdigi.hardware.exposure import ExposureStatus
 from hairdigi.inference.preprocess import ImageError, find_swatch_roi
 from hairdigi.inference.training.evaluate_views import HAIRS, crop_box, share_on_swatch, swatch_outline
 from hairdigi.render.domain.rig_geometry import CameraPose
@@ -169,7 +170,7 @@ def test_clipping_is_judged_on_the_sensor_where_its_data_is_given():
     warnings = domain_warnings(domain_stats(crop, saturated))
     assert any(w.startswith("clipped: 31.2% of the swatch area is at the sensor's white level") for w in warnings)
     white = np.full((16, 16, 3), 255, np.uint8)                        # 8-bit 255: over, unless the sensor says not
-    assert check_region(white, (0, 0, 16, 16), "swatch").status == "over"
+    assert check_region(white, (0, 0, 16, 16), "swatch").status is ExposureStatus.OVER
     assert check_region(white, (0, 0, 16, 16), "swatch", clipped_mask=np.zeros((16, 16, 3), bool)).clipped == (0, 0, 0)
 
 

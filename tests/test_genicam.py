@@ -23,7 +23,7 @@ try:
 except CameraError as exc:     # Aravis or PyGObject absent: nothing here can run
     pytest.skip(str(exc), allow_module_level=True)
 
-from hairdigi.app.session.rig_session import RigSession
+from hairdigi.app.session.rig_session import CalibrationStatus, RigSession
 from hairdigi.hardware.bayer import bayer_format, demosaic, unpack
 from hairdigi.hardware.genicam import FAKE_ID, GenICamCamera, GenICamSettings, discover
 from hairdigi.hardware.lights import LightController
@@ -205,14 +205,14 @@ def test_a_capture_of_four_frames_through_the_session(tmp_path):
         assert camera._camera.get_exposure_time() == 10_000      # the bench's exposure is back
         loaded = session.load_capture(result.capture_id)
         assert loaded.linear is not None and loaded.problems == []
-        assert session.calibration_status()[0] == "ok"
+        assert session.calibration_status()[0] is CalibrationStatus.OK
         from hairdigi.inference.calibration import load_profile
         assert staleness(load_profile(session.profile_path), session.settings()) == []   # as saved, too
         camera.wanted = GenICamSettings(exposure_us=12_000)   # the operator changes the exposure
         camera.set_exposure_offset(0.0)
         camera.readback = camera._read_settings(camera.format)
         status, reasons = session.calibration_status()
-        assert status == "stale" and "exposure_us" in reasons[0]
+        assert status is CalibrationStatus.STALE and "exposure_us" in reasons[0]
         other = dict(profile.settings, serial="OTHER", camera="genicam:Aravis Fake #OTHER")
         assert "camera, serial" in staleness(profile, other)[0]
     finally:

@@ -10,6 +10,7 @@ from hairdigi.app.cli import main
 from hairdigi.inference.training.dataset import DatasetConfig, generate, load, sample_spec, shard_path
 from hairdigi.inference.encoder import Encoder
 from hairdigi.inference.preprocess import Roi, find_swatch_roi, swatch_crop
+from hairdigi.render.domain.bounds import SwatchModel
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import SceneSpec, render
 from hairdigi.render.domain.rig_geometry import CameraPose, light_blocks_view
@@ -99,7 +100,7 @@ def test_dataset_draws_and_records_each_swatchs_appearance_and_keeps_old_dataset
     for k, name in enumerate(FIELDS):
         low, high = APPEARANCE_DRAW[name]
         assert np.all((looks[:, k] >= low) & (looks[:, k] <= high)), name
-    assert scene_of(config, 0).swatch_model == "layered" and scene_of(config, 0).appearance is not None
+    assert scene_of(config, 0).swatch_model is SwatchModel.LAYERED and scene_of(config, 0).appearance is not None
     # the old layout: a manifest without the new settings is read as today's swatch, fixed appearance
     old = DatasetConfig(**TINY, swatch_model="today", appearance="fixed")
     assert [sample_spec(old, i).params for i in range(8)] == [sample_spec(config, i).params for i in range(8)]

@@ -9,7 +9,7 @@ from hairdigi.render.domain.absorption import hair_sigma_a
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.domain.params import HairParams, sample_params
 from hairdigi.render.renderer import Renderer, SceneSpec
-from hairdigi.render.domain.rig_geometry import CameraPose
+from hairdigi.render.domain.rig_geometry import CameraPose, Framing
 
 SMALL = RefineSettings(size=24, spp=8, check_spp=8, iterations=3, strand_seed=3)   # 3: the layered swatch took 3 for copper
 
@@ -86,7 +86,7 @@ def test_the_region_the_refinement_renders_is_the_region_it_fits():
         region = RigRegion(frame, roi)
         film, crop, fitted = region.render_plan(48 * 48)
         spec, size = scene_for(region, RefineSettings())
-        assert spec.crop == crop and size == film and spec.framing == "rig"
+        assert spec.crop == crop and size == film and spec.framing is Framing.RIG
         sx, sy = film[0] / frame[0], film[1] / frame[1]
         # the crop, mapped back to frame pixels, is the fitted region
         assert fitted == (round(crop[0] / sx), round(crop[1] / sy),

@@ -67,8 +67,9 @@ def test_a_capture_shows_the_encoder_first_then_the_refined_estimate_in_warm_sce
     assert model.shown.capture_id == captured.result.capture_id and model.shown.record.refinement.ran
     # the encoder's look renders one pass; the refined estimate its whole schedule
     # half resolution first, then full; the first look is one pass, rendered by the capture worker
-    assert [(t.stage, t.scale, t.spp) for t in twins] == [("encoder", 0.5, 1), ("refined", 0.5, 1), ("refined", 1.0, 1)]
-    assert [(p.stage, p.spp) for p in passes] == [("encoder", 1), ("refined", 1), ("refined", 2)]
+    assert [(t.stage, t.scale, t.spp) for t in twins] == [(Stage.ENCODER, 0.5, 1), (Stage.REFINED, 0.5, 1),
+                                                          (Stage.REFINED, 1.0, 1)]
+    assert [(p.stage, p.spp) for p in passes] == [(Stage.ENCODER, 1), (Stage.REFINED, 1), (Stage.REFINED, 2)]
     # the warm scenes were reused: the capture only updated parameters (a grey share read makes fibre
     # groups, a new structure, built once more at each scale)
     varied = int(model.shown.record.appearance.value.varied)

@@ -58,9 +58,9 @@ def test_exposure_check_flags_over_and_under_exposure():
     over = check_region(frame(CameraModel(exposure_ev=2.5)), roi, "swatch")
     under = check_region(frame(CameraModel(exposure_ev=-5.0)), roi, "swatch")
     fine = check_region(frame(), roi, "swatch")
-    assert over.status is ExposureStatus.OVER and over.status == "over" and over.suggested_ev < 0
-    assert under.status == "under" and under.suggested_ev > 0
-    assert fine.status == "ok"
+    assert over.status is ExposureStatus.OVER and str(over.status) == "over" and over.suggested_ev < 0
+    assert under.status is ExposureStatus.UNDER and under.suggested_ev > 0
+    assert fine.status is ExposureStatus.OK
 
 
 def test_dead_light_is_caught(tmp_path):

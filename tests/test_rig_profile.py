@@ -226,4 +226,4 @@ def test_the_app_runs_as_the_sessions_profile_declares_and_a_flag_overrides_it_f
     damaged.mkdir()
     (damaged / PROFILE_NAME).write_text("{not json")
     led, sensor, structure, said = session_rig(damaged, settings, True, None, None, None)
-    assert structure == "read" and PROFILE_NAME in said and (damaged / PROFILE_NAME).read_text() == "{not json"
+    assert structure is StructureMode.READ and PROFILE_NAME in said and (damaged / PROFILE_NAME).read_text() == "{not json"

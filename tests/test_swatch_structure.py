@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
+from hairdigi.render.domain.bounds import SwatchModel
 from hairdigi.render.strands import SWATCH_LENGTH, SWATCH_WIDTH, Strands, layered_swatch_strands, swatch_strands
 from deadlines import within
 
@@ -72,7 +73,7 @@ def test_swatch_model_is_validated() -> None:
 
     with pytest.raises(ValueError, match="swatch_model"):
         SceneSpec("swatch", swatch_model="dense")
-    assert SceneSpec("swatch").swatch_model == "layered"          # the default since the layered swatch
+    assert SceneSpec("swatch").swatch_model is SwatchModel.LAYERED          # the default since the layered swatch
     assert SceneSpec("wavy").swatch_model is None                   # a hairstyle has no swatch model
     with pytest.raises(ValueError, match="swatch scene only"):
         SceneSpec("wavy", swatch_model="layered")

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE
+from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
 from hairdigi.render.domain.errors import EvaluationError
 
 #: Fewer predictions than this give no p95 to judge ``evaluate --dye``'s goal by.
@@ -80,8 +80,8 @@ def rig(args: argparse.Namespace) -> int:
     from hairdigi.app.evaluation.rig import RigSet, evaluate_rig
 
     hidden = tuple(args.hidden_structures.split(",")) if getattr(args, "hidden_structures", None) else ()
-    structure = getattr(args, "structure", None) or DEFAULT_STRUCTURE
-    if args.ship and structure != DEFAULT_STRUCTURE:
+    structure = StructureMode(getattr(args, "structure", None) or DEFAULT_STRUCTURE)   # parsed at the edge
+    if args.ship and structure is not DEFAULT_STRUCTURE:
         print(f"hairdigi evaluate --rig --ship: the chain's colour interval is measured in the default structure mode "
               f"({DEFAULT_STRUCTURE}), the one every record is made in unless told otherwise; drop --ship or --structure",
               file=sys.stderr)

@@ -296,8 +296,9 @@ def _check_manifest(root: Path, config: DatasetConfig, variant: str | None = Non
     path = root / MANIFEST
     if path.exists():
         stored = {**LEGACY_DEFAULTS, **json.loads(path.read_text())["config"]}
-        if stored != asdict(config):
-            diff = {k: (stored.get(k), v) for k, v in asdict(config).items() if stored.get(k) != v}
+        asked = json.loads(json.dumps(asdict(config)))     # as the manifest holds it: enums as their text
+        if stored != asked:
+            diff = {k: (stored.get(k), v) for k, v in asked.items() if stored.get(k) != v}
             raise DatasetError(f"{root} holds a dataset made with other settings {diff} (stored, asked); "
                                f"use another --out or the same settings to resume")
     else:

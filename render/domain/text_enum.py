@@ -4,8 +4,8 @@ messages), and a value of its own kind inside.
 Text is parsed into its enum once, at the edge (``StructureMode(args.structure)``); inside, a member is
 compared with members (``mode is StructureMode.FAMILY``). A member still equals its text, so a record or a
 flag's text reads the same; with ``HAIRDIGI_STRICT_ENUMS=1`` comparing a member with a plain string raises
-instead, so a comparison with a misspelt text cannot pass silently (not yet the test suite's setting: some of
-its tests still compare members with text).
+instead, so a comparison with a misspelt text cannot pass silently: the test suite runs strict
+(``tests/conftest.py``), so a comparison of a member with text anywhere in the packages fails a test.
 """
 from __future__ import annotations
 
