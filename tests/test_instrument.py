@@ -8,14 +8,14 @@ import colour
 import numpy as np
 import pytest
 
-from hairdigi.app.evaluation.readings import compare_readings, paired
-from hairdigi.app.library.readings import ReadingsError, import_readings, parse_columns, read_readings
+from hairdigi.app.evaluation.readings_comparison import compare_readings, paired
+from hairdigi.app.library.lab_readings import ReadingsError, import_readings, parse_columns, read_readings
 from hairdigi.app.library.store import Library, SwatchRow
-from hairdigi.inference.instrument import InstrumentCurves, read_instrument
+from hairdigi.inference.instrument_reading import InstrumentCurves, read_instrument
 from hairdigi.inference.refine import SIGMA_LEVELS
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import EstimateRecord, InstrumentReading
-from hairdigi.render.instrument import (GEOMETRIES, InstrumentError, geometry, lab_of_reflectance, lab_of_tristimulus,
+from hairdigi.render.instrument_geometry import (GEOMETRIES, InstrumentError, geometry, lab_of_reflectance, lab_of_tristimulus,
                                         spectral_tristimulus, tile_reflectance)
 from hairdigi.render.metrics import bland_altman
 from hairdigi.render.spectra import WAVELENGTHS
@@ -253,7 +253,7 @@ def test_each_structure_reads_the_colour_the_capture_showed():
     """Two structures, one 20% darker than the other at equal absorption at the rig and in the sphere: read
     through the rig's curves, both give one reading of the colour a capture showed (the transfer), where read
     at the answer's absorption they part by the 20%."""
-    from hairdigi.inference.instrument import answer_curve, measured_ratio, member_reflectances
+    from hairdigi.inference.instrument_reading import answer_curve, measured_ratio, member_reflectances
     from hairdigi.inference.refine import ResponseCurve
     from hairdigi.inference.structure import FamilyCurves
 
@@ -277,7 +277,7 @@ def test_each_structure_reads_the_colour_the_capture_showed():
 
 
 def test_a_record_reads_through_the_structures_its_estimate_was_read_on():
-    from hairdigi.inference.instrument import reading_members
+    from hairdigi.inference.instrument_reading import reading_members
     from hairdigi.render.domain.estimate_parts import Region
     from hairdigi.render.domain.records import RefinementRecord
 

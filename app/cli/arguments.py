@@ -57,7 +57,7 @@ def add_declare_argument(p) -> None:
 def add_instrument_arguments(p) -> None:
     """``--observer`` and ``--aperture``: how the record's instrument readings are stated (``estimate``, ``rig``)."""
     from hairdigi.app.cli import validation as v
-    from hairdigi.render.instrument import APERTURE_RANGE_MM, DEFAULT_APERTURE_MM
+    from hairdigi.render.instrument_geometry import APERTURE_RANGE_MM, DEFAULT_APERTURE_MM
 
     p.add_argument("--observer", choices=("10", "2"), default="10",
                    help="the record's instrument readings (d/8 SCI, d/8 SCE, 45/0; D65) for the CIE 1964 10° observer "

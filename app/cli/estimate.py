@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_file
     from hairdigi.app.cli.arguments import instrument_options
-    from hairdigi.inference.instrument import with_instrument
+    from hairdigi.inference.instrument_reading import with_instrument
     from hairdigi.inference.preprocess import Roi
     from hairdigi.render.domain.records import write_record
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose

@@ -228,7 +228,7 @@ def _export(library: Library, args) -> int:
 
 
 def _readings(library: Library, args) -> int:
-    from hairdigi.app.library.readings import import_readings, parse_columns
+    from hairdigi.app.library.lab_readings import import_readings, parse_columns
 
     start = time.perf_counter()
     readings = import_readings(library, args.file, allow_unknown=args.allow_unknown, columns=parse_columns(args.columns),

@@ -5,7 +5,7 @@
   through each, ΔE2000 from the reference's.
 - **The aperture.** The same ladder over an 8 mm and a 25 mm spot: a homogeneous swatch's mean is the
   spot's, so the tables serve every aperture if these agree.
-- **A reading's cost.** ``inference.instrument.read_instrument`` for each hard case, three geometries,
+- **A reading's cost.** ``inference.instrument_reading.read_instrument`` for each hard case, three geometries,
   with the family's curves at the rig's swatch crop (each member reading the colour the capture showed)
   and without.
 """
@@ -24,7 +24,7 @@ MEMBERS = ("layered", "deposited")
 
 def _lab(ladder: np.ndarray, hair) -> np.ndarray:
     from hairdigi.inference.refine import SIGMA_LEVELS, ResponseCurve
-    from hairdigi.render.instrument import lab_of_reflectance
+    from hairdigi.render.instrument_geometry import lab_of_reflectance
     from hairdigi.render.spectra import hair_sigma_a_spectrum
 
     return lab_of_reflectance(ResponseCurve(np.asarray(SIGMA_LEVELS, float), np.asarray(ladder, float))(
@@ -33,9 +33,9 @@ def _lab(ladder: np.ndarray, hair) -> np.ndarray:
 
 def bench_instrument(args: argparse.Namespace) -> int:
     from hairdigi.app.evaluation.rig import HARD_CASES
-    from hairdigi.inference.instrument import BuildSettings, member_ladder
+    from hairdigi.inference.instrument_reading import BuildSettings, member_ladder
     from hairdigi.inference.refine import SIGMA_LEVELS
-    from hairdigi.render.instrument import reflectance_ladder
+    from hairdigi.render.instrument_geometry import reflectance_ladder
     from hairdigi.render.swatch_family import structure_strands
 
     quick = getattr(args, "quick", False)
@@ -76,7 +76,7 @@ def bench_instrument(args: argparse.Namespace) -> int:
 
 
 def _reading_cost(hairs: dict) -> list[dict]:
-    from hairdigi.inference.instrument import load_curves, read_instrument
+    from hairdigi.inference.instrument_reading import load_curves, read_instrument
     from hairdigi.inference.structure import family_curves
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 
@@ -107,7 +107,7 @@ def _import_cost() -> list[dict]:
 
     from colour_cxf import cxf3, write_cxf
 
-    from hairdigi.app.library.readings import import_readings
+    from hairdigi.app.library.lab_readings import import_readings
     from hairdigi.app.library.store import Library, SwatchRow
 
     rng = np.random.default_rng(3)

@@ -4,7 +4,7 @@ A lab's instrument reads an 8-25 mm spot: lift a tress and lay it under the port
 0.6-1.2 between readings. hairdigi sees the whole swatch. Each hair here is laid on the simulated rig's
 holder ``PLACEMENTS`` times, each time a new layout of its fibres (another strand seed: the same swatch
 combed down again) under a slightly other exposure, captured, estimated in the default mode, and read
-(``EstimateRecord.instrument``). Beside it, the virtual instrument (``render.instrument``) reads each
+(``EstimateRecord.instrument``). Beside it, the virtual instrument (``render.instrument_geometry``) reads each
 placement's spot. The table gives, per hair and geometry, the spread of each: the mean and largest
 ΔE2000 of a placement from the placements' mean.
 """
@@ -38,7 +38,7 @@ def spread(labs: list[np.ndarray]) -> dict:
 
 
 def bench_repeatability(args: argparse.Namespace) -> int:
-    from hairdigi.app.evaluation.instrument import truth_readings
+    from hairdigi.app.evaluation.instrument_evaluation import truth_readings
     from hairdigi.app.evaluation.rig import HARD_CASES
     from hairdigi.app.session.rig_session import RigSession
     from hairdigi.inference.encoder import Encoder
@@ -101,7 +101,7 @@ def bench_repeatability(args: argparse.Namespace) -> int:
 
 def _placed_truth(params, seed: int, geometries) -> dict[str, np.ndarray]:
     """The virtual instrument's reading of one placement's spot (its own fibre layout)."""
-    from hairdigi.render.instrument import lab_of_tristimulus, spectral_tristimulus
+    from hairdigi.render.instrument_geometry import lab_of_tristimulus, spectral_tristimulus
     from hairdigi.render.spectra import hair_sigma_a_spectrum
     from hairdigi.render.swatch_family import structure_strands
 

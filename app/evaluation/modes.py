@@ -291,7 +291,7 @@ def _unknown_structure(names) -> str | None:
 
 def instrument(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --instrument``: instrument readings through the chain against a virtual instrument."""
-    from hairdigi.app.evaluation.instrument import InstrumentSet, evaluate_instrument
+    from hairdigi.app.evaluation.instrument_evaluation import InstrumentSet, evaluate_instrument
 
     hidden = tuple(args.hidden_structures.split(",")) if getattr(args, "hidden_structures", None) else None
     unknown = _unknown_structure(hidden or ())
@@ -319,7 +319,7 @@ def instrument(args: argparse.Namespace) -> int:
     for row in s["errors"]:
         print(f"not read: {row['hidden']} ({row['structure']}): {row['error']}")
     if args.ship:
-        from hairdigi.app.evaluation.instrument import ship_intervals
+        from hairdigi.app.evaluation.instrument_evaluation import ship_intervals
 
         print(f"shipped the instrument readings' intervals: {ship_intervals(s)}")
     print(f"instrument_evaluation.csv, .json and .png in {args.out}")
@@ -328,7 +328,7 @@ def instrument(args: argparse.Namespace) -> int:
 
 def readings(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --readings``: the lab's instrument readings against hairdigi's, with a Bland-Altman plot."""
-    from hairdigi.app.evaluation.readings import compare_readings
+    from hairdigi.app.evaluation.readings_comparison import compare_readings
     from hairdigi.app.library.store import open_library
 
     with open_library() as library:

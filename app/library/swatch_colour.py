@@ -24,7 +24,7 @@ import numpy as np
 from hairdigi.render.domain.errors import HairdigiError
 
 ILLUMINANTS = ("daylight", "studio")
-#: The instrument geometries a record's readings are stored under (``inference.instrument``; D65, 10°), beside the lights.
+#: The instrument geometries a record's readings are stored under (``inference.instrument_reading``; D65, 10°), beside the lights.
 INSTRUMENT = ("d/8 SCI", "d/8 SCE", "45/0")
 #: Every colour a swatch is stored and searched by.
 COLOURS = ILLUMINANTS + INSTRUMENT

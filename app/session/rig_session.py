@@ -23,7 +23,7 @@ from hairdigi.app.session.blockers import Blocker, BlockerKind, messages
 from hairdigi.hardware.exposure import ExposureReport, ExposureStatus, check_exposure, dead_lights
 from hairdigi.hardware.frame_source import FrameSource
 from hairdigi.hardware.lights import N_LIGHTS, LightController, LightError
-from hairdigi.inference.instrument import with_instrument
+from hairdigi.inference.instrument_reading import with_instrument
 from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, correction_warnings,
                                             detect_chart, light_colour_warnings, load_profile, profile_warnings,
                                             save_profile, staleness)
@@ -116,7 +116,7 @@ class RigSession:
         #: record carries its reading in the camera's RGB and colour under other lights; None on a real rig,
         #: its colour interval carries the metamerism of an undeclared camera
         self.spectra = spectra
-        #: how the records' instrument readings are stated (``inference.instrument.with_instrument``'s options:
+        #: how the records' instrument readings are stated (``inference.instrument_reading.with_instrument``'s options:
         #: observer, aperture_mm); empty: D65, 10°, 8 mm
         self.instrument: dict = {}
         self.frames = FrameSource(camera)   # every read of the camera goes through here

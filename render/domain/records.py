@@ -358,8 +358,8 @@ class SpectralReading:
 
 @dataclass(frozen=True)
 class InstrumentReading:
-    """The swatch's CIELAB as a lab's colour instrument reads it (``inference.instrument``): a named
-    geometry (``render.instrument.GEOMETRIES``), observer and illuminant, over an aperture on the
+    """The swatch's CIELAB as a lab's colour instrument reads it (``inference.instrument_reading``): a named
+    geometry (``render.instrument_geometry.GEOMETRIES``), observer and illuminant, over an aperture on the
     swatch's centre, with its interval (ΔE2000, 68% and 95%) and how it was obtained."""
 
     geometry: str                   # "d/8 SCI", "d/8 SCE", "45/0"

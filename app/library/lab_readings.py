@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hairdigi.app.library.store import Library, LibraryError
-from hairdigi.render.instrument import GEOMETRIES, InstrumentError, check_illuminant, check_observer, geometry
+from hairdigi.render.instrument_geometry import GEOMETRIES, InstrumentError, check_illuminant, check_observer, geometry
 
 MAX_BYTES = 16 << 20
 #: Headers a column is recognised by (lower case, spaces and punctuation dropped), as instruments' exports name them.

@@ -1,10 +1,10 @@
 """The estimate as the lab's colour instrument reads it: instrument-equivalent CIELAB with an interval.
 
 A lab records a tress as its spectrophotometer reads it (d/8° SCI or SCE, or 45°/0°; D65 and the 10°
-observer; ``render.instrument``). The swatch's reflectance factor in a geometry depends on each
+observer; ``render.instrument_geometry``). The swatch's reflectance factor in a geometry depends on each
 wavelength's absorption alone, so each family member's response in each geometry is one curve of a flat
-``sigma_a`` (``render.instrument.reflectance_ladder``), rendered once and shipped
-(``INSTRUMENT_TABLES``, built by ``python -m hairdigi.inference.instrument``). A record's reading is then
+``sigma_a`` (``render.instrument_geometry.reflectance_ladder``), rendered once and shipped
+(``INSTRUMENT_TABLES``, built by ``python -m hairdigi.inference.instrument_reading``). A record's reading is then
 its hair's ``sigma_a(λ)`` (``render.spectra.hair_sigma_a_spectrum``: the spectral answer where the rig's
 spectra are declared, else the record's Table 1 hair) read per wavelength through the curve of the
 structure its estimate was read on (the geometric mean of the members its structure map averaged, as
@@ -31,7 +31,7 @@ from hairdigi.inference.refine import SIGMA_LEVELS, ResponseCurve
 from hairdigi.render.domain.files import cache_dir, read_json, write_json_atomic
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import EstimateRecord, InstrumentReading
-from hairdigi.render.instrument import (DEFAULT_APERTURE_MM, GEOMETRIES, InstrumentError, check_aperture,
+from hairdigi.render.instrument_geometry import (DEFAULT_APERTURE_MM, GEOMETRIES, InstrumentError, check_aperture,
                                         check_illuminant, check_observer, geometry, lab_of_reflectance)
 from hairdigi.render.metrics import delta_e2000_lab
 from hairdigi.render.domain.bounds import SwatchModel
@@ -87,7 +87,7 @@ class InstrumentCurves:
 # -- the tables -----------------------------------------------------------------------------------
 def member_ladder(geom: str, member: str, layout: int, settings: BuildSettings = BuildSettings()) -> np.ndarray:
     """One member's reflectance at ``settings.levels`` in ``geom``, strand layout ``layout``; cached on disk."""
-    from hairdigi.render.instrument import reflectance_ladder
+    from hairdigi.render.instrument_geometry import reflectance_ladder
     from hairdigi.render.swatch_family import structure_strands
 
     key = f"{geometry(geom).name.replace('/', '-').replace(' ', '_')}-{member}-{layout}-" \
@@ -136,7 +136,7 @@ def _load(path: str, mtime: float) -> InstrumentCurves:
 
 
 def load_curves(path: str | os.PathLike | None = None) -> InstrumentCurves | None:
-    """The shipped instrument curves (None when the table is missing: ``python -m hairdigi.inference.instrument``)."""
+    """The shipped instrument curves (None when the table is missing: ``python -m hairdigi.inference.instrument_reading``)."""
     path = Path(path or INSTRUMENT_TABLES)
     if not path.exists():
         return None
@@ -248,7 +248,7 @@ def read_instrument(hair: HairParams, members: dict[str, float] | None = None, r
     curves = curves if curves is not None else load_curves()
     if curves is None:
         raise InstrumentError(f"no instrument tables at {INSTRUMENT_TABLES}; build them with "
-                              f"python -m hairdigi.inference.instrument (about 10 minutes)")
+                              f"python -m hairdigi.inference.instrument_reading (about 10 minutes)")
     check_aperture(aperture_mm)
     observer, illuminant = check_observer(observer), check_illuminant(illuminant)
     intervals = measured_intervals() if intervals is None else intervals
@@ -328,10 +328,10 @@ def with_instrument(record: EstimateRecord, path: str | os.PathLike | None = Non
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m hairdigi.inference.instrument [--out PATH] [--spp N]``: build the instrument tables."""
+    """``python -m hairdigi.inference.instrument_reading [--out PATH] [--spp N]``: build the instrument tables."""
     import argparse
 
-    parser = argparse.ArgumentParser(prog="python -m hairdigi.inference.instrument", description=main.__doc__)
+    parser = argparse.ArgumentParser(prog="python -m hairdigi.inference.instrument_reading", description=main.__doc__)
     parser.add_argument("--out", default=str(INSTRUMENT_TABLES))
     parser.add_argument("--spp", type=int, default=BuildSettings.spp)
     parser.add_argument("--layouts", type=int, default=BuildSettings.layouts)

@@ -3,9 +3,9 @@
 Each hidden swatch (the rig evaluation's hard cases and random Table 1 draws, each on a physical
 structure of ``InstrumentSet.structures``, in a strand layout no table was rendered on) is captured
 through the simulated rig and estimated in the default mode (``RigSession``: calibrate, capture); the
-record's instrument readings (``inference.instrument``) are then judged against the same swatch read
+record's instrument readings (``inference.instrument_reading``) are then judged against the same swatch read
 by a virtual instrument: a spectral render of the truth in the instrument's geometry
-(``render.instrument.spectral_tristimulus``: the integrating sphere with and without its specular trap,
+(``render.instrument_geometry.spectral_tristimulus``: the integrating sphere with and without its specular trap,
 and the 45° ring), its hair's absorption the truth's spectrum, seen through the observer's bands under
 the illuminant. ``--ship`` writes each geometry's 68% and 95% quantiles as the readings' interval.
 """
@@ -51,7 +51,7 @@ class InstrumentSet:
 def truth_readings(params, structure: str, geometries, spp: int, size: int,
                    layout: int = HIDDEN_LAYOUT) -> dict[str, np.ndarray]:
     """The virtual instrument's CIELAB of the hidden swatch (its fibres in ``layout``) in each geometry (D65, 10°)."""
-    from hairdigi.render.instrument import lab_of_tristimulus, spectral_tristimulus
+    from hairdigi.render.instrument_geometry import lab_of_tristimulus, spectral_tristimulus
     from hairdigi.render.spectra import hair_sigma_a_spectrum
     from hairdigi.render.swatch_family import structure_strands
 
@@ -169,7 +169,7 @@ def summarise(rows: list[dict], config: InstrumentSet) -> dict:
 
 def ship_intervals(summary: dict, path: str | os.PathLike | None = None) -> Path:
     """Write each geometry's measured 68% and 95% quantiles as the readings' interval."""
-    from hairdigi.inference.instrument import INSTRUMENT_UNCERTAINTY
+    from hairdigi.inference.instrument_reading import INSTRUMENT_UNCERTAINTY
     from hairdigi.render.domain.files import write_json_atomic
 
     structures = ", ".join(summary["settings"]["structures"])
