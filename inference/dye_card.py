@@ -43,6 +43,17 @@ def under_lights(sigma_rgb, curve) -> dict[str, dict]:
             for light, colour in seen.items()}
 
 
+def instrument_labs(hair) -> dict[str, list[float]]:
+    """A predicted hair as a lab's instrument would read its swatch (D65, 10°; ``inference.instrument_reading``: the
+    family's structures at its absorption, their median), by geometry; {} where no tables are shipped."""
+    from hairdigi.inference.instrument_reading import load_curves, read_instrument
+
+    curves = load_curves()
+    if curves is None:
+        return {}
+    return {r.geometry: [round(v, 2) for v in r.lab] for r in read_instrument(hair, curves=curves, intervals={})}
+
+
 def card_rows(dye: DyeRecord, size: int = CARD_SIZE, spp: int = CARD_SPP, seed: int = CARD_SEED,
               dose: float = 1.0, curve=None) -> list[dict]:
     """Render each natural level and the dye on it; the measured colours and ΔE2000 per level."""
@@ -68,6 +79,7 @@ def card_rows(dye: DyeRecord, size: int = CARD_SIZE, spp: int = CARD_SPP, seed: 
                      "sigma_a": [round(float(v), 6) for v in pred.sigma_a],
                      "de2000": round(float(delta_e2000(mean_before, mean_after)), 2),
                      "under": under_lights(pred.sigma_a, curve),
+                     "instrument": instrument_labs(pred.params),
                      "render_s": round(time.perf_counter() - start, 3),
                      "nonfinite": before.nonfinite + after.nonfinite,   # NaN/Inf values rendered as 0
                      "_images": (before.srgb, after.srgb)})
@@ -111,8 +123,10 @@ def draw_card(dye: DyeRecord, rows: list[dict], dose: float = 1.0):
             ax.set_yticks([])
         top.set_title(f"level {row['level']}\n{row['base']['srgb']}", fontsize=7)
         lab = row["result"]["lab"]
+        sci = row.get("instrument", {}).get("d/8 SCI")
         bottom.set_xlabel(f"{row['result']['srgb']}\nL*a*b* {lab[0]:.0f} {lab[1]:.0f} {lab[2]:.0f}\n"
-                          f"ΔE00 {row['de2000']:.1f}", fontsize=7)
+                          + (f"SCI {sci[0]:.0f} {sci[1]:.0f} {sci[2]:.0f}\n" if sci else "")
+                          + f"ΔE00 {row['de2000']:.1f}", fontsize=7)
     axes[0, 0].set_ylabel("natural", fontsize=8)
     axes[1, 0].set_ylabel("dyed", fontsize=8)
     axes[2, 0].set_ylabel("mean:\nbase | dyed", fontsize=7)
@@ -120,7 +134,8 @@ def draw_card(dye: DyeRecord, rows: list[dict], dose: float = 1.0):
     fig.text(0.01, 0.01, "predicted by hairdigi (Kips et al. 2022 Table 1 absorption; deposit + lift); "
                          "colours are the rendered swatches' means, sRGB D65;\nbottom row: the dyed hair under "
                          "daylight, tungsten (A) and a shop LED (LED-B3) as an eye adapted to each sees it, "
-                         "ΔE00 from daylight below (tungsten, LED)", fontsize=6)
+                         "ΔE00 from daylight below (tungsten, LED); SCI: as a d/8 spectrophotometer reads the dyed "
+                         "swatch (D65, 10°, specular included)", fontsize=6)
     fig.tight_layout(rect=(0, 0.04, 1, 0.95))
     return fig
 

@@ -204,6 +204,9 @@ def test_shade_card_renders_ten_levels(curve, tmp_path, monkeypatch):
                for r in rows)
     assert max(r["under"]["A"]["de2000_from_daylight"] for r in rows) > 1.0
     assert json.loads(table.read_text())["levels"][5]["under"]["A"]["srgb"] == rows[5]["under"]["A"]["srgb"]
+    # and as a lab's spectrophotometer reads each dyed swatch: darker levels read darker
+    sci = [r["instrument"]["d/8 SCI"][0] for r in rows]
+    assert list(rows[0]["instrument"]) == ["d/8 SCI", "d/8 SCE", "45/0"] and sci[0] < sci[4] < sci[9]
 
 
 def test_a_grey_absorption_looks_the_same_under_every_light_on_the_card(curve):
