@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass, field
 from hairdigi.render.domain.params import HairParams, HairParamsError
 from hairdigi.render.domain.record_fields import RecordError, check_interval, floats, need, real
 from hairdigi.render.domain.rig_geometry import CameraPose, GeometryError, RigRegion
+from hairdigi.render.domain.text_enum import text_of
 
 
 def _object(data, what: str) -> dict:
@@ -93,6 +94,10 @@ class StructureInterval:
     mean_colour_de2000_p68: float
     mean_colour_de2000_p95: float
     source: str = ""
+
+    def __post_init__(self) -> None:   # a record holds text: a member given in the process and its text read back are one
+        object.__setattr__(self, "mode", text_of(self.mode))
+        object.__setattr__(self, "rendered", text_of(self.rendered))
 
     def to_json(self) -> dict:
         return {"mode": self.mode, "rendered": self.rendered, "mean_colour_de2000_p68": self.mean_colour_de2000_p68,
@@ -291,6 +296,9 @@ class Region:
     structure: str | None = None            # the structure mapping applied after (inference.structure)
     source: str | None = None               # what stands in for a fit and render (a dye prediction's)
     members: dict | None = None             # the family members the structure map averaged: member -> weight
+
+    def __post_init__(self) -> None:   # a record holds text: a member given in the process and its text read back are one
+        object.__setattr__(self, "swatch_model", text_of(self.swatch_model))
 
     def to_json(self) -> dict:
         out = self.rig.to_dict() if self.rig is not None else {}
