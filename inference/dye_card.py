@@ -6,7 +6,7 @@ The labels come from the renders: the result's mean colour as sRGB and CIE L*a*b
 ΔE2000 from base to result. Each result is also shown under ``CARD_LIGHTS`` (daylight, tungsten, a
 shop LED), as an eye adapted to each light sees it, with the ΔE2000 between daylight and each: the
 predicted absorption as a spectrum (``render.spectra.rgb_sigma_spectrum``) and the rig's response
-curve read per wavelength (``inference.spectral.colour_under``), so no render is added. Written as
+curve read per wavelength (``inference.spectral_reading.colour_under``), so no render is added. Written as
 PNG and PDF (matplotlib; the PDF prints) and a JSON table.
 """
 from __future__ import annotations
@@ -33,7 +33,7 @@ def under_lights(sigma_rgb, curve) -> dict[str, dict]:
     """A predicted hair under each of ``CARD_LIGHTS``, adapted: its description, and ΔE2000 from daylight."""
     import numpy as np
 
-    from hairdigi.inference.spectral import colour_under
+    from hairdigi.inference.spectral_reading import colour_under
     from hairdigi.render.spectra import balanced, rgb_sigma_spectrum
 
     spectrum = rgb_sigma_spectrum(np.asarray(sigma_rgb, float))

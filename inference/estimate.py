@@ -2,7 +2,7 @@
 
 The steps: find the swatch crop, run the encoder (``inference.encoder``), refine by synthesis so the
 swatch re-renders with the crop's mean colour (``inference.refine``), attach measured intervals
-(``inference.uncertainty``), and collect warnings: out-of-domain inputs (``inference.domain``), a
+(``inference.uncertainty``), and collect warnings: out-of-domain inputs (``inference.domain_checks``), a
 colour no Table 1 hair renders, parameters at the edge of the range, a stale calibration. ``hairdigi
 estimate``, ``hairdigi rig`` and the app all go through :func:`estimate_image` and :func:`record`.
 """
@@ -17,9 +17,9 @@ from typing import Callable
 
 import numpy as np
 
-from hairdigi.inference.appearance import (AppearanceReading, check_light_frames, read_appearance,
+from hairdigi.inference.appearance_reading import (AppearanceReading, check_light_frames, read_appearance,
                                            unmeasured_variation)
-from hairdigi.inference.domain import domain_stats, domain_warnings
+from hairdigi.inference.domain_checks import domain_stats, domain_warnings
 from hairdigi.inference.encoder import Encoder, Estimate
 from hairdigi.inference.preprocess import Roi, crop_of, read_image, swatch_crop, to_linear
 from hairdigi.inference.refine import (Refinement, RefineSettings, View, curve_reach, fitted_pixels, mean_linear, refine,
@@ -176,7 +176,7 @@ class _Fit:
                    None if light_images is None else seen.frame_levels(light_images))
 
     def read(self, structures: tuple[str, ...] | None = None) -> AppearanceReading:
-        """The appearance read from the frames (``inference.appearance.read_appearance``)."""
+        """The appearance read from the frames (``inference.appearance_reading.read_appearance``)."""
         return read_appearance(self.singles, self.view, self.settings, self.renderer, texture_pixels=self.texture,
                                frame_levels=self.levels, structures=structures)
 

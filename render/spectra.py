@@ -380,7 +380,7 @@ def swatch_colour(reflectance: np.ndarray, light: str, sensitivities: str | None
     radiance per unit light, wavelength by wavelength) lit by ``light``: linear sRGB as the CIE observer
     sees it (D65 white), or a camera's raw RGB through its ``sensitivities`` (bands of unit area, as
     ``render.scenes.camera_film``). With a rig's response curve read per wavelength as ``reflectance``,
-    this is a spectral render's mean colour without the render (``inference.spectral``)."""
+    this is a spectral render's mean colour without the render (``inference.spectral_reading``)."""
     import colour
 
     radiance = np.asarray(reflectance, float) * illuminant_spd(light)

@@ -164,7 +164,7 @@ def test_a_hidden_swatch_file_may_carry_an_appearance_and_a_bad_one_is_named(tmp
 def test_a_grey_share_is_reported_only_when_its_95_percent_interval_excludes_none():
     """Uniform hair reads a few per cent of greys from its glints (0.07-0.12 on the layered swatch, 68%
     intervals clear of 0): only a share whose 95% interval excludes 0 is told from none."""
-    from hairdigi.inference.appearance import _reaches_zero
+    from hairdigi.inference.appearance_reading import _reaches_zero
 
     uniform_copper = {"p68": [0.019, 0.155], "p95": [0.0, 0.21]}       # the demo's uniform copper, as read
     assert _reaches_zero(uniform_copper)

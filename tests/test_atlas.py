@@ -105,7 +105,7 @@ def test_a_fresh_sessions_first_capture_of_a_deposited_swatch_renders_no_table_a
     finally:
         session.close()
     record = result.record
-    assert record is not None and record.uncertainty.structure.mode == "family"
+    assert record is not None and record.uncertainty.structure.mode is StructureMode.FAMILY
     assert not list((tmp_path / "cache").glob("response/*")), "a table was rendered"
     refinement = record.refinement
     frame = result.corrected

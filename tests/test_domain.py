@@ -3,7 +3,7 @@ import cv2
 import numpy as np
 import pytest
 
-from hairdigi.inference.domain import domain_stats, domain_warnings
+from hairdigi.inference.domain_checks import domain_stats, domain_warnings
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import SceneSpec, render
 from hairdigi.render.domain.rig_geometry import CameraPose

@@ -113,7 +113,7 @@ BUILTIN_BASES = {
     "app.library.store.LibraryError": ValueError, "app.cli.validation.ArgumentError": ValueError,
     "hardware.cameras.CameraError": RuntimeError, "hardware.lights.LightError": RuntimeError,
     "hardware.lights.LightArgumentError": ValueError, "inference.calibration.CalibrationError": RuntimeError,
-    "inference.preprocess.ImageError": ValueError, "inference.appearance.LightFramesError": ValueError,
+    "inference.preprocess.ImageError": ValueError, "inference.appearance_reading.LightFramesError": ValueError,
     "inference.dye.DyeError": ValueError, "inference.encoder.ModelError": RuntimeError,
     "render.hairfile.HairFileError": ValueError, "render.blender_run.BlenderError": RuntimeError,
     "render.denoise.DenoiserMissing": RuntimeError, "render.spectra.SpectrumError": ValueError,

@@ -157,7 +157,7 @@ def test_a_raw_still_knows_which_pixels_are_saturated_on_the_sensor(tmp_path):
 
 def test_clipping_is_judged_on_the_sensor_where_its_data_is_given():
     from hairdigi.hardware.exposure import check_region
-    from hairdigi.inference.domain import domain_stats, domain_warnings
+    from hairdigi.inference.domain_checks import domain_stats, domain_warnings
 
     rng = np.random.default_rng(0)
     crop = rng.integers(0, 40, (64, 64, 3)).astype(np.uint8)          # dark hair: 1 in 40 codes at 0
@@ -209,7 +209,7 @@ def test_fine_fibres_through_a_lens_are_not_out_of_domain_but_a_defocused_swatch
     model: its texture at the encoder's 48² is weak (energy 11.4 < 12), and it was flagged "no strand
     texture". Its texture is fine and its channels move together there: not out of domain. The same
     swatch defocused (8 px) is still flagged: what fine texture is left is the sensor's noise."""
-    from hairdigi.inference.domain import domain_stats, domain_warnings
+    from hairdigi.inference.domain_checks import domain_stats, domain_warnings
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.camera_model import CameraModel, sensor_response
 
@@ -224,7 +224,7 @@ def test_fine_fibres_through_a_lens_are_not_out_of_domain_but_a_defocused_swatch
 
 def test_a_dark_smooth_gradient_through_the_camera_is_still_out_of_domain():
     """A dark gradient card through the camera model has weak texture too, but none of it fine fibres'."""
-    from hairdigi.inference.domain import domain_stats, domain_warnings
+    from hairdigi.inference.domain_checks import domain_stats, domain_warnings
     from hairdigi.render.camera_model import CameraModel, sensor_response
 
     yy = np.mgrid[:256, :256][0] / 255.0

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
-from hairdigi.inference.domain import domain_stats, domain_warnings
+from hairdigi.inference.domain_checks import domain_stats, domain_warnings
 from hairdigi.inference.preprocess import ImageError, Roi, find_swatch_roi, swatch_crop
 from hairdigi.render.domain import rig_geometry
 from hairdigi.render.domain.appearance import Appearance

@@ -52,7 +52,7 @@ def _write_png(path: Path, rgb: np.ndarray) -> Path:
 
 
 def test_one_captures_frames_add_up_and_garbage_does_not(rig_capture):
-    from hairdigi.inference.appearance import light_frames_problem
+    from hairdigi.inference.appearance_reading import light_frames_problem
     from hairdigi.inference.preprocess import to_linear
 
     image_path, names, exposures = rig_capture

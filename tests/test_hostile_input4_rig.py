@@ -192,7 +192,7 @@ def test_spectra_the_physics_cannot_use_are_refused_in_one_line(ws, spectra_file
 
 
 def test_sound_spectra_and_every_named_light_and_camera_still_pass(spectra_files):
-    from hairdigi.app.session.spectra import spectra_problem
+    from hairdigi.app.session.declared_spectra import spectra_problem
     from hairdigi.render import spectra
     from hairdigi.render.domain.bounds import CAMERAS, ILLUMINANTS
 
@@ -223,7 +223,7 @@ def test_a_camera_reading_far_beyond_the_held_out_residuals_makes_the_record_unr
     from media import chart_profile
 
     from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.inference.spectral import RigSpectra, spectral_record
+    from hairdigi.inference.spectral_reading import RigSpectra, spectral_record
     from hairdigi.render.domain.params import HairParams
     from hairdigi.render.domain.records import EstimateRecord, RefinementRecord, WarningKind
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
@@ -246,7 +246,7 @@ def test_a_camera_reading_far_beyond_the_held_out_residuals_makes_the_record_unr
 
 # --- 3. light frames in the wrong order, or that fit no shine, make the record unreliable ------------------
 def test_light_frames_in_the_wrong_order_or_fitting_no_shine_are_named():
-    from hairdigi.inference.appearance import read_appearance
+    from hairdigi.inference.appearance_reading import read_appearance
     from hairdigi.inference.refine import RefineSettings
     from hairdigi.inference.shine import shine_tables
     from hairdigi.render.domain.records import UNRELIABLE

@@ -7,7 +7,7 @@ import pytest
 
 from hairdigi.render.domain.appearance import Appearance
 from hairdigi.inference.refine import RefineSettings, scene_for
-from hairdigi.inference.appearance import dark_lights, read_appearance
+from hairdigi.inference.appearance_reading import dark_lights, read_appearance
 from hairdigi.inference.shine import estimate_shine, shine_tables
 from hairdigi.render.domain.rig_geometry import N_LIGHTS, RigRegion, swatch_roi
 from hairdigi.render.renderer import Renderer, SceneSpec

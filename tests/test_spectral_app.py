@@ -39,8 +39,8 @@ def test_the_app_declares_a_real_rigs_spectra_both_together_and_refuses_half_in_
 
 def test_the_app_and_the_rig_read_their_spectra_alike():
     """One reading of --sim, --spectral, --led and --sensor for both commands."""
-    from hairdigi.app.session.spectra import rig_spectra
-    from hairdigi.inference.spectral import RigSpectra
+    from hairdigi.app.session.declared_spectra import rig_spectra
+    from hairdigi.inference.spectral_reading import RigSpectra
 
     assert rig_spectra(True, False, None, None) == ({}, None)
     assert rig_spectra(True, True, None, None) == ({"illuminant": "LED-B4", "sensitivities": "nikon-5100"}, None)
@@ -50,7 +50,7 @@ def test_the_app_and_the_rig_read_their_spectra_alike():
 
 
 def test_a_declared_rig_whose_correction_is_not_3x3_is_warned_of_and_keeps_the_wide_interval():
-    from hairdigi.inference.spectral import RigSpectra, spectral_record
+    from hairdigi.inference.spectral_reading import RigSpectra, spectral_record
 
     table = {"source": "test", "cameras": {
         "nikon-5100": {"answer": "camera", "holds_for": "every light", "p68": 1.2, "p95": 5.3},
@@ -90,7 +90,7 @@ def photo(tmp_path_factory):
 
 
 def test_a_calibrated_photos_estimate_is_widened_for_an_undeclared_cameras_metamerism(photo, tmp_path):
-    from hairdigi.inference.spectral import SPECTRAL_TABLE
+    from hairdigi.inference.spectral_reading import SPECTRAL_TABLE
     from hairdigi.inference.uncertainty import load_table
 
     done = hairdigi("estimate", str(photo / "photo.png"), "--calibration", str(photo / "cal.json"), "--no-refine",

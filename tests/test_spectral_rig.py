@@ -1,4 +1,4 @@
-"""The estimate in a spectral world (inference.spectral): colour under any light from the rig's response
+"""The estimate in a spectral world (inference.spectral_reading): colour under any light from the rig's response
 curve, and a spectral rig's capture read in the camera's own RGB."""
 import json
 import subprocess
@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_the_response_curve_read_per_wavelength_is_a_spectral_render_without_the_render():
     from hairdigi.inference.refine import RefineSettings, response_curve, scene_for
-    from hairdigi.inference.spectral import colour_under
+    from hairdigi.inference.spectral_reading import colour_under
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.metrics import delta_e2000
     from hairdigi.render.renderer import default_renderer
@@ -41,7 +41,7 @@ def test_the_response_curve_read_per_wavelength_is_a_spectral_render_without_the
 def test_the_refit_reaches_a_saturated_purple_and_a_dye_from_rgb_answers_far_from_them():
     """The dye's spectrum is a solve; the refit's finite differences must not differentiate its noise."""
     from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.inference.spectral import colour_under, spectral_answer
+    from hairdigi.inference.spectral_reading import colour_under, spectral_answer
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 
     curve = response_curve(RIG_SWATCH_POSE, RefineSettings())
@@ -70,7 +70,7 @@ def _spectral_capture(tmp_path, hidden, led: str, camera: str):
 
 
 def test_a_spectral_rig_capture_is_read_in_the_camera_and_carries_to_tungsten(tmp_path):
-    from hairdigi.app.evaluation.spectral import SpectralSet, answers, _judge
+    from hairdigi.app.evaluation.spectral_evaluation import SpectralSet, answers, _judge
 
     hidden = HairParams((230, 20, 30), 1.0, 0.08, 0.3)            # a saturated red: far from the chart's colours
     session, profile, result = _spectral_capture(tmp_path, hidden, "LED-B4", "nikon-5100")
@@ -95,7 +95,7 @@ def test_a_spectral_rig_capture_is_read_in_the_camera_and_carries_to_tungsten(tm
 
 
 def test_a_record_is_widened_by_metamerism_unless_its_rig_declares_its_camera():
-    from hairdigi.inference.spectral import RigSpectra, spectral_record, with_spectral
+    from hairdigi.inference.spectral_reading import RigSpectra, spectral_record, with_spectral
 
     table = {"source": "test", "cameras": {
         "nikon-5100": {"answer": "camera", "holds_for": "every light", "p68": 1.2, "p95": 5.3},
@@ -155,7 +155,7 @@ def test_a_real_rigs_record_carries_metamerism_unless_the_rig_declares_its_spect
 
     from hairdigi.app.session.rig_session import RigSession
     from hairdigi.hardware.cameras import OpenCVCamera
-    from hairdigi.inference.spectral import SPECTRAL_TABLE, RigSpectra
+    from hairdigi.inference.spectral_reading import SPECTRAL_TABLE, RigSpectra
     from hairdigi.inference.uncertainty import load_table
 
     record = EstimateRecord(hair=HairParams((120, 60, 40), 0.4, 0.5, 0.6),
@@ -188,7 +188,7 @@ def test_a_camera_whose_bands_overlap_is_read_from_its_measured_greys_and_its_no
     corrected, and the chart's greys stay tinted alike in every frame. The corrected image is not
     clipped (clipping biased a swatch's blue up by 20-45%), the camera's gains come from the chart's
     measured greys (kept in the profile), and no light is said to tint the greys for it."""
-    from hairdigi.app.evaluation.spectral import SpectralSet, answers, _judge
+    from hairdigi.app.evaluation.spectral_evaluation import SpectralSet, answers, _judge
 
     hidden = HairParams(melanin_concentration=0.45, melanin_ratio=0.6, dye_concentration=0.0)   # a brown
     _, profile, result = _spectral_capture(tmp_path, hidden, "LED-B5", "sigma-sdmerill")

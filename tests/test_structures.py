@@ -252,7 +252,7 @@ def test_a_deposited_swatch_is_estimated_within_the_goal_mapped_to_the_family() 
     table = json.loads(STRUCTURE_TABLE.read_text())
     for mode, key in (("family", "family"), ("assumed", "shipped")):
         stated = intervals[mode]
-        assert stated.structure.mode == mode
+        assert stated.structure.mode is StructureMode(mode)
         assert stated.structure.mean_colour_de2000_p95 == round(table[key]["p95"], 3), (mode, stated.structure)
         assert stated.mean_colour_de2000_p95 >= table[key]["p95"] - 1e-9, (mode, stated)
     assert intervals["assumed"].mean_colour_de2000_p95 > intervals["family"].mean_colour_de2000_p95
@@ -396,7 +396,7 @@ def test_a_swatch_out_of_the_layered_swatchs_reach_is_estimated_on_its_structure
     result = estimate_image(frame, Encoder(), light_images=singles, structure="assumed")
     said = [w.message for w in result.warnings if w.message.startswith("structure:")]
     assert said and "read from the single-light frames" in said[0], [w.message for w in result.warnings]
-    assert result.refinement.region.swatch_model != "layered"
+    assert result.refinement.region.swatch_model is not SwatchModel.LAYERED
     # kept because it at least halves the layered swatch's residual (over UNREACHED_DE); the residual itself
     # carries the check renders' noise on a swatch of sparse crossing fibres (0.40 and 0.64 on two builds of
     # the tables), so the truth below judges the answer
@@ -432,7 +432,7 @@ def test_a_still_without_frames_refines_on_the_structure_the_rigs_frames_read_of
     assert borrowed.texture is None          # an all-hair crop has no rig view's texture
     goal = _spread_shot(SPREAD_TRUTH, spp=128).reshape(-1, 3).mean(0)
     still = estimate_image(frame, Encoder(), structure="family", borrowed=borrowed)
-    assert still.refinement.region.swatch_model == "spread"
+    assert still.refinement.region.swatch_model is SwatchModel.SPREAD
     assert "the rig's single-light frames of the same swatch" in still.refinement.region.structure
     assert still.appearance.value.longitudinal_roughness == borrowed.frames.value.longitudinal_roughness
     assert still.uncertainty.structure.mode == "family"

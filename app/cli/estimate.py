@@ -103,12 +103,12 @@ def say_pose_tables(camera) -> None:
 
 
 def in_spectral_world(record, estimate, calibration: str, led: str | None, sensor: str | None):
-    """A calibrated photo's record in the spectral world (``inference.spectral.spectral_record``): read in the
+    """A calibrated photo's record in the spectral world (``inference.spectral_reading.spectral_record``): read in the
     camera's RGB where ``led`` and ``sensor`` declare its light and camera, else its colour interval widened
     as an undeclared camera's."""
-    from hairdigi.app.session.spectra import rig_spectra
+    from hairdigi.app.session.declared_spectra import rig_spectra
     from hairdigi.inference.calibration import load_profile
-    from hairdigi.inference.spectral import spectral_record
+    from hairdigi.inference.spectral_reading import spectral_record
 
     profile = load_profile(calibration)
     spectra = rig_spectra(False, False, led, sensor)[1]
@@ -124,7 +124,7 @@ def session_profile(args: argparse.Namespace) -> None:
     from pathlib import Path
 
     from hairdigi.app.session.profile import merged, profile_path, read_profile
-    from hairdigi.app.session.spectra import spectra_problem
+    from hairdigi.app.session.declared_spectra import spectra_problem
     from hairdigi.render.domain.session_folder import SessionFolder
 
     if not args.calibration:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from hairdigi.app.library.export import export_record
+from hairdigi.app.library.renderer_export import export_record
 from hairdigi.render.interchange import FORMATS
 
 SUFFIXES = {"materialx": ".mtlx", "blender": ".py"}

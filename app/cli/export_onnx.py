@@ -12,7 +12,7 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hairdigi.inference.training.export import export_onnx, parity
+    from hairdigi.inference.training.onnx_export import export_onnx, parity
     from hairdigi.inference.training.train import load_trained
 
     model, history = load_trained(args.run)

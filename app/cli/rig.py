@@ -35,7 +35,7 @@ def check_dead_lights(dead) -> set[int]:
 def open_session(args) -> RigSession:
     """The simulated rig with ``--sim``, else the camera and the light board (``--port``, or found)."""
     from hairdigi.app.session.rig_session import open_rig
-    from hairdigi.app.session.spectra import rig_spectra
+    from hairdigi.app.session.declared_spectra import rig_spectra
 
     simulated = {}
     if args.sim:
@@ -131,7 +131,7 @@ def _judge_hidden(session: RigSession, result, out: dict, say) -> None:
     if hidden is None:
         return
     if getattr(session.camera, "illuminant", None) is not None:
-        from hairdigi.app.evaluation.spectral import LIGHTS, judge_record
+        from hairdigi.app.evaluation.spectral_evaluation import LIGHTS, judge_record
 
         where = judge_record(hidden, result.record, session.profile, session.camera.illuminant,
                              session.camera.sensitivities)
@@ -152,7 +152,7 @@ def _judge_hidden(session: RigSession, result, out: dict, say) -> None:
 
     look = session.camera.appearance
     if result.record.appearance is not None:
-        from hairdigi.app.evaluation.appearance import judge_everywhere
+        from hairdigi.app.evaluation.appearance_evaluation import judge_everywhere
 
         read = result.record.appearance.value
         say(f"hidden appearance: shine {look.longitudinal_roughness:.2f}, fibre spread {look.fibre_spread:.2f}, "
@@ -250,7 +250,7 @@ def rig_profile(args, still: bool, say=None) -> RigProfile:
     """The rig this command works with: the session's profile (``app.session.profile``) with the flags given in
     its place, each override said on stderr; ``args``' ``led``, ``sensor``, ``structure`` (and ``spectral`` on the
     simulated rig) are set from it. A live rig's profile, simulated spectra filled in, is what the session keeps."""
-    from hairdigi.app.session.spectra import SIM_LED, SIM_SENSOR, spectra_problem
+    from hairdigi.app.session.declared_spectra import SIM_LED, SIM_SENSOR, spectra_problem
 
     say = say or (lambda line: print(line, file=sys.stderr))
     kept = read_profile(args.session)
@@ -290,12 +290,12 @@ def _given(value, default) -> bool:
 def still_spectra(led: str | None, sensor: str | None):
     """A still camera's declared LEDs and sensitivities (``--led``/``--sensor``) as ``import_still``'s
     ``in_spectral_world``: its record read in the camera's RGB as a declared rig's; None where none is declared."""
-    from hairdigi.app.session.spectra import rig_spectra
+    from hairdigi.app.session.declared_spectra import rig_spectra
 
     spectra = rig_spectra(False, False, led, sensor)[1]
     if spectra is None:
         return None
-    from hairdigi.inference.spectral import spectral_record
+    from hairdigi.inference.spectral_reading import spectral_record
 
     return lambda record, profile, curve: spectral_record(record, spectra, profile, curve)
 

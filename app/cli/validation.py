@@ -322,7 +322,7 @@ def check_estimate(args: argparse.Namespace) -> None:
         raise ArgumentError("--led and --sensor read the estimate in the camera's RGB through its chart correction: "
                             "add --calibration (the photo's calibration profile)")
     if led or sensor:
-        from hairdigi.app.session.spectra import spectra_problem
+        from hairdigi.app.session.declared_spectra import spectra_problem
 
         problem = spectra_problem(led, sensor)
         if problem is not None:
@@ -402,7 +402,7 @@ def check_spectra(args: argparse.Namespace) -> None:
                                 f"--{flag} out")
     if args.sim and not args.spectral:
         return
-    from hairdigi.app.session.spectra import SIM_LED, SIM_SENSOR, spectra_problem
+    from hairdigi.app.session.declared_spectra import SIM_LED, SIM_SENSOR, spectra_problem
 
     declared = (args.led or SIM_LED, args.sensor or SIM_SENSOR) if args.sim else (args.led, args.sensor)
     problem = spectra_problem(*declared)

@@ -119,7 +119,7 @@ def rig(args: argparse.Namespace) -> int:
 
 def appearance(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --appearance``: shine and fibre variation judged away from the rig."""
-    from hairdigi.app.evaluation.appearance import AppearanceSet, evaluate_appearance
+    from hairdigi.app.evaluation.appearance_evaluation import AppearanceSet, evaluate_appearance
 
     s = evaluate_appearance(args.out, AppearanceSet(random=args.rig_random, variation=not args.no_variation))
     for mode in ("read", "no light frames"):
@@ -141,7 +141,7 @@ def appearance(args: argparse.Namespace) -> int:
     for line in s["errors"] + s["blocked"]:
         print(f"not estimated: {line}")
     if args.ship:
-        from hairdigi.inference.appearance import UNCERTAINTY
+        from hairdigi.inference.appearance_reading import UNCERTAINTY
 
         ship(UNCERTAINTY, s["table"], "the appearance's intervals")
     print(f"appearance_evaluation.csv, .json and .png in {args.out}")
@@ -235,7 +235,7 @@ def structures(args: argparse.Namespace) -> int:
 
 def spectral(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --spectral``: hidden spectral hairs through a spectral rig, judged under three lights."""
-    from hairdigi.app.evaluation.spectral import ANSWERS, LIGHTS, VIEWS, SpectralSet, evaluate_spectral
+    from hairdigi.app.evaluation.spectral_evaluation import ANSWERS, LIGHTS, VIEWS, SpectralSet, evaluate_spectral
 
     config = SpectralSet() if args.held_out is None else SpectralSet(seed=args.held_out, random=args.rig_random)
     s = evaluate_spectral(args.out, config)
@@ -253,7 +253,7 @@ def spectral(args: argparse.Namespace) -> int:
     for line in s["errors"]:
         print(f"not estimated: {line}")
     if args.ship and s.get("table", {}).get("cameras"):
-        from hairdigi.inference.spectral import SPECTRAL_TABLE
+        from hairdigi.inference.spectral_reading import SPECTRAL_TABLE
 
         ship(SPECTRAL_TABLE, s["table"], "the spectral world's colour intervals")
     print(f"spectral_evaluation.csv, .json and .png in {args.out}")

@@ -10,7 +10,7 @@ from PySide6.QtWidgets import QApplication, QComboBox, QDialog, QDialogButtonBox
 from hairdigi.app.gui.main_window import MainWindow, settings_store
 from hairdigi.app.session.profile import ProfileError, RigProfile, merged, profile_path, read_profile, write_profile
 from hairdigi.app.session.rig_session import open_rig
-from hairdigi.app.session.spectra import rig_spectra, spectra_problem
+from hairdigi.app.session.declared_spectra import rig_spectra, spectra_problem
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, STRUCTURE_MODES, StructureMode
 
 SETTING_DEFAULTS = {"camera": "0", "serial_port": "", "output_folder": str(Path.home() / "hairdigi-sessions" / "default"),

@@ -278,7 +278,7 @@ class LibraryModel(PanelModel):
         record, name, path = swatch.record_path, swatch.capture_id or swatch.id, str(path)
 
         def run():
-            from hairdigi.app.library.export import export_record
+            from hairdigi.app.library.renderer_export import export_record
 
             try:
                 return Exported(tuple(Path(p) for p in export_record(record, fmt, path, name=name)))

@@ -8,7 +8,7 @@ channel of the mean depends on that channel's ``sigma_a`` alone through the rig'
 - ``studio``: the same swatch under 3200 K tungsten studio lamps (a Planckian radiator), seen without
   chromatic adaptation, as a daylight-balanced photograph shows it (CIELAB against D65). Where the
   record holds Table 1 parameters, the change from daylight is the spectral hair's
-  (``inference.spectral.colour_under``: the rig's response curve read per wavelength, under each SPD),
+  (``inference.spectral_reading.colour_under``: the rig's response curve read per wavelength, under each SPD),
   applied per channel to the measured daylight colour, so a dye's absorption band moves as it does
   under a real lamp; the parameters of a declared rig's camera answer (``record.spectral``) are used
   where the record has them. Without parameters, as an RGB renderer lights it: the per-channel product
@@ -65,7 +65,7 @@ def rendered_linear(sigma_a: np.ndarray) -> np.ndarray:
 def studio_change(hair) -> np.ndarray:
     """Per channel, the spectral swatch of ``hair`` (``HairParams``) under the studio lamps over under
     daylight (linear sRGB, unadapted; both lights at luminance 1)."""
-    from hairdigi.inference.spectral import colour_under
+    from hairdigi.inference.spectral_reading import colour_under
 
     curve = _curve()
     daylight = colour_under(curve, hair, "D65")

@@ -112,7 +112,7 @@ class RigSession:
         #: how its estimates treat the swatch's physical structure (``render.domain.bounds.STRUCTURE_MODES``:
         #: ``inference.estimate.estimate_image``'s ``structure``)
         self.structure = StructureMode(structure)
-        #: the rig's LEDs and camera sensitivities (``inference.spectral.RigSpectra``): declared, a capture's
+        #: the rig's LEDs and camera sensitivities (``inference.spectral_reading.RigSpectra``): declared, a capture's
         #: record carries its reading in the camera's RGB and colour under other lights; None on a real rig,
         #: its colour interval carries the metamerism of an undeclared camera
         self.spectra = spectra
@@ -170,7 +170,7 @@ class RigSession:
             camera.swatch_model = rig.swatch_model                            # and the strands it lies on
         spectra = None
         if illuminant is not None:
-            from hairdigi.inference.spectral import RigSpectra
+            from hairdigi.inference.spectral_reading import RigSpectra
 
             spectra = RigSpectra(illuminant, sensitivities)
         session = cls(camera, lights, folder, rig.roi, encoder, simulated=True, spectra=spectra, structure=structure)
@@ -376,7 +376,7 @@ class RigSession:
         the response curve its refinement inverted (default: the rig's swatch crop's)."""
         if self.simulated and self.spectra is None:
             return record
-        from hairdigi.inference.spectral import spectral_record
+        from hairdigi.inference.spectral_reading import spectral_record
 
         profile = profile or self.profile
         return spectral_record(record, self.spectra, profile, curve)
@@ -671,7 +671,7 @@ def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", por
     the camera and the light board on ``port``, found on the serial ports when empty; without a board
     the session has no lights unless ``require_lights``. When they do not answer, ``fallback`` gives
     the simulated rig and the reason; without it the CameraError or LightError is raised. ``spectra``
-    (``inference.spectral.RigSpectra``): what the real rig declares of its LEDs and camera; ``structure``, how
+    (``inference.spectral_reading.RigSpectra``): what the real rig declares of its LEDs and camera; ``structure``, how
     the session's estimates treat the swatch's physical structure (``RigSession.structure``).
     """
     genicam = genicam_id(camera)

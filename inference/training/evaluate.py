@@ -143,7 +143,7 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 64, 
     """Run the protocol; write ``evaluation.json``, ``samples.json``, ``uncertainty.json``; return the summary."""
     from tqdm import tqdm
 
-    from hairdigi.inference.domain import domain_stats, domain_warnings
+    from hairdigi.inference.domain_checks import domain_stats, domain_warnings
     from hairdigi.inference.preprocess import ImageError, Roi
     from hairdigi.inference.uncertainty import coverage_of, fit_intervals
 

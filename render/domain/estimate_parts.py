@@ -13,7 +13,14 @@ from dataclasses import asdict, dataclass, field
 from hairdigi.render.domain.params import HairParams, HairParamsError
 from hairdigi.render.domain.record_fields import RecordError, check_interval, floats, need, real
 from hairdigi.render.domain.rig_geometry import CameraPose, GeometryError, RigRegion
-from hairdigi.render.domain.text_enum import text_of
+from hairdigi.render.domain.bounds import StructureMode, SwatchModel
+from hairdigi.render.domain.text_enum import TextEnum, text_of
+
+
+def _parsed(enum: type[TextEnum], value):
+    """``value`` as a member of ``enum`` where it names one; None, or a name this hairdigi does not know (a
+    newer record's), as it is."""
+    return enum(value) if value is not None and enum.knows(value) else value
 
 
 def _object(data, what: str) -> dict:
@@ -95,12 +102,12 @@ class StructureInterval:
     mean_colour_de2000_p95: float
     source: str = ""
 
-    def __post_init__(self) -> None:   # a record holds text: a member given in the process and its text read back are one
-        object.__setattr__(self, "mode", text_of(self.mode))
-        object.__setattr__(self, "rendered", text_of(self.rendered))
+    def __post_init__(self) -> None:   # parsed once: a member given in the process and its text read back are one
+        object.__setattr__(self, "mode", _parsed(StructureMode, self.mode))
+        object.__setattr__(self, "rendered", _parsed(SwatchModel, self.rendered))
 
     def to_json(self) -> dict:
-        return {"mode": self.mode, "rendered": self.rendered, "mean_colour_de2000_p68": self.mean_colour_de2000_p68,
+        return {"mode": text_of(self.mode), "rendered": text_of(self.rendered), "mean_colour_de2000_p68": self.mean_colour_de2000_p68,
                 "mean_colour_de2000_p95": self.mean_colour_de2000_p95, "source": self.source}
 
     @classmethod
@@ -115,7 +122,7 @@ class StructureInterval:
 
 @dataclass(frozen=True)
 class SpectralInterval:
-    """The spectral world's colour interval for the rig's camera (``inference.spectral.with_spectral``)."""
+    """The spectral world's colour interval for the rig's camera (``inference.spectral_reading.with_spectral``)."""
 
     camera: str                  # the camera's name, or "unknown" where the rig declares none
     answer: str                  # "camera": the spectral reading's; "rgb": the record's own colour
@@ -229,7 +236,7 @@ class Provenance:
     encoder_ms: float | None = None
     seconds: float | None = None
     calibration: dict | None = None         # {"id", "method", "delta_e2000_after", "path"?}; None: not corrected
-    domain: dict | None = None              # the crop's texture statistics (inference.domain.DomainStats)
+    domain: dict | None = None              # the crop's texture statistics (inference.domain_checks.DomainStats)
     image: str | None = None
     image_sha256: str | None = None
     prediction: dict | None = None          # a dye prediction's dye, base, dose and lift (inference.dye.apply)
@@ -297,14 +304,14 @@ class Region:
     source: str | None = None               # what stands in for a fit and render (a dye prediction's)
     members: dict | None = None             # the family members the structure map averaged: member -> weight
 
-    def __post_init__(self) -> None:   # a record holds text: a member given in the process and its text read back are one
-        object.__setattr__(self, "swatch_model", text_of(self.swatch_model))
+    def __post_init__(self) -> None:   # parsed once: a member given in the process and its text read back are one
+        object.__setattr__(self, "swatch_model", _parsed(SwatchModel, self.swatch_model))
 
     def to_json(self) -> dict:
         out = self.rig.to_dict() if self.rig is not None else {}
         if self.crop_pose is not None:
             out["crop_pose"] = asdict(self.crop_pose)
-        return {**out, **_compact({"swatch_model": self.swatch_model, "structure": self.structure,
+        return {**out, **_compact({"swatch_model": text_of(self.swatch_model), "structure": self.structure,
                                    "source": self.source, "members": self.members})}
 
     @classmethod

@@ -321,7 +321,7 @@ class RefinementRecord:
 @dataclass(frozen=True)
 class SpectralReading:
     """The estimate in the spectral world, where the rig's LEDs and camera are known
-    (``inference.spectral.read_spectral``): the Table 1 hair whose spectral colour, seen by the rig's
+    (``inference.spectral_reading.read_spectral``): the Table 1 hair whose spectral colour, seen by the rig's
     camera under its LEDs, is the capture's, and that hair's colour under other lights.
 
     ``EstimateRecord.hair`` stays the RGB world's answer (what the RGB renders, the library and the

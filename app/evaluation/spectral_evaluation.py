@@ -14,7 +14,7 @@ to that light sees it. Two answers are judged against it, rendered with the same
 
 - ``rgb``: today's record, its RGB ``sigma_a`` rendered in RGB, times the light's RGB colour (what the
   RGB world predicts under that light);
-- ``spectral``: the record's parameters refitted in the spectral world (``inference.spectral``) and
+- ``spectral``: the record's parameters refitted in the spectral world (``inference.spectral_reading``) and
   rendered spectrally under the light.
 """
 from __future__ import annotations
@@ -124,11 +124,11 @@ ANSWERS = ("rgb", "spectral", "camera")
 def answers(record, profile=None, led: str | None = None, sensitivities: str | None = None,
             curve=None) -> dict[str, np.ndarray | HairParams | float]:
     """A record's answers: ``rgb``, its RGB ``sigma_a``; ``spectral``, its parameters refitted in the
-    spectral world (``inference.spectral.spectral_answer``); with the calibration ``profile`` and the
+    spectral world (``inference.spectral_reading.spectral_answer``); with the calibration ``profile`` and the
     rig's ``led`` and camera ``sensitivities`` known, ``camera``, read in the camera's own RGB
-    (``inference.spectral.spectral_record``, as a capture of a declared rig is). ``*_residual``: each refit's colour residual."""
+    (``inference.spectral_reading.spectral_record``, as a capture of a declared rig is). ``*_residual``: each refit's colour residual."""
     from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.inference.spectral import RigSpectra, spectral_answer, spectral_record
+    from hairdigi.inference.spectral_reading import RigSpectra, spectral_answer, spectral_record
     from hairdigi.render.domain.absorption import hair_sigma_a
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 
@@ -136,7 +136,7 @@ def answers(record, profile=None, led: str | None = None, sensitivities: str | N
     rgb_sigma = np.asarray(record.refinement.sigma_a if record.refinement.sigma_a else hair_sigma_a(record.hair))
     out: dict = {"rgb": rgb_sigma}
     out["spectral"], out["spectral_residual"] = spectral_answer(record.hair, curve(rgb_sigma), curve)
-    if record.spectral is not None:      # read as the capture was made (``inference.spectral.spectral_record``)
+    if record.spectral is not None:      # read as the capture was made (``inference.spectral_reading.spectral_record``)
         out["camera"], out["camera_residual"] = record.spectral.hair, record.spectral.residual
     elif profile is not None and led is not None:   # a record made before the rig declared its spectra
         reading = spectral_record(record, RigSpectra(led, sensitivities), profile).spectral
@@ -245,12 +245,12 @@ def summarise(rows: list[dict]) -> dict:
 
 
 def camera_key(camera: str) -> str:
-    """A row's camera as ``inference.spectral.SPECTRAL_TABLE`` names it."""
+    """A row's camera as ``inference.spectral_reading.SPECTRAL_TABLE`` names it."""
     return "cie" if camera == "CIE observer" else camera
 
 
 def interval_table(done: list[dict]) -> dict:
-    """The spectral world's colour intervals (``inference.spectral.SPECTRAL_TABLE``): each camera's
+    """The spectral world's colour intervals (``inference.spectral_reading.SPECTRAL_TABLE``): each camera's
     reading over every view and light; ``unknown``, the RGB answer under daylight over every camera."""
     def quantiles(values: list[float], answer: str, holds_for: str) -> dict:
         return {"answer": answer, "holds_for": holds_for, "n": len(values),

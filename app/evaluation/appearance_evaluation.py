@@ -142,7 +142,7 @@ def evaluate_appearance(out_dir: str | os.PathLike, config: AppearanceSet = Appe
 
     from hairdigi.inference.encoder import Encoder
 
-    from hairdigi.inference import appearance
+    from hairdigi.inference import appearance_reading as appearance
 
     appearance.READ_VARIATION = config.variation
     out = Path(out_dir)

@@ -1,11 +1,11 @@
 """A rig's spectra as the command line and the window declare them: the simulated spectral rig's LEDs
-and camera, or a real rig's declared ``inference.spectral.RigSpectra``."""
+and camera, or a real rig's declared ``inference.spectral_reading.RigSpectra``."""
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from hairdigi.inference.spectral import RigSpectra
+    from hairdigi.inference.spectral_reading import RigSpectra
 
 #: The simulated spectral rig's LEDs and camera when ``--led`` / ``--sensor`` name none.
 SIM_LED, SIM_SENSOR = "LED-B4", "nikon-5100"
@@ -25,7 +25,7 @@ def rig_spectra(sim: bool, spectral: bool, led: str | None, sensor: str | None) 
         return {"illuminant": led or SIM_LED, "sensitivities": None if sensor == "cie" else sensor}, None
     if led is None:
         return {}, None
-    from hairdigi.inference.spectral import RigSpectra
+    from hairdigi.inference.spectral_reading import RigSpectra
 
     return {}, RigSpectra(led, None if sensor == "cie" else sensor)
 
