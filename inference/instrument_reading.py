@@ -68,16 +68,6 @@ class InstrumentCurves:
     members: tuple[str, ...]
     means: np.ndarray
 
-    def curve(self, geom: str, weights: dict[str, float] | None = None) -> ResponseCurve:
-        """The (weighted) geometric mean of the members' curves in ``geom``; None weights: the whole family."""
-        g = self.geometries.index(geometry(geom).name)
-        chosen = {m: w for m, w in (weights or {}).items() if m in self.members and w > 0}
-        if not chosen:
-            chosen = {m: 1.0 for m in self.members}
-        logs = np.average([np.log(np.clip(self.means[g, self.members.index(m)], 1e-12, None)) for m in chosen],
-                          axis=0, weights=list(chosen.values()))
-        return ResponseCurve(np.asarray(self.levels, float).copy(), np.exp(logs), 0.0, True)
-
     def member_curve(self, geom: str, member: str) -> ResponseCurve:
         g = self.geometries.index(geometry(geom).name)
         return ResponseCurve(np.asarray(self.levels, float).copy(), self.means[g, self.members.index(member)].copy(),
@@ -189,11 +179,11 @@ def measured_ratio(measured_rgb, sigma_rgb, reference: Callable[[np.ndarray], np
     the layered floor). Each channel's ratio is spread over the wavelengths that channel sees (linear sRGB's
     weights, their negative lobes dropped). (Against the answer's spectral colour instead, the RGB and spectral
     mappings' difference entered the ratio and a saturated dye's a* moved by 8-10: ``hairdigi evaluate --instrument``.)"""
-    from hairdigi.render.spectra import _srgb_weights
+    from hairdigi.render.spectra import srgb_weights
 
     shown = reference(np.asarray(sigma_rgb, float))
     ratio = np.clip(np.asarray(measured_rgb, float) / np.clip(shown, 1e-12, None), 0.25, 4.0)
-    weights = np.clip(_srgb_weights(), 0.0, None)
+    weights = np.clip(srgb_weights(), 0.0, None)
     weights = weights / np.clip(weights.sum(1, keepdims=True), 1e-12, None)
     return weights @ ratio
 

@@ -82,7 +82,9 @@ def cmfs() -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=None)
-def _srgb_weights() -> np.ndarray:
+def srgb_weights() -> np.ndarray:
+    """(n, 3) each linear-sRGB channel's weight per wavelength under D65 (the CIE 1931 observer through sRGB's
+    matrix), each channel summing to 1: a flat spectrum projects to itself."""
     import colour
 
     d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(_shape()).values
@@ -94,7 +96,7 @@ def _srgb_weights() -> np.ndarray:
 def rgb_projection(spectrum: np.ndarray) -> np.ndarray:
     """A spectrum's linear-sRGB value under D65 (each channel's CMF times D65, normalised): a flat
     spectrum projects to itself. How an absorption spectrum is compared with RGB coefficients."""
-    return np.asarray(spectrum, float) @ _srgb_weights()
+    return np.asarray(spectrum, float) @ srgb_weights()
 
 
 # -- melanins ----------------------------------------------------------------------------------

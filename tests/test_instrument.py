@@ -331,3 +331,10 @@ def test_estimate_states_its_instrument_readings_for_the_observer_and_aperture_a
     with pytest.raises(SystemExit) as refused:        # argparse refuses it, naming the range
         main(["estimate", str(image), "--no-refine", "--aperture", "40", "--out", str(two)])
     assert refused.value.code == 2 and "outside [3, 25]" in capsys.readouterr().err
+
+
+def test_a_missing_or_endless_export_is_one_line(tmp_path):
+    with pytest.raises(ReadingsError, match="no such file; check its name"):
+        read_readings(tmp_path / "nowhere.csv")
+    with pytest.raises(ReadingsError, match="not an instrument's export|device|regular file"):
+        read_readings("/dev/zero")

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hairdigi.app.library.store import Library, LibraryError
+from hairdigi.render.domain.files import read_bytes
 from hairdigi.render.instrument_geometry import GEOMETRIES, InstrumentError, check_illuminant, check_observer, geometry
 
 MAX_BYTES = 16 << 20
@@ -224,14 +225,9 @@ def _cxf_spec(spec, default_geometry: str, path: Path, k: int) -> tuple[str, str
 
 
 def _read_bytes(path: Path) -> bytes:
-    try:
-        size = path.stat().st_size
-    except OSError as exc:
-        raise ReadingsError(f"{path}: cannot be read ({exc.strerror or exc}); check the file name") from None
-    if size > MAX_BYTES:
-        raise ReadingsError(f"{path.name}: {size / 1e6:.0f} MB, more than any instrument export "
-                            f"({MAX_BYTES / 1e6:.0f} MB); split it")
-    return path.read_bytes()
+    """The export's bytes (``render.domain.files.read_bytes``: a regular file, refused over ``MAX_BYTES``)."""
+    return read_bytes(path, ReadingsError, "an instrument's export", MAX_BYTES,
+                      f"more than any instrument export ({MAX_BYTES >> 20} MB); split it", "no such file; check its name")
 
 
 def read_readings(path: str | Path, columns: dict[str, str] | None = None, default_geometry: str = "d/8 SCI",
