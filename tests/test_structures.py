@@ -402,16 +402,16 @@ def test_a_swatch_out_of_the_layered_swatchs_reach_is_estimated_on_its_structure
     # the tables), so the truth below judges the answer
     layered, read = (float(v) for v in re.findall(r"residual(?: ΔE2000)? ([0-9.]+)\)", said[0])[:2])
     assert layered > UNREACHED_DE and read < layered / 2, said[0]
-    assert result.uncertainty.structure.mode == "read"
+    assert result.uncertainty.structure.mode is StructureMode.READ
     goal = _spread_shot(SPREAD_TRUTH, spp=128).reshape(-1, 3).mean(0)
     back = _spread_shot(result.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0)
     assert delta_e2000(back, goal) < 1.0
     # the family mode (the default) does not map a swatch its frames tell decisively to the family's mean (where
     # the spread swatch lies far from it: 3.66 in held out 13 before this rule): it refines on the structure read
     family = estimate_image(frame, Encoder(), light_images=singles)
-    assert family.refinement.region.swatch_model == "spread", family.refinement.region
+    assert family.refinement.region.swatch_model is SwatchModel.SPREAD, family.refinement.region
     assert family.refinement.region.structure.startswith("read decisively"), family.refinement.region
-    assert family.uncertainty.structure.mode == "family"
+    assert family.uncertainty.structure.mode is StructureMode.FAMILY
     assert delta_e2000(_spread_shot(family.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0), goal) < 1.0
 
 
@@ -435,7 +435,7 @@ def test_a_still_without_frames_refines_on_the_structure_the_rigs_frames_read_of
     assert still.refinement.region.swatch_model is SwatchModel.SPREAD
     assert "the rig's single-light frames of the same swatch" in still.refinement.region.structure
     assert still.appearance.value.longitudinal_roughness == borrowed.frames.value.longitudinal_roughness
-    assert still.uncertainty.structure.mode == "family"
+    assert still.uncertainty.structure.mode is StructureMode.FAMILY
     assert delta_e2000(_spread_shot(still.refinement.sigma_a, spp=128).reshape(-1, 3).mean(0), goal) < 1.0
 
 
