@@ -46,6 +46,7 @@ class InstrumentSet:
     #: None: hairdigi's RGB simulated rig; (camera sensitivities, LEDs): a spectral one, both declared, whose
     #: records read the hair in the camera's RGB (``EstimateRecord.spectral``), as a lab's declared rig does
     world: tuple[str | None, str] | None = None
+    stills: bool = True                              # each swatch also as a RAW still imported into its session
 
 
 def truth_readings(params, structure: str, geometries, spp: int, size: int,
@@ -106,35 +107,35 @@ def evaluate_instrument(out_dir: str | os.PathLike, config: InstrumentSet = Inst
                                                camera_model=CameraModel(exposure_ev=ev, cast=cast), encoder=encoder,
                                                swatch_model=structure, strand_seed=HIDDEN_LAYOUT + k, **spectra)
             start = time.perf_counter()
+            takes = []                       # (source, capture result, seconds): the live frame, then a RAW still
             try:
                 session.calibrate()
-                result = session.capture()
+                takes.append(("live", session.capture(), time.perf_counter() - start))
+                if config.stills:
+                    start = time.perf_counter()
+                    takes.append(("raw still", session.import_still(_still_of(session, Path(tmp) / f"IMG_{k:04d}.dng")),
+                                  time.perf_counter() - start))
             finally:
                 session.close()
-            seconds = time.perf_counter() - start
             head = {"hidden": name, "structure": structure, "layout": HIDDEN_LAYOUT + k,
                     "cast": "/".join(f"{c:g}" for c in cast), "exposure_ev": ev}
-            record = result.record
-            if record is None or not record.instrument:
-                rows.append({**head, "error": "; ".join(str(b) for b in result.blocked) or "no instrument reading"})
-                bar.update()
-                continue
-            start_truth = time.perf_counter()
-            truth = truth_readings(params, structure, config.geometries, config.truth_spp, config.truth_size,
-                                   HIDDEN_LAYOUT + k)
-            truth_seconds = time.perf_counter() - start_truth
-            lab_rows += lab_csv_rows(result.capture_id, truth, rng)
-            for geom in config.geometries:
-                reading = record.instrument_reading(geom)
-                lab, true = np.asarray(reading.lab), truth[geom]
-                rows.append({**head, "geometry": geom, "de2000": round(float(delta_e2000_lab(lab, true)), 3),
-                             "dL": round(float(lab[0] - true[0]), 3), "da": round(float(lab[1] - true[1]), 3),
-                             "db": round(float(lab[2] - true[2]), 3),
-                             "L": round(float(lab[0]), 2), "a": round(float(lab[1]), 2), "b": round(float(lab[2]), 2),
-                             "true_L": round(float(true[0]), 2), "true_a": round(float(true[1]), 2),
-                             "true_b": round(float(true[2]), 2), "spread": round(reading.spread, 3),
-                             "warnings": " | ".join(w.kind.value for w in record.warnings),
-                             "estimate_seconds": round(seconds, 2), "truth_seconds": round(truth_seconds, 2)})
+            truth = None
+            for source, result, seconds in takes:
+                record = result.record
+                if record is None or not record.instrument:
+                    rows.append({**head, "source": source, "error": "; ".join(str(b) for b in result.blocked)
+                                 or "no instrument reading"})
+                    continue
+                if truth is None:
+                    start_truth = time.perf_counter()
+                    truth = truth_readings(params, structure, config.geometries, config.truth_spp, config.truth_size,
+                                           HIDDEN_LAYOUT + k)
+                    truth_seconds = time.perf_counter() - start_truth
+                if source == "live":
+                    lab_rows += lab_csv_rows(result.capture_id, truth, rng)
+                for geom in config.geometries:
+                    rows.append({**head, "source": source, **_judged(record, geom, truth[geom]),
+                                 "estimate_seconds": round(seconds, 2), "truth_seconds": round(truth_seconds, 2)})
             bar.update()
     bar.close()
     if lab_dir is not None:
@@ -148,17 +149,40 @@ def evaluate_instrument(out_dir: str | os.PathLike, config: InstrumentSet = Inst
     return summary
 
 
+def _still_of(session, path: Path) -> Path:
+    """A still camera's RAW of the session's bench: twice the feed's resolution, its exposure 0.8 of the feed's
+    (as ``hairdigi evaluate --rig`` takes its stills)."""
+    from hairdigi.hardware.sim_still import write_raw_still
+
+    radiance = session.camera.radiance().repeat(2, axis=0).repeat(2, axis=1)
+    return write_raw_still(path, radiance * 0.8)
+
+
+def _judged(record, geom: str, true: np.ndarray) -> dict:
+    """One reading of a record against the virtual instrument's: ΔE2000, the differences and both readings."""
+    reading = record.instrument_reading(geom)
+    lab = np.asarray(reading.lab)
+    return {"geometry": geom, "de2000": round(float(delta_e2000_lab(lab, true)), 3),
+            "dL": round(float(lab[0] - true[0]), 3), "da": round(float(lab[1] - true[1]), 3),
+            "db": round(float(lab[2] - true[2]), 3), "L": round(float(lab[0]), 2), "a": round(float(lab[1]), 2),
+            "b": round(float(lab[2]), 2), "true_L": round(float(true[0]), 2), "true_a": round(float(true[1]), 2),
+            "true_b": round(float(true[2]), 2), "spread": round(reading.spread, 3),
+            "warnings": " | ".join(w.kind.value for w in record.warnings)}
+
+
 def summarise(rows: list[dict], config: InstrumentSet) -> dict:
     ok = [r for r in rows if "de2000" in r]
     by_geometry = {g: quantiles([r["de2000"] for r in ok if r["geometry"] == g]) for g in config.geometries}
     by_structure = {s: quantiles([r["de2000"] for r in ok if r["structure"] == s]) for s in config.structures}
+    by_source = {src: {g: quantiles([r["de2000"] for r in ok if r["source"] == src and r["geometry"] == g])
+                       for g in config.geometries} for src in dict.fromkeys(r["source"] for r in ok)}
     by_case = {}
     for r in ok:
         by_case.setdefault(r["hidden"], []).append(r["de2000"])
     bias = {g: {c: round(float(np.mean([r[c] for r in ok if r["geometry"] == g])), 3) for c in ("dL", "da", "db")}
             for g in config.geometries if any(r["geometry"] == g for r in ok)}
     return {"swatches": len({(r["hidden"], r["structure"]) for r in rows}), "errors": [r for r in rows if "error" in r],
-            "by_geometry": by_geometry, "by_structure": by_structure,
+            "by_geometry": by_geometry, "by_structure": by_structure, "by_source": by_source,
             "by_case": {k: quantiles(v) for k, v in by_case.items()}, "bias": bias,
             "settings": {"random": config.random, "structures": list(config.structures), "rig_spp": config.rig_spp,
                          "truth_spp": config.truth_spp, "truth_size": config.truth_size,

@@ -316,8 +316,11 @@ def instrument(args: argparse.Namespace) -> int:
     for name, st in s["by_structure"].items():
         if st["n"]:
             print(f"  on {name} swatches: median {st['median']:.2f}, p95 {st['p95']:.2f} ({st['n']})")
+    for source, by_geometry in s["by_source"].items():
+        print(f"  {source}: " + "; ".join(f"{g} {st['median']:.2f} / {st['p95']:.2f}" for g, st in by_geometry.items()
+                                          if st["n"]))
     for row in s["errors"]:
-        print(f"not read: {row['hidden']} ({row['structure']}): {row['error']}")
+        print(f"not read: {row['hidden']} ({row['structure']}, {row['source']}): {row['error']}")
     if args.ship:
         from hairdigi.app.evaluation.instrument_evaluation import ship_intervals
 
