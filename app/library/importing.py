@@ -28,19 +28,23 @@ def _sigma(record: EstimateRecord | None) -> tuple[float, float, float] | None:
     return None if record is None else record.sigma_a
 
 
+def _estimate_json(row: SwatchRow) -> dict:
+    """A row's estimate record as written: a capture's result, or a lone estimate itself ({} where none)."""
+    result = row.record.get("result", row.record) if isinstance(row.record, dict) else {}
+    return result or {}
+
+
 def _spectral_hair(row: SwatchRow) -> HairParams | None:
     """The Table 1 hair whose spectrum gives a row's studio colour: a declared rig's camera answer
     (``record.spectral``) where the record has one, else its parameters."""
-    result = row.record.get("result", row.record) if isinstance(row.record, dict) else {}
-    reading = (result or {}).get("spectral") or {}
+    reading = _estimate_json(row).get("spectral") or {}
     hair = reading.get("hair") or row.hair
     return None if hair is None else HairParams.from_dict(hair)
 
 
 def _instrument_labs(row: SwatchRow) -> dict[str, tuple[float, float, float]]:
     """A row's instrument readings in D65/10° (the record's ``instrument`` block), by geometry."""
-    result = row.record.get("result", row.record) if isinstance(row.record, dict) else {}
-    readings = (result or {}).get("instrument") or []
+    readings = _estimate_json(row).get("instrument") or []
     return {r["geometry"]: tuple(float(v) for v in r["lab"]) for r in readings
             if r.get("geometry") in INSTRUMENT and r.get("illuminant", "D65") == "D65" and r.get("observer", "10") == "10"}
 
