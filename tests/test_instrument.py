@@ -98,7 +98,7 @@ def test_a_records_reading_orders_hair_by_lightness_and_carries_its_spread_and_i
 # -- the lab's readings ----------------------------------------------------------------------------
 def _library(tmp_path, ids=("T-001", "T-002", "T-003")) -> Library:
     lib = Library(str(tmp_path / "library.sqlite"))
-    rows = [SwatchRow(id=f"c{i:015d}", kind="capture", record={}, capture_id=tid,
+    rows = [SwatchRow(id=f"c{i:015d}", kind="capture", capture_id=tid,
                       labs={"d/8 SCI": (30.0 + 10 * i, 8.0, 12.0), "daylight": (31.0 + 10 * i, 8.0, 12.0)})
             for i, tid in enumerate(ids)]
     lib.add(rows)

@@ -3,6 +3,7 @@ migrations, import, find, tag, note, export, first run, a SIGKILL mid-import, an
 import csv
 import glob
 import hashlib
+import logging
 import os
 import shutil
 import signal
@@ -198,6 +199,76 @@ def test_lone_estimates_and_dye_predictions_are_swatches_too(tmp_path, lib_env):
         assert kinds == {str(estimate.resolve()): "estimate", str(prediction.resolve()): "dye"}
         dye = next(s for s in lib.all() if s.kind == "dye")
         assert dye.sigma_a == (0.2, 0.5, 0.1)          # the prediction's sigma_a, not Table 1's mapping
+
+
+def test_rows_are_typed_and_the_columns_keep_their_bytes(tmp_path, lib_env, caplog):
+    """A row carries its records typed (``SwatchRecord``) and its parameters as ``HairParams``; what is written
+    is what the library always wrote (the record column: ``{"capture", "result"}`` of a capture, a lone
+    record itself; the hair column: ``HairParams.to_dict()``), and a library written before reads back,
+    first-layout records and record-less rows included."""
+    import json
+
+    from hairdigi.app.library.importing import capture_rows, import_paths, record_row
+    from hairdigi.app.library.store import SwatchRecord
+    from hairdigi.render.domain.records import InstrumentReading, SpectralReading
+
+    make_session(tmp_path / "march", 2, seed=7, blocked=1)
+    spectral = HairParams((190.0, 90.0, 50.0), 0.45, 0.5, 0.6)
+    lone = write_record(tmp_path / "lone.json", EstimateRecord(
+        hair=HairParams((200.0, 80.0, 40.0), 0.4, 0.5, 0.6),
+        spectral=SpectralReading(hair=spectral, led="D65", camera="cie", residual=0.2),
+        instrument=(InstrumentReading("d/8 SCI", (40.0, 10.0, 20.0)),
+                    InstrumentReading("d/8 SCE", (41.0, 10.0, 20.0), observer="2"))))   # not 10°: not stored
+    blocked, captured = capture_rows(tmp_path / "march")
+    assert isinstance(captured.record.capture, CaptureRecord) and isinstance(captured.hair, HairParams)
+    assert captured.record.estimate.hair == captured.hair and blocked.hair is None
+    assert blocked.record.estimate.blocked == ("the swatch is clipped",)
+    row = record_row(lone)
+    assert row.record.capture is None and set(row.labs) == {"daylight", "studio", "d/8 SCI"}
+    assert row.labs["d/8 SCI"] == (40.0, 10.0, 20.0)
+    # the studio colour comes from the spectral answer's hair, the daylight colour from sigma_a
+    want = swatch_labs(np.array([row.sigma_a]), [spectral])
+    assert np.allclose(row.labs["studio"], want["studio"][0]) and np.allclose(row.labs["daylight"], want["daylight"][0])
+
+    with Library() as lib:
+        import_paths(lib, [tmp_path / "march", lone], progress=lambda line: None)
+        stored = dict(lib.db.query("SELECT id, record FROM swatches"))
+        hairs = dict(lib.db.query("SELECT id, hair FROM swatches"))
+        for r in (blocked, captured, row):
+            files = ({"capture": json.loads((tmp_path / "march" / "captures" / f"{r.capture_id}.json").read_text()),
+                      "result": json.loads(Path(r.record_path).read_text())} if r.capture_id
+                     else json.loads(lone.read_text()))
+            assert stored[r.id] == json.dumps(files)           # the records as written, key for key
+            assert hairs[r.id] == (None if r.hair is None else json.dumps(r.hair.to_dict()))
+            assert lib.record(r.id) == r.record and lib.get(r.id).hair == r.hair
+
+    # a library of an earlier hairdigi: first-layout records (no kind, no schema_version) and a row without one
+    old = {"dye_rgb": [12.5, 250.0, 3.0], "dye_concentration": 0.25, "melanin_concentration": 0.5, "melanin_ratio": 0.75}
+    with Library(str(tmp_path / "old.sqlite"), migrate_to=1) as lib:
+        for sid, kind, hair, record in (
+                ("c1", "capture", old, {"capture": {"image": "a.png", "image_sha256": "ab", "captured": "then"},
+                                        "result": {"hair": old, "capture": "a.png"}}),
+                ("c2", "capture", None, {"capture": {"image": "b.png", "image_sha256": "cd"}, "result": None}),
+                ("e1", "estimate", old, {"hair": old}),
+                ("x1", "estimate", None, {})):
+            lib.db.execute("INSERT INTO swatches (id, kind, imported, hair, record) VALUES (?, ?, 'then', ?, ?)",
+                           (sid, kind, None if hair is None else json.dumps(hair), json.dumps(record)))
+    with Library(str(tmp_path / "old.sqlite")) as lib:
+        assert lib.get("c1").hair == lib.get("e1").hair == HairParams((12.5, 250.0, 3.0), 0.25, 0.5, 0.75)
+        assert lib.get("c2").hair is None
+        c1 = lib.record("c1")
+        assert c1.capture.image == "a.png" and c1.estimate.hair == lib.get("c1").hair and c1.estimate.capture == "a.png"
+        assert lib.record("c2") == SwatchRecord(capture=lib.record("c2").capture) and lib.record("c2").estimate is None
+        assert lib.record("e1").capture is None and lib.record("e1").estimate.hair.melanin_ratio == 0.75
+        assert lib.record("x1") == SwatchRecord() and SwatchRecord().to_json() == {}
+        lib.db.execute("UPDATE swatches SET hair = ? WHERE id = 'e1'", ('{"dye_rgb": [1, 2]}',))
+        lib.db.execute("UPDATE swatches SET record = ? WHERE id = 'x1'", ('{"kind": "dye"}',))
+        with caplog.at_level(logging.WARNING):      # a damaged row is listed without parameters, never hides the rest
+            damaged = lib.get("e1")
+        assert damaged.hair is None and not damaged.reliable and "swatch e1: its stored parameters" in caplog.text
+        assert {s.id for s in lib.all()} == {"c1", "c2", "e1", "x1"}
+        with pytest.raises(LibraryError, match="swatch x1: its stored record cannot be read"):
+            lib.record("x1")
 
 
 def test_find_through_the_lightness_index_is_exact(lib_env):

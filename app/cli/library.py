@@ -79,8 +79,8 @@ def swatch_line(s: Swatch, under: str = "daylight") -> str:
 def export_rows(library: Library) -> list[dict]:
     rows = []
     for s in library.all():
-        hair = s.hair or {}
-        dye = hair.get("dye_rgb") or [None] * 3
+        hair = s.hair
+        dye = (None,) * 3 if hair is None else hair.dye_rgb
         row = {"id": s.id, "kind": s.kind, "session": s.session, "capture_id": s.capture_id, "captured": s.captured,
                "imported": s.imported, "reliable": s.reliable, "tags": ";".join(s.tags), "note": s.note}
         row.update(dict(zip(("sigma_r", "sigma_g", "sigma_b"), s.sigma_a or (None,) * 3)))
@@ -91,9 +91,10 @@ def export_rows(library: Library) -> list[dict]:
         for g in INSTRUMENT:
             row.update(dict(zip((f"{INSTRUMENT_COLUMNS[g]}_{c}" for c in "Lab"), s.labs.get(g) or (None,) * 3)))
         row.update({"dye_r": dye[0], "dye_g": dye[1], "dye_b": dye[2],
-                    "dye_concentration": hair.get("dye_concentration"),
-                    "melanin_concentration": hair.get("melanin_concentration"),
-                    "melanin_ratio": hair.get("melanin_ratio"), "image_path": s.image_path, "record_path": s.record_path})
+                    "dye_concentration": None if hair is None else hair.dye_concentration,
+                    "melanin_concentration": None if hair is None else hair.melanin_concentration,
+                    "melanin_ratio": None if hair is None else hair.melanin_ratio,
+                    "image_path": s.image_path, "record_path": s.record_path})
         rows.append({k: row[k] for k in EXPORT_COLUMNS})
     return rows
 

@@ -115,7 +115,7 @@ def _import_cost() -> list[dict]:
     out = []
     with tempfile.TemporaryDirectory(prefix="hairdigi-bench-readings-") as tmp:
         library = Library(str(Path(tmp) / "library.sqlite"))
-        library.add([SwatchRow(id=f"c{i:015d}", kind="capture", record={}, capture_id=t) for i, t in enumerate(ids)])
+        library.add([SwatchRow(id=f"c{i:015d}", kind="capture", capture_id=t) for i, t in enumerate(ids)])
         labs = [(t, mode, *rng.uniform((10, -5, 0), (80, 30, 40))) for t in ids for mode in ("SCI", "SCE") for _ in range(3)]
         csv_path = Path(tmp) / "export.csv"
         csv_path.write_text("Sample Name,Mode,L*,a*,b*\n" + "".join(f"{t},{m},{L:.2f},{a:.2f},{b:.2f}\n"

@@ -16,18 +16,18 @@ from hairdigi.app.evaluation.registry import BENCH_OUT
 
 def synthetic_rows(n: int, seed: int = 0) -> list:
     """``n`` swatches of uniformly drawn Table 1 parameters, coloured as an import colours them."""
-    from hairdigi.app.library.store import SwatchRow
+    from hairdigi.app.library.store import SwatchRecord, SwatchRow
     from hairdigi.app.library.importing import _with_colours
-    from hairdigi.render.domain.absorption import hair_sigma_a
     from hairdigi.render.domain.params import HairParams
+    from hairdigi.render.domain.records import EstimateRecord
 
     rng = np.random.default_rng(seed)
     rows = []
     for i in range(n):
-        hair = HairParams(tuple(rng.uniform(0, 255, 3)), rng.uniform(), rng.uniform(), rng.uniform())
+        record = EstimateRecord(hair=HairParams(tuple(rng.uniform(0, 255, 3)), rng.uniform(), rng.uniform(),
+                                                rng.uniform()))
         rows.append(SwatchRow(id=f"b{seed:03d}{i:012d}", kind="estimate", captured=f"bench {i}", reliable=True,
-                              hair=hair.to_dict(), sigma_a=tuple(float(v) for v in hair_sigma_a(hair)),
-                              record={"kind": "estimate", "hair": hair.to_dict(), "bench": True}))
+                              hair=record.hair, sigma_a=record.sigma_a, record=SwatchRecord(estimate=record)))
     return _with_colours(rows)
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.library.store import Library, LibraryError, SwatchRow
+from hairdigi.app.library.store import Library, LibraryError, SwatchRecord, SwatchRow
 from hairdigi.app.library.swatch_colour import INSTRUMENT, swatch_labs
 from hairdigi.render.domain.files import stream_sha256
 from hairdigi.render.domain.params import HairParams
@@ -28,25 +28,18 @@ def _sigma(record: EstimateRecord | None) -> tuple[float, float, float] | None:
     return None if record is None else record.sigma_a
 
 
-def _estimate_json(row: SwatchRow) -> dict:
-    """A row's estimate record as written: a capture's result, or a lone estimate itself ({} where none)."""
-    result = row.record.get("result", row.record) if isinstance(row.record, dict) else {}
-    return result or {}
-
-
 def _spectral_hair(row: SwatchRow) -> HairParams | None:
     """The Table 1 hair whose spectrum gives a row's studio colour: a declared rig's camera answer
     (``record.spectral``) where the record has one, else its parameters."""
-    reading = _estimate_json(row).get("spectral") or {}
-    hair = reading.get("hair") or row.hair
-    return None if hair is None else HairParams.from_dict(hair)
+    estimate = row.record.estimate
+    return estimate.spectral.hair if estimate is not None and estimate.spectral is not None else row.hair
 
 
 def _instrument_labs(row: SwatchRow) -> dict[str, tuple[float, float, float]]:
     """A row's instrument readings in D65/10° (the record's ``instrument`` block), by geometry."""
-    readings = _estimate_json(row).get("instrument") or []
-    return {r["geometry"]: tuple(float(v) for v in r["lab"]) for r in readings
-            if r.get("geometry") in INSTRUMENT and r.get("illuminant", "D65") == "D65" and r.get("observer", "10") == "10"}
+    readings = () if row.record.estimate is None else row.record.estimate.instrument
+    return {r.geometry: tuple(float(v) for v in r.lab) for r in readings
+            if r.geometry in INSTRUMENT and r.illuminant == "D65" and r.observer == "10"}
 
 
 def _with_colours(rows: list[SwatchRow]) -> list[SwatchRow]:
@@ -136,9 +129,8 @@ def capture_rows(folder: str | Path) -> list[SwatchRow]:
             record_path=str(result_path if estimate is not None else meta_path),
             record_sha256=record_sha256(result_path) if estimate is not None else None,
             reliable=bool(estimate and estimate.reliable),
-            hair=None if estimate is None or estimate.hair is None else estimate.hair.to_dict(),
-            sigma_a=_sigma(estimate),
-            record={"capture": capture.to_json(), "result": None if estimate is None else estimate.to_json()}))
+            hair=None if estimate is None else estimate.hair, sigma_a=_sigma(estimate),
+            record=SwatchRecord(capture=capture, estimate=estimate)))
     return _with_colours(rows)
 
 
@@ -154,8 +146,7 @@ def record_row(path: str | Path) -> SwatchRow:
     when = record.provenance.time
     row = SwatchRow(id=("d" if kind == "dye" else "e") + sha[:15], kind=kind, captured=str(when) if when else None,
                     record_path=str(path), record_sha256=sha, reliable=record.reliable,
-                    hair=None if record.hair is None else record.hair.to_dict(), sigma_a=_sigma(record),
-                    record=record.to_json())
+                    hair=record.hair, sigma_a=_sigma(record), record=SwatchRecord(estimate=record))
     return _with_colours([row])[0]
 
 

@@ -13,6 +13,7 @@ PostgreSQL: its own locking). Qt-free: the window's Library panel only shows thi
 from __future__ import annotations
 
 import json
+import logging
 import os
 import re
 import sqlite3
@@ -26,6 +27,9 @@ import numpy as np
 
 from hairdigi.app.library.swatch_colour import COLOURS, delta_e
 from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.params import HairParams, HairParamsError
+from hairdigi.render.domain.record_fields import RecordError
+from hairdigi.render.domain.records import CaptureRecord, EstimateRecord, capture_profile
 
 KINDS = ("capture", "estimate", "dye")   # dye: predictions of issue "Hair-dye development", same layout
 BUSY_TIMEOUT_S = 5.0            # SQLite: the longest wait for another writer's lock
@@ -281,13 +285,50 @@ MIGRATIONS: tuple[tuple[int, str, tuple[str, ...]], ...] = (
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 
 
+@dataclass(frozen=True)
+class SwatchRecord:
+    """What a swatch's ``record`` column holds, typed: a capture's records (its capture record and its
+    result, an estimate record or None where none was written), or a lone estimate record (a dye
+    prediction is one too); neither for a row written without records.
+
+    ``to_json()`` is the column's JSON as it has always been written: ``{"capture": ..., "result": ...}``
+    for a capture, the estimate record itself for a lone one, ``{}`` for neither. :meth:`from_json` reads
+    it back through the records' own readers (``CaptureRecord.from_json``, ``EstimateRecord.from_json``),
+    which upgrade older layouts."""
+
+    capture: CaptureRecord | None = None
+    estimate: EstimateRecord | None = None     # a capture's result, or the lone estimate
+
+    def to_json(self) -> dict:
+        if self.capture is not None:
+            return {"capture": self.capture.to_json(),
+                    "result": None if self.estimate is None else self.estimate.to_json()}
+        return {} if self.estimate is None else self.estimate.to_json()
+
+    @classmethod
+    def from_json(cls, data: dict) -> "SwatchRecord":
+        """A ``record`` column's JSON, read back; :class:`RecordError` names what is wrong with it."""
+        if not isinstance(data, dict):
+            raise RecordError(f"a swatch's record is a JSON object, not {type(data).__name__}")
+        if not data:
+            return cls()
+        if isinstance(data.get("capture"), dict):     # an estimate's own "capture" is its image's name
+            result = data.get("result")
+            # a first-layout still kept its calibration profile in its result record
+            legacy = capture_profile(None, result if isinstance(result, dict) else None)
+            return cls(capture=CaptureRecord.from_json(data["capture"], legacy_profile=legacy),
+                       estimate=None if result is None else EstimateRecord.from_json(result))
+        return cls(estimate=EstimateRecord.from_json(data))
+
+
 @dataclass
 class SwatchRow:
-    """One swatch as written: its identity, where it came from, its record and colours."""
+    """One swatch as written: its identity, where it came from, its records and colours. ``hair``,
+    ``sigma_a`` and ``reliable`` are the columns the library searches and shows without reading the record."""
 
     id: str
     kind: str
-    record: dict
+    record: SwatchRecord = field(default_factory=SwatchRecord)
     session: str | None = None
     capture_id: str | None = None
     captured: str | None = None
@@ -295,7 +336,7 @@ class SwatchRow:
     record_path: str | None = None
     record_sha256: str | None = None
     reliable: bool = False
-    hair: dict | None = None
+    hair: HairParams | None = None
     sigma_a: tuple[float, float, float] | None = None
     labs: dict[str, tuple[float, float, float]] = field(default_factory=dict)   # illuminant -> CIELAB
 
@@ -313,7 +354,7 @@ class Swatch:
     image_path: str | None
     record_path: str | None
     reliable: bool
-    hair: dict | None
+    hair: HairParams | None            # Table 1 parameters; None: no estimate (blocked)
     sigma_a: tuple[float, float, float] | None
     note: str
     tags: tuple[str, ...] = ()
@@ -476,6 +517,17 @@ def like_escape(text: str) -> str:
     return text.replace("\\", "\\\\").replace("%", "\\%").replace("_", "\\_")
 
 
+def _hair(swatch_id: str, text: str | None) -> HairParams | None:
+    """A ``hair`` column's Table 1 parameters (``HairParams.to_dict()``'s JSON, as imported), or None."""
+    if text is None:
+        return None
+    try:
+        return HairParams.from_dict(json.loads(text))
+    except (ValueError, HairParamsError) as exc:     # json's errors and HairParamsError are ValueErrors
+        raise LibraryError(f"swatch {swatch_id}: its stored parameters are not Table 1 parameters ({exc}); import "
+                           f"its session or record file again (hairdigi library import)") from None
+
+
 def _now() -> str:
     return time.strftime("%Y-%m-%dT%H:%M:%S%z")
 
@@ -557,8 +609,9 @@ class Library:
                 raise LibraryError(f"swatch {r.id}: kind {r.kind!r} is not one of {', '.join(KINDS)}")
             sigma = r.sigma_a or (None, None, None)
             swatches.append((r.id, r.kind, r.session, r.capture_id, r.captured, imported, r.image_path, r.record_path,
-                             r.record_sha256, int(bool(r.reliable)), None if r.hair is None else json.dumps(r.hair),
-                             *(None if s is None else float(s) for s in sigma), json.dumps(r.record)))
+                             r.record_sha256, int(bool(r.reliable)),
+                             None if r.hair is None else json.dumps(r.hair.to_dict()),
+                             *(None if s is None else float(s) for s in sigma), json.dumps(r.record.to_json())))
             colours += [(r.id, ill, *map(float, lab)) for ill, lab in r.labs.items()]
         with self.db.transaction():
             self.db.executemany(swatch_sql, swatches)
@@ -663,10 +716,25 @@ class Library:
                 labs.setdefault(sid, {})[ill] = (l, a, b)
         out = []
         for (sid, kind, session, cap, captured, imported, image, record, reliable, hair, r, g, b, note) in rows:
+            try:
+                params = _hair(sid, hair)
+            except LibraryError as exc:    # one damaged row does not hide the others: listed without parameters
+                logging.getLogger(__name__).warning("%s", exc)
+                params, reliable = None, False
             out.append(Swatch(sid, kind, session, cap, captured, imported, image, record, bool(reliable),
-                              None if hair is None else json.loads(hair), None if r is None else (r, g, b), note or "",
+                              params, None if r is None else (r, g, b), note or "",
                               tuple(tags.get(sid, ())), labs.get(sid, {})))
         return out
+
+    def record(self, key: str) -> SwatchRecord:
+        """The records of the one swatch ``key`` names, as imported (:meth:`SwatchRecord.from_json`)."""
+        swatch_id = self.resolve(key)
+        data = self.db.query("SELECT record FROM swatches WHERE id = ?", (swatch_id,))[0][0]
+        try:
+            return SwatchRecord.from_json(json.loads(data))
+        except (ValueError, RecordError) as exc:     # json's errors are ValueErrors
+            raise LibraryError(f"swatch {swatch_id}: its stored record cannot be read ({exc}); import its session "
+                               f"or record file again (hairdigi library import)") from None
 
     def get(self, key: str) -> Swatch:
         return self._swatches("WHERE id = ?", (self.resolve(key),))[0]

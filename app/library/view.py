@@ -28,9 +28,9 @@ def describe(swatch: Swatch) -> str:
     if hair is None:
         params = "no estimate (blocked)"
     else:
-        dye = ", ".join(f"{v:.0f}" for v in hair["dye_rgb"])
-        params = (f"dye ({dye}) at {hair['dye_concentration']:.2f}, melanin {hair['melanin_concentration']:.2f}, "
-                  f"ratio {hair['melanin_ratio']:.2f}")
+        dye = ", ".join(f"{v:.0f}" for v in hair.dye_rgb)
+        params = (f"dye ({dye}) at {hair.dye_concentration:.2f}, melanin {hair.melanin_concentration:.2f}, "
+                  f"ratio {hair.melanin_ratio:.2f}")
     return f"{where}\n{params}"
 
 
