@@ -66,11 +66,11 @@ def _aux_images(renderer: Renderer, hair: HairParams, spec: SceneSpec, size, spp
 
 def _scene_code() -> str:
     """A digest of the modules that make the scenes: a reference is stale once they change."""
-    from hairdigi.render import head, renderer, scenes, strands
+    from hairdigi.render import head, renderer, scene_kinds, scenes, strands
     from hairdigi.render.domain import absorption
 
     digest = hashlib.sha256()
-    for module in (absorption, head, renderer, scenes, strands):
+    for module in (absorption, head, renderer, scene_kinds, scenes, strands):
         digest.update(Path(module.__file__).read_bytes())
     return digest.hexdigest()[:16]
 

@@ -45,7 +45,11 @@ def test_a_scene_name_is_parsed_once_into_its_kind() -> None:
     assert swatch.env is Environment.KEY_SKY and swatch.framing is Framing.RIG and swatch.swatch_model is SwatchModel.TODAY
     style = SceneSpec("wavy", env="soft")
     assert style.kind is SceneKind.HAIRSTYLE and style.env is Environment.SOFT and style.swatch_model is None
-    assert replace(swatch, name="curly", env="studio", swatch_model=None).kind is SceneKind.HAIRSTYLE
+    # the kind is the scene's type: replace keeps it, and another kind is built by its name
+    assert replace(swatch, framing="crop").kind is SceneKind.SWATCH
+    assert SceneSpec("curly", env="studio").kind is SceneKind.HAIRSTYLE
+    with pytest.raises(SceneError, match="SceneSpec\\('curly'"):
+        replace(swatch, name="curly", env="studio", swatch_model=None)
     # the kind is derived: equal specs and their hashes do not depend on how it was reached
     assert SceneSpec("swatch", framing=Framing.RIG) == SceneSpec("swatch", framing="rig")
     assert hash(SceneSpec("swatch", env=Environment.STUDIO)) == hash(SceneSpec("swatch", env="studio"))

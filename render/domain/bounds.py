@@ -51,9 +51,10 @@ class Environment(TextEnum):
 
 
 class SwatchModel(TextEnum):
-    """The swatch's strand models (``SceneSpec.swatch_model``): "layered", ``layered_swatch_strands`` (no
-    fibre meets another, optically thick: the default); "today", ``swatch_strands`` (the first swatch: a
-    few layers whose fibres pass through one another, 1.4-1.8 ΔE2000 lighter at equal sigma_a).
+    """The swatch's strand models (``render.scene_kinds.SwatchScene.swatch_model``): "layered",
+    ``layered_swatch_strands`` (no fibre meets another, optically thick: the default); "today",
+    ``swatch_strands`` (the first swatch: a few layers whose fibres pass through one another, 1.4-1.8 ΔE2000
+    lighter at equal sigma_a).
     resources/models/swatch-structure.md measures both. The others are ``render.swatch_family``'s
     physical structures (deposited, tilted layers, ...), which ``hairdigi evaluate --structures`` hides."""
 
