@@ -136,6 +136,14 @@ def nuisance(sigma: np.ndarray, family: FamilyCurves) -> dict[str, float]:
             for m, c in family.members.items()}
 
 
+def member_spreads(sigma: np.ndarray, family: FamilyCurves, members: dict[str, float]) -> dict[str, float]:
+    """ΔE2000 of each of ``members``' colour of ``sigma`` from their weighted mean's: were the swatch that member,
+    the error of the answer ``sigma`` that the mean maps the capture to (the mean's colour of it is the capture's)."""
+    sigma = np.asarray(sigma, float)
+    centre = np.clip(family.mean_of(members)(sigma), 1e-9, None)
+    return {m: round(float(delta_e2000(np.clip(family.members[m](sigma), 1e-9, None), centre)), 3) for m in members}
+
+
 #: The structures the single-light frames choose among. Deposited and wavy swatches render alike at the
 #: rig (0.1-0.9 ΔE2000 apart at equal sigma_a, ``hairdigi bench family``), so "deposited" stands for both;
 #: a spread swatch, whose crossing fibres keep out of one another, stands high and loose and renders
@@ -341,8 +349,10 @@ def toward_family(refinement, prior, view: View, settings: RefineSettings = Refi
         why = f"{texture.describe()}; {why}"
     mean = (f"the family's mean: {', '.join(family.members)}" if weights is None else
             "the weighted mean of the members the texture leaves")
-    return replaced(refinement, params=params, sigma_a=hair_sigma_a(params), fitted_sigma_a=refinement.sigma_a,
+    members = ({m: 1.0 for m in family.members} if weights is None else
+               {m: float(w) for m, w in weights.items() if m in family.members and w > 0})
+    sigma = hair_sigma_a(params)
+    return replaced(refinement, params=params, sigma_a=sigma, fitted_sigma_a=refinement.sigma_a,
                     seconds=refinement.seconds + time.perf_counter() - start,
-                    region=replaced(refinement.region, structure=f"mapped to {mean} ({why})",
-                                    members=({m: 1.0 for m in family.members} if weights is None else
-                                             {m: float(w) for m, w in weights.items() if m in family.members and w > 0})))
+                    region=replaced(refinement.region, structure=f"mapped to {mean} ({why})", members=members,
+                                    spreads=member_spreads(sigma, family, members)))

@@ -102,8 +102,12 @@ def test_the_dicts_that_were_written_before_the_types_read_and_write_alike():
     crop = {"crop_pose": {"polar_deg": 10.0, "azimuth_deg": 0.0, "distance": 4.0}, "swatch_model": "layered",
             "structure": "mapped to the family's mean: a, b"}
     rig = {**RigRegion((320, 240), (1, 2, 30, 40)).to_dict(), "swatch_model": "ring"}
-    for data in (crop, rig, {"source": "dye prediction"}):
+    mapped = {**crop, "members": {"a": 1.0, "b": 1.0}, "spreads": {"a": 0.35, "b": 0.0}}
+    for data in (crop, rig, {"source": "dye prediction"}, mapped):
         assert Region.from_json(json.loads(json.dumps(data))).to_json() == data
+    assert Region.from_json(mapped).spread == 0.35 and Region.from_json(crop).spread is None
+    with pytest.raises(RecordError, match="'spreads' must map member names to ΔE2000 values >= 0"):
+        Region.from_json({**mapped, "spreads": {"a": -1.0}})
     dyed = {"hairdigi_version": "0.3", "time": "t", "prediction": {"dye": "copper"}, "calibration": None,
             "camera": None}
     later = {"hairdigi_version": "0.3", "time": "t", "written_by_a_later_hairdigi": 1}

@@ -126,6 +126,24 @@ def test_a_records_colour_interval_carries_the_unknown_structure() -> None:
     assert with_structure(chain, table, "read", frames=False) == chain      # no figures for the mode: unchanged
 
 
+def test_member_spreads_are_each_members_error_were_the_swatch_that_member() -> None:
+    """Mapped to the members' mean, a capture's answer is off by each member's colour of it from the mean's."""
+    from hairdigi.inference.refine import SIGMA_LEVELS, ResponseCurve
+    from hairdigi.inference.structure import FamilyCurves, member_spreads
+    from hairdigi.render.metrics import delta_e2000
+
+    sigma = np.asarray(SIGMA_LEVELS, float)
+    curve = lambda scale: ResponseCurve(sigma, scale * 0.45 / (1 + 3 * sigma), 0.0, True)   # noqa: E731
+    family = FamilyCurves(curve(1.0), {"light": curve(1.2), "mid": curve(1.0), "dark": curve(0.8)})
+    answer = np.array([0.3, 0.8, 2.0])
+    spreads = member_spreads(answer, family, {"light": 1.0, "mid": 1.0, "dark": 1.0})
+    centre = family.mean_of(None)(answer)
+    assert spreads["light"] == round(float(delta_e2000(curve(1.2)(answer), centre)), 3) > 0
+    assert spreads["mid"] < min(spreads["light"], spreads["dark"])       # the middle member is nearest the mean
+    assert set(member_spreads(answer, family, {"dark": 1.0})) == {"dark"}
+    assert member_spreads(answer, family, {"dark": 1.0})["dark"] == 0.0   # one member: the mean is itself
+
+
 def test_deposited_fibres_rest_on_one_another_and_settle() -> None:
     """Dropped fibres pile up (the stack grows with the count) but settle into hollows: a swatch of
     2000 fibres of radius 0.004 stands 3-16 fibre diameters high at its median fibre (measured 12.5;

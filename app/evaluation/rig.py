@@ -107,6 +107,8 @@ def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, se
                shine=None if rec.appearance is None else rec.appearance.value.longitudinal_roughness,
                grey_share=None if rec.appearance is None else rec.appearance.value.grey_fraction,
                structure_reading=rec.refinement.region.structure or "",
+               structure_spread=rec.refinement.region.spread,
+               structure_spreads=" ".join(f"{m} {v:.2f}" for m, v in (rec.refinement.region.spreads or {}).items()),
                nonfinite=refined.nonfinite + encoder.nonfinite + rec.refinement.nonfinite)
     return row
 

@@ -303,16 +303,24 @@ class Region:
     structure: str | None = None            # the structure mapping applied after (inference.structure)
     source: str | None = None               # what stands in for a fit and render (a dye prediction's)
     members: dict | None = None             # the family members the structure map averaged: member -> weight
+    #: member -> ΔE2000 of its colour of the mapped answer from the members' mean (the capture's colour): the
+    #: error the answer has were the swatch that member (``inference.structure.toward_family``)
+    spreads: dict | None = None
 
     def __post_init__(self) -> None:   # parsed once: a member given in the process and its text read back are one
         object.__setattr__(self, "swatch_model", _parsed(SwatchModel, self.swatch_model))
+
+    @property
+    def spread(self) -> float | None:
+        """The largest of ``spreads``: how far the answer may be off were the swatch any member (None: no map)."""
+        return max(self.spreads.values()) if self.spreads else None
 
     def to_json(self) -> dict:
         out = self.rig.to_dict() if self.rig is not None else {}
         if self.crop_pose is not None:
             out["crop_pose"] = asdict(self.crop_pose)
         return {**out, **_compact({"swatch_model": text_of(self.swatch_model), "structure": self.structure,
-                                   "source": self.source, "members": self.members})}
+                                   "source": self.source, "members": self.members, "spreads": self.spreads})}
 
     @classmethod
     def from_json(cls, data) -> "Region":
@@ -324,13 +332,16 @@ class Region:
                    swatch_model=need(data, "swatch_model", str, what, None, required=False),
                    structure=need(data, "structure", str, what, None, required=False),
                    source=need(data, "source", str, what, None, required=False),
-                   members=_members(data.get("members"), what))
+                   members=_members(data.get("members"), what),
+                   spreads=_members(data.get("spreads"), what, "spreads", "ΔE2000 values >= 0", 0.0))
 
 
-def _members(data, what: str) -> dict | None:
-    """A region's ``members``: family member -> weight (a number > 0), or None."""
+def _members(data, what: str, key: str = "members", values: str = "weights > 0", floor: float | None = None
+             ) -> dict | None:
+    """A region's ``members`` (family member -> weight, a number > 0) or ``spreads`` (member -> ΔE2000 >= 0), or None."""
     if data is None:
         return None
-    if not isinstance(data, dict) or not all(isinstance(k, str) and real(v) and v > 0 for k, v in data.items()):
-        raise RecordError(f"the {what}'s 'members' must map member names to weights > 0, got {data!r}")
+    ok = (lambda v: v > 0) if floor is None else (lambda v: v >= floor)   # noqa: E731
+    if not isinstance(data, dict) or not all(isinstance(k, str) and real(v) and ok(v) for k, v in data.items()):
+        raise RecordError(f"the {what}'s '{key}' must map member names to {values}, got {data!r}")
     return {k: float(v) for k, v in data.items()}
