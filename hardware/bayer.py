@@ -82,7 +82,7 @@ def demosaic(cfa: np.ndarray, layout: str, black: float, white: float) -> np.nda
 
 @functools.lru_cache(maxsize=1)
 def _srgb_table() -> np.ndarray:
-    from hairdigi.render.srgb import linear_to_srgb8
+    from hairdigi.render.srgb import linear_to_srgb8   # deferred: loads colour-science (~1 s)
 
     return linear_to_srgb8(np.arange(65536, dtype=np.float64) / 65535.0)
 
@@ -96,7 +96,7 @@ def srgb8(linear: np.ndarray) -> np.ndarray:
 def write_dng(path: str | os.PathLike, cfa: np.ndarray, layout: str, black: float, white: int,
               model: str = "hairdigi GenICam camera") -> str | os.PathLike:
     """Write a raw mosaic as a linear DNG (its layout, black and white levels as tags) that rawpy reads."""
-    import tifffile
+    import tifffile   # deferred: tifffile only for RAW stills
 
     identity = [(1, 1), (0, 1), (0, 1), (0, 1), (1, 1), (0, 1), (0, 1), (0, 1), (1, 1)]
     tags = [

@@ -14,6 +14,7 @@ from typing import Protocol
 import cv2
 import numpy as np
 
+from hairdigi.hardware.exposure import sensor_clipped
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.srgb import linear_to_srgb8
 
@@ -141,9 +142,7 @@ def read_raw(path: str | os.PathLike) -> Frame:
     values are proportional to the light on each channel, and the rig's colour calibration (a CCM
     fitted on the chart) takes them to the renderer's colour space. The file is left untouched.
     """
-    import rawpy
-
-    from hairdigi.hardware.exposure import sensor_clipped
+    import rawpy   # deferred: rawpy (LibRaw) only to decode a RAW file
 
     path = Path(path)
     if not path.exists():

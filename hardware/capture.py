@@ -1,6 +1,7 @@
 """Saving captures: the untouched frame (or RAW file) first, then its metadata, both atomically."""
 from __future__ import annotations
 
+import io
 import json
 import os
 import shutil
@@ -10,6 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from hairdigi.hardware.bayer import write_dng
 from hairdigi.render.domain.files import atomic_path, file_sha256
 from hairdigi.render.domain.records import CaptureRecord
 
@@ -82,10 +84,6 @@ def _write_png(path: Path, srgb: np.ndarray) -> None:
 
 def _write_dng(path: Path, mosaic: np.ndarray, bayer: dict) -> None:
     """A raw Bayer frame as it came from the sensor, as a DNG that ``read_raw`` decodes."""
-    import io
-
-    from hairdigi.hardware.bayer import write_dng
-
     data = io.BytesIO()
     write_dng(data, mosaic, bayer["layout"], bayer["black"], bayer["white"], bayer.get("model", "hairdigi GenICam camera"))
     _atomic_bytes(path, data.getvalue())

@@ -46,10 +46,10 @@ N_BUFFERS = 4
 def load_aravis():
     """Aravis 0.8 through PyGObject, or a CameraError saying what to install."""
     try:
-        import gi
+        import gi   # deferred: Aravis through PyGObject is the optional [genicam] extra
 
         gi.require_version("Aravis", "0.8")
-        from gi.repository import Aravis
+        from gi.repository import Aravis   # deferred: Aravis through PyGObject is the optional [genicam] extra
     except (ImportError, ValueError) as exc:
         raise CameraError(f"GenICam cameras need Aravis 0.8 and PyGObject ({exc}): apt-get install gir1.2-aravis-0.8 "
                           f"libgirepository1.0-dev libcairo2-dev, then pip install 'hairdigi[genicam]'") from None

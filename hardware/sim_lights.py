@@ -9,6 +9,7 @@ firmware (``firmware/hairdigi_lights``, built for an Arduino Uno) in the simavr 
 """
 from __future__ import annotations
 
+import atexit
 import os
 import select
 import shutil
@@ -82,8 +83,6 @@ def _terminated(signum, frame) -> None:
 
 def _remove_on_exit(folder: Path) -> None:
     """Remove ``folder`` when the process exits, by SIGTERM too (the default SIGTERM skips ``atexit``)."""
-    import atexit
-
     atexit.register(shutil.rmtree, str(folder), True)
     if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:
         signal.signal(signal.SIGTERM, _terminated)

@@ -15,6 +15,7 @@ import json
 import time
 import warnings
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -26,6 +27,7 @@ from hairdigi.render.chart import colorchecker_reflectances
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import DEFAULT_SWATCH_MODEL, Renderer, SceneSpec
+from hairdigi.render.swatch_family import REVISIONS
 
 SIM_SIZE = (400, 300)
 #: The hidden swatch of the demo: a copper-dyed light brown.
@@ -55,8 +57,6 @@ def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int
         look += [{"illuminant": _content_key(illuminant), "sensitivities": _content_key(sensitivities),
                   "chart": 2}]   # 2: the chart's spectra bent to its reference colours (render.chart)
     if swatch_model not in (None, DEFAULT_SWATCH_MODEL.value):   # with its geometry's revision
-        from hairdigi.render.swatch_family import REVISIONS
-
         look += [{"swatch_model": swatch_model, "revision": REVISIONS.get(swatch_model, 1)}]
     hair = hidden.to_dict() if isinstance(hidden, HairParams) else [round(float(v), 6) for v in np.ravel(hidden)]
     key = hashlib.sha256(json.dumps([CACHE_VERSION, hair, list(size), spp, strand_seed, *view, *look],
@@ -89,8 +89,6 @@ def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int
 
 def _content_key(name: str | None) -> str | None:
     """A light's or camera's name, or a CSV's name and content hash."""
-    from pathlib import Path
-
     if name is None or not Path(name).is_file():
         return name
     return f"{Path(name).name}:{hashlib.sha256(Path(name).read_bytes()).hexdigest()[:16]}"

@@ -15,7 +15,7 @@ WHITE = 4095
 
 def write_raw_still(path: str | os.PathLike, linear: np.ndarray):
     """Mosaic an (H, W, 3) linear image in [0, 1] (even H and W) onto an RGGB sensor and write it as DNG."""
-    import tifffile
+    import tifffile   # deferred: tifffile only for RAW stills
 
     linear = np.clip(np.asarray(linear, float), 0.0, 1.0)
     cfa = np.empty(linear.shape[:2], np.uint16)

@@ -18,16 +18,20 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from itertools import permutations
 
 import numpy as np
 
+from hairdigi.inference.refine import mean_linear, response_curve
 from hairdigi.render.domain.appearance import (DEFAULT_APPEARANCE, SHINE_RANGE, SPREAD_RANGE, GREY_RANGE, Appearance,
                                                AppearanceEstimate)
 from hairdigi.inference.shine import SHINE_FLOOR, estimate_shine, shine_tables
+from hairdigi.inference.structure import read_structure
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.files import read_json
 from hairdigi.render.domain.records import EstimateWarning, WarningKind
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
+from hairdigi.render.srgb import srgb8_to_linear
 from hairdigi.resources import MODELS
 
 UNCERTAINTY = MODELS / "appearance_uncertainty.json"
@@ -103,8 +107,6 @@ SAME_FRAME_MAX = 0.03
 
 def _coarse(img: np.ndarray, block: int = 8) -> np.ndarray:
     """Linear block means of an image (about 400k pixels read at most): noise averaged, structure kept."""
-    from hairdigi.render.srgb import srgb8_to_linear
-
     img = np.asarray(img)
     step = max(1, int(np.sqrt(img.shape[0] * img.shape[1] / 4e5)))
     img = img[::step, ::step]
@@ -177,8 +179,6 @@ def frames_misfit_warnings(light_means: np.ndarray, tables, misfit: float, membe
     """Unreliable-making warnings where the single-light frames fit the shine far worse than held-out captures do:
     another order of them fitting ``ORDER_GAIN`` times better (frames in the wrong order), or a misfit beyond
     ``MAX_MEMBERS_MISFIT`` (``members``: read over the family's members) or ``MAX_ASSUMED_MISFIT``."""
-    from itertools import permutations
-
 
     if misfit <= MAX_FRAMES_MISFIT:
         return []
@@ -230,8 +230,6 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
                 f"appearance: light {', '.join(map(str, dim))} barely lights the swatch in its own frame, which "
                 f"glossy hair does (read as such); if a light may be dead, check it (Lights > Check)")))
         if structures:
-            from hairdigi.inference.structure import read_structure
-
             structure = read_structure(np.asarray(light_means, float), view, settings, renderer, structures)
             tables, shine, swatch_model = structure.tables, structure.shine, structure.swatch_model
             misfits = structure.misfits
@@ -257,8 +255,6 @@ def read_appearance(light_means: np.ndarray | None, view, settings, renderer=Non
                                    f"model reads fibres at {TEXTURE_SWATCH_WIDTH} px (the bench camera's frame)")
     elif texture_pixels is not None:
         if sigma_guess is None:   # the uniform swatch's sigma_a of this colour: what the texture is read against
-            from hairdigi.inference.refine import mean_linear, response_curve
-
             uniform = curve if curve is not None else response_curve(view, settings, renderer)
             sigma_guess = uniform.inverse(mean_linear(texture_pixels))[0]
         variation = _read_variation(texture_pixels, sigma_guess, value.longitudinal_roughness)
@@ -309,7 +305,7 @@ def _read_variation(pixels: np.ndarray, sigma: np.ndarray | None, shine: float):
     """The texture model's reading, or None when the model is not installed (or reading is off)."""
     if not READ_VARIATION:
         return None
-    from hairdigi.inference import texture
+    from hairdigi.inference import texture   # deferred: loads OpenCV (~0.3 s); only this step needs it
 
     try:
         return texture.read_variation(pixels, sigma, shine)

@@ -28,12 +28,14 @@ from __future__ import annotations
 import functools
 import json
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from hairdigi.render.domain.rig_geometry import RIG_HALF_WIDTH, RIG_TARGET, CameraPose, Framing, RigRegion
+from hairdigi.render.swatch_family import REVISIONS
 from hairdigi.resources import ROOT
 
 #: Where the shipped atlas lies.
@@ -157,8 +159,8 @@ def _bench(view: RigRegion) -> bool:
 def fingerprint(renderer_variant: str) -> dict:
     """What the atlas's renders depend on beyond the view: the swatch geometry's revisions, strands, depth and
     the renderer's colour mode (an rgb atlas answers every rgb variant)."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import SceneSpec
-    from hairdigi.render.swatch_family import REVISIONS
 
     spec = SceneSpec("swatch", framing=Framing.RIG)
     return {"revisions": dict(sorted(REVISIONS.items())), "strands": spec.n_strands, "depth": spec.depth,
@@ -216,8 +218,6 @@ def load(path: str | os.PathLike | None = None) -> Atlas | None:
 
 @functools.lru_cache(maxsize=None)
 def _say_missing(path: str) -> None:
-    import warnings
-
     warnings.warn(f"atlas {path}: missing or damaged, so every new region's tables are rendered (minutes on 2 cores); "
                   f"reinstall hairdigi, rebuild it (python -m hairdigi.inference.atlas_build), or set HAIRDIGI_ATLAS to "
                   f"a good one", stacklevel=3)

@@ -10,6 +10,7 @@ import argparse
 import contextlib
 import json
 import os
+import shutil
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -115,8 +116,6 @@ def ship_pose(pose: CameraPose = RIG_SWATCH_POSE, out: str | os.PathLike = SHIPP
     """Render (or take from the cache) the family's response curves at ``pose`` (an all-hair crop's view: what an
     image file away from the rig is estimated at) and copy their cache entries into ``out``, where
     ``inference.refine.response_curve`` reads them when the cache has none."""
-    import shutil
-
     start = time.perf_counter()
     with atlases_off():
         family_curves(pose, RefineSettings())

@@ -11,6 +11,7 @@
 """
 from __future__ import annotations
 
+import datetime
 import hashlib
 import json
 import os
@@ -27,7 +28,7 @@ from hairdigi.render.domain.record_fields import RecordError
 from hairdigi.render.domain.records import CalibrationProfile, CaptureRecord, read_record, write_record
 from hairdigi.render.chart import WHITE_PATCH, colorchecker_reflectances, rig_chart_targets
 from hairdigi.render.metrics import delta_e2000
-from hairdigi.render.srgb import srgb8_to_linear, to_linear
+from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear, to_linear
 
 METHODS = ("Cheung 2004", "Finlayson 2015", "Vandermonde")
 DEFAULT_METHOD = "Finlayson 2015"
@@ -91,8 +92,6 @@ def detect_chart(image_rgb8: np.ndarray) -> ChartDetection:
                 box, quads = box * scale, None if quads is None else quads * scale
                 detection = ChartDetection(means, box, cost, quads)
                 if quads is not None:
-                    from hairdigi.render.srgb import linear_to_srgb8
-
                     means = linear_to_srgb8(detection.patch_linear(to_linear(image_rgb8))).astype(float)
             return ChartDetection(means, box, cost, quads)
     raise CalibrationError("no ColorChecker found: put the 24-patch chart flat in view, fully lit, "
@@ -276,8 +275,6 @@ def profile_warnings(profile: CalibrationProfile, current_settings: dict | None 
 def capture_settings(image_path: str | os.PathLike) -> tuple[dict | None, float | None]:
     """The settings and time of a rig capture, from its capture record saved beside it (None, None
     for an image without one): the same keys as ``RigSession.settings``, to compare with a profile's."""
-    import datetime
-
     image_path = Path(image_path)
     try:
         record = read_record(image_path.with_suffix(".json"), CaptureRecord)

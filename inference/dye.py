@@ -33,8 +33,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from scipy.optimize import lsq_linear, minimize_scalar
 
-from hairdigi.inference.refine import ResponseCurve, params_for_sigma
+from hairdigi.inference.refine import ResponseCurve, params_for_sigma, response_curve
 from hairdigi.render.domain.absorption import MELANIN_REMAP, albedo_from_sigma_a, melanin_quantity
 from hairdigi.render.domain.dye_record import DyePairRecord, DyeRecord
 from hairdigi.render.domain.errors import HairdigiError
@@ -43,10 +44,12 @@ from hairdigi.render.domain.estimate_parts import Provenance, Region, Uncertaint
 from hairdigi.render.domain.record_fields import RecordError
 from hairdigi.render.domain.records import (CaptureRecord, EstimateRecord, EstimateWarning, RefinementRecord,
                                             WarningKind, read_record, record_sha256)
+from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 from hairdigi.render.domain.session_folder import capture_record_beside, is_result_record
 from hairdigi.render.domain.text_enum import TextEnum
 from hairdigi.render.domain.version import version
 from hairdigi.render.metrics import delta_e2000, linear_rgb_to_lab
+from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
 
 #: The largest share of melanin a developer may remove (a high-lift bleach). A dyed hair lighter than
 #: even this lift leaves is refused: no dye explains it.
@@ -73,9 +76,6 @@ class DyeError(HairdigiError, ValueError):
 # --- the swatch's colour of a sigma_a (the rig's response curve) ------------------------------------
 def rig_curve() -> ResponseCurve:
     """The response curve at the rig's pose (rendered once, then read from the disk cache)."""
-    from hairdigi.inference.refine import response_curve
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
-
     return response_curve(RIG_SWATCH_POSE)
 
 
@@ -260,8 +260,6 @@ def fit(bases: np.ndarray, dyed: np.ndarray, weights: np.ndarray, lift_measurabl
     ``D >= 0``. Not measurable (one base): the least lift that leaves ``D >= 0`` on average (0 when
     the dyed hair is nowhere lighter than its base), and the mean deposit.
     """
-    from scipy.optimize import lsq_linear
-
     bases, dyed, weights = (np.asarray(a, float).reshape(-1, 3) for a in (bases, dyed, weights))
     if not lift_measurable:
         m, s = bases.mean(0), dyed.mean(0)
@@ -519,8 +517,6 @@ class DoseResult:
 def dose(dye: DyeRecord, base: HairSample, target_linear: np.ndarray, curve: ResponseCurve | None = None,
          dose_max: float = DOSE_MAX) -> DoseResult:
     """Scale the deposit (lift unchanged) so the base's swatch comes nearest ``target_linear`` (ΔE2000)."""
-    from scipy.optimize import minimize_scalar
-
     curve = curve or rig_curve()
     target = np.clip(np.asarray(target_linear, float), 1e-9, None)
 
@@ -557,8 +553,6 @@ def target_colour(text: str, curve: ResponseCurve | None = None) -> tuple[np.nda
     """A target's mean linear RGB: ``#RRGGBB`` (sRGB) or a record file (the swatch its sigma_a renders); and a label."""
     match = _HEX.match(text.strip())
     if match:
-        from hairdigi.render.srgb import srgb8_to_linear
-
         value = match.group(1)
         rgb = np.array([int(value[i:i + 2], 16) for i in (0, 2, 4)], float)
         return srgb8_to_linear(rgb), f"#{value.upper()}"
@@ -571,8 +565,6 @@ def target_colour(text: str, curve: ResponseCurve | None = None) -> tuple[np.nda
 
 def describe_colour(linear_rgb: np.ndarray) -> dict:
     """sRGB hex and CIE L*a*b* (D65) of a linear colour, for reports and the shade card."""
-    from hairdigi.render.srgb import linear_to_srgb8
-
     srgb = linear_to_srgb8(np.asarray(linear_rgb, float))
     lab = linear_rgb_to_lab(np.asarray(linear_rgb, float))
     return {"srgb": "#" + "".join(f"{int(v):02X}" for v in srgb), "lab": [round(float(v), 2) for v in lab]}

@@ -11,18 +11,24 @@ PNG and PDF (matplotlib; the PDF prints) and a JSON table.
 """
 from __future__ import annotations
 
+import json
 import os
 import time
 from pathlib import Path
 
+import numpy as np
+from matplotlib.figure import Figure
 
-from hairdigi.inference.dye import apply, describe_colour, sample_of
+from hairdigi.inference.dye import apply, describe_colour, rig_curve, sample_of
+from hairdigi.inference.instrument_reading import load_curves, read_instrument
 from hairdigi.inference.levels import LEVEL_NAMES, LEVELS, natural_base
+from hairdigi.inference.spectral_reading import colour_under
 from hairdigi.render.domain.absorption import hair_sigma_a
 from hairdigi.render.domain.dye_record import DyeRecord
 from hairdigi.render.domain.files import atomic_paths, refuse_protected
 from hairdigi.render.domain.records import EstimateRecord
 from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.spectra import balanced, rgb_sigma_spectrum
 
 CARD_SIZE, CARD_SPP, CARD_SEED = 64, 16, 3
 #: The lights each result is shown under (``render.domain.bounds.ILLUMINANTS``), daylight first.
@@ -31,11 +37,6 @@ CARD_LIGHTS = ("D65", "A", "shop-led")
 
 def under_lights(sigma_rgb, curve) -> dict[str, dict]:
     """A predicted hair under each of ``CARD_LIGHTS``, adapted: its description, and ΔE2000 from daylight."""
-    import numpy as np
-
-    from hairdigi.inference.spectral_reading import colour_under
-    from hairdigi.render.spectra import balanced, rgb_sigma_spectrum
-
     spectrum = rgb_sigma_spectrum(np.asarray(sigma_rgb, float))
     seen = {light: balanced(colour_under(curve, spectrum, light), light) for light in CARD_LIGHTS}
     day = seen[CARD_LIGHTS[0]]
@@ -46,8 +47,6 @@ def under_lights(sigma_rgb, curve) -> dict[str, dict]:
 def instrument_labs(hair) -> dict[str, list[float]]:
     """A predicted hair as a lab's instrument would read its swatch (D65, 10°; ``inference.instrument_reading``: the
     family's structures at its absorption, their median), by geometry; {} where no tables are shipped."""
-    from hairdigi.inference.instrument_reading import load_curves, read_instrument
-
     curves = load_curves()
     if curves is None:
         return {}
@@ -57,9 +56,8 @@ def instrument_labs(hair) -> dict[str, list[float]]:
 def card_rows(dye: DyeRecord, size: int = CARD_SIZE, spp: int = CARD_SPP, seed: int = CARD_SEED,
               dose: float = 1.0, curve=None) -> list[dict]:
     """Render each natural level and the dye on it; the measured colours and ΔE2000 per level."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import SceneSpec, default_renderer
-
-    from hairdigi.inference.dye import rig_curve
 
     renderer = default_renderer()
     spec = SceneSpec("swatch", framing="crop")
@@ -88,8 +86,6 @@ def card_rows(dye: DyeRecord, size: int = CARD_SIZE, spp: int = CARD_SPP, seed: 
 
 def _chips(*colours_hex: str):
     """Flat chips of colours side by side (base | result; or one hair under several lights), 8-bit."""
-    import numpy as np
-
     rgb = [[int(h[i:i + 2], 16) for i in (1, 3, 5)] for h in colours_hex]
     chip = np.zeros((20, 20 * len(rgb), 3), np.uint8)
     for k, value in enumerate(rgb):
@@ -100,8 +96,6 @@ def _chips(*colours_hex: str):
 def draw_card(dye: DyeRecord, rows: list[dict], dose: float = 1.0):
     """The card as a matplotlib figure: the natural levels above, the dye's result below, labelled. A plain
     ``Figure``, not pyplot's: no GUI canvas, so a worker thread may draw it while a Qt window runs."""
-    from matplotlib.figure import Figure
-
     # 11 x 4.8 in: the PDF prints on A4 or Letter, landscape, without scaling
     fig = Figure(figsize=(11.0, 6.6))
     axes = fig.subplots(4, len(rows), gridspec_kw={"height_ratios": [1, 1, 0.45, 0.45]})
@@ -145,8 +139,6 @@ def shade_card(dye: DyeRecord, out_png: str | os.PathLike, dose: float = 1.0, si
     """Write the card as PNG, PDF (beside it) and JSON, all three published together (a failure leaves none
     of them half made, and the old card whole); returns the three paths and the rows. None of the three may
     be a record, a dye, a capture or a library (``ProtectedFileError``, before anything is rendered)."""
-    import json
-
     out_png = Path(out_png)
     pdf, table = out_png.with_suffix(".pdf"), out_png.with_suffix(".json")
     refuse_protected((out_png, pdf, table))   # every file checked before any render or write

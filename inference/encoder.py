@@ -12,6 +12,7 @@ import numpy as np
 from hairdigi.inference.preprocess import Roi, encode, swatch_crop
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.params import VECTOR_FIELDS, HairParams
+from hairdigi.render.domain.threads import plan
 from hairdigi.resources import MODELS
 
 DEFAULT_MODEL = MODELS / "encoder.onnx"
@@ -63,9 +64,7 @@ class Encoder:
     (``render.domain.threads``: one; latency is under a millisecond)."""
 
     def __init__(self, path: str | os.PathLike = DEFAULT_MODEL, threads: int | None = None) -> None:
-        import onnxruntime as ort
-
-        from hairdigi.render.domain.threads import plan
+        import onnxruntime as ort   # deferred: onnxruntime takes ~0.3 s; it loads with the first model
 
         threads = plan()["onnxruntime"] if threads is None else threads
 

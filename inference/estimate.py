@@ -19,22 +19,28 @@ import numpy as np
 
 from hairdigi.inference.appearance_reading import (AppearanceReading, check_light_frames, read_appearance,
                                            unmeasured_variation)
+from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibration_warnings, correction_warnings,
+                                            detect_chart, load_profile)
 from hairdigi.inference.domain_checks import domain_stats, domain_warnings
 from hairdigi.inference.encoder import Encoder, Estimate
-from hairdigi.inference.preprocess import Roi, crop_of, read_image, swatch_crop, to_linear
+from hairdigi.inference.light_frames import read_light_frame
+from hairdigi.inference.preprocess import (Roi, crop_of, find_swatch, find_swatch_core, read_image, swatch_crop,
+                                           to_linear)
 from hairdigi.inference.refine import (Refinement, RefineSettings, View, curve_reach, fitted_pixels, mean_linear, refine,
                                       response_curve)
 from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABLE, UNMODELLED_MISFIT, TextureReading,
                                           decisive, read_texture, toward_family, unmodelled, with_structure)
 from hairdigi.inference.uncertainty import intervals, load_table
+from hairdigi.inference.view_check import view_warning, widened
 from hairdigi.inference.views import swatch_view
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
 from hairdigi.render.domain.version import version
 from hairdigi.render.domain.appearance import Appearance, AppearanceEstimate
 from hairdigi.render.domain.estimate_parts import EncoderReading, Provenance, Uncertainty
 from hairdigi.render.domain.params import HairParams
-from hairdigi.render.domain.records import (CalibrationProfile, EstimateRecord, EstimateWarning, RefinementRecord,
-                                            UNRELIABLE, WarningKind)
+from hairdigi.render.domain.record_fields import RecordError
+from hairdigi.render.domain.records import (CalibrationProfile, CaptureRecord, EstimateRecord, EstimateWarning,
+                                            RefinementRecord, UNRELIABLE, WarningKind, read_record)
 from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose, RigRegion
 from hairdigi.resources import MODELS
 
@@ -349,22 +355,15 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
     the rig's capture record beside the image, if it names these frames, else 1). ``structure``:
     how the swatch's structure is treated (``estimate_image``; "read" needs the light frames).
     """
-    from hairdigi.inference.preprocess import find_swatch, find_swatch_core
-    from hairdigi.inference.view_check import view_warning, widened
-
     image_path = Path(image_path)
     image = read_image(image_path)
     lights = None
     if light_paths is not None:
-        from hairdigi.inference.light_frames import read_light_frame   # 8/16-bit PNG or linear EXR
-
         lights = [read_light_frame(path) for path in light_paths]
         check_light_frames(lights, image, sums=False)   # their sum is checked at the image's exposure, below
         factors = light_exposures or _recorded_exposures(image_path, light_paths) or [1.0] * len(lights)
         lights = [to_linear(im) / np.float32(k) for im, k in zip(lights, factors)]
     if rig_view is None:
-        from hairdigi.inference.calibration import CalibrationError, detect_chart
-
         try:
             detect_chart(image)
             rig_view = True
@@ -381,9 +380,6 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
     unknown_view = view_warning(outline, assumed, bool(rig_view)) if camera is None else None
     calibration, extra = None, []
     if calibration_path is not None:
-        from hairdigi.inference.calibration import (apply_profile, calibration_warnings, correction_warnings,
-                                                    load_profile)
-
         profile = load_profile(calibration_path)
         raw = image
         image = apply_profile(image, profile)
@@ -408,9 +404,6 @@ def estimate_file(image_path: str | os.PathLike, encoder: Encoder, roi: Roi | No
 def _recorded_exposures(image_path: Path, light_paths: list) -> list[float] | None:
     """The single-light frames' exposures from the rig's capture record beside the image, when it
     names exactly these frames (a capture re-estimated from its folder)."""
-    from hairdigi.render.domain.record_fields import RecordError
-    from hairdigi.render.domain.records import CaptureRecord, read_record
-
     meta = image_path.with_suffix(".json")
     try:
         capture = read_record(meta, CaptureRecord) if meta.is_file() else None

@@ -18,6 +18,7 @@ the answer.
 """
 from __future__ import annotations
 
+import argparse
 import functools
 import os
 import time
@@ -28,15 +29,18 @@ from typing import Callable
 import numpy as np
 
 from hairdigi.inference.refine import SIGMA_LEVELS, ResponseCurve
+from hairdigi.inference.structure import family_curves, family_view, family_weight
 from hairdigi.render.domain.files import cache_dir, read_json, write_json_atomic
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import EstimateRecord, InstrumentReading
 from hairdigi.render.instrument_geometry import (DEFAULT_APERTURE_MM, GEOMETRIES, InstrumentError, check_aperture,
-                                        check_illuminant, check_observer, geometry, lab_of_reflectance)
+                                                 check_illuminant, check_observer, geometry, lab_of_reflectance,
+                                                 reflectance_ladder)
 from hairdigi.render.metrics import delta_e2000_lab
 from hairdigi.render.domain.bounds import SwatchModel
 from hairdigi.render.domain.text_enum import text_of
-from hairdigi.render.swatch_family import FAMILY
+from hairdigi.render.spectra import hair_sigma_a_spectrum, srgb_weights
+from hairdigi.render.swatch_family import FAMILY, structure_strands
 from hairdigi.resources import MODELS, ROOT
 
 #: The shipped curves: every family member in every geometry.
@@ -77,9 +81,6 @@ class InstrumentCurves:
 # -- the tables -----------------------------------------------------------------------------------
 def member_ladder(geom: str, member: str, layout: int, settings: BuildSettings = BuildSettings()) -> np.ndarray:
     """One member's reflectance at ``settings.levels`` in ``geom``, strand layout ``layout``; cached on disk."""
-    from hairdigi.render.instrument_geometry import reflectance_ladder
-    from hairdigi.render.swatch_family import structure_strands
-
     key = f"{geometry(geom).name.replace('/', '-').replace(' ', '_')}-{member}-{layout}-" \
           f"{settings.size}-{settings.spp}-{settings.strands}-{settings.aperture_mm:g}"
     path = cache_dir() / "instrument" / f"ladder-{key}.json"
@@ -179,8 +180,6 @@ def measured_ratio(measured_rgb, sigma_rgb, reference: Callable[[np.ndarray], np
     the layered floor). Each channel's ratio is spread over the wavelengths that channel sees (linear sRGB's
     weights, their negative lobes dropped). (Against the answer's spectral colour instead, the RGB and spectral
     mappings' difference entered the ratio and a saturated dye's a* moved by 8-10: ``hairdigi evaluate --instrument``.)"""
-    from hairdigi.render.spectra import srgb_weights
-
     shown = reference(np.asarray(sigma_rgb, float))
     ratio = np.clip(np.asarray(measured_rgb, float) / np.clip(shown, 1e-12, None), 0.25, 4.0)
     weights = np.clip(srgb_weights(), 0.0, None)
@@ -233,8 +232,6 @@ def read_instrument(hair: HairParams, members: dict[str, float] | None = None, r
     member (``spread``) reads black hair 6 L* below the others even after the transfer; the geometric mean of
     the members read 2.43 / 2.99 ΔE2000 (median / p95, d/8 SCI, ``hairdigi evaluate --instrument``), the median
     1.69 / 2.22. Raises InstrumentError when the tables are missing."""
-    from hairdigi.render.spectra import hair_sigma_a_spectrum
-
     curves = curves if curves is not None else load_curves()
     if curves is None:
         raise InstrumentError(f"no instrument tables at {INSTRUMENT_TABLES}; build them with "
@@ -290,8 +287,6 @@ def reading_members(record: EstimateRecord) -> dict[str, float] | None:
 def with_instrument(record: EstimateRecord, path: str | os.PathLike | None = None, **kwargs) -> EstimateRecord:
     """``record`` with its instrument readings (``read_instrument``: each structure reading the colour the capture
     measured, through the family's curves at its view); unchanged when it has no hair or no tables are shipped."""
-    from hairdigi.inference.structure import family_curves, family_view, family_weight
-
     hair = hair_of(record)
     curves = load_curves(path)
     if hair is None or curves is None:
@@ -319,13 +314,12 @@ def with_instrument(record: EstimateRecord, path: str | os.PathLike | None = Non
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m hairdigi.inference.instrument_reading [--out PATH] [--spp N]``: build the instrument tables."""
-    import argparse
-
     parser = argparse.ArgumentParser(prog="python -m hairdigi.inference.instrument_reading", description=main.__doc__)
     parser.add_argument("--out", default=str(INSTRUMENT_TABLES))
     parser.add_argument("--spp", type=int, default=BuildSettings.spp)
     parser.add_argument("--layouts", type=int, default=BuildSettings.layouts)
     args = parser.parse_args(argv)
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.variant import select_variant
 
     select_variant()

@@ -28,6 +28,7 @@ def _rgb_only(img: np.ndarray, path: Path) -> np.ndarray:
 
 def _read_exr(path: Path) -> np.ndarray:
     """A linear OpenEXR frame as float32 RGB."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.variant import mi, select_variant
 
     select_variant()

@@ -6,12 +6,16 @@ inference the swatch area is found (or given as a ROI) and its central square is
 """
 from __future__ import annotations
 
+import io
 import os
+import struct
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image
 
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.files import read_bytes
@@ -40,8 +44,6 @@ def _check_complete(data: bytes, path: Path) -> None:
 
 def _jpeg_size(data: bytes) -> tuple[int, int] | None:
     """Width and height from a JPEG's start-of-frame segment, or None when none is found."""
-    import struct
-
     i = 2
     while i + 9 < len(data):
         if data[i] != 0xFF:
@@ -64,18 +66,11 @@ def _jpeg_size(data: bytes) -> tuple[int, int] | None:
 def image_size(data: bytes) -> tuple[int, int] | None:
     """(width, height) from an image file's header, without decoding it; None when unknown. An image
     Pillow calls a decompression bomb (over 179 MP) raises ImageError."""
-    import struct
-
     if data[:8] == b"\x89PNG\r\n\x1a\n" and data[12:16] == b"IHDR":
         return struct.unpack(">II", data[16:24])
     if data[:2] == b"\xff\xd8":
         return _jpeg_size(data)
     try:   # other formats (TIFF, BMP, WebP, ...): Pillow reads only the header here
-        import io
-        import warnings
-
-        from PIL import Image
-
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             with Image.open(io.BytesIO(data)) as im:

@@ -35,6 +35,8 @@ import time
 from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
+from scipy.interpolate import PchipInterpolator
+from scipy.optimize import least_squares
 
 from hairdigi.inference.atlas import curve_means
 from hairdigi.render.domain.absorption import albedo_from_sigma_a, hair_sigma_a
@@ -42,11 +44,14 @@ from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, GREY_SIGMA_A, Appearance
 from hairdigi.render.domain.bounds import SwatchModel
 from hairdigi.render.domain.text_enum import text_of
-from hairdigi.render.domain.files import cache_dir
+from hairdigi.render.domain.files import cache_dir, write_json_atomic
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.estimate_parts import Region
 from hairdigi.render.domain.records import RefinementRecord
 from hairdigi.render.domain.rig_geometry import CameraPose, Framing, RigRegion
+from hairdigi.render.fibres import FIBRE_GROUPS, group_z
+from hairdigi.render.swatch_family import REVISIONS
+from hairdigi.render.srgb import srgb8_to_linear
 from hairdigi.resources import ROOT
 
 #: Where the refinement looks: a camera pose over the crop framing's centre (an all-hair image), or
@@ -111,14 +116,10 @@ class ResponseCurve:
 
     @functools.cached_property
     def _forward(self):
-        from scipy.interpolate import PchipInterpolator
-
         return PchipInterpolator(np.log(self.sigma + _LOG_OFFSET), np.log(self.mean), extrapolate=True)
 
     @functools.cached_property
     def _backward(self):
-        from scipy.interpolate import PchipInterpolator
-
         return PchipInterpolator(-np.log(self.mean), np.log(self.sigma + _LOG_OFFSET), extrapolate=False)
 
     def __call__(self, sigma: np.ndarray) -> np.ndarray:
@@ -146,6 +147,7 @@ def scene_for(view: View, settings: RefineSettings, appearance: Appearance | Non
     """The scene and render size that show what the capture's fitted pixels show (with the hair's
     ``appearance``; None: the default uniform hair), on the swatch structure ``swatch_model`` (None:
     the default; ``render.swatch_family``)."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import SceneSpec
 
     look = None if appearance is None or appearance == DEFAULT_APPEARANCE else appearance
@@ -163,8 +165,6 @@ def varied_curve(curve: ResponseCurve, appearance: Appearance) -> ResponseCurve:
     pigment group at sigma * exp(spread * z_k) and the greys at their own sigma, weighted by their
     shares. Light passing between unlike fibres makes the truth differ a little; the refinement's
     check renders (of the real varied swatch) correct that, with this curve's slope."""
-    from hairdigi.render.fibres import FIBRE_GROUPS, group_z
-
     if not appearance.varied:
         return curve
     g = appearance.grey_fraction
@@ -228,8 +228,6 @@ def cache_key(head: list, spec, variant: str) -> str:
     """The disk-cache key of renders of ``spec``'s swatch: ``head`` (what the caller renders) with the
     swatch's strands, depth, the variant and its model (left out for the first swatch, "today", so
     its cached files keep their keys) and the model's geometry revision where it has one."""
-    from hairdigi.render.swatch_family import REVISIONS
-
     model = spec.swatch_model
     name = text_of(model)                  # REVISIONS is keyed by the structures' text
     data = [*head, spec.n_strands, spec.depth, variant] + ([name] if model is not SwatchModel.TODAY else []) \
@@ -239,6 +237,7 @@ def cache_key(head: list, spec, variant: str) -> str:
 
 def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool,
                     swatch_model: str | None = None) -> ResponseCurve:
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()
@@ -272,8 +271,6 @@ def _response_curve(view: View, settings: RefineSettings, renderer, cache: bool,
         nonfinite += result.nonfinite
     curve = ResponseCurve(levels, means, time.perf_counter() - start, nonfinite=nonfinite)
     if cache:
-        from hairdigi.render.domain.files import write_json_atomic
-
         write_json_atomic(path, {"view": view_key(view), "settings": curve_settings(settings), **curve.to_dict()})
     return curve
 
@@ -330,8 +327,6 @@ def params_for_sigma(sigma: np.ndarray, prior: HairParams, weight: float = 300.0
     residuals), and the distance to the prior (6). A ``sigma`` outside what Table 1 can make gives
     the nearest colour it can, and ``False``.
     """
-    from scipy.optimize import least_squares
-
     goal = fibre_appearance(np.asarray(sigma, float))
     v0 = prior.to_vector().astype(float)
 
@@ -348,8 +343,6 @@ def params_for_sigma(sigma: np.ndarray, prior: HairParams, weight: float = 300.0
 def mean_linear(image: np.ndarray, band_pixels: int = 1 << 18) -> np.ndarray:
     """Mean linear RGB of an image, 8-bit sRGB or linear float (what the swatch's colour is judged by),
     summed in bands of rows: at most ``band_pixels`` pixels are converted to float at once."""
-    from hairdigi.render.srgb import srgb8_to_linear
-
     image = np.asarray(image)
     if image.ndim != 3:   # a list of pixels
         image = image.reshape(-1, 1, 3)
@@ -386,6 +379,7 @@ def refine(prior: HairParams, target: np.ndarray, view: View = CameraPose(),
     (None: the default; ``inference.structure.read_structure`` reads it); ``curve`` is the uniform
     swatch's response at its shine (from that structure's shine tables), else the default shine's is
     rendered or loaded. The result's ``sigma_a`` is the median pigmented fibre's."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()

@@ -25,7 +25,7 @@ from hairdigi.inference.atlas import shine_means
 from hairdigi.render.domain.appearance import Appearance
 from hairdigi.inference.refine import (ResponseCurve, RefineSettings, View, cache_key, curve_settings, scene_for,
                                        view_key)
-from hairdigi.render.domain.files import cache_dir
+from hairdigi.render.domain.files import atomic_path, cache_dir
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
 
 #: The beta_m grid of the tables: glossy virgin hair to rough, bleached hair (0.1-0.6).
@@ -85,6 +85,7 @@ def shine_tables(view: View, settings: RefineSettings = RefineSettings(), betas=
 
 def _shine_tables(view: View, settings: RefineSettings, betas, renderer, cache: bool,
                   swatch_model: str | None = None) -> ShineTables:
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import default_renderer
 
     renderer = renderer or default_renderer()
@@ -114,8 +115,6 @@ def _shine_tables(view: View, settings: RefineSettings, betas, renderer, cache: 
                 nonfinite += result.nonfinite
     tables = ShineTables(np.asarray(betas, float), levels, means, time.perf_counter() - start, nonfinite)
     if cache:
-        from hairdigi.render.domain.files import atomic_path
-
         with atomic_path(path, ".npz") as tmp:
             np.savez(tmp, betas=tables.betas, sigma=tables.sigma, means=tables.means, seconds=tables.seconds,
                      nonfinite=tables.nonfinite)

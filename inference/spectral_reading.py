@@ -28,6 +28,8 @@ from hairdigi.render.domain.estimate_parts import SpectralInterval, Uncertainty
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import EstimateWarning, SpectralReading, WarningKind
 from hairdigi.inference.uncertainty import load_table, widen_colour
+from hairdigi.render.spectra import balanced, hair_sigma_a_spectrum, rgb_projection, swatch_colour
+from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 from hairdigi.resources import MODELS
 
 #: How much a refit may move the parameters (normalised to [0, 1]) for one unit of CIELAB distance.
@@ -49,8 +51,6 @@ SPECTRAL_TABLE = MODELS / "spectral_uncertainty.json"
 def colour_under(curve, hair: HairParams | np.ndarray, light: str, sensitivities: str | None = None) -> np.ndarray:
     """Mean linear colour of a swatch of ``hair`` (Table 1, or ``sigma_a(λ)``) under ``light``, from the
     response ``curve`` read per wavelength: the CIE observer's linear sRGB, or a camera's raw RGB."""
-    from hairdigi.render.spectra import hair_sigma_a_spectrum, swatch_colour
-
     sigma = hair_sigma_a_spectrum(hair) if isinstance(hair, HairParams) else np.asarray(hair, float)
     return swatch_colour(curve(sigma), light, sensitivities)
 
@@ -75,8 +75,8 @@ def camera_answer(rgb_answer: HairParams, target_linear: np.ndarray, curve, ccm:
     24 patches and misses a neutral by up to 5-18% in one channel through the Sigma SD Merrill, where a
     gain 0.7% off moves the answer 2.7 ΔE2000. Returns the hair and its residual (CIELAB ΔE76 in the
     corrected space)."""
+    # deferred: loads colour-science (~1 s); spectral_reading stays light for declared_spectra and the library
     from hairdigi.render.chart import colorchecker_spectra
-    from hairdigi.render.spectra import rgb_projection, swatch_colour
 
     ccm = np.asarray(ccm, float)
     if ccm.shape != (3, 3):
@@ -127,8 +127,8 @@ def spectral_record(record, spectra: RigSpectra | None, profile, curve=None, tab
         if spectra is None or ccm is None:
             return unknown
         return replace(unknown, warnings=(*record.warnings, EstimateWarning(WarningKind.OTHER, NOT_LINEAR)))
+    # deferred: loads colour-science (~1 s); spectral_reading stays light for declared_spectra and the library
     from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.chart import rig_chart_targets
 
     measured = record.refinement.target_linear_rgb
@@ -164,8 +164,8 @@ def read_spectral(rgb_answer: HairParams, target_linear: np.ndarray, curve, ccm:
                   sensitivities: str | None, chart_targets: np.ndarray, patches=None) -> SpectralReading:
     """The record's spectral reading: :func:`camera_answer` (the CIE observer where ``sensitivities`` is
     None) and its colour under each of ``UNDER``, as an observer adapted to that light sees it."""
+    # deferred: loads colour-science (~1 s); spectral_reading stays light for declared_spectra and the library
     from hairdigi.render.metrics import linear_rgb_to_lab
-    from hairdigi.render.spectra import balanced
 
     start = time.perf_counter()
     hair, residual = camera_answer(rgb_answer, target_linear, curve, ccm, led, sensitivities, chart_targets, patches)
@@ -218,6 +218,7 @@ def fit_table1(start_hair: HairParams, target_linear: np.ndarray, forward) -> tu
     """The Table 1 hair nearest ``start_hair`` whose ``forward(hair)`` (linear sRGB) is ``target_linear``:
     least squares of CIELAB differences and ``STAY`` times the move in normalised parameters; where that
     is left more than ``RESTART_DE`` away, the best of it and fits started from ``RESTARTS``."""
+    # deferred: loads scipy and colour-science (~1 s); spectral_reading stays light for declared_spectra and the library
     from scipy.optimize import least_squares
 
     from hairdigi.render.metrics import linear_rgb_to_lab

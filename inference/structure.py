@@ -16,12 +16,15 @@ through one structure inherits it. Each channel's mean colour is one monotone re
 """
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from hairdigi.inference.refine import RefineSettings, ResponseCurve, View, response_curve
+from hairdigi.inference.refine import RefineSettings, ResponseCurve, View, params_for_sigma, response_curve
+from hairdigi.inference.shine import estimate_shine, shine_tables
 from hairdigi.inference.uncertainty import widen_colour
+from hairdigi.render.domain.absorption import hair_sigma_a
 from hairdigi.render.domain.bounds import StructureMode
 from hairdigi.render.domain.estimate_parts import StructureInterval, Uncertainty
 from hairdigi.render.domain.rig_geometry import RigRegion
@@ -205,8 +208,6 @@ def read_structure(light_means: np.ndarray, view: View, settings: RefineSettings
     """Shine and structure from the (L, 3) single-light means: each member's tables give a best shine
     and a misfit (``inference.shine.estimate_shine``); the member that fits best is read. A fibre off the
     swatch's axis sends the light along the fibres more of its light and the lights across them less."""
-    from hairdigi.inference.shine import estimate_shine, shine_tables
-
     fits = {}
     for member in members:
         tables = shine_tables(view, settings, renderer=renderer, swatch_model=member)
@@ -264,6 +265,7 @@ class TextureReading:
 def read_texture(pixels_linear: np.ndarray, view: View) -> TextureReading | None:
     """The structure the swatch area's texture reads (``TextureReading``), its pixels scaled to the canonical
     frame width first (a RAW still's twice the feed's); None where there is no rig view's texture."""
+    # deferred: OpenCV takes ~0.3 s; only this step needs it
     import cv2
 
     from hairdigi.inference.texture import streaks
@@ -333,12 +335,6 @@ def toward_family(refinement, prior, view: View, settings: RefineSettings = Refi
     hurt the deposited ones through the rig: ``packaging/evaluation/structures-held-out-check/family_ruled_out_replay.*``
     and the manual's figures.) The family's curves render once per canonical view (``family_view``;
     cached)."""
-    import time
-    from dataclasses import replace as replaced
-
-    from hairdigi.inference.refine import params_for_sigma
-    from hairdigi.render.domain.absorption import hair_sigma_a
-
     start = time.perf_counter()
     family = family_curves(family_view(view), settings, renderer)
     weights = texture.weights if texture is not None else None
@@ -352,7 +348,7 @@ def toward_family(refinement, prior, view: View, settings: RefineSettings = Refi
     members = ({m: 1.0 for m in family.members} if weights is None else
                {m: float(w) for m, w in weights.items() if m in family.members and w > 0})
     sigma = hair_sigma_a(params)
-    return replaced(refinement, params=params, sigma_a=sigma, fitted_sigma_a=refinement.sigma_a,
-                    seconds=refinement.seconds + time.perf_counter() - start,
-                    region=replaced(refinement.region, structure=f"mapped to {mean} ({why})", members=members,
-                                    spreads=member_spreads(sigma, family, members)))
+    return replace(refinement, params=params, sigma_a=sigma, fitted_sigma_a=refinement.sigma_a,
+                   seconds=refinement.seconds + time.perf_counter() - start,
+                   region=replace(refinement.region, structure=f"mapped to {mean} ({why})", members=members,
+                                  spreads=member_spreads(sigma, family, members)))

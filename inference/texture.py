@@ -32,6 +32,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from hairdigi.resources import MODELS
+
 #: The Gaussian (pixels) whose blur is taken away: far wider than a fibre, far narrower than the
 #: lights' fall-off across the swatch.
 HIGHPASS_SIGMA_PX = 4.0
@@ -279,8 +281,6 @@ class TextureModel:
 
 
 def model_path() -> Path:
-    from hairdigi.resources import MODELS
-
     return MODELS / MODEL_FILE
 
 

@@ -64,7 +64,7 @@ def outline_tilt(corners: np.ndarray) -> tuple[float, float]:
 TILT_TOLERANCE = 12.0
 MIN_TILT = 22.0
 #: Mean-colour ΔE2000 (68%, 95%) of estimates of rig-framed swatches seen from 20° and 30° without
-#: ``--camera`` (``python -m hairdigi.inference.training.evaluate_views --no-camera --polars 20,30
+#: ``--camera`` (``python -m hairdigi.app.evaluation.views_evaluation --no-camera --polars 20,30
 #: --azimuths 0,90,180,270 --hairs brown,platinum,red,black``).
 UNKNOWN_VIEW_DE = (3.38, 5.11)
 

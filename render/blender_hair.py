@@ -13,16 +13,18 @@ Written by ``hairdigi export --format blender``; needs Blender (tested: the ``bp
 and Offset = minus Mitsuba's cuticle tilt (Cycles tilts the other way for curves drawn root to tip).
 Only bpy and the standard library are used.
 """
+import argparse
 import json
 import math
 import sys
+import time
 
 LOOK = {}
 
 
 def build_material(look=None):
     """The Principled Hair BSDF material of ``look`` (a new material, or the one of that name rebuilt)."""
-    import bpy
+    import bpy   # deferred: bpy exists only inside Blender, which runs this script
 
     look = look or LOOK
     mat = bpy.data.materials.get(look["name"]) or bpy.data.materials.new(look["name"])
@@ -52,7 +54,7 @@ def _takes_material(obj):
 
 def assign_to_selected(mat):
     """Give ``mat`` to every selected hair object; returns their names."""
-    import bpy
+    import bpy   # deferred: bpy exists only inside Blender, which runs this script
 
     names = []
     for obj in getattr(bpy.context, "selected_objects", []) or []:
@@ -71,7 +73,7 @@ def assign_to_selected(mat):
 
 
 def _quad(name, corners, material):
-    import bpy
+    import bpy   # deferred: bpy exists only inside Blender, which runs this script
 
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata([tuple(c) for c in corners], [], [(0, 1, 2, 3)])
@@ -82,7 +84,7 @@ def _quad(name, corners, material):
 
 
 def _diffuse(name, albedo):
-    import bpy
+    import bpy   # deferred: bpy exists only inside Blender, which runs this script
 
     mat = bpy.data.materials.new(name)
     mat.use_nodes = True
@@ -93,7 +95,7 @@ def _diffuse(name, albedo):
 
 
 def _emission(name, radiance):
-    import bpy
+    import bpy   # deferred: bpy exists only inside Blender, which runs this script
 
     mat = bpy.data.materials.new(name)
     mat.use_nodes = True
@@ -110,6 +112,7 @@ def _emission(name, radiance):
 
 def build_rig(rig, mat):
     """hairdigi's swatch rig from ``rig`` (hairdigi's JSON): holder, lights, camera and the groom."""
+    # deferred: bpy exists only inside Blender, which runs this script
     import bpy
     from mathutils import Matrix
 
@@ -170,9 +173,7 @@ def build_rig(rig, mat):
 def render_mean(path, spp, seed=0, threads=0, want_pixels=False):
     """Render the scene in Cycles to an OpenEXR beside ``path`` and write its mean linear colour there
     (and, with ``want_pixels``, the linear RGB image, rows from the top)."""
-    import time
-
-    import bpy
+    import bpy   # deferred: bpy exists only inside Blender, which runs this script
 
     scene = bpy.context.scene
     scene.cycles.samples = spp
@@ -201,9 +202,7 @@ def render_mean(path, spp, seed=0, threads=0, want_pixels=False):
 
 
 def main(argv):
-    import argparse
-
-    import bpy
+    import bpy   # deferred: bpy exists only inside Blender, which runs this script
 
     parser = argparse.ArgumentParser(description="hairdigi hair material for Blender")
     parser.add_argument("--scene", help="hairdigi's swatch rig (JSON) to build around the material")

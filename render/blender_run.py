@@ -13,6 +13,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,6 +22,7 @@ import numpy as np
 from hairdigi.render.domain import rig_geometry as rg
 from hairdigi.render.domain.bounds import Environment
 from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.files import atomic_path
 from hairdigi.render.interchange import HairLook, blender_script_text
 from hairdigi.render.strands import SWATCH_LENGTH, SWATCH_WIDTH, Strands
 
@@ -58,8 +60,6 @@ def run_script(script: Path, args: list[str], timeout: float = 1800.0) -> str:
 def probe_blender(timeout: float = 300.0) -> None:
     """Run a two-line script in the chosen Blender (it must import bpy and print); BlenderError if it does not,
     so that a broken ``HAIRDIGI_BLENDER`` stops a job before its work, not after it."""
-    import tempfile
-
     with tempfile.TemporaryDirectory(prefix="hairdigi-probe-") as tmp:
         script = Path(tmp) / "probe.py"
         script.write_text("import bpy\nprint('hairdigi-blender-ok', bpy.app.version_string)\n", encoding="utf-8")
@@ -102,6 +102,7 @@ def rig_for_blender(strands: Strands, pose: rg.CameraPose = rg.RIG_SWATCH_POSE, 
     B-splines sampled 4 times a segment; ``bspline=False``: the points as they are, for strands that
     are not Mitsuba's), the holder, the rig's lights at ``lights`` of full power and the camera at
     ``pose``; ``env`` ``"key-sky"`` adds the key light and the grey sky of ``scenes.key_and_sky``."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render import scenes
 
     curves = strands.curves(per_segment=4) if bspline else strands
@@ -128,8 +129,7 @@ def mitsuba_mean(look: HairLook, strands: Strands, pose: rg.CameraPose = rg.RIG_
                  framing: rg.Framing = rg.Framing.CROP, size: int = 64, spp: int = 256, max_depth: int = 32) -> tuple[np.ndarray, float]:
     """hairdigi's twin of ``look`` on ``strands`` in the rig (Mitsuba): mean linear colour and seconds. Rendered
     on the renderer's one path (``renderer.render_scene``: its lock, its scene order, its NaN count)."""
-    import time
-
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render import scenes
     from hairdigi.render.renderer import render_scene
     from hairdigi.render.variant import select_variant
@@ -171,6 +171,7 @@ def render_cycles(look: HairLook, rig: dict, spp: int, seed: int, threads: int =
     image's. ``renderer.RENDER_LOCK`` does not apply: it keeps two Dr.Jit renders of one process apart, and
     Cycles runs in its own. ``folder`` keeps the script's files (default: a temporary folder).
     """
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import finite_image
 
     with tempfile.TemporaryDirectory(prefix="hairdigi-cycles-") as tmp:
@@ -198,8 +199,6 @@ def write_blend(look: HairLook, out: str | Path, size: int = 256) -> Path:
         rig.write_text(json.dumps(rig_for_blender(layered_swatch(), size=size)))
         blend = Path(tmp) / out.name
         run_script(script, ["--scene", str(rig), "--blend", str(blend)])
-        from hairdigi.render.domain.files import atomic_path
-
         with atomic_path(out) as target:
             shutil.copyfile(blend, target)
     return out
@@ -221,7 +220,7 @@ def cycles_check(look: HairLook, size: int = 48, spp: int = 64, mitsuba_spp: int
                  pose: rg.CameraPose = rg.RIG_SWATCH_POSE, threads: int = 0) -> CyclesCheck:
     """Render the exported script in Cycles and hairdigi's Mitsuba twin on the same strands, at the rig's
     pose (hair only in view); the ΔE2000 of their mean colours."""
-    from hairdigi.render.metrics import delta_e2000
+    from hairdigi.render.metrics import delta_e2000   # deferred: loads colour-science (~1 s)
 
     strands = layered_swatch()
     cycles = render_cycles(look, rig_for_blender(strands, pose, rg.Framing.CROP, size), spp, seed=0, threads=threads)

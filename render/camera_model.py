@@ -84,7 +84,7 @@ def spread_glints(linear: np.ndarray, ratio: float = 3.0, margin: float = 0.05, 
     removing the outliers would darken hair by up to 18% in red (``shared/reference/inverse-notes.md``;
     on the simulated rig's hidden swatch that was ΔE2000 3.65).
     """
-    import cv2
+    import cv2   # deferred: OpenCV takes ~0.3 s; only this step needs it
 
     img = np.ascontiguousarray(linear, dtype=np.float32)
     threshold = np.float32(ratio) * cv2.medianBlur(img, 3) + np.float32(margin)

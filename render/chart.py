@@ -18,6 +18,7 @@ import numpy as np
 from hairdigi.resources import CHARTS
 
 from hairdigi.render.domain import rig_geometry
+from hairdigi.render.spectra import WAVELENGTHS, rgb_projection
 
 CHART_NAME = "ColorChecker24 - After November 2014"
 TARGETS_FILE = CHARTS / "rig_chart_targets.json"
@@ -50,8 +51,6 @@ def colorchecker_spectra() -> np.ndarray:
     quadratic in wavelength) until its colour under D65 is the reference colour, keeping its measured
     shape: the chart in view is the chart the targets describe, and what a camera adds is metamerism
     alone (measured: calibrating the CIE observer on the unbent spectra left 1.42 ΔE2000)."""
-    from hairdigi.render.spectra import WAVELENGTHS, rgb_projection
-
     sds = colour.SDS_COLOURCHECKERS[SPECTRA_NAME]
     if list(sds) != list(colour.CCS_COLOURCHECKERS[CHART_NAME].data):
         raise ValueError(f"{SPECTRA_NAME}'s patches are not in {CHART_NAME}'s order")

@@ -35,7 +35,7 @@ def _import_pyoidn():
     if hide:
         sys.modules["torch"] = None          # makes pyoidn's optional ``import torch`` fail, as without torch
     try:
-        import pyoidn
+        import pyoidn   # deferred: pyoidn loads the OIDN library; only a denoise needs it
     finally:
         if hide and "torch" in sys.modules and sys.modules["torch"] is None:
             del sys.modules["torch"]
@@ -81,7 +81,7 @@ RESTORE_SIGMA_PX = 16.0
 def restore_mean(denoised: np.ndarray, raw: np.ndarray, sigma_px: float = RESTORE_SIGMA_PX) -> np.ndarray:
     """``denoised`` plus the part of ``raw - denoised`` coarser than ``sigma_px``: the local mean colour
     of ``raw`` (and its global mean) without its noise."""
-    import cv2
+    import cv2   # deferred: OpenCV takes ~0.3 s; only this step needs it
 
     residual = np.ascontiguousarray(raw - denoised, dtype=np.float32)
     coarse = cv2.GaussianBlur(residual, (0, 0), sigmaX=float(sigma_px), borderType=cv2.BORDER_REFLECT)

@@ -37,7 +37,8 @@ import numpy as np
 
 from hairdigi.render import head
 from hairdigi.render.domain.errors import HairdigiError
-from hairdigi.render.strands import HAIR_RADIUS, Strands
+from hairdigi.render.domain.files import write_bytes_atomic
+from hairdigi.render.strands import HAIR_RADIUS, Strands, scalp_roots
 
 _HEADER = struct.Struct("<4sIIIIff3f88s")
 assert _HEADER.size == 128
@@ -218,8 +219,6 @@ def hair_file_bytes(hair: HairFile) -> bytes:
 
 def write_hair_file(path: str | os.PathLike, hair: HairFile) -> Path:
     """Write ``hair`` as a ``.hair`` file, atomically."""
-    from hairdigi.render.domain.files import write_bytes_atomic
-
     return write_bytes_atomic(path, hair_file_bytes(hair))
 
 
@@ -246,8 +245,6 @@ def _robust_box(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @functools.lru_cache(maxsize=1)
 def _scalp_box() -> tuple[np.ndarray, np.ndarray]:
-    from hairdigi.render.strands import scalp_roots
-
     roots, _ = scalp_roots(4000, np.random.default_rng(0))
     return _robust_box(roots)
 

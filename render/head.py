@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.render.domain.files import write_bytes_atomic
+
 #: Centre of the skull's ellipsoid: scalp roots are found on rays from here.
 SKULL_CENTER = np.array([0.0, 0.02, -0.08])
 SKULL_RADII = np.array([0.80, 0.97, 1.0])
@@ -323,8 +325,6 @@ def ply_bytes(mesh: HeadMesh) -> bytes:
 
 def write_ply(path: str | os.PathLike, mesh: HeadMesh | None = None) -> Path:
     """Write the bust (or ``mesh``) as a PLY, atomically."""
-    from hairdigi.render.domain.files import write_bytes_atomic
-
     return write_bytes_atomic(path, ply_bytes(mesh or head_mesh()))
 
 

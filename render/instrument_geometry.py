@@ -35,7 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.render.domain.absorption import hair_bsdf
 from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.rig_geometry import HOLDER_CENTER, HOLDER_SIZE, look_at_matrix
 
 #: mm per scene unit: the holder's swatch is 1 unit wide, a 50 mm swatch (``render.strands``).
 MM_PER_UNIT = 50.0
@@ -125,7 +128,7 @@ def view_direction(geom: Geometry) -> np.ndarray:
 
 
 def _sensor(geom: Geometry, aperture_mm: float, size: int, spp: int, centre: tuple[float, float] = (0.0, 0.0)) -> dict:
-    from hairdigi.render.domain.rig_geometry import look_at_matrix
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.variant import transform
 
     radius = aperture_mm / 2.0 / MM_PER_UNIT
@@ -142,7 +145,7 @@ def _lights(geom: Geometry, flat) -> dict:
     if geom.diffuse:
         out = {"sphere": {"type": "constant", "radiance": flat(1.0)}}
         if geom.trap:
-            from hairdigi.render.domain.rig_geometry import look_at_matrix
+            # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
             from hairdigi.render.variant import transform
 
             mirror = view_direction(geom) * np.array([-1.0, 1.0, 1.0])
@@ -170,10 +173,11 @@ def instrument_scene(geom: Geometry, aperture_mm: float, size: int, spp: int, ma
     calibration ``tile`` ("white": a perfect diffuser; "black glass": a smooth dielectric of index 1.5
     over black) filling the port. ``spectral``: flat spectra written for a spectral variant. ``centre``: the
     spot's centre on the holder (x, y scene units; the swatch's centre is 0, 0; its fibres run along y)."""
-    from hairdigi.render.domain.rig_geometry import HOLDER_CENTER, HOLDER_SIZE
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.scenes import hair_shape, integrator, placed
 
     if spectral:
+        # deferred: the CLI parser imports this module; the spectra only for a spectral render
         from hairdigi.render.spectra import WAVELENGTHS, mitsuba_spectrum
 
         def flat(v: float) -> dict:
@@ -210,6 +214,7 @@ def aperture_mean(image: np.ndarray) -> np.ndarray:
 
 
 def _render(scene_dict: dict, size: int, spp: int, seed: int) -> np.ndarray:
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import RENDER_LOCK, trace
     from hairdigi.render.variant import load_scene
 
@@ -228,10 +233,9 @@ def reflectance_ladder(strands, geom: Geometry | str, levels: np.ndarray, apertu
                        size: int = 48, spp: int = 64, seed: int = 7, max_depth: int = 32) -> np.ndarray:
     """The swatch's reflectance factor in ``geom`` at each flat ``sigma_a`` of ``levels`` (a multiple of
     three: three levels a render, one per channel), over the aperture on the swatch's centre."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     import mitsuba as mi
 
-    from hairdigi.render.domain.absorption import hair_bsdf
-    from hairdigi.render.domain.params import HairParams
     from hairdigi.render.renderer import RENDER_LOCK, trace
     from hairdigi.render.variant import load_scene, select_variant
 
@@ -261,6 +265,7 @@ def reflectance_ladder(strands, geom: Geometry | str, levels: np.ndarray, apertu
 @functools.lru_cache(maxsize=None)
 def _weights(illuminant: str, observer: str) -> tuple[np.ndarray, np.ndarray]:
     """(n, 3) the observer's x̄ȳz̄ times the illuminant on ``render.spectra.WAVELENGTHS``, and its white XYZ."""
+    # deferred: colour-science takes ~1 s; the CLI parser imports this module (render.spectra)
     import colour
 
     from hairdigi.render.spectra import WAVELENGTHS
@@ -276,7 +281,7 @@ def _weights(illuminant: str, observer: str) -> tuple[np.ndarray, np.ndarray]:
 def lab_of_reflectance(reflectance: np.ndarray, illuminant: str = "D65", observer: str = "10") -> np.ndarray:
     """CIELAB of a reflectance factor spectrum (..., n) on ``render.spectra.WAVELENGTHS``, under
     ``illuminant`` for ``observer``, its white the perfect diffuser under the same light."""
-    import colour
+    import colour   # deferred: colour-science takes ~1 s to import
 
     weights, white = _weights(illuminant, str(observer))
     xyz = np.asarray(reflectance, float) @ weights
@@ -285,7 +290,7 @@ def lab_of_reflectance(reflectance: np.ndarray, illuminant: str = "D65", observe
 
 def lab_of_tristimulus(relative: np.ndarray, illuminant: str = "D65", observer: str = "10") -> np.ndarray:
     """CIELAB of tristimulus values relative to the white's (X/Xn, Y/Yn, Z/Zn)."""
-    import colour
+    import colour   # deferred: colour-science takes ~1 s to import
 
     _, white = _weights(illuminant, str(observer))
     return colour.XYZ_to_Lab(np.asarray(relative, float) * white, colour.XYZ_to_xy(white))
@@ -301,10 +306,9 @@ def spectral_tristimulus(strands, sigma_spectrum: np.ndarray | None, geom: Geome
     :func:`lab_of_tristimulus` turns it into CIELAB. ``tile`` renders a calibration tile instead. ``spots``:
     the mean of that many readings along the fibres (``SPOT_STEP`` apart, centred on the swatch), as a lab
     reads a tress at three places and averages."""
+    # deferred: loads Mitsuba (the entry point chooses the variant); the CLI parser imports this module
     import mitsuba as mi
 
-    from hairdigi.render.domain.absorption import hair_bsdf
-    from hairdigi.render.domain.params import HairParams
     from hairdigi.render.spectra import mitsuba_spectrum
     from hairdigi.render.variant import spectral_variant
 

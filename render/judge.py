@@ -8,7 +8,7 @@ anywhere else (another camera, another light: the transfer).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -34,6 +34,7 @@ class Verdict:
 def judge_scene(swatch_model: str | None = None):
     """The judge's scene: the swatch at the rig's swatch pose, all hair in view, of ``swatch_model``'s strands
     (``render.swatch_family``; None: the default, layered)."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import SceneSpec
 
     return SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop", swatch_model=swatch_model)
@@ -44,8 +45,6 @@ def judge(truth: HairParams | np.ndarray, estimate: HairParams | np.ndarray, sce
           renderer=None, looks: tuple = (None, None)) -> Verdict:
     """Mean-colour ΔE2000 between ``truth`` and ``estimate`` (Table 1 parameters or ``sigma_a``), each
     with its appearance in ``looks`` (shine and fibre variation; None: the default uniform hair)."""
-    from dataclasses import replace
-
     base = scene or judge_scene()
     ta, n_truth = judge_mean(truth, replace(base, appearance=looks[0]), size, spp, seed, renderer)
     tb, n_est = judge_mean(estimate, replace(base, appearance=looks[1]), size, spp, seed, renderer)
@@ -60,6 +59,7 @@ def judge_mean(hair: HairParams | np.ndarray, scene=None, size: int | tuple[int,
                spp: int = JUDGE_SPP, seed: int = JUDGE_SEED, renderer=None) -> tuple[np.ndarray, int]:
     """The judge render's mean linear colour of ``hair`` and its NaN/Inf count (the last 64 kept: a
     truth is judged against many estimates)."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import default_renderer
 
     scene = scene or judge_scene()

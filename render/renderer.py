@@ -33,6 +33,7 @@ from hairdigi.render.fibres import group_keys, group_sigma_a, split_strands
 # The kinds of scene, each a type owning its fields, its scene dict and its update (render.scene_kinds).
 from hairdigi.render.scene_kinds import (DEFAULT_SWATCH_MODEL, SCENE_TYPES, HairFileScene,  # noqa: F401
                                          HairstyleScene, Scene, SceneError, SceneSpec, SwatchScene)
+from hairdigi.render.spectra import WAVELENGTHS, camera_bands, hair_sigma_a_spectrum, illuminant_spd
 from hairdigi.render.srgb import linear_to_srgb8
 from hairdigi.render.strands import Strands
 from hairdigi.render.variant import is_jit, load_scene, mi, select_variant, spectral_variant
@@ -61,8 +62,6 @@ def absorption_of(hair: HairParams | np.ndarray) -> np.ndarray:
 def spectral_absorption_of(hair: HairParams | np.ndarray) -> np.ndarray:
     """The ``sigma_a(λ)`` to render spectrally: mapped from Table 1 parameters (``render.spectra``), or
     given directly (finite values >= 0 on ``render.spectra.WAVELENGTHS``)."""
-    from hairdigi.render.spectra import WAVELENGTHS, hair_sigma_a_spectrum
-
     if isinstance(hair, HairParams):
         return hair_sigma_a_spectrum(hair)
     sigma = np.asarray(hair, dtype=float).ravel()
@@ -214,8 +213,6 @@ class Renderer:
                          seed: int) -> tuple[np.ndarray, int]:
         """``spec`` rendered by the spectral twin of the variant under ``spec.illuminant``, seen by the CIE
         1931 observer (linear sRGB). Built for each call: a spectral scene is not cached."""
-        from hairdigi.render.spectra import camera_bands, illuminant_spd
-
         sigma = spectral_absorption_of(params)
         keys = group_keys(spec.groups) if spec.groups else ("hair",)
         values = group_sigma_a(sigma, spec.groups, spec.look.fibre_spread) if spec.groups else [sigma]

@@ -34,6 +34,7 @@ from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.text_enum import text_of
 from hairdigi.render.fibres import FIBRE_GROUPS
 from hairdigi.render.hairfile import hair_model_strands
+from hairdigi.render.spectra import camera_sensitivities, illuminant_spd, rgb_projection
 from hairdigi.render.strands import (STYLES, Strands, hairstyle_strands, layered_radius, layered_swatch_strands,
                                      swatch_strands)
 from hairdigi.render.swatch_family import structure_strands
@@ -110,14 +111,10 @@ class Scene(ABC):
         if self.camera is not None:
             check_camera(self.camera, self.kind)
         if self.illuminant is not None:
-            from hairdigi.render.spectra import illuminant_spd
-
             illuminant_spd(self.illuminant)   # an unknown name or a bad CSV fails here, in one line
         if self.sensitivities is not None:
             if self.illuminant is None:
                 raise SceneError("a camera's sensitivities need a spectral render: give an illuminant too")
-            from hairdigi.render.spectra import camera_sensitivities
-
             camera_sensitivities(self.sensitivities)
 
     # -- what a kind owns --------------------------------------------------------------------
@@ -308,8 +305,6 @@ class HeadScene(Scene):
     def spectralise(self, scene_dict: dict, sigma_a: np.ndarray, hair: dict[str, np.ndarray],
                     spd: np.ndarray) -> None:
         if "scalp" in scene_dict:   # the scalp under the hair takes its colour
-            from hairdigi.render.spectra import rgb_projection
-
             scene_dict["scalp"]["bsdf"]["reflectance"]["value"] = scenes.scalp_albedo(rgb_projection(sigma_a))
         super().spectralise(scene_dict, sigma_a, hair, spd)
 

@@ -6,11 +6,16 @@ renderer updates those through ``mi.traverse`` without reloading the scene.
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
+from hairdigi.render.domain.absorption import albedo_from_sigma_a
 from hairdigi.render.domain.rig_geometry import (CHART_BOARD_HALF, CHART_CENTER, CHART_PATCH, HOLDER_CENTER, HOLDER_SIZE, LIGHT_SIZE,
                                                  N_LIGHTS, CameraPose, chart_patch_centres, framing_fov, light_position,
                                                  look_at_matrix, spherical_direction)
+from hairdigi.render.head import head_plys
+from hairdigi.render.spectra import mitsuba_spectrum
 from hairdigi.render.variant import transform
 
 # The rig: a flat holder in the z = 0 plane, its normal along +z, strands along y.
@@ -177,8 +182,6 @@ def portrait_lights(env: Environment) -> dict:
 
 def scalp_albedo(sigma_a) -> list[float]:
     """The scalp under the hair, as the fibre's albedo darkened by the hair's own shadow."""
-    from hairdigi.render.domain.absorption import albedo_from_sigma_a
-
     return (SCALP_SHADE * albedo_from_sigma_a(np.asarray(sigma_a, float))).tolist()
 
 
@@ -194,10 +197,6 @@ def portrait_scene(curve_file: str, bsdf: dict, size: int, env: Environment = En
     ``"scalp"``) whose colour the renderer sets from the hair's (``scalp_albedo``), so that the few
     thousand strands a preview can afford read as a full head of hair; a parting at ``part_x`` stays skin.
     """
-    from pathlib import Path
-
-    from hairdigi.render.head import head_plys
-
     position = portrait_camera_position(camera_pose)
     skin_file, scalp_file = head_plys(Path(curve_file).parent, part_x)
     return {
@@ -221,8 +220,6 @@ def spectralise(scene: dict, sigma_a: dict[str, np.ndarray], spd: np.ndarray,
     radiance's luminance (a tint, such as a portrait sky's blue, gives way to the light's own colour).
     ``chart``: (24, n) spectral reflectances of the chart's patches. Other diffuse RGB albedos are left
     to Mitsuba's spectral upsampling."""
-    from hairdigi.render.spectra import mitsuba_spectrum
-
     def light(radiance: dict) -> dict:
         if radiance.get("type") != "rgb":
             raise ValueError(f"a light of the RGB scene is not an RGB radiance: {radiance}")
@@ -251,8 +248,6 @@ def camera_film(sensor: dict, bands: np.ndarray) -> dict:
     """A sensor dict's film, in place, made Mitsuba's ``specfilm`` with a camera's (n, 3) R, G, B bands on
     ``render.spectra.WAVELENGTHS`` (``render.spectra.camera_bands``: unit area, so an equal-energy
     radiance of 1 reads 1 in every channel), its size, crop and filter kept: raw camera RGB."""
-    from hairdigi.render.spectra import mitsuba_spectrum
-
     bands = np.asarray(bands, float)
     film = sensor["film"]
     film["type"] = "specfilm"

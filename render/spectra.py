@@ -42,9 +42,11 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.render.domain.absorption import (AZIMUTHAL_ROUGHNESS, EUMELANIN_SIGMA_A, MIN_DYE_ALBEDO,
-                                               PHEOMELANIN_SIGMA_A, melanin_quantity, sigma_a_from_albedo)
+                                               PHEOMELANIN_SIGMA_A, albedo_from_sigma_a, melanin_quantity,
+                                               sigma_a_from_albedo)
 from hairdigi.render.domain.bounds import CAMERAS, ILLUMINANTS  # noqa: F401  (named cameras and lights)
 from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.files import read_bytes
 from hairdigi.render.domain.params import HairParams
 
 #: nm: Mitsuba's spectral range (``MI_CIE_MIN``..``MI_CIE_MAX``) every 5 nm.
@@ -68,7 +70,7 @@ class SpectrumError(HairdigiError, ValueError):
 
 # -- colour-science's data on this grid -------------------------------------------------------
 def _shape():
-    import colour
+    import colour   # deferred: colour-science takes ~1 s to import
 
     return colour.SpectralShape(float(WAVELENGTHS[0]), float(WAVELENGTHS[-1]), 5.0)
 
@@ -76,7 +78,7 @@ def _shape():
 @functools.lru_cache(maxsize=None)
 def cmfs() -> np.ndarray:
     """(n, 3) CIE 1931 2° colour matching functions on ``WAVELENGTHS``."""
-    import colour
+    import colour   # deferred: colour-science takes ~1 s to import
 
     return colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"].copy().align(_shape()).values
 
@@ -85,7 +87,7 @@ def cmfs() -> np.ndarray:
 def srgb_weights() -> np.ndarray:
     """(n, 3) each linear-sRGB channel's weight per wavelength under D65 (the CIE 1931 observer through sRGB's
     matrix), each channel summing to 1: a flat spectrum projects to itself."""
-    import colour
+    import colour   # deferred: colour-science takes ~1 s to import
 
     d65 = colour.SDS_ILLUMINANTS["D65"].copy().align(_shape()).values
     rgb_bar = cmfs() @ np.asarray(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB).T
@@ -136,6 +138,7 @@ def _albedo_spectrum(rgb: tuple[float, float, float]) -> np.ndarray:
     c = np.clip(np.asarray(rgb, float), MIN_DYE_ALBEDO, 1.0)
     if np.all(c >= 0.999):   # white: no absorption (the sigmoid never reaches 1)
         return np.ones_like(WAVELENGTHS)
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from mitsuba import scalar_rgb   # the variant's module itself: no global variant is chosen here
 
     c0, c1, c2 = scalar_rgb.srgb_model_fetch(scalar_rgb.ScalarColor3f(*c))
@@ -162,8 +165,6 @@ def rgb_sigma_spectrum(sigma_rgb: np.ndarray, azimuthal_roughness: float = AZIMU
     """An RGB absorption (a dye's deposit, a prediction) as a spectrum, the way a dye's colour becomes one:
     its fibre albedo (Chiang 2016 eq. 9 inverted) read as a smooth spectral albedo (Jakob & Hanika 2019),
     then eq. 9 per wavelength. A flat absorption stays flat."""
-    from hairdigi.render.domain.absorption import albedo_from_sigma_a
-
     sigma_rgb = np.asarray(sigma_rgb, float)
     if np.ptp(sigma_rgb) < 1e-9:
         return np.full_like(WAVELENGTHS, float(sigma_rgb[0]))
@@ -185,8 +186,6 @@ def hair_sigma_a_spectrum(params: HairParams, azimuthal_roughness: float = AZIMU
 # -- lights and cameras ------------------------------------------------------------------------
 def _read_table(path: Path, columns: int, what: str, form: str) -> np.ndarray:
     """The numeric rows of a CSV (a header line is allowed), checked; ``SpectrumError`` names the fix."""
-    from hairdigi.render.domain.files import read_bytes
-
     fix = f"give a CSV of {form}, one row per wavelength in nm, rising"
     data = read_bytes(path, SpectrumError, "a CSV file", MAX_CSV_BYTES, f"a spectrum needs far less; {fix}")
     try:
@@ -302,7 +301,7 @@ def illuminant_spd(name: str) -> np.ndarray:
     """A light's relative SPD on ``WAVELENGTHS``, normalised to luminance Y = 1 (as an RGB white of 1
     is in Mitsuba's spectral variants): a name of ``ILLUMINANTS``, a Planckian radiator's temperature
     ("3200K", 1000-25000 K), or a CSV of wavelength, power."""
-    import colour
+    import colour   # deferred: colour-science takes ~1 s to import
 
     key = ILLUMINANTS.get(name) or ILLUMINANTS.get(str(name).upper())
     kelvin = _BLACKBODY.fullmatch(str(name).strip())
@@ -330,7 +329,7 @@ def illuminant_spd(name: str) -> np.ndarray:
 def camera_sensitivities(name: str) -> np.ndarray:
     """(n, 3) a camera's R, G, B sensitivities on ``WAVELENGTHS`` (0 outside their range), each channel
     scaled to a peak of 1: a name of ``CAMERAS`` or a CSV of wavelength, r, g, b."""
-    import colour
+    import colour   # deferred: colour-science takes ~1 s to import
 
     key = CAMERAS.get(name) or (name if name in colour.MSDS_CAMERA_SENSITIVITIES else None)
     if key is not None:
@@ -358,7 +357,7 @@ def illuminant_whitepoint(name: str) -> np.ndarray:
 def light_rgb(name: str) -> np.ndarray:
     """A light as an RGB renderer sees it: its colour in linear sRGB at luminance 1. An RGB render under
     it is the white-light render times this, per channel (every path's weight is a per-channel product)."""
-    import colour
+    import colour   # deferred: colour-science takes ~1 s to import
 
     xyz = spectrum_to_xyz(illuminant_spd(name))
     return colour.XYZ_to_RGB(xyz, colour.RGB_COLOURSPACES["sRGB"], apply_cctf_encoding=False)
@@ -367,7 +366,7 @@ def light_rgb(name: str) -> np.ndarray:
 def balanced(linear: np.ndarray, name: str) -> np.ndarray:
     """Linear sRGB rendered under a light, as an eye adapted to that light sees it: a von Kries
     adaptation (Bradford) from the light's white to D65's, so that a white under the light is white."""
-    import colour
+    import colour   # deferred: colour-science takes ~1 s to import
 
     srgb = colour.RGB_COLOURSPACES["sRGB"]
     xyz = colour.RGB_to_XYZ(np.asarray(linear, float), srgb, apply_cctf_decoding=False)
@@ -383,7 +382,7 @@ def swatch_colour(reflectance: np.ndarray, light: str, sensitivities: str | None
     sees it (D65 white), or a camera's raw RGB through its ``sensitivities`` (bands of unit area, as
     ``render.scenes.camera_film``). With a rig's response curve read per wavelength as ``reflectance``,
     this is a spectral render's mean colour without the render (``inference.spectral_reading``)."""
-    import colour
+    import colour   # deferred: colour-science takes ~1 s to import
 
     radiance = np.asarray(reflectance, float) * illuminant_spd(light)
     if sensitivities is not None:

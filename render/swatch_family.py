@@ -30,6 +30,7 @@ from typing import Callable
 
 import numpy as np
 
+from hairdigi.render.domain.files import atomic_path, cache_dir
 from hairdigi.render.domain.text_enum import text_of
 from hairdigi.render.strands import (SWATCH_LENGTH, SWATCH_WIDTH, Strands, layered_radius,
                                      layered_swatch_strands)
@@ -233,7 +234,7 @@ def inside_share(strands: Strands, per_segment: int = 32, sample: int = 100_000,
     by more than ``depth`` radii: another fibre's drawn point closer than ``2 - 2 * depth`` radii. At
     ``per_segment`` 32 the default swatch's points are half a radius apart along a fibre, so a point
     that close is inside it; the share is a floor of the true one."""
-    from scipy.spatial import cKDTree
+    from scipy.spatial import cKDTree   # deferred: scipy.spatial takes ~0.3 s; the CLI parser imports this module
 
     drawn = strands.curves(per_segment=per_segment)
     radius = float(drawn.radii.max())
@@ -258,8 +259,6 @@ def structure_strands(name: str, n_strands: int, seed: int = 0) -> Strands:
 def _from_disk(name: str, n_strands: int, seed: int) -> Strands:
     """Structure ``name``'s strands from the disk cache, built and saved there (atomically) when missing or
     unreadable; the file's name carries the geometry's revision (``REVISIONS``)."""
-    from hairdigi.render.domain.files import atomic_path, cache_dir
-
     path = cache_dir() / "strands" / f"{name}-{n_strands}-{seed}-r{REVISIONS.get(name, 1)}.npz"
     try:
         with np.load(path) as data:

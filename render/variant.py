@@ -18,8 +18,10 @@ import warnings
 
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.interrupt import sigint_held, stop_among
+from hairdigi.render.domain.threads import plan
 
 with sigint_held():   # threads started while Mitsuba loads inherit the block (render.domain.interrupt)
+    import drjit as dr
     import mitsuba as mi
 
 from hairdigi.render.domain.bounds import AUTO_VARIANTS as AUTO  # noqa: E402  (tried by "auto", in order)
@@ -56,7 +58,6 @@ def select_variant(preferred: str | None = None) -> str:
             with sigint_held():   # the backend's pool starts here: its threads never take Ctrl-C
                 mi.set_variant(name)
                 if name.startswith(("llvm", "cuda")):
-                    import drjit as dr
                     # raises when the backend is inactive (no libLLVM; no GPU or CUDA driver)
                     dr.zeros((dr.cuda if name.startswith("cuda") else dr.llvm).Float, 1)
             break
@@ -69,9 +70,6 @@ def select_variant(preferred: str | None = None) -> str:
         raise VariantError("no Mitsuba variant works: " + "; ".join(errors)
                            + ("; use --variant auto" if preferred not in (None, "auto") else ""))
     if mi.variant().startswith(("llvm", "cuda")):   # the path tracer's pool: the process's thread budget
-        import drjit as dr
-
-        from hairdigi.render.domain.threads import plan
         with sigint_held():
             dr.set_thread_count(plan()["drjit"])
     if mi.variant() == "scalar_rgb" and not wanted:

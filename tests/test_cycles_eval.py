@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from hairdigi.inference.training.evaluate_cycles import CASES, CyclesSet, _one, hidden_set, other_swatch
+from hairdigi.app.evaluation.cycles_evaluation import CASES, CyclesSet, _one, hidden_set, other_swatch
 from hairdigi.render.domain import rig_geometry as rg
 from hairdigi.render.blender_run import rig_for_blender
 from hairdigi.render.domain.bounds import Environment
@@ -118,7 +118,7 @@ def test_a_deposited_swatch_renders_alike_in_mitsuba_and_cycles(tmp_path) -> Non
     """Fibres inside fibres render 10% apart in the two renderers (1.2-1.7 ΔE2000 with the former
     deposit, drawn in Cycles as its control polygon); the deposit that keeps them apart, drawn as
     Mitsuba draws it, renders within what the layered swatch shows (0.50 copper; measured 0.3-0.8)."""
-    from hairdigi.inference.training.bench_structure import renderers
+    from hairdigi.app.evaluation.bench_structure import renderers
 
     rows = renderers(tmp_path, ("deposited",), size=32, spp=64, progress=False)
     assert (tmp_path / "renderers.csv").exists() and (tmp_path / "renderers.png").exists()

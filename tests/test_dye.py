@@ -250,7 +250,7 @@ def test_dye_panel_characterises_session_captures(curve, tmp_path, qtbot):
 def test_evaluation_dyes_are_table1_hair_with_the_model_sigma():
     """The held-out dyed swatches (hidden Table 1 hair, as the simulated rig needs) have exactly the
     model's sigma_a: melanin lifted through the remap, the dye's deposit added."""
-    from hairdigi.inference.training.evaluate_dye import DyeEvalConfig, draw_dyes, dyed_hair
+    from hairdigi.app.evaluation.dye_evaluation import DyeEvalConfig, draw_dyes, dyed_hair
 
     config = DyeEvalConfig()
     dyes = draw_dyes(config)

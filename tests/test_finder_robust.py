@@ -11,7 +11,7 @@ import pytest
 
 from hairdigi.hardware.exposure import ExposureStatus
 from hairdigi.inference.preprocess import ImageError, find_swatch_roi
-from hairdigi.inference.training.evaluate_views import HAIRS, crop_box, share_on_swatch, swatch_outline
+from hairdigi.app.evaluation.views_evaluation import HAIRS, crop_box, share_on_swatch, swatch_outline
 from hairdigi.render.domain.rig_geometry import CameraPose
 from hairdigi.render.renderer import Renderer, SceneSpec
 

@@ -203,8 +203,7 @@ def test_a_dye_on_a_dyed_base_is_said_to_be(curve):
 def test_evaluate_dye_takes_size_and_spp_and_judges_no_goal_on_a_few(monkeypatch, capsys):
     import argparse
 
-    from hairdigi.app.evaluation import modes
-    from hairdigi.inference.training import evaluate_dye
+    from hairdigi.app.evaluation import dye_evaluation, modes
 
     seen = {}
 
@@ -213,7 +212,7 @@ def test_evaluate_dye_takes_size_and_spp_and_judges_no_goal_on_a_few(monkeypatch
         return {"prediction_de2000": {"n": 3}, "text": ["two bases -> the third: ... over 3 predictions (goal "
                                                          "median <= 1.0, p95 <= 2.0: met)"]}
 
-    monkeypatch.setattr(evaluate_dye, "evaluate_dye", fake)
+    monkeypatch.setattr(dye_evaluation, "evaluate_dye", fake)
     monkeypatch.setattr("hairdigi.inference.encoder.Encoder", lambda model: None)
     args = argparse.Namespace(n=1, size=32, spp=8, model=None, out="x", rig=False)
     assert modes.dye(args) == 0

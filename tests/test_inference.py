@@ -253,7 +253,7 @@ def test_convergence_sweep_reports_each_input_spp(tiny_model, tmp_path):
 
 
 def test_refine_bench_writes_speed_against_error(tiny_model, tmp_path):
-    from hairdigi.inference.training.bench_refine import bench_refine
+    from hairdigi.app.evaluation.bench_refine import bench_refine
     from hairdigi.inference.training.evaluate import Judge, prepare_heldout
 
     _, onnx_path, _ = tiny_model

@@ -343,7 +343,7 @@ def test_a_held_out_set_has_no_named_case_and_spans_the_dark_rule(tmp_path) -> N
     """``--held-out SEED``: other hairs than the ones the rules were chosen on, dark ones across DARK_SIGMA;
     a run cut short keeps its judged rows only for the same settings."""
     from hairdigi.inference.structure import DARK_SIGMA
-    from hairdigi.inference.training.evaluate_structures import CASES, StructureSet, _resumed, hidden_hairs
+    from hairdigi.app.evaluation.structures_evaluation import CASES, StructureSet, _resumed, hidden_hairs
     from hairdigi.render.domain.absorption import hair_sigma_a
 
     named = hidden_hairs(StructureSet(random=3))

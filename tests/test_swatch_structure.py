@@ -57,7 +57,7 @@ def test_layered_swatch_spans_the_holder_and_builds_fast() -> None:
 
 def test_layered_swatch_covers_the_holder() -> None:
     """Optically thick: seen straight down, no holder shows between the fibres (a single layer does)."""
-    from hairdigi.inference.training.bench_structure import uncovered_fraction
+    from hairdigi.app.evaluation.bench_structure import uncovered_fraction
 
     assert uncovered_fraction(layered_swatch_strands(2000, seed=0)) == 0.0
     assert uncovered_fraction(layered_swatch_strands(100, seed=0)) > 0.1
@@ -83,7 +83,7 @@ def test_layered_swatch_renders_darker_than_todays_at_equal_sigma_a() -> None:
     """At the rig's swatch region and brown sigma_a, today's interpenetrating swatch lets light out
     through its fibres: the layered swatch is measured about 2.5 L* darker (the bench), far beyond
     the noise at these settings (about 0.1)."""
-    from hairdigi.inference.training.bench_structure import rig_spec
+    from hairdigi.app.evaluation.bench_structure import rig_spec
     from hairdigi.render.metrics import linear_rgb_to_lab
     from hairdigi.render.renderer import Renderer
 

@@ -17,6 +17,8 @@ from hairdigi.app.models.events import EventGroup, Status
 from hairdigi.app.models.panel import PanelModel
 from hairdigi.app.models.work import Work
 from hairdigi.render.domain.dye_record import DyeRecord
+from hairdigi.render.domain.record_fields import RecordError
+from hairdigi.render.domain.records import EstimateRecord, read_record, write_record
 from hairdigi.render.domain.session_folder import SessionFolder, capture_id_of
 
 __all__ = ["DyeModel", "DyeSettings", "Events", "Listing", "Characterised", "CaptureCrop", "PreviewPass",
@@ -43,9 +45,6 @@ def _slug(name: str) -> str:
 
 def _saved_name(path: Path) -> str | None:
     """The name of the dye saved at ``path`` (None: no such file, or not a dye record)."""
-    from hairdigi.render.domain.record_fields import RecordError
-    from hairdigi.render.domain.records import read_record
-
     try:
         return read_record(path, DyeRecord).name if path.exists() else None
     except RecordError:
@@ -68,9 +67,6 @@ def dye_path(folder: Path, name: str) -> Path:
 
 def session_records(folder: Path) -> list[Path]:
     """The session's captures whose result record holds an estimate (``hair``)."""
-    from hairdigi.render.domain.record_fields import RecordError
-    from hairdigi.render.domain.records import EstimateRecord, read_record
-
     found = []
     for path in SessionFolder(folder).result_records():
         try:   # a regular file of bounded size (a FIFO among the captures never hangs the panel)
@@ -91,10 +87,7 @@ def saved_dyes(folder: Path) -> list[Path]:
 
 def capture_crop(record_path: Path) -> np.ndarray | None:
     """The captured swatch (8-bit sRGB) of a session capture's record, cropped to its swatch area."""
-    import cv2
-
-    from hairdigi.render.domain.record_fields import RecordError
-    from hairdigi.render.domain.records import EstimateRecord, read_record
+    import cv2   # deferred: OpenCV takes ~0.3 s; only this step needs it
 
     try:
         record = read_record(record_path, EstimateRecord)
@@ -264,8 +257,8 @@ class DyeModel(PanelModel):
         self.show_status(f"characterising {name}…")
 
         def run():
+            # deferred: loads colour-science (~1 s); the panel's listing needs none
             from hairdigi.inference import dye as D
-            from hairdigi.render.domain.records import write_record
 
             yield Status(f"characterising {name}: reading {2 * len(pairs)} records")
             try:
@@ -308,9 +301,8 @@ class DyeModel(PanelModel):
         dye, target, dose = Path(dye), Path(target), float(dose)
 
         def run():
+            # deferred: loads colour-science (~1 s) and Mitsuba; the panel's listing needs neither
             from hairdigi.inference.dye import DyeError, apply, describe_colour, load_sample
-            from hairdigi.render.domain.record_fields import RecordError
-            from hairdigi.render.domain.records import read_record
             from hairdigi.render.renderer import SceneSpec, default_renderer
 
             yield CaptureCrop(generation, capture_crop(target))
@@ -360,11 +352,10 @@ class DyeModel(PanelModel):
         self.show_status(f"rendering the shade card of {dye.stem}…")
 
         def run():
+            # deferred: loads OpenCV and colour-science (~1 s); the panel's listing needs neither
             import cv2
 
             from hairdigi.inference.dye_card import shade_card
-            from hairdigi.render.domain.record_fields import RecordError
-            from hairdigi.render.domain.records import read_record
 
             try:
                 record = read_record(dye, DyeRecord)

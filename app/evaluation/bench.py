@@ -1,6 +1,6 @@
-"""``hairdigi bench NAME``'s benchmarks (``registry.BENCHES`` names them): each prints its summary and
-writes its table and plot; the work itself lives with what it measures (``render.bench``,
-``render.bench_previews``, ``inference.training.bench_*``, ``app.evaluation.bench_*``).
+"""``hairdigi bench NAME``'s benchmarks (``registry.BENCHES`` names them): each runs its work, which
+writes its table and plot, and returns a ``results.Result`` that the registry prints: the summary lines,
+then the files written. The work is in ``app/evaluation/bench_*.py``; it may use every layer below.
 """
 from __future__ import annotations
 
@@ -8,24 +8,25 @@ import argparse
 from pathlib import Path
 
 from hairdigi.app.evaluation.registry import BENCH_OUT
-from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.app.evaluation.results import Result
+from hairdigi.render.domain.errors import EvaluationError
 
 
-class BenchError(HairdigiError, ValueError):
-    """A benchmark cannot run as asked; the message names what it needs."""
+def _files(out: Path, *names: str) -> list[Path]:
+    return [out / name for name in names]
 
 
-def bench_render(args: argparse.Namespace) -> int:
+def bench_render(args: argparse.Namespace) -> Result:
     """Renderer defaults: strands, spp and depth against error and time."""
-    from hairdigi.render.bench import run_render_bench
+    from hairdigi.app.evaluation.bench_render import run_render_bench
 
     out = Path(args.out)
     rows = run_render_bench(out, quick=args.quick)
-    print(f"wrote {out / 'render_bench.csv'} and {out / 'render_bench.png'} ({len(rows)} cases)")
-    return 0
+    return Result("render_bench", rows, files=_files(out, "render_bench.csv", "render_bench.png"),
+                  note=f"{len(rows)} cases")
 
 
-def bench_rig(args: argparse.Namespace) -> int:
+def bench_rig(args: argparse.Namespace) -> Result:
     """Chart detection and ΔE2000 over simulated poses, noise and casts."""
     import numpy as np
 
@@ -34,104 +35,98 @@ def bench_rig(args: argparse.Namespace) -> int:
     out = Path(args.out)
     rows = detection_sweep(out)
     found = [r for r in rows if r["detected"]]
-    print(f"chart detected in {len(found)}/{len(rows)} simulated frames; ΔE2000 mean before "
-          f"{np.mean([r['de_before'] for r in found]):.2f}, after {np.mean([r['de_after'] for r in found]):.2f}; "
-          f"wrote {out / 'rig_bench.csv'}")
-    return 0
+    return Result("rig_bench", rows, files=_files(out, "rig_bench.csv"), text=[
+        f"chart detected in {len(found)}/{len(rows)} simulated frames; ΔE2000 mean before "
+        f"{np.mean([r['de_before'] for r in found]):.2f}, after {np.mean([r['de_after'] for r in found]):.2f}"])
 
 
-def bench_encoder(args: argparse.Namespace) -> int:
+def bench_encoder(args: argparse.Namespace) -> Result:
     """ONNX encoders side by side: latency and error on held-out swatches."""
     from hairdigi.inference.training.report import bench_encoders
 
     if not args.models:
-        raise BenchError("bench encoder needs --models A.onnx B.onnx ...")
+        raise EvaluationError("bench encoder needs --models A.onnx B.onnx ...")
     out = Path(args.out)
     rows = bench_encoders(args.models, out, n=args.n or 300, data_root=args.data)
-    for r in rows:
-        print(f"{r['model']}: {r['latency_ms']:.3f} ms, L1 {r['l1']:.2f} (floor {r['l1_floor']:.2f}), "
-              f"ΔE2000 median {r['mean_colour_de2000_median']:.2f}")
-    print(f"wrote {out / 'encoder_bench.csv'} and {out / 'encoder_bench.png'}")
-    return 0
+    return Result("encoder_bench", rows, files=_files(out, "encoder_bench.csv", "encoder_bench.png"), text=[
+        f"{r['model']}: {r['latency_ms']:.3f} ms, L1 {r['l1']:.2f} (floor {r['l1_floor']:.2f}), "
+        f"ΔE2000 median {r['mean_colour_de2000_median']:.2f}" for r in rows])
 
 
-def bench_refine(args: argparse.Namespace) -> int:
+def bench_refine(args: argparse.Namespace) -> Result:
     """Refinement by synthesis: render size, spp and iterations against error and time."""
+    from hairdigi.app.evaluation.bench_refine import bench_refine as run
     from hairdigi.inference.encoder import Encoder
-    from hairdigi.inference.training.bench_refine import bench_refine as run
     from hairdigi.render.domain.files import cache_dir
 
     out = Path(args.out)
     data = Path(args.data) if args.data else cache_dir() / "datasets" / "heldout-s1000003-64px-64spp-linear16"
     rows = run(Encoder(args.model), data, out, count=args.n or 10)
-    for r in rows:
-        print(f"{r['size']:3d}² {r['spp']:3d} spp, {r['iterations']} iteration(s): ΔE2000 median "
-              f"{r['de_median']:.2f} (p95 {r['de_p95']:.2f}); curve {r['curve_s']:.2f} s + {r['polish_s']:.2f} s")
-    print(f"wrote {out / 'refine_bench.csv'} and {out / 'refine_bench.png'}")
-    return 0
+    return Result("refine_bench", rows, files=_files(out, "refine_bench.csv", "refine_bench.png"), text=[
+        f"{r['size']:3d}² {r['spp']:3d} spp, {r['iterations']} iteration(s): ΔE2000 median "
+        f"{r['de_median']:.2f} (p95 {r['de_p95']:.2f}); curve {r['curve_s']:.2f} s + {r['polish_s']:.2f} s"
+        for r in rows])
 
 
-def bench_layouts(args: argparse.Namespace) -> int:
+def bench_layouts(args: argparse.Namespace) -> Result:
     """The refinement's check renders averaged over strand layouts: how far a new layout moves the answer."""
-    from hairdigi.inference.training.bench_refine import bench_layouts as run
+    from hairdigi.app.evaluation.bench_refine import bench_layouts as run
 
     out = Path("packaging/bench/layouts") if args.out == BENCH_OUT else Path(args.out)
-    for r in run(out):
-        print(f"{r['hair']:15s} {r['check_layouts']} layouts: two layouts' answers {r['nuisance_de2000']:.2f} "
-              f"apart (the truth's own colour {r['truth_spread_de2000']:.2f}, "
-              f"{r['truth_spread_fine_de2000']:.2f} of finer fibres); error median {r['error_median_de2000']:.2f}, "
-              f"worst {r['error_worst_de2000']:.2f}; polish {r['polish_s']:.2f} s")
-    print(f"wrote {out / 'layouts_bench.csv'} and {out / 'layouts_bench.png'}")
-    return 0
+    rows = run(out)
+    return Result("layouts_bench", rows, files=_files(out, "layouts_bench.csv", "layouts_bench.png"), text=[
+        f"{r['hair']:15s} {r['check_layouts']} layouts: two layouts' answers {r['nuisance_de2000']:.2f} "
+        f"apart (the truth's own colour {r['truth_spread_de2000']:.2f}, "
+        f"{r['truth_spread_fine_de2000']:.2f} of finer fibres); error median {r['error_median_de2000']:.2f}, "
+        f"worst {r['error_worst_de2000']:.2f}; polish {r['polish_s']:.2f} s" for r in rows])
 
 
-def bench_check_spp(args: argparse.Namespace) -> int:
+def bench_check_spp(args: argparse.Namespace) -> Result:
     """The refinement's check renders at the rig's swatch area: their spp against the error they leave."""
     import numpy as np
 
-    from hairdigi.inference.training.bench_refine import CHECK_SETTINGS, bench_check_spp as run
+    from hairdigi.app.evaluation.bench_refine import CHECK_SETTINGS, bench_check_spp as run
 
     out = Path("packaging/bench/check-spp") if args.out == BENCH_OUT else Path(args.out)
     rows = run(out)
+    result = Result("check_spp_bench", rows, files=_files(out, "check_spp_bench.csv"))
     for label, _ in CHECK_SETTINGS:
         sel = [r for r in rows if r["setting"] == label]
-        print(f"{label}: ΔE2000 median {np.median([r['de2000'] for r in sel]):.2f}, worst "
-              f"{max(r['de2000'] for r in sel):.2f}; polish {np.median([r['polish_s'] for r in sel]):.2f} s")
-    print(f"wrote {out / 'check_spp_bench.csv'}")
-    return 0
+        result.text.append(f"{label}: ΔE2000 median {np.median([r['de2000'] for r in sel]):.2f}, worst "
+                           f"{max(r['de2000'] for r in sel):.2f}; polish "
+                           f"{np.median([r['polish_s'] for r in sel]):.2f} s")
+    return result
 
 
-def bench_dataset(args: argparse.Namespace) -> int:
+def bench_dataset(args: argparse.Namespace) -> Result:
     """Dataset rendering: the local pool and a local Ray instance, swatches per second."""
-    from hairdigi.inference.training.bench_dataset import run_dataset_bench
+    from hairdigi.app.evaluation.bench_dataset import run_dataset_bench
 
     out = Path(args.out)
     rows = run_dataset_bench(out, quick=args.quick, n=args.n)
+    result = Result("dataset_bench", rows, files=_files(out, "dataset_bench.csv", "dataset_bench.png"))
     for r in rows:
         unit = "worker process(es)" if r["backend"] == "local" else "CPU(s) of a local Ray instance"
-        print(f"{r['backend']:5s} {r['workers']} {unit}: {r['swatches_per_s']:.2f} swatches/s "
-              f"({r['n']} in {r['seconds']:.1f} s, {r['size']}² {r['spp']} spp, {r['variant']})")
-    print(f"wrote {out / 'dataset_bench.csv'} and {out / 'dataset_bench.png'}")
-    return 0
+        result.text.append(f"{r['backend']:5s} {r['workers']} {unit}: {r['swatches_per_s']:.2f} swatches/s "
+                           f"({r['n']} in {r['seconds']:.1f} s, {r['size']}² {r['spp']} spp, {r['variant']})")
+    return result
 
 
-def bench_previews(args: argparse.Namespace) -> int:
+def bench_previews(args: argparse.Namespace) -> Result:
     """The app's previews: spp x denoiser x guides x size against error."""
     out = Path(args.out)
     out = out / "previews" if args.out == BENCH_OUT else out
-    for line in previews_lines(out, quick=args.quick):
-        print(line)
-    print(f"wrote {out / 'previews_bench.csv'} and {out / 'previews_bench.png'}")
-    return 0
+    return Result("previews_bench", text=previews_lines(out, quick=args.quick),
+                  files=_files(out, "previews_bench.csv", "previews_bench.png"))
 
 
 def previews_lines(out_dir: str | Path, quick: bool = False) -> list[str]:
-    """``hairdigi bench previews``: render/bench_previews.py on the simulated rig's twin view (at the
+    """``hairdigi bench previews``: app/evaluation/bench_previews.py on the simulated rig's twin view (at the
     scales the app renders it) and the hairstyle; the summary lines say each default's measured error
     and the cheapest clean setting."""
     from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SIM_SIZE
     from hairdigi.render.domain.rig_geometry import swatch_roi
-    from hairdigi.render.bench_previews import CLEAN_DE, cheapest_clean, run_previews_bench
+    from hairdigi.app.evaluation.bench_previews import CLEAN_DE, cheapest_clean, run_previews_bench
 
     from hairdigi.app.review.previews import PreviewSettings, twin_view
 
@@ -161,22 +156,21 @@ def previews_lines(out_dir: str | Path, quick: bool = False) -> list[str]:
     return lines
 
 
-def bench_shine(args: argparse.Namespace) -> int:
+def bench_shine(args: argparse.Namespace) -> Result:
     """Shine (longitudinal roughness) read from the rig's lights one at a time, and what it buys elsewhere."""
     import numpy as np
 
-    from hairdigi.inference.training.bench_shine import run_shine_bench
+    from hairdigi.app.evaluation.bench_shine import run_shine_bench
 
     out = Path(args.out)
     rows = run_shine_bench(out, quick=args.quick)
     err = np.array([r["beta_error"] for r in rows])
     read = np.array([r["transfer_de2000"] for r in rows])
     held = np.array([r["transfer_de2000_fixed_shine"] for r in rows])
-    print(f"shine read from the three lights: |error| median {np.median(err):.3f}, worst {err.max():.3f}; another "
-          f"camera: ΔE2000 median {np.median(read):.2f} (worst {read.max():.2f}) against {np.median(held):.2f} "
-          f"(worst {held.max():.2f}) with the shine held at 0.3; tables {rows[0]['tables_s']:.0f} s once per view")
-    print(f"wrote {out / 'shine_bench.csv'} and {out / 'shine_bench.png'}")
-    return 0
+    return Result("shine_bench", rows, files=_files(out, "shine_bench.csv", "shine_bench.png"), text=[
+        f"shine read from the three lights: |error| median {np.median(err):.3f}, worst {err.max():.3f}; another "
+        f"camera: ΔE2000 median {np.median(read):.2f} (worst {read.max():.2f}) against {np.median(held):.2f} "
+        f"(worst {held.max():.2f}) with the shine held at 0.3; tables {rows[0]['tables_s']:.0f} s once per view"])
 
 
 #: A shine read on the simulated rig's demo capture (copper) leaves this rms log misfit (its record's
@@ -184,62 +178,60 @@ def bench_shine(args: argparse.Namespace) -> int:
 CAPTURE_SHINE_MISFIT = 0.025
 
 
-def bench_spread(args: argparse.Namespace) -> int:
+def bench_spread(args: argparse.Namespace) -> Result:
     """Fibre spread against uniform fibres, as the three single-light means see them (no render once the tables exist)."""
-    from hairdigi.inference.training.bench_shine import run_spread_bench
+    from hairdigi.app.evaluation.bench_shine import run_spread_bench
 
     out = Path("packaging/bench/spread") if args.out == BENCH_OUT else Path(args.out)
     rows = run_spread_bench(out, CAPTURE_SHINE_MISFIT)
     top = [r for r in rows if r["spread"] == 0.5]
-    print("uniform fibres fit the nine means of a swatch of spread 0.5 within rms log "
-          + ", ".join(f"{r['hair']} (shine {r['beta']:g}) {r['uniform_misfit_rms_log']:.4f}" for r in top)
-          + f"; a rig capture's own shine misfit is {CAPTURE_SHINE_MISFIT}")
-    print(f"wrote {out / 'spread_bench.csv'} and {out / 'spread_bench.png'}")
-    return 0
+    return Result("spread_bench", rows, files=_files(out, "spread_bench.csv", "spread_bench.png"), text=[
+        "uniform fibres fit the nine means of a swatch of spread 0.5 within rms log "
+        + ", ".join(f"{r['hair']} (shine {r['beta']:g}) {r['uniform_misfit_rms_log']:.4f}" for r in top)
+        + f"; a rig capture's own shine misfit is {CAPTURE_SHINE_MISFIT}"])
 
 
-def bench_structure(args: argparse.Namespace) -> int:
+def bench_structure(args: argparse.Namespace) -> Result:
     """The swatch's fibre structure: today's interpenetrating swatch against a layered one, fibre counts, lights."""
-    from hairdigi.inference.training.bench_structure import run
+    from hairdigi.app.evaluation.bench_structure import run
 
     out = Path("packaging/bench/structure") if args.out == BENCH_OUT else Path(args.out)
     rows = run(out, quick=args.quick)
     layered = [r for r in rows if r["model"] == "layered" and r["strands"] == 2000 and r["lights"] == "all"]
-    print("layered 2000 against today's swatch at equal sigma_a (all lights): "
-          + ", ".join(f"{r['hair']} ΔE2000 {r['de2000_vs_today']:.2f} (ΔL* {r['dL_vs_today']:+.2f})" for r in layered))
-    print(f"wrote {out / 'structure.csv'}, {out / 'structure.json'} and {out / 'structure.png'}")
-    return 0
+    return Result("structure", rows, files=_files(out, "structure.csv", "structure.json", "structure.png"), text=[
+        "layered 2000 against today's swatch at equal sigma_a (all lights): "
+        + ", ".join(f"{r['hair']} ΔE2000 {r['de2000_vs_today']:.2f} (ΔL* {r['dL_vs_today']:+.2f})" for r in layered)])
 
 
-def bench_atlas(args: argparse.Namespace) -> int:
+def bench_atlas(args: argparse.Namespace) -> Result:
     """The shipped atlas against rendering each region's tables: cost and colour apart, by region and hair."""
     from hairdigi.app.evaluation.bench_atlas import HAIRS, atlas_bench
 
     out = Path("packaging/bench/atlas") if args.out == BENCH_OUT else Path(args.out)
     summary = atlas_bench(out, end_to_end_too=not args.quick)
+    result = Result("atlas", summary["tables"], summary, files=_files(out, "atlas.csv", "atlas.json", "atlas.png"))
     for r in summary["tables"]:
-        print(f"{r['region']:28s} " + ", ".join(f"{h} {r[f'{h}_de2000']:.2f}" for h in HAIRS if f"{h}_de2000" in r))
+        result.text.append(f"{r['region']:28s} "
+                           + ", ".join(f"{h} {r[f'{h}_de2000']:.2f}" for h in HAIRS if f"{h}_de2000" in r))
     for r in summary.get("end_to_end", []):
-        print("first capture, fresh session: " + ", ".join(f"{k} {v}" for k, v in r.items()))
+        result.text.append("first capture, fresh session: " + ", ".join(f"{k} {v}" for k, v in r.items()))
     for r in summary.get("poses_end_to_end", []):
-        print("image file at a pose, fresh session: " + ", ".join(f"{k} {v}" for k, v in r.items()))
-    print(f"wrote {out / 'atlas.csv'}, {out / 'atlas.json'} and {out / 'atlas.png'}")
-    return 0
+        result.text.append("image file at a pose, fresh session: " + ", ".join(f"{k} {v}" for k, v in r.items()))
+    return result
 
 
-def bench_family(args: argparse.Namespace) -> int:
+def bench_family(args: argparse.Namespace) -> Result:
     """Every physical swatch structure at equal sigma_a, against the layered swatch."""
-    from hairdigi.inference.training.bench_structure import FAMILY_HAIRS, family
+    from hairdigi.app.evaluation.bench_structure import FAMILY_HAIRS, family
 
     out = Path("packaging/bench/family") if args.out == BENCH_OUT else Path(args.out)
-    for r in family(out):
-        print(f"{r['structure']:17s} layout {r['layout']}: " + ", ".join(
-            f"{h} {r[f'{h}_de2000']:.2f}" for h in FAMILY_HAIRS))
-    print(f"wrote {out / 'family.csv'} and {out / 'family.png'}")
-    return 0
+    rows = family(out)
+    return Result("family", rows, files=_files(out, "family.csv", "family.png"), text=[
+        f"{r['structure']:17s} layout {r['layout']}: " + ", ".join(f"{h} {r[f'{h}_de2000']:.2f}" for h in FAMILY_HAIRS)
+        for r in rows])
 
 
-def bench_streaks(args: argparse.Namespace) -> int:
+def bench_streaks(args: argparse.Namespace) -> Result:
     """The swatch area's texture by physical structure: what ``inference.structure.read_texture`` reads."""
     from hairdigi.app.evaluation.bench_streaks import streaks_bench
 
@@ -248,18 +240,16 @@ def bench_streaks(args: argparse.Namespace) -> int:
         summary = streaks_bench(out, n=0, members=("layered", "deposited"), tilted=False, hairs=1)
     else:
         summary = streaks_bench(out, n=args.n or 8)
-    for group, shares in summary["shares"].items():
-        if " / " not in group:
-            print(f"{group:17s} " + ", ".join(f"{k} {v:g}" for k, v in shares.items()))
-    print(f"wrote {out / 'streaks.csv'} and {out / 'streaks.png'}")
-    return 0
+    return Result("streaks", summary=summary, files=_files(out, "streaks.csv", "streaks.png"), text=[
+        f"{group:17s} " + ", ".join(f"{k} {v:g}" for k, v in shares.items())
+        for group, shares in summary["shares"].items() if " / " not in group])
 
 
-def bench_renderers(args: argparse.Namespace) -> int:
+def bench_renderers(args: argparse.Namespace) -> Result | int:
     """Every family structure at equal sigma_a in Mitsuba and in Blender Cycles (HAIRDIGI_BLENDER)."""
     import sys
 
-    from hairdigi.inference.training.bench_structure import renderers
+    from hairdigi.app.evaluation.bench_structure import renderers
     from hairdigi.render.blender_run import BlenderError, probe_blender
 
     try:
@@ -268,38 +258,34 @@ def bench_renderers(args: argparse.Namespace) -> int:
         print(f"hairdigi bench renderers: {exc}", file=sys.stderr)
         return 2
     out = Path("packaging/bench/renderers") if args.out == BENCH_OUT else Path(args.out)
-    for r in renderers(out, ("layered", "deposited") if args.quick else None, size=16 if args.quick else 32,
-                       spp=8 if args.quick else 64):
-        print(f"{r['structure']:17s} {r['hair']:7s}: ΔE2000 {r['de2000']:.2f}, Cycles / Mitsuba "
-              f"{r['ratio_r']:.3f} {r['ratio_g']:.3f} {r['ratio_b']:.3f} ({100 * r['inside_share']:.2f}% of the drawn "
-              f"fibres inside another)")
-    print(f"wrote {out / 'renderers.csv'} and {out / 'renderers.png'}")
-    return 0
+    rows = renderers(out, ("layered", "deposited") if args.quick else None, size=16 if args.quick else 32,
+                     spp=8 if args.quick else 64)
+    return Result("renderers", rows, files=_files(out, "renderers.csv", "renderers.png"), text=[
+        f"{r['structure']:17s} {r['hair']:7s}: ΔE2000 {r['de2000']:.2f}, Cycles / Mitsuba "
+        f"{r['ratio_r']:.3f} {r['ratio_g']:.3f} {r['ratio_b']:.3f} ({100 * r['inside_share']:.2f}% of the drawn "
+        f"fibres inside another)" for r in rows])
 
 
-def bench_fibres(args: argparse.Namespace) -> int:
+def bench_fibres(args: argparse.Namespace) -> Result:
     """Fibre groups of a varied swatch: render time and colour against the finest split."""
-    from hairdigi.render.bench_fibres import run
+    from hairdigi.app.evaluation.bench_fibres import run
 
     out = Path("packaging/bench/fibres") if args.out == BENCH_OUT else Path(args.out)
-    rows = run(out, quick=args.quick)
-    for r in rows:
-        print(f"{r['hair']:9s} {r['groups']:2d} groups: {r['seconds']:.2f} s, ΔE2000 {r['de2000_vs_finest']:.2f} "
-              f"against the finest")
-    print(f"wrote {out / 'fibres_bench.csv'} and {out / 'fibres_bench.png'}")
-    return 0
+    result = run(out, quick=args.quick)       # saved: fibres_bench.csv and .png
+    result.text = [f"{r['hair']:9s} {r['groups']:2d} groups: {r['seconds']:.2f} s, ΔE2000 {r['de2000_vs_finest']:.2f} "
+                   f"against the finest" for r in result.rows]
+    return result
 
 
-def bench_spectral(args: argparse.Namespace) -> int:
+def bench_spectral(args: argparse.Namespace) -> Result:
     """The RGB fast path against the spectral render, under daylight, tungsten and shop lights."""
-    from hairdigi.render.bench_spectral import run
+    from hairdigi.app.evaluation.bench_spectral import run
 
     out = Path("packaging/bench/spectral") if args.out == BENCH_OUT else Path(args.out)
-    rows = run(out, quick=args.quick)
-    for r in rows:
+    result = run(out, quick=args.quick)       # saved: spectral_bench.csv and .png
+    for r in result.rows:
         table1 = "  -  " if r["table1_de2000"] is None else f"{r['table1_de2000']:5.2f}"
-        print(f"{r['hair']:10s} {r['light']:8s}: ΔE2000 against spectral, Table 1 RGB {table1}, matched RGB "
-              f"{r['matched_de2000']:5.2f} (spectral noise {r['spectral_noise_de2000']:.2f}); spectral "
-              f"{r['spectral_seconds']:.2f} s, RGB {r['rgb_seconds']:.2f} s")
-    print(f"wrote {out / 'spectral_bench.csv'} and {out / 'spectral_bench.png'}")
-    return 0
+        result.text.append(f"{r['hair']:10s} {r['light']:8s}: ΔE2000 against spectral, Table 1 RGB {table1}, "
+                           f"matched RGB {r['matched_de2000']:5.2f} (spectral noise {r['spectral_noise_de2000']:.2f}); "
+                           f"spectral {r['spectral_seconds']:.2f} s, RGB {r['rgb_seconds']:.2f} s")
+    return result

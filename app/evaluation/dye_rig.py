@@ -1,4 +1,4 @@
-"""``hairdigi evaluate --dye --rig``: the dye protocol (``inference/training/evaluate_dye.py``) on
+"""``hairdigi evaluate --dye --rig``: the dye protocol (``app/evaluation/dye_evaluation.py``) on
 simulated-rig captures: each base and dyed swatch is put under the simulated rig and captured the way
 an operator does (``RigSession.calibrate`` once on the ColorChecker, then ``RigSession.capture``: the
 live frame through the camera model with a white-balance cast, ``cv2.mcc`` and the CCM, estimated on
@@ -45,7 +45,7 @@ def rig_capture(folder: str | os.PathLike, encoder, cast=CAST, spp: int = SPP):
 
 def evaluate_dye_rig(encoder, out_dir: str | os.PathLike, config) -> dict:
     """The dye protocol on simulated-rig captures; the same outputs as the clean run."""
-    from hairdigi.inference.training.evaluate_dye import evaluate_dye
+    from hairdigi.app.evaluation.dye_evaluation import evaluate_dye
 
     out = Path(out_dir)
     return evaluate_dye(encoder, out, config, capture=rig_capture(out / "session", encoder),

@@ -1,11 +1,13 @@
-"""``hairdigi evaluate``'s modes (``registry.EVALUATIONS``): each runs its evaluation, prints its
-figures and, with ``--ship``, writes the table it measured into the model's resources."""
+"""``hairdigi evaluate``'s modes (``registry.EVALUATIONS``): each runs its evaluation, returns its
+figures as a ``results.Result`` (or prints them) and, with ``--ship``, writes the table it measured into
+the model's resources."""
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
 
+from hairdigi.app.evaluation.results import Result
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
 from hairdigi.render.domain.errors import EvaluationError
 
@@ -31,7 +33,7 @@ def prepare_held_out(args: argparse.Namespace) -> int:
     return 0
 
 
-def convergence(args: argparse.Namespace) -> int:
+def convergence(args: argparse.Namespace) -> Result:
     """``hairdigi evaluate --convergence SPP,...``: the estimate from inputs rendered at each spp."""
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.training.convergence import convergence_sweep
@@ -40,42 +42,49 @@ def convergence(args: argparse.Namespace) -> int:
     encoder, data = Encoder(args.model), held_out_folder(args)
     prepare_heldout(data, args.n, args.size, args.spp, args.workers)
     spps = [int(v) for v in args.convergence.split(",")]
-    for r in convergence_sweep(encoder, data, args.out, spps, args.sweep_n):
-        print(f"input {r['spp']:4d} spp ({r['render_s']:.2f} s/render): mean-colour ΔE2000 median encoder "
-              f"{r['encoder_de_median']:.2f}, refined {r['refined_de_median']:.2f} (p95 "
-              f"{r['encoder_de_p95']:.2f} / {r['refined_de_p95']:.2f})")
-    print(f"convergence.csv and convergence.png in {args.out}")
-    return 0
+    rows = convergence_sweep(encoder, data, args.out, spps, args.sweep_n)
+    out = Path(args.out)
+    return Result("convergence", rows, files=[out / "convergence.csv", out / "convergence.png"], compact=True, text=[
+        f"input {r['spp']:4d} spp ({r['render_s']:.2f} s/render): mean-colour ΔE2000 median encoder "
+        f"{r['encoder_de_median']:.2f}, refined {r['refined_de_median']:.2f} (p95 "
+        f"{r['encoder_de_p95']:.2f} / {r['refined_de_p95']:.2f})" for r in rows])
 
 
-def held_out(args: argparse.Namespace) -> int:
+def held_out(args: argparse.Namespace) -> Result:
     """``hairdigi evaluate``: the encoder and the refinement on clean held-out swatches."""
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.training.evaluate import evaluate
 
     summary = evaluate(Encoder(args.model), args.out, n=args.n, size=args.size, spp=args.spp, workers=args.workers,
                        data_root=held_out_folder(args), refine_colour=not args.no_refine)
+    result = Result("evaluation", summary=summary)
     a = summary["buckets"]["all"]
     for who in ("encoder", "refined"):
         if f"{who}_mean_colour_de2000" in a:
             de = a[f"{who}_mean_colour_de2000"]
-            print(f"{who}: mean-colour ΔE2000 median {de['median']:.2f}, p95 {de['p95']:.2f}, worst {de['max']:.2f}; "
-                  f"L1 {a[f'{who}_l1']['mean']:.2f}")
-    print(f"{summary['n']} held-out swatches (floor ΔE2000 median {a['floor_mean_colour_de2000']['median']:.2f}, "
-          f"L1 {a['floor_l1']['mean']:.2f}); encoder {summary['latency_ms_median_1_thread']:.3f} ms; "
-          f"68% interval coverage {summary['coverage']}; report in {args.out}")
-    return 0
+            result.text.append(f"{who}: mean-colour ΔE2000 median {de['median']:.2f}, p95 {de['p95']:.2f}, "
+                               f"worst {de['max']:.2f}; L1 {a[f'{who}_l1']['mean']:.2f}")
+    result.text.append(f"{summary['n']} held-out swatches (floor ΔE2000 median "
+                       f"{a['floor_mean_colour_de2000']['median']:.2f}, L1 {a['floor_l1']['mean']:.2f}); encoder "
+                       f"{summary['latency_ms_median_1_thread']:.3f} ms; 68% interval coverage {summary['coverage']}; "
+                       f"report in {args.out}")
+    return result
 
 
-def ship(path: Path, table: dict, what: str) -> None:
-    """Write a measured table into the model's resources (``evaluate --ship``)."""
+def ship(path: Path, table: dict, what: str) -> str:
+    """Write a measured table into the model's resources (``evaluate --ship``); the line that says so."""
     from hairdigi.render.domain.files import write_json_atomic
 
     write_json_atomic(path, table)
-    print(f"shipped {what}: {path}")
+    return f"shipped {what}: {path}"
 
 
-def rig(args: argparse.Namespace) -> int:
+def _evaluation_files(out: str | Path, stem: str) -> list[Path]:
+    """An evaluation's table, summary and plot: ``stem.csv``, ``.json`` and ``.png`` in ``out``."""
+    return [Path(out) / f"{stem}.{ext}" for ext in ("csv", "json", "png")]
+
+
+def rig(args: argparse.Namespace) -> Result | int:
     """``hairdigi evaluate --rig``: the chain against the truth; prints the figures, writes table and plot."""
     from hairdigi.app.evaluation.rig import RigSet, evaluate_rig
 
@@ -91,66 +100,67 @@ def rig(args: argparse.Namespace) -> int:
         print(f"hairdigi evaluate --rig: {unknown}", file=sys.stderr)
         return 2
     s = evaluate_rig(args.out, RigSet(random=args.rig_random, structure=structure, hidden_structures=hidden))
+    result = Result("rig_evaluation", summary=s, files=_evaluation_files(args.out, "rig_evaluation"), compact=True)
+    say = result.text.append
     r, e = s["refined"], s["encoder_alone"]
-    print(f"{s['estimated']} of {s['captures']} captures estimated; against the hidden truth, mean-colour ΔE2000 "
-          f"median {r['median']:.2f}, p95 {r['p95']:.2f}, worst {r['worst']:.2f} (encoder alone {e['median']:.2f} / "
-          f"{e['p95']:.2f} / {e['worst']:.2f})")
+    say(f"{s['estimated']} of {s['captures']} captures estimated; against the hidden truth, mean-colour ΔE2000 "
+        f"median {r['median']:.2f}, p95 {r['p95']:.2f}, worst {r['worst']:.2f} (encoder alone {e['median']:.2f} / "
+        f"{e['p95']:.2f} / {e['worst']:.2f})")
     for source, st in s["by_source"].items():
         if st["n"]:
-            print(f"  {source}: median {st['median']:.2f}, p95 {st['p95']:.2f}, worst {st['worst']:.2f} ({st['n']})")
+            say(f"  {source}: median {st['median']:.2f}, p95 {st['p95']:.2f}, worst {st['worst']:.2f} ({st['n']})")
     for case, st in s["by_case"].items():
         if st["n"]:
-            print(f"  {case}: median {st['median']:.2f}, worst {st['worst']:.2f}")
+            say(f"  {case}: median {st['median']:.2f}, worst {st['worst']:.2f}")
     if hidden:
         for name, st in s["by_structure"].items():
-            print(f"  {name} swatches: median {st['median']:.2f}, p95 {st['p95']:.2f}, worst {st['worst']:.2f} ({st['n']})")
+            say(f"  {name} swatches: median {st['median']:.2f}, p95 {st['p95']:.2f}, worst {st['worst']:.2f} ({st['n']})")
     c = s["coverage_held_out"]
-    print(f"colour interval fitted on half the hidden swatches holds on the other half: 68% -> {c['p68']:.0%}, "
-          f"95% -> {c['p95']:.0%}")
-    for line in s["blocked"]:
-        print(f"blocked: {line}")
+    say(f"colour interval fitted on half the hidden swatches holds on the other half: 68% -> {c['p68']:.0%}, "
+        f"95% -> {c['p95']:.0%}")
+    result.text += [f"blocked: {line}" for line in s["blocked"]]
     if args.ship:
         from hairdigi.inference.estimate import CHAIN_TABLE
 
-        ship(CHAIN_TABLE, s["table"], "the chain's colour interval")
-    print(f"rig_evaluation.csv, .json and .png in {args.out}")
-    return 0
+        say(ship(CHAIN_TABLE, s["table"], "the chain's colour interval"))
+    return result
 
 
-def appearance(args: argparse.Namespace) -> int:
+def appearance(args: argparse.Namespace) -> Result:
     """``hairdigi evaluate --appearance``: shine and fibre variation judged away from the rig."""
     from hairdigi.app.evaluation.appearance_evaluation import AppearanceSet, evaluate_appearance
 
     s = evaluate_appearance(args.out, AppearanceSet(random=args.rig_random, variation=not args.no_variation))
+    result = Result("appearance_evaluation", summary=s, files=_evaluation_files(args.out, "appearance_evaluation"),
+                    compact=True)
+    say = result.text.append
     for mode in ("read", "no light frames"):
         m = s[mode]
-        print(f"{mode} ({m['swatches']} swatches), mean-colour ΔE2000 against the truth, median / p95 / worst:")
+        say(f"{mode} ({m['swatches']} swatches), mean-colour ΔE2000 against the truth, median / p95 / worst:")
         for key, label in (("fit", "fit, rig view"), ("each_light", "each light alone"),
                            ("transfer", "transfer: another camera, key light, grey sky"),
                            ("today_fit", "today's world, fit"), ("today_transfer", "today's world, transfer")):
             st = m[key]
             if st["n"]:
-                print(f"  {label}: {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}")
+                say(f"  {label}: {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}")
         for key, label in (("shine_abs_error", "shine"), ("spread_abs_error", "fibre spread"),
                            ("grey_abs_error", "grey share")):
             st = m[key]
             if st["n"]:
-                print(f"  {label} absolute error: {st['median']:.3f} / {st['p95']:.3f} / {st['worst']:.3f}")
-        print(f"  capture (4 frames) {m['capture_frames_s']['median']:.2f} s; capture and estimate "
-              f"{m['capture_s']['median']:.2f} s (medians)")
-    for line in s["errors"] + s["blocked"]:
-        print(f"not estimated: {line}")
+                say(f"  {label} absolute error: {st['median']:.3f} / {st['p95']:.3f} / {st['worst']:.3f}")
+        say(f"  capture (4 frames) {m['capture_frames_s']['median']:.2f} s; capture and estimate "
+            f"{m['capture_s']['median']:.2f} s (medians)")
+    result.text += [f"not estimated: {line}" for line in s["errors"] + s["blocked"]]
     if args.ship:
         from hairdigi.inference.appearance_reading import UNCERTAINTY
 
-        ship(UNCERTAINTY, s["table"], "the appearance's intervals")
-    print(f"appearance_evaluation.csv, .json and .png in {args.out}")
-    return 0
+        say(ship(UNCERTAINTY, s["table"], "the appearance's intervals"))
+    return result
 
 
-def cycles(args: argparse.Namespace) -> int:
+def cycles(args: argparse.Namespace) -> Result | int:
     """``hairdigi evaluate --cycles``: swatches rendered in Blender Cycles, estimated, rendered back in Cycles."""
-    from hairdigi.inference.training.evaluate_cycles import CyclesSet, evaluate_cycles
+    from hairdigi.app.evaluation.cycles_evaluation import CyclesSet, evaluate_cycles
     from hairdigi.render.blender_run import BlenderError, probe_blender
 
     try:
@@ -160,36 +170,38 @@ def cycles(args: argparse.Namespace) -> int:
         return 2
     s = evaluate_cycles(args.out, CyclesSet(random=args.rig_random, size=args.size, spp=args.spp,
                                             shine=not args.default_shine))
-    print(f"{s['judged']} of {s['swatches']} Cycles swatches judged; mean-colour ΔE2000 against the truth, "
-          f"median / p95 / worst:")
+    result = Result("cycles_evaluation", summary=s, files=_evaluation_files(args.out, "cycles_evaluation"),
+                    compact=True)
+    say = result.text.append
+    say(f"{s['judged']} of {s['swatches']} Cycles swatches judged; mean-colour ΔE2000 against the truth, "
+        f"median / p95 / worst:")
     for mode in ("read", "no light frames"):
         if mode not in s:
             continue
-        print(f"  {mode}:")
+        say(f"  {mode}:")
         for key, label in (("twin_residual", "hairdigi's Mitsuba twin against the input"),
                            ("fit", "the estimate rendered back in Cycles, rig view"),
                            ("transfer", "the same, another camera, a key light and a grey sky"),
                            ("sigma_rel_error", "σa relative error (median channel)")):
             st = s[mode][key]
             if st["n"]:
-                print(f"    {label}: {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}")
+                say(f"    {label}: {st['median']:.2f} / {st['p95']:.2f} / {st['worst']:.2f}")
     for key, label in (("shine_abs_error", "shine absolute error"),
                        ("encoder_sigma_rel_error", "σa relative error, encoder alone")):
         st = s[key]
         if st["n"]:
-            print(f"  {label}: {st['median']:.3f} / {st['p95']:.3f} / {st['worst']:.3f}")
-    for line in s["errors"]:
-        print(f"not judged: {line}")
-    print(f"cycles_evaluation.csv, .json and .png in {args.out}")
+            say(f"  {label}: {st['median']:.3f} / {st['p95']:.3f} / {st['worst']:.3f}")
+    result.text += [f"not judged: {line}" for line in s["errors"]]
     if not s["judged"]:
+        result.print()     # the empty figures and the errors first, then the one-line failure
         raise EvaluationError(f"none of the {s['swatches']} Cycles swatches was judged (first error: "
-                       f"{(s['errors'] or ['none given'])[0]}); the figures above are empty")
-    return 0
+                              f"{(s['errors'] or ['none given'])[0]}); the figures above are empty")
+    return result
 
 
 def structures(args: argparse.Namespace) -> int:
     """``hairdigi evaluate --structures``: hidden hairs in every physical swatch structure, judged on their strands."""
-    from hairdigi.inference.training.evaluate_structures import MODES, StructureSet, evaluate_structures
+    from hairdigi.app.evaluation.structures_evaluation import MODES, StructureSet, evaluate_structures
 
     if args.blender:
         from hairdigi.render.blender_run import BlenderError, blender_command
@@ -228,7 +240,7 @@ def structures(args: argparse.Namespace) -> int:
     if args.ship:
         from hairdigi.inference.structure import STRUCTURE_TABLE
 
-        ship(STRUCTURE_TABLE, s["table"], "the colour interval of a swatch of unknown structure")
+        print(ship(STRUCTURE_TABLE, s["table"], "the colour interval of a swatch of unknown structure"))
     print(f"structures_evaluation.csv, .json and .png in {args.out}")
     return 0
 
@@ -255,16 +267,16 @@ def spectral(args: argparse.Namespace) -> int:
     if args.ship and s.get("table", {}).get("cameras"):
         from hairdigi.inference.spectral_reading import SPECTRAL_TABLE
 
-        ship(SPECTRAL_TABLE, s["table"], "the spectral world's colour intervals")
+        print(ship(SPECTRAL_TABLE, s["table"], "the spectral world's colour intervals"))
     print(f"spectral_evaluation.csv, .json and .png in {args.out}")
     return 0
 
 
 def dye(args: argparse.Namespace) -> int:
-    """``hairdigi evaluate --dye [--rig]``: the dye held-out protocol (``inference/training/evaluate_dye.py``),
+    """``hairdigi evaluate --dye [--rig]``: the dye held-out protocol (``app/evaluation/dye_evaluation.py``),
     on clean renders or (``--rig``) on simulated-rig captures (``app/evaluation/dye_rig.py``)."""
     from hairdigi.inference.encoder import Encoder
-    from hairdigi.inference.training.evaluate_dye import DyeEvalConfig, evaluate_dye
+    from hairdigi.app.evaluation.dye_evaluation import DyeEvalConfig, evaluate_dye
 
     config = DyeEvalConfig(dyes=args.n if args.n != 300 else DyeEvalConfig.dyes, size=args.size, spp=args.spp)
     if getattr(args, "rig", False):        # --dye --rig: the captures are the simulated rig's

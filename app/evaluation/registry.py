@@ -7,6 +7,8 @@ import argparse
 import importlib
 from dataclasses import dataclass
 
+from hairdigi.app.evaluation.results import Result
+
 #: Where the benchmarks' results go by default (``bench --out``).
 BENCH_OUT = "out/bench"
 
@@ -14,15 +16,21 @@ BENCH_OUT = "out/bench"
 @dataclass(frozen=True)
 class Entry:
     """One evaluation or benchmark: its name on the command line, what it does, and its function
-    (``module:function``, called with the parsed arguments, returning the exit status)."""
+    (``module:function``, called with the parsed arguments, returning a ``results.Result`` or, where it
+    stops before measuring anything, the exit status)."""
 
     name: str
     help: str
     target: str
 
     def run(self, args: argparse.Namespace) -> int:
+        """Call the function; a ``Result`` it returns is printed (its lines, then the files it wrote), exit 0."""
         module, function = self.target.split(":")
-        return getattr(importlib.import_module(module), function)(args)
+        answer = getattr(importlib.import_module(module), function)(args)
+        if isinstance(answer, Result):
+            answer.print()
+            return 0
+        return answer
 
 
 def _modes(*entries: Entry) -> dict[str, Entry]:

@@ -19,7 +19,7 @@ from hairdigi.app.library import model as library_model
 from hairdigi.app.library import view
 from hairdigi.app.gui.images import to_pixmap
 from hairdigi.app.gui.workers import POOL, Jobs, Task, start
-from hairdigi.app.library.store import Library, Swatch
+from hairdigi.app.library.store import Library, LibraryError, Swatch, open_library
 from hairdigi.app.library.model import MAX_ROWS, LibraryModel
 from hairdigi.app.library.swatch_colour import COLOURS
 
@@ -287,8 +287,6 @@ class LibraryPanel(QWidget):
 
 def _open_or_reason():
     """The library, or the one line why it cannot be opened (run in a worker: a lock or a server may take seconds)."""
-    from hairdigi.app.library.store import LibraryError, open_library
-
     try:
         return open_library()
     except (LibraryError, OSError) as exc:

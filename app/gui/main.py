@@ -8,6 +8,7 @@ from pathlib import Path
 from PySide6.QtWidgets import QApplication, QComboBox, QDialog, QDialogButtonBox, QFormLayout, QLineEdit
 
 from hairdigi.app.gui.main_window import MainWindow, settings_store
+from hairdigi.app.gui.tour import run_tour
 from hairdigi.app.session.profile import ProfileError, RigProfile, merged, profile_path, read_profile, write_profile
 from hairdigi.app.session.rig_session import open_rig
 from hairdigi.app.session.declared_spectra import rig_spectra, spectra_problem
@@ -158,7 +159,6 @@ def run_app(sim: bool = False, session: str | None = None, tour: str | None = No
         window.statusBar().showMessage("; ".join(filter(None, [reason and f"simulated rig: {reason}", problem])))
     window.show()
     if tour:
-        from hairdigi.app.gui.tour import run_tour
         run_tour(window, tour)
     code = app.exec()
     rig.close()

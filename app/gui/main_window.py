@@ -18,24 +18,30 @@ from typing import Callable
 
 import numpy as np
 from PySide6.QtCore import QSettings, Qt, QThreadPool, QTimer, Signal
-from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QFileDialog, QGridLayout, QGroupBox, QHBoxLayout, QLabel,
-                               QListWidget, QListWidgetItem, QMainWindow, QProgressBar, QPushButton, QSlider,
-                               QSplitter, QVBoxLayout, QWidget)
+from PySide6.QtWidgets import (QButtonGroup, QCheckBox, QComboBox, QFileDialog, QGridLayout, QGroupBox, QHBoxLayout,
+                               QLabel, QListWidget, QListWidgetItem, QMainWindow, QMessageBox, QProgressBar,
+                               QPushButton, QSlider, QSplitter, QVBoxLayout, QWidget)
 
+from hairdigi.app.gui.dye_panel import add_dye_dock
 from hairdigi.app.review import model as review, previews
 from hairdigi.app.review.payloads import (Calibrated, Captured, FrameCheck, HairModel, LightView, Lights, Records,
                                           Shown, StrandPreview, Thumbnail)
 from hairdigi.app.session import rig_session as rs
 from hairdigi.app.gui.images import DELTA_E_MAX, colour_scale, delta_e_colours, overlay, to_pixmap
+from hairdigi.app.gui.library_panel import add_library_dock
 from hairdigi.app.gui.workers import POOL, FrameFeed, Task, start
 from hairdigi.app.review.previews import HairstylePass, Stage, TwinPreview, hair_colour_rgb8
 from hairdigi.app.review.model import HAIRSTYLE_LIGHTS
 from hairdigi.app.review.text import APPEARANCE_LABELS, light_name
 from hairdigi.app.models.work import Work
+from hairdigi.hardware.cameras import RAW_EXTENSIONS
 from hairdigi.hardware.exposure import ExposureStatus
+from hairdigi.inference.encoder import ModelError
 from hairdigi.render.domain.bounds import ENVIRONMENTS
 from hairdigi.render.domain.params import VECTOR_FIELDS
+from hairdigi.render.domain.version import version
 from hairdigi.render.strands import HAIRSTYLES
+from hairdigi.render.variant import select_variant
 
 #: Window options beyond ``previews.PreviewSettings``' fields (which include the feed rates).
 DEFAULTS: dict = {}
@@ -112,9 +118,7 @@ class MainWindow(QMainWindow):
         outer.addWidget(splitter, 1)
         self.setCentralWidget(central)
         self.resize(1500, 860)
-        from hairdigi.app.gui.dye_panel import add_dye_dock   # the Dye panel, a dock
         self.dye_dock = add_dye_dock(self, self.session.folder)
-        from hairdigi.app.gui.library_panel import add_library_dock   # the Library panel, a dock
         self.library_dock = add_library_dock(self)
 
     def _rig_panel(self) -> QWidget:
@@ -323,6 +327,7 @@ class MainWindow(QMainWindow):
         v.addLayout(orbit)
         self.strand_view = None
         if with_strand_view:
+            # deferred: pyvista and VTK take ~1 s; they load when the 3-D view first opens
             from hairdigi.app.gui.strand_view import StrandView
             self.strand_view = StrandView(self)
             self.strand_view.setMinimumHeight(260)
@@ -603,8 +608,6 @@ class MainWindow(QMainWindow):
         return self.run_task(self.model.import_still_work(path), done)
 
     def import_still_dialog(self) -> None:
-        from hairdigi.hardware.cameras import RAW_EXTENSIONS
-
         patterns = " ".join(f"*{e} *{e.upper()}" for e in sorted(RAW_EXTENSIONS))
         path, _ = QFileDialog.getOpenFileName(self, "Import a RAW still of the rig", str(Path.home()),
                                               f"RAW stills ({patterns});;All files (*)")
@@ -670,12 +673,6 @@ class MainWindow(QMainWindow):
 
     def show_about(self):
         """Help > About: the version, the model's sha256 and the Mitsuba variant (what a bug report needs)."""
-        from PySide6.QtWidgets import QMessageBox
-
-        from hairdigi.inference.encoder import ModelError
-        from hairdigi.render.domain.version import version
-        from hairdigi.render.variant import select_variant
-
         try:
             model = f"{self.session.encoder.path.name}, sha256 {self.session.encoder.sha256}"
         except ModelError as exc:

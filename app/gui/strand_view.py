@@ -69,6 +69,7 @@ class StrandView(QWidget):
     """A rotatable 3-D view of the strands, coloured with the estimated hair colour, on the head."""
 
     def __init__(self, parent: QWidget | None = None) -> None:
+        # deferred: pyvista and VTK take ~1 s; they load when the 3-D view first opens
         from pyvistaqt import QtInteractor
 
         super().__init__(parent)

@@ -165,7 +165,7 @@ def read_csv(path: str | Path, columns: dict[str, str] | None = None, default_ge
 def read_cxf(path: str | Path, default_geometry: str = "d/8 SCI") -> list[LabReading]:
     """A CxF3 file's objects: each object's CIELAB values, read with their colour specification's illuminant,
     observer and geometry (a sphere's specular included or excluded, a single angle's 45/0)."""
-    import colour_cxf
+    import colour_cxf   # deferred: colour_cxf only to read a CxF file
 
     path = Path(path)
     try:

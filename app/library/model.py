@@ -19,6 +19,8 @@ from typing import Iterator
 import numpy as np
 
 from hairdigi.app.library import view
+from hairdigi.app.library.importing import first_run, import_paths
+from hairdigi.app.library.renderer_export import export_record
 from hairdigi.app.library.store import Library, LibraryError, Swatch, redact
 from hairdigi.app.library.swatch_colour import COLOURS, ILLUMINANTS, ColourError, hex_lab
 from hairdigi.app.models.events import EventGroup, Status
@@ -246,8 +248,6 @@ class LibraryModel(PanelModel):
         where, folders = self.where, [str(f) for f in folders]
 
         def run():
-            from hairdigi.app.library.importing import import_paths
-
             with Library(where) as lib:
                 return Imported(f"imported {', '.join(folders)}", import_paths(lib, folders, progress=lambda line: None))
             yield  # noqa: unreachable: makes this a generator
@@ -258,8 +258,6 @@ class LibraryModel(PanelModel):
         where = self.where
 
         def run():
-            from hairdigi.app.library.importing import first_run
-
             with Library(where) as lib:
                 return Imported("sessions written before the library imported", first_run(lib, progress=lambda line: None))
             yield  # noqa: unreachable: makes this a generator
@@ -278,8 +276,6 @@ class LibraryModel(PanelModel):
         record, name, path = swatch.record_path, swatch.capture_id or swatch.id, str(path)
 
         def run():
-            from hairdigi.app.library.renderer_export import export_record
-
             try:
                 return Exported(tuple(Path(p) for p in export_record(record, fmt, path, name=name)))
             except (ValueError, OSError) as exc:

@@ -27,6 +27,7 @@ def export_record(record: str | Path, fmt: str, out: str | Path, blend: str | Pa
     look = load_look(record, name)
     written = [write_look(look, fmt, out)]
     if blend:
+        # deferred: the CLI parser imports this module; blender_run only for a .blend export
         from hairdigi.render.blender_run import write_blend
 
         written.append(write_blend(look, blend))

@@ -22,6 +22,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
+from urllib.parse import parse_qsl, unquote
 
 import numpy as np
 
@@ -121,8 +122,6 @@ def parse_location(where: str | os.PathLike) -> Address:
 
 def _secret_parts(*values: str) -> tuple[str, ...]:
     """A password's every form: whole, URL-decoded, and each run of 3 or more letters and digits in it."""
-    from urllib.parse import unquote
-
     forms = {v for value in values if value for v in (value, unquote(value))}
     parts = {p for v in forms for p in re.split(r"[^0-9A-Za-z]+", v) if len(p) >= 3}
     return tuple(sorted(forms | parts, key=len, reverse=True))
@@ -130,8 +129,6 @@ def _secret_parts(*values: str) -> tuple[str, ...]:
 
 def _url_address(text: str, scheme: str) -> Address:
     """A ``scheme://`` address: PostgreSQL's (normalised to ``postgresql://``), else refused."""
-    from urllib.parse import parse_qsl
-
     if not _POSTGRES_SCHEME.match(scheme):
         raise LibraryError(f"HAIRDIGI_LIBRARY {_mask(text)}: a {scheme.lower()}:// address, which hairdigi cannot "
                            f"open; give {FORMS}")
@@ -381,7 +378,7 @@ class _Db:
         self.postgres = self.address.postgres
         if self.postgres:
             try:
-                import psycopg
+                import psycopg   # deferred: psycopg is the optional [postgres] extra
             except ModuleNotFoundError:
                 raise LibraryError("a PostgreSQL library needs psycopg: pip install 'psycopg[binary]'") from None
             options = (f"-c lock_timeout={int(LOCK_TIMEOUT_S * 1000)} "

@@ -22,6 +22,7 @@ import re
 import numpy as np
 
 from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 
 ILLUMINANTS = ("daylight", "studio")
 #: The instrument geometries a record's readings are stored under (``inference.instrument_reading``; D65, 10°), beside the lights.
@@ -41,7 +42,7 @@ class ColourError(HairdigiError, ValueError):
 @functools.lru_cache(maxsize=1)
 def studio_light_rgb() -> np.ndarray:
     """A 3200 K lamp in linear Rec.709, luminance 1."""
-    import colour
+    import colour   # deferred: the CLI parser imports this module; colour-science takes ~1 s
 
     xy = colour.CCT_to_xy(STUDIO_CCT, method="Kang 2002")   # the Planckian locus, 1667-25000 K
     xyz = colour.xy_to_XYZ(xy)
@@ -51,8 +52,8 @@ def studio_light_rgb() -> np.ndarray:
 
 @functools.lru_cache(maxsize=1)
 def _curve():
+    # deferred: the CLI parser imports this module; colour-science takes ~1 s
     from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 
     return response_curve(RIG_SWATCH_POSE, RefineSettings())
 
@@ -65,6 +66,7 @@ def rendered_linear(sigma_a: np.ndarray) -> np.ndarray:
 def studio_change(hair) -> np.ndarray:
     """Per channel, the spectral swatch of ``hair`` (``HairParams``) under the studio lamps over under
     daylight (linear sRGB, unadapted; both lights at luminance 1)."""
+    # deferred: the CLI parser imports this module; the inference tables load on use
     from hairdigi.inference.spectral_reading import colour_under
 
     curve = _curve()
@@ -75,6 +77,7 @@ def studio_change(hair) -> np.ndarray:
 def lab_under(linear_daylight: np.ndarray, hairs: list | None = None) -> dict[str, np.ndarray]:
     """CIELAB of the rendered colour under each illuminant (see the module's docstring); ``hairs``: each
     swatch's Table 1 parameters or None (then the studio colour is the RGB renderer's)."""
+    # deferred: the CLI parser imports this module; colour-science takes ~1 s
     from hairdigi.render.metrics import linear_rgb_to_lab
 
     rgb = np.asarray(linear_daylight, float)
@@ -93,6 +96,7 @@ def swatch_labs(sigma_a: np.ndarray, hairs: list | None = None) -> dict[str, np.
 
 def hex_lab(text: str) -> np.ndarray:
     """CIELAB (D65) of an sRGB colour written ``#RRGGBB``."""
+    # deferred: the CLI parser imports this module; colour-science takes ~1 s
     from hairdigi.render.metrics import linear_rgb_to_lab
     from hairdigi.render.srgb import srgb8_to_linear
 
@@ -106,6 +110,7 @@ def hex_lab(text: str) -> np.ndarray:
 
 def lab_hex(lab: np.ndarray) -> str:
     """``#RRGGBB`` of a CIELAB (D65) colour, clipped to sRGB."""
+    # deferred: the CLI parser imports this module; colour-science takes ~1 s
     import colour
 
     from hairdigi.render.srgb import linear_to_srgb8
@@ -118,6 +123,6 @@ def lab_hex(lab: np.ndarray) -> str:
 
 def delta_e(lab_a: np.ndarray, lab_b: np.ndarray) -> np.ndarray:
     """CIEDE2000 between CIELAB colours (broadcasting)."""
-    import colour
+    import colour   # deferred: the CLI parser imports this module; colour-science takes ~1 s
 
     return colour.delta_E(np.asarray(lab_a, float), np.asarray(lab_b, float), method="CIE 2000")

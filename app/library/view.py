@@ -8,6 +8,8 @@ import numpy as np
 
 from hairdigi.app.library.store import Swatch
 from hairdigi.app.library.swatch_colour import COLOURS, ILLUMINANTS, delta_e, lab_hex
+from hairdigi.render.domain.record_fields import RecordError
+from hairdigi.render.domain.records import read_swatch_record
 
 
 def chip_hex(swatch: Swatch, under: str = "daylight") -> str | None:
@@ -36,7 +38,7 @@ def describe(swatch: Swatch) -> str:
 
 def capture_image(swatch: Swatch) -> np.ndarray | None:
     """The captured swatch area (8-bit sRGB), or None when the image is not on this machine."""
-    import cv2
+    import cv2   # deferred: OpenCV takes ~0.3 s; only this step needs it
 
     if not swatch.image_path or not Path(swatch.image_path).is_file():
         return None
@@ -45,9 +47,6 @@ def capture_image(swatch: Swatch) -> np.ndarray | None:
         return None
     roi = None
     if swatch.record_path and Path(swatch.record_path).is_file():
-        from hairdigi.render.domain.record_fields import RecordError
-        from hairdigi.render.domain.records import read_swatch_record
-
         try:   # a regular file of bounded size
             roi = read_swatch_record(swatch.record_path).swatch_roi
         except RecordError:

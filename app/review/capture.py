@@ -8,12 +8,15 @@ import threading
 import time
 from typing import Generator
 
+import cv2
 import numpy as np
 
 from hairdigi.app.review.payloads import Captured, FirstLook, FrameCheck, Warmed
 from hairdigi.app.review.previews import PassTag, PreviewSettings, hairstyle_passes, twin_passes, twin_view
 from hairdigi.app.review.reads import read_capture, read_records
 from hairdigi.app.session import rig_session as rs
+from hairdigi.inference.calibration import CalibrationError, apply_profile, detect_chart
+from hairdigi.inference.refine import refine
 from hairdigi.render import denoise as dn
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.renderer import Renderer, SceneSpec
@@ -105,8 +108,6 @@ def read_back(session: rs.RigSession, result: rs.CaptureResult) -> Captured:
 def first_look(session: rs.RigSession, params: HairParams, key: int) -> FirstLook:
     """The encoder's parameters with the swatch they came from: the captured frame's swatch area,
     corrected with the session's profile (as the estimate saw it)."""
-    from hairdigi.inference.calibration import apply_profile
-
     image = session.last_frame.srgb
     x, y, w, h = session.swatch_roi or (0, 0, image.shape[1], image.shape[0])
     real = image[y:y + h, x:x + w].copy()
@@ -118,18 +119,12 @@ def first_look(session: rs.RigSession, params: HairParams, key: int) -> FirstLoo
 def warm_refinement(session: rs.RigSession) -> None:
     """Build the scene refinement renders for this rig's swatch area once, and compile its kernels
     (its response curve is prepared first, or read from the disk cache)."""
-    from hairdigi.inference.refine import refine
-
     frame = session.frames.latest() or session.frame()
     refine(HairParams(), np.array([0.08, 0.05, 0.03]), session.region(frame.srgb))
 
 
 def check_frame(session: rs.RigSession, image: np.ndarray) -> FrameCheck:
     """Find the chart and check the exposure of one frame."""
-    import cv2
-
-    from hairdigi.inference.calibration import CalibrationError, detect_chart
-
     try:
         try:
             box = detect_chart(image).box

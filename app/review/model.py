@@ -46,13 +46,16 @@ from hairdigi.app.review.text import (ParameterView, as_profile, calibration_tex
 from hairdigi.app.review.thumbnails import thumbnail_work
 from hairdigi.app.session import rig_session as rs
 from hairdigi.render import denoise as dn
-from hairdigi.render.domain.bounds import ENVIRONMENTS, HAIRSTYLES, ILLUMINANTS, SceneKind
+from hairdigi.render.domain.bounds import ENVIRONMENTS, HAIRSTYLES, ILLUMINANTS, SceneKind, defaults_for
 from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import EstimateRecord, EstimateWarning
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
+from hairdigi.render.hairfile import hair_model_strands
+from hairdigi.render.io import images
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.srgb import linear_to_srgb8
+from hairdigi.render.strands import hairstyle_strands
 
 #: ``set_view``'s "leave this as it is" (None is a value of its ``illuminant``).
 KEEP: object = object()
@@ -414,9 +417,6 @@ class ReviewModel(PanelModel):
         grown, scalp = self._strand_cache.get(which), scalp_linear(shown.params)
 
         def run():
-            from hairdigi.render.hairfile import hair_model_strands
-            from hairdigi.render.strands import hairstyle_strands
-
             self._wait_for_twin()
             yield None                  # cancelled meanwhile: stop here
             strands = grown or (hair_model_strands(hair_file, n) if hair_file else hairstyle_strands(style, n, seed=0))
@@ -425,8 +425,6 @@ class ReviewModel(PanelModel):
 
     def open_hair_work(self, path: str | Path) -> Work:
         """Read, check and fit a ``.hair`` model; a bad file raises its one-line error (HairFileError)."""
-        from hairdigi.render.domain.bounds import defaults_for
-
         n = self.settings.hairstyle_strands or defaults_for("hairstyle").strands
         return Work("hair model", returns(lambda: read_hair_model(Path(path), n)))
 
@@ -601,10 +599,8 @@ class ReviewModel(PanelModel):
 
 def write_render(linear: np.ndarray, path: str | Path) -> list[Path]:
     """A linear render as ``path`` (.png, sRGB) and beside it linear .exr; the written paths."""
-    from hairdigi.render.io.images import save_exr, save_png
-
     path = Path(path)
     if path.suffix.lower() not in (".png", ".exr"):
         path = path.with_name(path.name + ".png")
     png, exr = path.with_suffix(".png"), path.with_suffix(".exr")
-    return [save_png(png, linear_to_srgb8(linear)), save_exr(exr, linear)]
+    return [images.save_png(png, linear_to_srgb8(linear)), images.save_exr(exr, linear)]

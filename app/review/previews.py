@@ -13,10 +13,13 @@ import itertools
 from dataclasses import dataclass
 from typing import Callable, Iterator
 
+import cv2
 import numpy as np
 
 from hairdigi.app.models.work import Cancelled
+from hairdigi.app.session import rig_session as rs
 from hairdigi.render import denoise as dn
+from hairdigi.render.domain.absorption import approximate_albedo, hair_sigma_a
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
@@ -25,6 +28,8 @@ from hairdigi.render.metrics import delta_e_map, mean_colour_delta_e
 from hairdigi.render.renderer import Renderer, SceneSpec
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
 from hairdigi.render.domain.text_enum import TextEnum
+from hairdigi.render.scenes import PORTRAIT_CAMERA, scalp_albedo
+from hairdigi.render.spectra import balanced
 
 
 class Stage(TextEnum):
@@ -37,7 +42,7 @@ class Stage(TextEnum):
 
 @dataclass(frozen=True)
 class PreviewSettings:
-    """How previews render; the defaults are chosen by ``hairdigi bench previews`` (render/bench_previews.py).
+    """How previews render; the defaults are chosen by ``hairdigi bench previews`` (app/evaluation/bench_previews.py).
 
     Mean per-pixel ΔE2000 against 1024 spp, not denoised (clean: 3 or less), OIDN without guides: the
     twin (130 x 154) is 3.34 at 1 spp, 3.13 at 2, 3.06 at 4, 2.89 at 8 (clean), 2.75 at 16; raw it is
@@ -158,8 +163,6 @@ def twin_view(roi: tuple[int, int, int, int], frame_size: tuple[int, int], simul
     ``scale`` < 1 renders the same view with fewer pixels. The hair has the estimate's ``appearance``
     (shine, fibre spread, greys; None: the default), lit by ``light`` alone (None: all lights), on the swatch
     structure the estimate was read on (``swatch_model``; None: the default)."""
-    from hairdigi.app.session import rig_session as rs
-
     if simulated:
         spec, size = rs.twin_spec(roi, frame_size, scale)
     else:
@@ -174,8 +177,6 @@ def orbit_pose(azimuth_deg: float, elevation_deg: float, distance: float | None 
     Portrait poses are polar from the face direction, so the orbit stays in front of the face
     (polar < 90°): ``|azimuth|`` and ``|elevation|`` are clipped to 80° and 60°.
     """
-    from hairdigi.render.scenes import PORTRAIT_CAMERA
-
     yaw, pitch = np.radians(np.clip(azimuth_deg, -80, 80)), np.radians(np.clip(elevation_deg, -60, 60))
     d = np.array([np.sin(yaw) * np.cos(pitch), np.sin(pitch), np.cos(yaw) * np.cos(pitch)])
     polar = float(np.degrees(np.arccos(np.clip(d[2], -1.0, 1.0))))
@@ -197,16 +198,11 @@ def hair_colour_rgb8(linear: np.ndarray) -> tuple[int, int, int]:
 
 def strand_colour(params: HairParams) -> tuple[int, int, int]:
     """The strands' colour in the 3-D view: the fibre albedo, a little darkened (as lit hair looks)."""
-    from hairdigi.render.domain.absorption import approximate_albedo
-
     return hair_colour_rgb8(approximate_albedo(params) * 0.8)
 
 
 def scalp_linear(params: HairParams) -> tuple[float, float, float]:
     """The scalp under the hair, linear, as the renderer colours it (``scenes.scalp_albedo``)."""
-    from hairdigi.render.domain.absorption import hair_sigma_a
-    from hairdigi.render.scenes import scalp_albedo
-
     return tuple(float(v) for v in scalp_albedo(hair_sigma_a(params)))
 
 
@@ -215,8 +211,6 @@ def twin_passes(renderer: Renderer, params: HairParams, real_srgb8: np.ndarray,
                 settings: PreviewSettings, denoise_on: bool, tag: PassTag,
                 cancelled: Cancelled = lambda: False) -> Iterator[TwinPreview]:
     """The twin's passes over (scale, spp) steps; each run of one scale accumulates on its own."""
-    import cv2
-
     clean_at = dict(settings.twin_clean_spp)
     real_full = srgb8_to_linear(real_srgb8)
     done = 0
@@ -247,8 +241,6 @@ def hairstyle_passes(renderer: Renderer, params: HairParams, spec: SceneSpec, la
     for i, result in enumerate(passes, 1):
         linear = result.linear
         if spec.illuminant is not None:   # rendered under another light: shown as an eye adapted to it sees it
-            from hairdigi.render.spectra import balanced
-
             linear = balanced(linear, spec.illuminant)
         # OIDN's "fast" on the first pass: 0.22 s instead of 0.47 s at 512², per-pixel ΔE 1.50 for 1.48
         yield HairstylePass(tag.generation, linear,

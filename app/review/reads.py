@@ -8,7 +8,10 @@ import numpy as np
 
 from hairdigi.app.review.payloads import CaptureRead, Entry, HairModel, Problem, Records
 from hairdigi.app.session import rig_session as rs
+from hairdigi.inference.calibration import apply_profile
+from hairdigi.inference.preprocess import to_linear
 from hairdigi.render.domain.records import EstimateRecord
+from hairdigi.render.hairfile import hair_model_strands, model_summary
 from hairdigi.render.srgb import linear_to_srgb8
 
 
@@ -43,9 +46,6 @@ def light_swatches(loaded: rs.LoadedCapture) -> tuple[np.ndarray | None, ...]:
     """Each light's own frame of the capture's swatch area, corrected with the capture's profile and
     divided by its exposure factor (on the all-lights frame's scale, as the twin lit by that light
     alone renders it), as 8-bit sRGB; None where a frame is unreadable; empty for older captures."""
-    from hairdigi.inference.calibration import apply_profile
-    from hairdigi.inference.preprocess import to_linear
-
     x, y, w, h = loaded.roi
     exposures = tuple(loaded.light_exposures)
     out = []
@@ -63,8 +63,6 @@ def light_swatches(loaded: rs.LoadedCapture) -> tuple[np.ndarray | None, ...]:
 
 def read_hair_model(model: Path, strands: int) -> HairModel:
     """Read, check and fit a ``.hair`` model; a bad file raises its one-line error (HairFileError)."""
-    from hairdigi.render.hairfile import hair_model_strands, model_summary
-
     if not model.is_file():
         raise FileNotFoundError(f"{model}: no such .hair file; choose another")
     hair_model_strands(model, strands)        # read once here: the render and the 3-D view reuse it

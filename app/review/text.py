@@ -5,6 +5,8 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
+import colour
+
 from hairdigi.app.review.payloads import Shown
 from hairdigi.app.review.previews import Stage
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, AppearanceEstimate
@@ -123,8 +125,6 @@ UNDER_NAMES = {"D65": "daylight", "A": "tungsten", "shop-led": "shop LED"}
 def spectral_lines(rec: EstimateRecord) -> list[str]:
     """A record's spectral world, for the window: the colour under each light (read in the declared
     camera's RGB) and how far it moves from daylight, or the metamerism an undeclared camera leaves."""
-    import colour
-
     stated = rec.uncertainty.spectral
     lines = []
     if rec.spectral is not None:

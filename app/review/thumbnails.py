@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from hairdigi.app.models.work import Work
@@ -12,8 +13,6 @@ from hairdigi.render.domain.session_folder import SessionFolder
 
 def read_thumbnail(folder: Path, entry: Entry, size=(64, 48)) -> np.ndarray | None:
     """A small RGB picture of a capture, or None when its image is missing."""
-    import cv2
-
     path = SessionFolder(folder).image(entry.record.capture or "")
     img = cv2.imread(str(path)) if path.is_file() else None
     return None if img is None else cv2.resize(img[..., ::-1], size)

@@ -25,6 +25,7 @@ def rig_spectra(sim: bool, spectral: bool, led: str | None, sensor: str | None) 
         return {"illuminant": led or SIM_LED, "sensitivities": None if sensor == "cie" else sensor}, None
     if led is None:
         return {}, None
+    # deferred: spectral_reading loads its tables (~0.15 s); the CLI's argument checks import this module
     from hairdigi.inference.spectral_reading import RigSpectra
 
     return {}, RigSpectra(led, None if sensor == "cie" else sensor)
@@ -35,6 +36,7 @@ def spectra_problem(led: str | None, sensor: str | None) -> str | None:
     a readable CSV; the LEDs white, the camera's three channels visible and distinct), in one line, or None."""
     if (led is None) != (sensor is None):
         return PAIR_PROBLEM
+    # deferred: spectral_reading loads its tables (~0.15 s); the CLI's argument checks import this module
     from hairdigi.render import spectra
 
     for flag, value, read in (("led", led, spectra.white_light_problem),

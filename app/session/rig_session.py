@@ -10,23 +10,38 @@ one contract on the folder's layout; kept in one module, a change to either is m
 from __future__ import annotations
 
 import os
+import shutil
+import sys
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
+import cv2
 import numpy as np
 
-from hairdigi.hardware.cameras import MAX_RAW_BYTES, RAW_EXTENSIONS, read_raw
+from hairdigi.hardware.cameras import MAX_RAW_BYTES, RAW_EXTENSIONS, CameraError, OpenCVCamera, read_raw
 from hairdigi.hardware.capture import save_capture
 from hairdigi.app.session.blockers import Blocker, BlockerKind, messages
 from hairdigi.hardware.exposure import ExposureReport, ExposureStatus, check_exposure, dead_lights
 from hairdigi.hardware.frame_source import FrameSource
-from hairdigi.hardware.lights import N_LIGHTS, LightController, LightError
+from hairdigi.hardware.genicam import FAKE_ID, GenICamCamera
+from hairdigi.hardware.lights import N_LIGHTS, LightController, LightError, discover
+from hairdigi.hardware.sim_genicam import open_lab_camera
+from hairdigi.hardware.sim_lights import SimulatedLightBoard
 from hairdigi.inference.instrument_reading import with_instrument
-from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibrate, correction_warnings,
-                                            detect_chart, light_colour_warnings, load_profile, profile_warnings,
-                                            save_profile, staleness)
+from hairdigi.inference.calibration import (DEFAULT_METHOD, CalibrationError, apply_profile, calibrate,
+                                            correction_warnings, detect_chart, light_colour_warnings, load_profile,
+                                            profile_warnings, save_profile, staleness)
+from hairdigi.inference.preprocess import find_swatch_core, to_linear
+from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE
+from hairdigi.render.camera_model import CameraModel
+from hairdigi.inference.refine import RefineSettings, fitted_pixels, mean_linear, response_curve, scene_for
+from hairdigi.inference.shine import shine_tables
+from hairdigi.inference.structure import READ_MEMBERS, family_curves, family_view
+from hairdigi.inference.spectral_reading import RigSpectra, spectral_record
+from hairdigi.inference.estimate import calibration_summary, estimate_image, read_rig_structure, record
+from hairdigi.inference.encoder import Encoder, ModelError
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
 from hairdigi.render.domain.files import write_json_atomic
 from hairdigi.render.domain.params import HairParams
@@ -37,6 +52,7 @@ from hairdigi.render.domain.records import (CalibrationProfile, CaptureRecord, E
 from hairdigi.render.domain.session_folder import SessionFolder, capture_id_of
 from hairdigi.render.domain.text_enum import TextEnum
 from hairdigi.render.domain.rig_geometry import RIG_HALF_WIDTH, CameraPose, RigRegion
+from hairdigi.render.srgb import linear_to_srgb8
 
 #: How much longer a single-light frame is exposed, where the camera can (``RigSession.light_frames``).
 LIGHT_FRAME_EV = 1.5
@@ -80,8 +96,6 @@ class LoadedCapture:
 
     def corrected_swatch_linear(self) -> np.ndarray:
         """The swatch area, colour-corrected with the capture's own profile, in linear light."""
-        from hairdigi.inference.preprocess import to_linear
-
         x, y, w, h = self.roi
         source = self.linear if self.linear is not None else self.frame
         real = source[y:y + h, x:x + w]
@@ -89,8 +103,6 @@ class LoadedCapture:
 
     def corrected_swatch(self) -> np.ndarray:
         """The swatch area, colour-corrected with the capture's own profile, as 8-bit sRGB for display."""
-        from hairdigi.render.srgb import linear_to_srgb8
-
         return linear_to_srgb8(self.corrected_swatch_linear())
 
 
@@ -149,11 +161,8 @@ class RigSession:
         a camera's ``sensitivities`` (or the CIE observer); ``hidden`` may then be an absorption spectrum.
         ``swatch_model``: the hidden swatch's physical structure (``render.swatch_family``; None: layered);
         ``structure``: how the session's estimates treat it."""
-        from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE
-        from hairdigi.hardware.sim_lights import SimulatedLightBoard
+        # deferred: sim_rig loads Mitsuba (the simulated rig renders); a real rig never does
         from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SimRig
-        from hairdigi.render.camera_model import CameraModel
-
         board = SimulatedLightBoard()
         lights = LightController(board.port)
         rig = SimRig(DEFAULT_HIDDEN if hidden is None else hidden, camera_model or CameraModel(), spp=spp,
@@ -162,16 +171,12 @@ class RigSession:
                      illuminant=illuminant, sensitivities=sensitivities, swatch_model=swatch_model)
         camera = rig
         if genicam is not None:    # the same rig seen through Aravis's fake camera, as a 12-bit lab camera
-            from hairdigi.hardware.sim_genicam import open_lab_camera
-
             response = np.asarray(rig.camera.cast, np.float32) * np.float32(2.0 ** rig.camera.exposure_ev)
             camera = open_lab_camera(rig.radiance, response=response, size=rig.size, device_id=genicam)[0]
             camera.hidden, camera.appearance = rig.hidden, rig.appearance   # the truth, as SimRig tells it
             camera.swatch_model = rig.swatch_model                            # and the strands it lies on
         spectra = None
         if illuminant is not None:
-            from hairdigi.inference.spectral_reading import RigSpectra
-
             spectra = RigSpectra(illuminant, sensitivities)
         session = cls(camera, lights, folder, rig.roi, encoder, simulated=True, spectra=spectra, structure=structure)
         session._board = board
@@ -202,7 +207,6 @@ class RigSession:
     @property
     def encoder(self):
         if self._encoder is None:
-            from hairdigi.inference.encoder import Encoder
             self._encoder = Encoder()
         return self._encoder
 
@@ -238,10 +242,6 @@ class RigSession:
         """Render (or load) what an estimate of the rig's swatch area needs in the session's structure mode:
         the refinement's response curve and the shine's per-light tables; in the family and read modes every
         read member's tables, and in the family mode the family's curves. Returns their seconds (0 when cached)."""
-        from hairdigi.inference.refine import RefineSettings, response_curve
-        from hairdigi.inference.shine import shine_tables
-        from hairdigi.inference.structure import READ_MEMBERS, family_curves, family_view
-
         region = self.region(self.frame().srgb)
         curve = response_curve(region, RefineSettings())
         start = time.perf_counter()
@@ -284,16 +284,12 @@ class RigSession:
     def _roi(self, image: np.ndarray) -> tuple[int, int, int, int]:
         if self.swatch_roi is not None:
             return tuple(self.swatch_roi)
-        from hairdigi.inference.preprocess import find_swatch_core
         r = find_swatch_core(image)[0]
         return r.x, r.y, r.w, r.h
 
     # -- calibration -------------------------------------------------------------------------
     def calibrate(self, method: str | None = None, frames: int = 4) -> CalibrationProfile:
         """Fit a CCM on the mean of a few frames, averaged in linear light (less noise), and save the profile."""
-        from hairdigi.inference.calibration import DEFAULT_METHOD
-        from hairdigi.render.srgb import linear_to_srgb8
-
         linear = np.mean([frame_linear(self.frame()) for _ in range(frames)], axis=0)
         self.profile = calibrate(linear_to_srgb8(linear), method or DEFAULT_METHOD, settings=self.settings(),
                                  linear=linear)
@@ -376,8 +372,6 @@ class RigSession:
         the response curve its refinement inverted (default: the rig's swatch crop's)."""
         if self.simulated and self.spectra is None:
             return record
-        from hairdigi.inference.spectral_reading import spectral_record
-
         profile = profile or self.profile
         return spectral_record(record, self.spectra, profile, curve)
 
@@ -385,8 +379,6 @@ class RigSession:
         """A saved capture with what reviewing it needs: the frame, its swatch area, its result record,
         and the calibration profile it was taken with (not the session's current one). A result or
         capture record that cannot be read is named in ``problems``, and the frame is still shown."""
-        import cv2
-
         session = SessionFolder(self.folder)
         read = read_session_capture(session, capture_id)
         record, capture, profile, problems = read.result, read.capture, read.profile, list(read.problems)
@@ -430,9 +422,6 @@ class RigSession:
         2.9-4.1.)"""
         if self.lights is None or self.profile is None:
             return None
-        from hairdigi.hardware.cameras import CameraError
-        from hairdigi.inference.estimate import read_rig_structure
-
         try:
             singles, factors = self.light_frames()
             frame = self.frame()
@@ -447,8 +436,6 @@ class RigSession:
 
     def encoder_or_reason(self):
         """The encoder, or the one-line reason it cannot be loaded (a missing or broken model file)."""
-        from hairdigi.inference.encoder import ModelError
-
         try:
             return self.encoder
         except ModelError as exc:
@@ -484,10 +471,6 @@ def _estimate(result: CaptureResult, image: np.ndarray, linear: np.ndarray | Non
     frame's chart detection, checks that one profile holds for each light. ``clipped``: a RAW still's
     saturated photosites (``Frame.clipped``), on which clipping is judged; ``structure``, how the estimate
     treats the swatch's physical structure; ``borrowed``, a reading of it from other frames (``import_still``)."""
-    from hairdigi.inference.estimate import calibration_summary, estimate_image, record
-    from hairdigi.inference.preprocess import to_linear
-    from hairdigi.inference.refine import fitted_pixels, mean_linear
-
     encoder = encoder_or_reason() if callable(encoder_or_reason) else encoder_or_reason
     if isinstance(encoder, str):
         result.blocked.append(Blocker(BlockerKind.NO_MODEL, encoder))
@@ -537,8 +520,6 @@ MIN_STILL_SIDE = 64
 def check_still_size(path: Path, captures: Path) -> None:
     """A still's size, before it is copied: no more than a RAW file's (``MAX_STILL_BYTES``), and room for it on the
     session's disk; StillError naming the size and the fix otherwise."""
-    import shutil
-
     size = path.stat().st_size
     if size > MAX_STILL_BYTES:
         raise StillError(f"{path}: {size / 1e6:.0f} MB is more than any RAW still of the rig (at most "
@@ -553,8 +534,6 @@ def check_still_size(path: Path, captures: Path) -> None:
 def read_still_or_remove(original: Path, image_path: Path, meta_path: Path, made: list[Path]):
     """The copied still, decoded (``read_raw``); one that cannot be read (not RAW, truncated, too small to hold the
     chart) is removed with its record and the folders made for it, and StillError names it: nothing is left."""
-    from hairdigi.hardware.cameras import CameraError
-
     try:
         with _native_stderr_silenced():   # LibRaw writes its own complaint to the process's stderr
             still = read_raw(image_path)
@@ -577,8 +556,6 @@ class _native_stderr_silenced:
     """File descriptor 2 pointed at /dev/null while native code runs (Python's own ``sys.stderr`` is untouched)."""
 
     def __enter__(self):
-        import sys
-
         sys.stderr.flush()
         self._saved = os.dup(2)
         null = os.open(os.devnull, os.O_WRONLY)
@@ -624,8 +601,6 @@ def import_still(folder: str | Path, path: str | Path, encoder_or_reason,
         result.blocked.append(Blocker(BlockerKind.STILL_UNCALIBRATED, f"the still cannot calibrate itself: {exc}"))
     roi = None
     if profile is not None:
-        from hairdigi.inference.preprocess import find_swatch_core
-
         found = find_swatch_core(still.srgb)[0]   # the swatch's core: its box holds holder and sparse edges
         roi = (found.x, found.y, found.w, found.h)
         swatch = check_exposure(still.srgb, roi, clipped_mask=still.clipped)[0]   # on the sensor's counts
@@ -655,8 +630,6 @@ def genicam_id(camera) -> str | None:
 
 def frame_linear(frame) -> np.ndarray:
     """A frame's linear RGB: the camera's own where it has one (raw Bayer), else its 8-bit sRGB decoded."""
-    from hairdigi.inference.preprocess import to_linear
-
     return frame.linear if frame.linear is not None else to_linear(frame.srgb)
 
 
@@ -676,18 +649,11 @@ def open_rig(folder: str | Path, sim: bool = False, camera: str | int = "0", por
     """
     genicam = genicam_id(camera)
     if sim and genicam is not None:
-        from hairdigi.hardware.genicam import FAKE_ID
-
         return RigSession.simulated_rig(folder, genicam=genicam or FAKE_ID, structure=structure, **simulated), None
     if not sim:
-        from hairdigi.hardware.cameras import CameraError, OpenCVCamera
-        from hairdigi.hardware.lights import discover
-
         opened = None
         try:
             if genicam is not None:
-                from hairdigi.hardware.genicam import GenICamCamera
-
                 opened = GenICamCamera(genicam or None)
             else:
                 opened = OpenCVCamera(int(camera) if str(camera).isdigit() else camera)
@@ -723,8 +689,6 @@ def load_results(folder: str | os.PathLike) -> list[tuple[str, EstimateRecord | 
 def twin_spec(roi: tuple[int, int, int, int], frame_size: tuple[int, int], scale: float = 1.0):
     """The twin: the bench camera over exactly the swatch area ``roi`` of a rig-view frame (the
     region the refinement fits), with about ``scale``² of its pixels; returns (scene, film size)."""
-    from hairdigi.inference.refine import RefineSettings, scene_for
-
     region = rig_region(frame_size, roi)
     side = max(8, int(round(np.sqrt(roi[2] * roi[3]) * scale)))
     return scene_for(region, RefineSettings(size=side))

@@ -18,6 +18,8 @@ worker dies is run again, up to ``MAX_RETRIES`` times; an exception raised by th
 """
 from __future__ import annotations
 
+import socket
+import logging
 from typing import Callable
 
 from hairdigi.render.domain.errors import HairdigiError
@@ -34,7 +36,7 @@ class ClusterError(HairdigiError, RuntimeError):
 def require_ray():
     """The ``ray`` module, or ClusterError saying how to install it."""
     try:
-        import ray
+        import ray   # deferred: ray is the optional [cluster] extra
     except ImportError:
         raise ClusterError(f"the ray backend needs Ray (ray>=2.9), which is not installed; install it with "
                            f"{INSTALL_HINT}") from None
@@ -48,8 +50,6 @@ CONNECT_TIMEOUT_S = 3.0
 def check_address(address: str | None, timeout: float = CONNECT_TIMEOUT_S) -> None:
     """Refuse a ``HOST:PORT`` or ``ray://HOST:PORT`` address whose port does not accept a connection
     within ``timeout`` (Ray itself would wait for minutes); ``auto`` and None are left to Ray."""
-    import socket
-
     if not address or address in ("auto", "local"):
         return
     rest = address.split("://", 1)[-1]
@@ -68,8 +68,6 @@ def check_address(address: str | None, timeout: float = CONNECT_TIMEOUT_S) -> No
 def _start(ray, address: str | None, num_cpus: int | None) -> bool:
     """Connect to the cluster at ``address``, or start a local instance; True when this run started
     (and so must stop) it. A Ray already initialised in this process is used as it is."""
-    import logging
-
     if ray.is_initialized():
         return False
     try:

@@ -12,23 +12,24 @@ import os
 import time
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
 from hairdigi.inference.training.dataset import DatasetConfig, load, sample_spec, scene_of
 from hairdigi.inference.training.evaluate import JUDGE, Judge, capture, judge_file, judge_render
 from hairdigi.inference.refine import RefineSettings, mean_linear, refine
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.domain.params import HairParams
+from hairdigi.render.io.figures import save_figure, save_table
 
 
 def convergence_sweep(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLike,
                       spps=(4, 16, 64, 256), count: int = 20, settings: RefineSettings = RefineSettings(),
                       judge: Judge = JUDGE, progress: bool = True) -> list[dict]:
     """One row per input spp: median, p95 and worst mean-colour ΔE2000 of the encoder and the refinement."""
-    from tqdm import tqdm
-
+    # deferred: loads OpenCV and Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.inference.preprocess import Roi
-    from hairdigi.render.io.figures import save_table
     from hairdigi.render.renderer import default_renderer
 
     images, vectors, _, manifest = load(data_root)
@@ -60,9 +61,6 @@ def convergence_sweep(encoder, data_root: str | os.PathLike, out_dir: str | os.P
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    from hairdigi.render.io.figures import save_figure  # noqa: I001  (selects the headless backend first)
-    import matplotlib.pyplot as plt
-
     fig, ax = plt.subplots(figsize=(6, 4))
     spp = [r["spp"] for r in rows]
     for who, style in (("encoder", "o-"), ("refined", "s-")):

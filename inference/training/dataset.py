@@ -14,20 +14,26 @@ averaging, and so darker than the scene at low spp) is still read.
 """
 from __future__ import annotations
 
+import ctypes
 import json
 import multiprocessing as mp
 import os
+import signal
+import sys
 import time
+import zipfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
+from hairdigi.inference.training.cluster import check_address, render_shards, require_ray
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, Appearance, sample_appearance
 from hairdigi.render.domain.bounds import SwatchModel
 from hairdigi.render.domain.appearance import FIELDS as APPEARANCE_FIELDS
 from hairdigi.render.domain.errors import HairdigiError
-from hairdigi.render.domain.files import atomic_path
+from hairdigi.render.domain.files import atomic_path, read_json, write_json_atomic
+from hairdigi.render.domain.interrupt import sigint_held
 
 from hairdigi.render.domain.params import HairParams, sample_params
 from hairdigi.render.domain.rig_geometry import (CAMERA_DISTANCE, FRAMING_HALF_WIDTH, CameraPose, Framing,
@@ -144,8 +150,6 @@ def _die_with_parent() -> None:
     """Pool initializer: on Linux, end this worker when the parent dies, even by SIGKILL, so no
     orphan keeps rendering for a stopped run."""
     try:
-        import ctypes
-        import signal
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
     except (OSError, AttributeError):
         pass
@@ -172,6 +176,7 @@ _RENDERERS: dict = {}
 def _renderer():
     """This process's renderer for the current Mitsuba variant; its loaded scene is reused by every
     sample of a shard and by the next shard."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import Renderer, default_renderer
     from hairdigi.render.variant import mi
 
@@ -185,6 +190,7 @@ def _renderer():
 
 def scene_of(config: DatasetConfig, index: int):
     """Sample ``index``'s scene (camera, strand layout, framing): the one way from a sample to a scene."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import SceneSpec
 
     s = sample_spec(config, index)
@@ -202,11 +208,12 @@ def render_shard(config: DatasetConfig, shard: int, variant: str | None = None,
     sets Mitsuba's variant first (None: the one set); ``threads`` > 0 sets drjit's thread count.
     """
     if threads:
+        # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
         import drjit as dr
 
-        from hairdigi.render.domain.interrupt import sigint_held
         with sigint_held():   # new pool threads never take Ctrl-C (render.domain.interrupt)
             dr.set_thread_count(threads)
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.variant import select_variant
 
     if variant is not None:
@@ -243,8 +250,6 @@ class DatasetError(HairdigiError, ValueError):
 def read_shard(path: Path, expected: range | None = None) -> dict[str, np.ndarray]:
     """A shard's arrays (``SHARD_FIELDS``); a truncated, garbage or mismatched file raises DatasetError
     naming it. ``expected``: the sample indices it must hold."""
-    import zipfile
-
     fix = "delete it and run hairdigi dataset again with the same settings to render it again"
     try:
         with np.load(path, allow_pickle=False) as npz:
@@ -266,8 +271,6 @@ def read_shard(path: Path, expected: range | None = None) -> dict[str, np.ndarra
 
 def _damaged_shards(root: Path, config: DatasetConfig) -> list[int]:
     """Shards on disk that cannot be read back (truncated, garbage, other samples): rendered again."""
-    import sys
-
     damaged = []
     for s in range(config.n_shards):
         path = shard_path(root, s)
@@ -302,7 +305,7 @@ def _check_manifest(root: Path, config: DatasetConfig, variant: str | None = Non
             raise DatasetError(f"{root} holds a dataset made with other settings {diff} (stored, asked); "
                                f"use another --out or the same settings to resume")
     else:
-        from hairdigi.render.domain.files import write_json_atomic
+        # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
         from hairdigi.render.variant import mi
         write_json_atomic(path, {"config": asdict(config), "format": "shard-NNNNN.npz: images (N,S,S,3) "
                                  "linear float16 radiance (store linear16) or uint8 sRGB (srgb8); params (N,6) normalised Table 1 vector; cameras (N,3) "
@@ -323,7 +326,6 @@ def _check_variant(root: Path, variant: str, has_shards: bool) -> None:
     if has_shards:
         raise DatasetError(f"{root} was rendered with Mitsuba variant {stored}, not {variant}; resume it with "
                            f"--variant {stored}, or use another --out")
-    from hairdigi.render.domain.files import write_json_atomic
     write_json_atomic(root / MANIFEST, {**manifest, "mitsuba_variant": variant})
 
 
@@ -331,6 +333,7 @@ def _resolve_variant(variant: str | None, set_here: bool) -> str:
     """The variant to render with, by name: None is this process's, ``auto`` is resolved here. A
     named variant is also set here when this process renders (``set_here``); for Ray it is checked
     where the tasks run, since the driver may have no GPU."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.variant import select_variant
 
     if variant is None or variant == "auto" or set_here:
@@ -356,12 +359,11 @@ def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, p
     ``variant``: Mitsuba's variant for every shard (None: this process's; ``auto``: resolved here);
     the manifest records it, and adding shards with another one is refused.
     """
-    from tqdm import tqdm
+    from tqdm import tqdm   # deferred: tqdm only for a local run's progress bar
 
     if backend not in BACKENDS:
         raise ValueError(f"unknown dataset backend {backend!r}; choose one of {', '.join(BACKENDS)}")
     if backend == "ray":
-        from hairdigi.inference.training.cluster import check_address, require_ray
         require_ray()   # before anything is written: without Ray, one line saying how to install it
         check_address(address)   # an unreachable cluster fails now, in seconds, leaving no manifest
     variant = _resolve_variant(variant, set_here=backend == "local")
@@ -384,15 +386,11 @@ def generate(config: DatasetConfig, root: str | os.PathLike, workers: int = 1, p
                 _, count, _ = _render_shard(job)
                 bar.update(count)
         elif todo:
-            import signal
-
             # SIGTERM (kill, a session ending) unwinds through the pool's exit, which ends the workers
             # (for Ray: cancels the tasks, and stops the instance this run started)
             previous = signal.signal(signal.SIGTERM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt()))
             try:
                 if backend == "ray":
-                    from hairdigi.inference.training.cluster import render_shards
-
                     def arrived(shard: int, arrays: dict) -> None:
                         write_shard(root, shard, arrays)
                         bar.update(len(arrays["indices"]))
@@ -419,8 +417,6 @@ def load(root: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, d
     root = Path(root)
     if not (root / MANIFEST).exists():
         raise FileNotFoundError(f"{root} is not a hairdigi dataset (no {MANIFEST}); make one with hairdigi dataset")
-    from hairdigi.render.domain.files import read_json
-
     manifest = read_json(root / MANIFEST, DatasetError, "no manifest", "not a hairdigi dataset manifest ({exc})")
     if not isinstance(manifest, dict) or not isinstance(manifest.get("config"), dict):
         raise DatasetError(f"{root / MANIFEST}: not a hairdigi dataset manifest (no \"config\" object)")

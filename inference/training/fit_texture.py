@@ -22,17 +22,27 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing as mp
 import sys
 import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.domain.appearance import APPEARANCE_DRAW
+from hairdigi.inference import texture
+from hairdigi.render.domain.absorption import hair_sigma_a
+from hairdigi.render.domain import rig_geometry
+from hairdigi.inference.training.dataset import _die_with_parent
+from hairdigi.render.domain.appearance import APPEARANCE_DRAW, Appearance
 from hairdigi.render.domain.files import atomic_path, cache_dir
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.swatch_family import FAMILY
+from hairdigi.resources import MODELS
 
 #: Bumped when what a cached sample holds or how it is rendered changes.
-DATA_VERSION = 4   # 2: a quarter of the swatch area per sample; 4: the layered swatch, 8000 fibres
+DATA_VERSION = 5   # 2: a quarter of the swatch area per sample; 4: the layered swatch, 8000 fibres; 5: each
+#                    sample on a family structure of its own (render.swatch_family.FAMILY)
 SEED = 1818
 SIZE = (400, 300)
 SPP = 32
@@ -50,9 +60,6 @@ def data_dir() -> Path:
 
 def draw_sample(index: int, seed: int = SEED) -> dict:
     """The hidden truth of sample ``index``: sigma_a, shine, spread, grey share, strand and camera seeds."""
-    from hairdigi.render.domain.absorption import hair_sigma_a
-    from hairdigi.render.domain.params import HairParams
-
     rng = np.random.default_rng([seed, index])
     kind = rng.uniform()
     if kind < BLACK_SHARE:
@@ -71,7 +78,8 @@ def draw_sample(index: int, seed: int = SEED) -> dict:
             "shine": float(rng.uniform(*SHINE_DRAW)), "fibre_spread": float(rng.uniform(*SPREAD_DRAW)),
             "grey_fraction": float(rng.uniform(*GREY_DRAW)),
             "strand_seed": int(rng.integers(1000, 2**31 - 1)), "render_seed": int(rng.integers(0, 2**20)),
-            "camera_seed": int(rng.integers(0, 2**31 - 1)), "quadrant": int(rng.integers(0, 4))}
+            "camera_seed": int(rng.integers(0, 2**31 - 1)), "quadrant": int(rng.integers(0, 4)),
+            "structure": str(rng.choice(FAMILY))}
 
 
 def quadrant_roi(quadrant: int, roi: tuple[int, int, int, int] | None = None) -> tuple[int, int, int, int]:
@@ -80,8 +88,6 @@ def quadrant_roi(quadrant: int, roi: tuple[int, int, int, int] | None = None) ->
     A sample renders a quarter of the area, not all of it: four times the samples for the same
     render time. Its statistics are the whole area's with more sampling noise, so the intervals
     calibrated on quarters are, if anything, wide for a whole area."""
-    from hairdigi.render.domain import rig_geometry
-
     x, y, w, h = roi or rig_geometry.swatch_roi(SIZE)
     hw, hh = w // 2, h // 2
     return (x + (quadrant % 2) * hw, y + (quadrant // 2) * hh, hw, hh)
@@ -89,11 +95,10 @@ def quadrant_roi(quadrant: int, roi: tuple[int, int, int, int] | None = None) ->
 
 def render_swatch_lights(sigma_a, shine: float, spread: float, grey: float, strand_seed: int,
                          render_seed: int = 17, renderer=None, roi: tuple[int, int, int, int] | None = None,
-                         spp: int = SPP) -> np.ndarray:
+                         spp: int = SPP, structure: str | None = None) -> np.ndarray:
     """(3, h, w, 3) linear renders of the bench frame's swatch area (``roi``, default the whole
     ``swatch_roi``) lit by each light alone, glints spread, as ``hardware.sim_rig`` renders them."""
-    from hairdigi.render.domain import rig_geometry
-    from hairdigi.render.domain.appearance import Appearance
+    # deferred: loads colour-science and Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.camera_model import spread_glints
     from hairdigi.render.chart import colorchecker_reflectances
     from hairdigi.render.renderer import Renderer, SceneSpec
@@ -107,7 +112,8 @@ def render_swatch_lights(sigma_a, shine: float, spread: float, grey: float, stra
         lights = tuple(1.0 if j == i else 0.0 for j in range(rig_geometry.N_LIGHTS))
         spec = SceneSpec("swatch", framing="rig", chart=chart, target=rig_geometry.RIG_TARGET,
                          camera=rig_geometry.CameraPose(), half_width=rig_geometry.RIG_HALF_WIDTH,
-                         lights=lights, strand_seed=int(strand_seed), crop=tuple(roi), appearance=look)
+                         lights=lights, strand_seed=int(strand_seed), crop=tuple(roi), appearance=look,
+                         swatch_model=structure)
         linear = renderer.render(np.asarray(sigma_a, float), spec, SIZE, spp, seed=int(render_seed) + i).linear
         images.append(spread_glints(linear))
     return np.stack(images).astype(np.float32)
@@ -118,6 +124,7 @@ def capture(lights: np.ndarray, camera_seed: int, exposure_ev: float = 0.0) -> n
     (``exposure_ev`` off it), the camera model (small calibrated errors, noise, 12-bit ADC, 8-bit
     sRGB), decoded to linear and corrected back to radiance at the nominal exposure (linear float32,
     (h, w, 3))."""
+    # deferred: loads colour-science (~1 s) and OpenCV; only this step needs them
     from hairdigi.render.camera_model import NOMINAL_EXPOSURE
     from hairdigi.inference.preprocess import to_linear
     from hairdigi.render.camera_model import random_camera, sensor_response
@@ -138,6 +145,7 @@ _RENDERER: list = []
 
 def render_sample(index: int, seed: int = SEED, variant: str | None = None) -> str:
     """Render sample ``index`` into the cache (atomically) and return a line saying what it was."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import Renderer
     from hairdigi.render.variant import select_variant
 
@@ -150,23 +158,18 @@ def render_sample(index: int, seed: int = SEED, variant: str | None = None) -> s
     start = time.perf_counter()
     lights = render_swatch_lights(truth["sigma_a"], truth["shine"], truth["fibre_spread"],
                                   truth["grey_fraction"], truth["strand_seed"], truth["render_seed"], _RENDERER[0],
-                                  roi=quadrant_roi(truth["quadrant"]))
+                                  roi=quadrant_roi(truth["quadrant"]), structure=truth.get("structure"))
     seconds = time.perf_counter() - start
     truth["render_seconds"] = seconds
     with atomic_path(sample_path(index), ".npz") as tmp:
         np.savez_compressed(tmp, lights=lights.astype(np.float16), truth=json.dumps(truth))
-    return (f"sample {index}: {truth['family']} spread {truth['fibre_spread']:.2f} grey {truth['grey_fraction']:.2f} "
+    return (f"sample {index}: {truth['family']} on {truth.get('structure', 'layered')} spread {truth['fibre_spread']:.2f} grey {truth['grey_fraction']:.2f} "
             f"shine {truth['shine']:.2f} in {seconds:.1f} s")
 
 
 def render_dataset(n: int, seed: int = SEED, log=print, workers: int = 1, variant: str | None = None) -> int:
     """Render samples 0..n-1 that are not cached yet, in ``workers`` processes; returns how many were
     rendered now."""
-    import multiprocessing as mp
-    from functools import partial
-
-    from hairdigi.inference.training.dataset import _die_with_parent
-
     data_dir().mkdir(parents=True, exist_ok=True)
     todo = [index for index in range(n) if not sample_path(index).exists()]
     if workers <= 1:
@@ -230,8 +233,6 @@ def estimate_inputs(truth: dict) -> tuple[np.ndarray, float]:
 
 def sample_inputs(truth: dict, lights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(features, covariates as the estimate would give them, true [spread, grey]) of one sample."""
-    from hairdigi.inference import texture
-
     sigma, shine = estimate_inputs(truth)
     features = texture.texture_features(capture(lights, truth["camera_seed"]))
     return features, texture.covariates(sigma, shine), np.array([truth["fibre_spread"], truth["grey_fraction"]])
@@ -261,8 +262,6 @@ def ridge_fit(x: np.ndarray, y: np.ndarray, alphas=ALPHAS) -> tuple[np.ndarray, 
 def fit_model(features: np.ndarray, cov: np.ndarray, targets: np.ndarray, kinds: dict[str, str] | None = None):
     """A ``TextureModel`` (without intervals) fitted on the given samples; ``kinds`` (the design per
     target) default to the one with the lower 5-fold cross-validated error on these samples."""
-    from hairdigi.inference import texture
-
     kinds = dict(kinds) if kinds else {}
     for k, target in enumerate(texture.TARGETS):
         if target not in kinds:
@@ -278,8 +277,6 @@ def fit_model(features: np.ndarray, cov: np.ndarray, targets: np.ndarray, kinds:
 
 def _oof(features, cov, targets, kinds: dict[str, str] | None = None, folds: int = 5, seed: int = 0) -> np.ndarray:
     """Out-of-fold predictions (n, 2) by ``folds``-fold cross-fitting (designs chosen per fold unless given)."""
-    from hairdigi.inference import texture
-
     order = np.random.default_rng(seed).permutation(len(targets))
     pred = np.zeros_like(targets)
     for f in range(folds):
@@ -302,9 +299,6 @@ def fit(samples: list, out_dir: Path | None = None, plot: bool = True) -> dict:
     """Fit on ~80% of ``samples``, calibrate the intervals on out-of-sample errors (the held-out ~20%
     and the training renders' out-of-fold errors), write the model and
     the evidence to ``out_dir`` (default: the package's ``resources/models``); returns the evaluation."""
-    from hairdigi.inference import texture
-    from hairdigi.resources import MODELS
-
     out_dir = Path(out_dir) if out_dir is not None else MODELS
     start = time.perf_counter()
     rows = [sample_inputs(truth, lights) for truth, lights in samples]
@@ -380,8 +374,6 @@ def _errors(err: np.ndarray, inside68: np.ndarray, inside95: np.ndarray) -> dict
 
 def evaluate(model, features, cov, targets, light, truths, train, hold) -> dict:
     """Held-out errors, overall and by lightness, and the points for the plot."""
-    from hairdigi.inference import texture
-
     out = {"targets": list(texture.TARGETS), "n_train": int(len(train)), "n_held_out": int(len(hold)),
            "lightness_bins": {k: [float(v) for v in b] for k, b in texture.LIGHTNESS_BINS.items()},
            "note": ("held-out: renders the model was not fitted on; the intervals' k was calibrated on their "
@@ -414,8 +406,6 @@ def evaluate(model, features, cov, targets, light, truths, train, hold) -> dict:
 
 def learning_curve(features, cov, targets, train, hold, kinds: dict[str, str], sizes=(0.25, 0.5, 1.0)) -> list[dict]:
     """Held-out MAE of models fitted on growing shares of the training samples."""
-    from hairdigi.inference import texture
-
     out = []
     for share in sizes:
         m = max(10, int(round(share * len(train))))
@@ -432,9 +422,9 @@ def learning_curve(features, cov, targets, train, hold, kinds: dict[str, str], s
 
 def plot_evaluation(evaluation: dict, path: Path) -> None:
     """Predicted against true (held-out, p95 bars, coloured by lightness) and the learning curve."""
-    import matplotlib
+    import matplotlib   # deferred: matplotlib only for the plot
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt   # deferred: matplotlib only for the plot
 
     pts = evaluation["points"]
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))

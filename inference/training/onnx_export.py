@@ -11,7 +11,7 @@ from hairdigi.render.domain.files import atomic_path
 
 def export_onnx(model, path: str | os.PathLike, input_size: int) -> Path:
     """Export with a dynamic batch axis; outputs ``params`` (sigmoid) and ``logits``. Written atomically."""
-    import torch
+    import torch   # deferred: torch and onnx are the optional [train] extra
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -27,6 +27,7 @@ def export_onnx(model, path: str | os.PathLike, input_size: int) -> Path:
 
 def parity(model, onnx_path: str | os.PathLike, input_size: int, n: int = 8, seed: int = 0) -> float:
     """Largest absolute difference between PyTorch and onnxruntime outputs on random inputs."""
+    # deferred: onnxruntime takes ~0.3 s; it loads with the first model; torch and onnx are the optional [train] extra
     import onnxruntime as ort
     import torch
 

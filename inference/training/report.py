@@ -6,11 +6,13 @@ import os
 import time
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 
 from hairdigi.inference.training.evaluate import evaluate
-from hairdigi.render.domain.files import write_json_atomic, write_text_atomic
+from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic, write_text_atomic
 from hairdigi.render.domain.version import version
+from hairdigi.render.io.figures import save_figure
 
 
 def bench_encoders(onnx_paths: list[str | os.PathLike], out_dir: str | os.PathLike, n: int = 300,
@@ -18,8 +20,7 @@ def bench_encoders(onnx_paths: list[str | os.PathLike], out_dir: str | os.PathLi
                    progress: bool = True) -> list[dict]:
     """Latency (ONNX, 1 thread, median) against the encoder-alone error of several encoders on one
     clean held-out set. Writes ``encoder_bench.csv`` and ``encoder_bench.png``."""
-    from hairdigi.inference.encoder import Encoder
-    from hairdigi.render.domain.files import write_csv_atomic
+    from hairdigi.inference.encoder import Encoder   # deferred: loads OpenCV (~0.3 s); only this step needs it
 
     out = Path(out_dir)
     data_root = Path(data_root) if data_root else out / "heldout"   # one held-out set for every variant
@@ -43,22 +44,20 @@ def bench_encoders(onnx_paths: list[str | os.PathLike], out_dir: str | os.PathLi
 
 
 def _parameter_count(path) -> int:
-    import onnx
+    import onnx   # deferred: torch and onnx are the optional [train] extra
     model = onnx.load(str(path))
     return int(sum(np.prod(t.dims) for t in model.graph.initializer))
 
 
 def _latency_views(encoder, repeats: int = 100) -> float:
     """Median milliseconds for the 8-view estimate the app uses (batch of 8)."""
+    # deferred: loads OpenCV (~0.3 s); only this step needs it
     from hairdigi.inference.encoder import median_latency_ms
 
     return median_latency_ms(encoder, np.zeros((8, 3, encoder.input_size, encoder.input_size), np.float32), repeats)
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    from hairdigi.render.io.figures import save_figure  # noqa: I001  (selects the headless backend first)
-    import matplotlib.pyplot as plt
-
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
     for ax, key, floor, name in ((axes[0], "l1", "l1_floor", "L1 (0–255) vs the input"),
                                  (axes[1], "mean_colour_de2000_median", "mean_colour_de2000_floor_median",
@@ -108,7 +107,7 @@ def model_card(onnx_path: str | os.PathLike, run_dir: str | os.PathLike, evaluat
 
 def _card_json(onnx_path, history: dict, evaluation: dict, variants, convergence, refine_bench, rig_set) -> dict:
     """The card's JSON twin: the model, how it was trained and on what, and every measurement."""
-    from hairdigi.inference.encoder import sha256_file
+    from hairdigi.inference.encoder import sha256_file   # deferred: loads OpenCV (~0.3 s); only this step needs it
 
     last = history["epochs"][-1]
     return {

@@ -14,13 +14,16 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import cv2
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
 from hairdigi.inference.training.dataset import DatasetError, load, usable
 from hairdigi.inference.preprocess import encode
 from hairdigi.render.camera_model import CameraModel, CaptureErrors, random_camera, sensor_response
 from hairdigi.render.srgb import linear_to_srgb8, srgb8_to_linear
-from hairdigi.render.domain.files import atomic_path
+from hairdigi.render.domain.files import atomic_path, write_json_atomic
+from hairdigi.render.io.figures import save_figure
 
 
 @dataclass(frozen=True)
@@ -112,6 +115,7 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
     ``dataset_dir`` is one dataset folder or a list of them (one image size; e.g. noisy and clean
     renders together). ``epochs_now`` stops after that many epochs in this call; calling again resumes.
     """
+    # deferred: torch and onnx are the optional [train] extra
     import torch
 
     from hairdigi.inference.training.model import EncoderConfig, HairEncoder, parameter_count
@@ -160,7 +164,6 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
             torch.save({"model": model.state_dict(), "optimizer": opt.state_dict(), "scheduler": sched.state_dict(),
                         "epoch": epoch, "history": history, "encoder": encoder_config.to_dict(),
                         "train": asdict(config)}, tmp)
-    from hairdigi.render.domain.files import write_json_atomic
     write_json_atomic(out / "history.json", history)
     plot_history(history, out / "training_curve.png")
     return history
@@ -180,9 +183,8 @@ def _resume(ckpt: Path, model, opt, sched, encoder_config, config: TrainConfig) 
 def _train_epoch(model, opt, sched, images: np.ndarray, params: np.ndarray, train_idx: np.ndarray, encoder_config,
                  config: TrainConfig, epoch: int, progress: bool) -> float:
     """One epoch over the training rows, augmented, in the epoch's seeded order: the mean training loss."""
+    # deferred: torch and onnx are the optional [train] extra
     import torch
-    from tqdm import tqdm
-
     from hairdigi.inference.training.losses import encoder_loss
 
     steps_per_epoch = math.ceil(len(train_idx) / config.batch_size)
@@ -211,6 +213,7 @@ def _train_epoch(model, opt, sched, images: np.ndarray, params: np.ndarray, trai
 
 def _validate(model, val_x, val_y) -> tuple[float, float, list[float]]:
     """The validation rows' parameter MSE, fibre-colour MSE and per-parameter mean absolute error."""
+    # deferred: torch and onnx are the optional [train] extra
     import torch
 
     from hairdigi.inference.training.losses import appearance
@@ -225,7 +228,7 @@ def _validate(model, val_x, val_y) -> tuple[float, float, list[float]]:
 
 def _load_checkpoint(path: Path) -> dict:
     """A training checkpoint; a damaged one raises DatasetError naming the file (one line)."""
-    import torch
+    import torch   # deferred: torch and onnx are the optional [train] extra
 
     try:
         state = torch.load(path, weights_only=False)
@@ -242,6 +245,7 @@ def _load_checkpoint(path: Path) -> dict:
 
 def load_trained(out_dir: str | os.PathLike):
     """The model from a training folder's checkpoint, in eval mode."""
+    # deferred: torch and onnx are the optional [train] extra
     from hairdigi.inference.training.model import EncoderConfig, HairEncoder
 
     state = _load_checkpoint(Path(out_dir) / "checkpoint.pt")
@@ -251,10 +255,6 @@ def load_trained(out_dir: str | os.PathLike):
 
 
 def plot_history(history: dict, path: Path) -> Path:
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     rows = history["epochs"]
     fig, ax = plt.subplots(figsize=(6, 4))
     epochs = [r["epoch"] for r in rows]

@@ -77,7 +77,7 @@ class Appearance:
             raise AppearanceError(f"an appearance is an object with {', '.join(FIELDS)}, not {type(data).__name__}")
         unknown = [k for k in data if k not in FIELDS]
         if strict and unknown:
-            import difflib
+            import difflib   # deferred: the CLI parser imports this module; difflib only for a misspelt field
 
             near = difflib.get_close_matches(str(unknown[0]), FIELDS, n=1)
             raise AppearanceError(f"{str(unknown[0])[:60]!r} is not an appearance field"

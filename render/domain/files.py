@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import errno
 import hashlib
+import importlib.util
 import json
 import os
 import re
@@ -192,8 +193,6 @@ def read_bytes(path: str | os.PathLike, error: type[Exception], what: str, max_b
 
 def sha256_file(path: str | os.PathLike, error: type[Exception] = ValueError, max_bytes: int = 16 * 1024 * 1024) -> str:
     """The sha256 of a regular file of at most ``max_bytes`` (read as :func:`read_bytes` reads)."""
-    import hashlib
-
     return hashlib.sha256(read_bytes(path, error, "a file", max_bytes, "check the file name")).hexdigest()
 
 
@@ -250,8 +249,6 @@ class ProtectedFileError(HairdigiError, ValueError):
 
 def package_folders() -> list[Path]:
     """The folders the installed hairdigi package is made of."""
-    import importlib.util
-
     found = []
     for part in PACKAGE_PARTS:
         try:

@@ -34,6 +34,7 @@ def save_png(path: str | os.PathLike, srgb: np.ndarray) -> Path:
 
 def save_exr(path: str | os.PathLike, linear: np.ndarray) -> Path:
     """Write linear float32 RGB as OpenEXR through Mitsuba's Bitmap, atomically."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.variant import mi, select_variant
 
     select_variant()

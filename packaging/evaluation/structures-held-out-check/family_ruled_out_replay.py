@@ -12,7 +12,7 @@ import numpy as np
 from hairdigi.inference.refine import RefineSettings
 from hairdigi.inference.structure import family_curves, family_weight, _averaged, decisive
 from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
-from hairdigi.inference.training.evaluate_structures import _Mitsuba, StructureSet, _de
+from hairdigi.app.evaluation.structures_evaluation import _Mitsuba, StructureSet, _de
 
 out = sys.argv[1]
 RULES = [3.0, 5.0, 10.0]

@@ -12,7 +12,7 @@ import numpy as np
 from hairdigi.inference.refine import RefineSettings
 from hairdigi.inference.structure import family_curves, to_family
 from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
-from hairdigi.inference.training.evaluate_structures import _Mitsuba, StructureSet, _de
+from hairdigi.app.evaluation.structures_evaluation import _Mitsuba, StructureSet, _de
 
 out, replay = sys.argv[1], json.load(open(sys.argv[2]))
 family = family_curves(RIG_SWATCH_POSE, RefineSettings())

@@ -5,7 +5,7 @@ import numpy as np
 from hairdigi.inference.refine import RefineSettings
 from hairdigi.inference.structure import family_curves, family_weight, _averaged, DARK_SIGMA
 from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
-from hairdigi.inference.training.evaluate_structures import _Mitsuba, StructureSet, _de
+from hairdigi.app.evaluation.structures_evaluation import _Mitsuba, StructureSet, _de
 
 path, out = sys.argv[1], sys.argv[2]
 RATIO = float(sys.argv[3]) if len(sys.argv) > 3 else 2.0

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hairdigi.app.evaluation.results import Result
 from hairdigi.render.domain.appearance import Appearance
-from hairdigi.render.domain.files import write_csv_atomic
 from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
 
 HAIRS = {"platinum": (0.05, 0.08, 0.15), "brown": (0.35, 0.6, 1.2), "dark": (2.0, 3.0, 5.0)}
@@ -22,8 +22,8 @@ GROUPS = (1, 2, 4, 6, 8, 12, 16, 32)
 LOOK = Appearance(0.3, 0.5, 0.2)
 
 
-def run(out: Path, quick: bool = False) -> list[dict]:
-    """Render each hair at each group count; write ``fibres_bench.csv`` and ``fibres_bench.png``."""
+def run(out: Path, quick: bool = False) -> Result:
+    """Render each hair at each group count; save ``fibres_bench.csv`` and ``.png``; return the result."""
     from hairdigi.render.metrics import delta_e2000
     from hairdigi.render.renderer import Renderer, SceneSpec
 
@@ -48,10 +48,7 @@ def run(out: Path, quick: bool = False) -> list[dict]:
         for row in rows:
             if row["hair"] == hair:
                 row["de2000_vs_finest"] = round(float(delta_e2000(means[row["groups"]], finest)), 3)
-    out.mkdir(parents=True, exist_ok=True)
-    write_csv_atomic(out / "fibres_bench.csv", rows)
-    _plot(rows, out / "fibres_bench.png")
-    return rows
+    return Result("fibres_bench", rows, plot=_plot).save(out)
 
 
 def _plot(rows: list[dict], path: Path) -> None:

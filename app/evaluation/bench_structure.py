@@ -301,7 +301,7 @@ def renderers(out_dir: str | os.PathLike, structures: tuple[str, ...] | None = N
 
     from tqdm import tqdm
 
-    from hairdigi.inference.training.evaluate_structures import StructureSet, _Cycles, _Mitsuba
+    from hairdigi.app.evaluation.structures_evaluation import StructureSet, _Cycles, _Mitsuba
     from hairdigi.render.swatch_family import FAMILY, inside_share, structure_strands
     from hairdigi.render.domain.bounds import defaults_for
 

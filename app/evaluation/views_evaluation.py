@@ -6,7 +6,7 @@ judged against the truth (``render.judge``: mean-colour ΔE2000 of common-seed r
 whether the estimate read the swatch: the share of the encoder's crop that lies on the swatch (its
 outline projected from the pose), so that an answer from a wrong region is counted, not hidden.
 
-    python -m hairdigi.inference.training.evaluate_views --polars 35,55 --azimuths 0,150,270
+    python -m hairdigi.app.evaluation.views_evaluation --polars 35,55 --azimuths 0,150,270
 """
 from __future__ import annotations
 

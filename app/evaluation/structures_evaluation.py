@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.render.domain.params import HairParams, sample_params
-from hairdigi.inference.training.evaluate_cycles import CASES as CYCLES_CASES, LIGHT_EV, _relative_error
+from hairdigi.app.evaluation.cycles_evaluation import CASES as CYCLES_CASES, LIGHT_EV, _relative_error
 from hairdigi.render.domain.bounds import Environment
 from hairdigi.render.domain.rig_geometry import N_LIGHTS, RIG_SWATCH_POSE, TRANSFER_POSE
 
@@ -114,16 +114,16 @@ class _Mitsuba:
 
 
 class _Cycles:
-    """Renders the hidden swatch's scenes in Blender Cycles (``evaluate_cycles.cycles_render``)."""
+    """Renders the hidden swatch's scenes in Blender Cycles (``cycles_evaluation.cycles_render``)."""
 
     def __init__(self, config: StructureSet, folder: Path) -> None:
-        from hairdigi.inference.training.evaluate_cycles import CyclesSet
+        from hairdigi.app.evaluation.cycles_evaluation import CyclesSet
 
         self.cycles = CyclesSet(size=config.size, spp=config.spp)
         self.folder = folder
 
     def mean(self, sigma, structure: str, layout: int, scene: str, shine: float, pixels: bool = False):
-        from hairdigi.inference.training.evaluate_cycles import cycles_render
+        from hairdigi.app.evaluation.cycles_evaluation import cycles_render
         from hairdigi.render.swatch_family import structure_strands
         from hairdigi.render.domain.bounds import defaults_for
 

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.render.domain.files import write_csv_atomic
+from hairdigi.app.evaluation.results import Result
 from hairdigi.render.domain.params import HairParams
 
 LIGHTS = ("D65", "A", "shop-led", "FL11")
@@ -62,8 +62,8 @@ def matched_sigma(colour: np.ndarray, curve: np.ndarray) -> np.ndarray:
     return np.array([np.interp(target[c], logs[::-1, c], CURVE_SIGMA[::-1]) for c in range(3)])
 
 
-def run(out: Path, quick: bool = False) -> list[dict]:
-    """Render each hair in RGB and under each light; write ``spectral_bench.csv`` and ``.png``."""
+def run(out: Path, quick: bool = False) -> Result:
+    """Render each hair in RGB and under each light; save ``spectral_bench.csv`` and ``.png``; return the result."""
     from hairdigi.render.domain.absorption import hair_sigma_a
     from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
     from hairdigi.render.metrics import delta_e2000
@@ -103,10 +103,7 @@ def run(out: Path, quick: bool = False) -> list[dict]:
                          "spectral_noise_de2000": round(float(delta_e2000(again, truths[light], white_xy)), 3),
                          "matched_sigma_a": " ".join(f"{v:.4g}" for v in sigma),
                          "spectral_seconds": round(seconds, 3), "rgb_seconds": round(rgb_seconds, 3)})
-    out.mkdir(parents=True, exist_ok=True)
-    write_csv_atomic(out / "spectral_bench.csv", rows)
-    _plot(rows, out / "spectral_bench.png")
-    return rows
+    return Result("spectral_bench", rows, plot=_plot).save(out)
 
 
 def _plot(rows: list[dict], path: Path) -> None:
