@@ -31,6 +31,7 @@ from hairdigi.render.domain.errors import HairdigiError
 from hairdigi.render.domain.files import read_json
 from hairdigi.render.domain.records import EstimateWarning, WarningKind
 from hairdigi.render.domain.rig_geometry import N_LIGHTS
+from hairdigi.render.domain.text_enum import text_of
 from hairdigi.render.srgb import srgb8_to_linear
 from hairdigi.resources import MODELS
 
@@ -313,10 +314,33 @@ def _read_variation(pixels: np.ndarray, sigma: np.ndarray | None, shine: float):
         return None
 
 
-def unmeasured_variation(estimate: AppearanceEstimate) -> AppearanceEstimate:
-    """``estimate`` with its fibre spread and grey share back at uniform fibres and not measured."""
+def unmeasured_variation(estimate: AppearanceEstimate, why: str | None = None) -> AppearanceEstimate:
+    """``estimate`` with its fibre spread and grey share back at uniform fibres and not measured (``why``: the
+    method the record then states for them)."""
     names = ("fibre_spread", "grey_fraction")
+    method = {k: v for k, v in estimate.method.items() if k not in names}
+    if why:
+        method.update({k: why for k in FROM_TEXTURE})
     return AppearanceEstimate(replace(estimate.value, fibre_spread=0.0, grey_fraction=0.0),
                               {k: v for k, v in estimate.intervals.items() if k not in names},
-                              tuple(m for m in estimate.measured if m not in names),
-                              {k: v for k, v in estimate.method.items() if k not in names})
+                              tuple(m for m in estimate.measured if m not in names), method)
+
+
+#: The swatch structure the texture model was fitted on, the only one whose greys it reads. Refitted on renders
+#: of all seven family members (150 samples, ``fit_texture`` data 5), its grey share had no skill (held-out MAE
+#: 0.077 against the training mean's 0.074); the layered model read those members' greys 0.03-0.09 high (MAE
+#: 0.056 on layered, 0.139 on deposited-coarse) and reported them where 0.25-1.0 of the samples had few; through
+#: the rig it read a clumped platinum swatch 0.31-0.36 grey (4.61 ΔE2000 median; 3.83 with greys not read) and
+#: a wavy saturated blue 0.16.
+TEXTURE_STRUCTURE = "layered"
+
+
+def on_its_structure(reading: AppearanceReading, structure) -> AppearanceReading:
+    """``reading`` as the estimate keeps it when made on ``structure`` (a member's name, or None: mapped to the
+    family's mean, the structure unknown): its grey share only on ``TEXTURE_STRUCTURE``."""
+    if text_of(structure) == TEXTURE_STRUCTURE or not any(k in reading.estimate.measured for k in FROM_TEXTURE):
+        return reading
+    on = "the family's mean (the structure unknown)" if structure is None else f"the {text_of(structure)} swatch"
+    why = (f"not read: the texture tells greys only on the {TEXTURE_STRUCTURE} swatch it was fitted on, and this "
+           f"estimate is made on {on}")
+    return replace(reading, estimate=unmeasured_variation(reading.estimate, why))

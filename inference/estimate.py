@@ -17,8 +17,8 @@ from typing import Callable
 
 import numpy as np
 
-from hairdigi.inference.appearance_reading import (AppearanceReading, check_light_frames, read_appearance,
-                                           unmeasured_variation)
+from hairdigi.inference.appearance_reading import (AppearanceReading, check_light_frames, on_its_structure,
+                                                   read_appearance, unmeasured_variation)
 from hairdigi.inference.calibration import (CalibrationError, apply_profile, calibration_warnings, correction_warnings,
                                             detect_chart, load_profile)
 from hairdigi.inference.domain_checks import domain_stats, domain_warnings
@@ -244,6 +244,9 @@ def _refined(fit: _Fit, structure: StructureMode, borrowed: RigReading | None = 
         if fit.singles is None and borrowed is not None:
             texture, members, decided = borrowed.texture or texture, borrowed.frames, borrowed.decided
     reading = members if decided else fit.read(READ_MEMBERS if structure is StructureMode.READ else None)
+    if structure is not StructureMode.ASSUMED:     # greys are read on the swatch the texture model was fitted on
+        reading = on_its_structure(reading, decided or (reading.swatch_model if structure is StructureMode.READ
+                                                        else None))
     warnings = list(reading.warnings)
     read_misfits = (members if members is not None else reading).misfits if structure is not StructureMode.ASSUMED \
         else None
@@ -278,6 +281,7 @@ def _refined(fit: _Fit, structure: StructureMode, borrowed: RigReading | None = 
         # no hair on the assumed swatch renders the capture's colour: the swatch is built another way.
         # Its structure is read from the single-light frames and kept where it reaches the colour
         reread = members or fit.read(READ_MEMBERS)
+        reread = on_its_structure(reread, reread.swatch_model)
         other = fit.refine(reread)
         if other.residual_de2000 < refinement.residual_de2000 / 2:
             warnings += _warn(WarningKind.OTHER, [

@@ -188,3 +188,26 @@ def test_a_share_reported_as_none_says_it_was_not_told_from_none():
     window = dict(appearance_lines(estimate))
     assert window["grey_fraction"].endswith("(not told from none; 95%: 0%–21%)")
     assert "(68%: 0.29–0.31)" in window["longitudinal_roughness"]
+
+
+def test_greys_are_kept_only_on_the_swatch_the_texture_model_was_fitted_on():
+    """The texture tells greys on the layered swatch alone: an estimate made on another member, or mapped to the
+    family's mean, states its grey share as not read, and says why; the shine read stays."""
+    from hairdigi.app.cli.rig import appearance_lines as cli_lines
+    from hairdigi.inference.appearance_reading import AppearanceReading, on_its_structure
+    from hairdigi.render.domain.appearance import AppearanceEstimate
+
+    intervals = {"grey_fraction": {"p68": [0.25, 0.35], "p95": [0.2, 0.4]},
+                 "longitudinal_roughness": {"p68": [0.29, 0.31], "p95": [0.27, 0.33]}}
+    greys = AppearanceReading(AppearanceEstimate(Appearance(0.3, 0.0, 0.3), intervals,
+                                                 ("longitudinal_roughness", "grey_fraction"),
+                                                 {"grey_fraction": "read from the texture"}))
+    assert on_its_structure(greys, "layered") is greys
+    for made_on, said in ((None, "the family's mean"), ("deposited", "the deposited swatch")):
+        kept = on_its_structure(greys, made_on)
+        assert kept.value == Appearance(0.3, 0.0, 0.0) and kept.estimate.measured == ("longitudinal_roughness",)
+        assert said in kept.estimate.method["grey_fraction"] and "layered" in kept.estimate.method["grey_fraction"]
+        assert "grey_fraction" not in kept.estimate.intervals and "longitudinal_roughness" in kept.estimate.intervals
+        assert dict(zip(("shine", "spread", "grey"), cli_lines(kept.estimate)))["grey"].startswith("grey share 0.00")
+    shine_only = AppearanceReading(AppearanceEstimate(Appearance(0.3), {}, ("longitudinal_roughness",)))
+    assert on_its_structure(shine_only, "deposited") is shine_only
