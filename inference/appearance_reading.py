@@ -328,10 +328,10 @@ def unmeasured_variation(estimate: AppearanceEstimate, why: str | None = None) -
 
 #: The swatch structure the texture model was fitted on, the only one whose greys it reads. Refitted on renders
 #: of all seven family members (150 samples, ``fit_texture`` data 5), its grey share had no skill (held-out MAE
-#: 0.077 against the training mean's 0.074); the layered model read those members' greys 0.03-0.09 high (MAE
-#: 0.056 on layered, 0.139 on deposited-coarse) and reported them where 0.25-1.0 of the samples had few; through
-#: the rig it read a clumped platinum swatch 0.31-0.36 grey (4.61 ΔE2000 median; 3.83 with greys not read) and
-#: a wavy saturated blue 0.16.
+#: 0.077 against the training mean's 0.074); the layered model's MAE was 0.044 on the layered samples, 0.063-0.068
+#: on the deposited, spread, tilted and loose ones, 0.090 on wavy (bias +0.044) and 0.132 on deposited-coarse
+#: (bias +0.109) (``packaging/bench/texture-structures``); through the rig it read a clumped platinum swatch
+#: 0.31-0.36 grey (4.61 ΔE2000 median; 3.83 with greys not read) and a wavy saturated blue 0.16.
 TEXTURE_STRUCTURE = "layered"
 
 

@@ -131,20 +131,17 @@ def to_family(sigma: np.ndarray, family: FamilyCurves, dark: tuple[float, float]
     return sigma * (np.clip(mapped, 1e-9, None) / np.clip(sigma, 1e-9, None)) ** weight
 
 
-def nuisance(sigma: np.ndarray, family: FamilyCurves) -> dict[str, float]:
-    """ΔE2000 of each member's colour of ``sigma`` from the family mean's (the structure left unknown)."""
-    sigma = np.asarray(sigma, float)
-    centre = np.clip(family.mean(sigma), 1e-9, None)
-    return {m: round(float(delta_e2000(np.clip(c(sigma), 1e-9, None), centre)), 3)
-            for m, c in family.members.items()}
-
-
 def member_spreads(sigma: np.ndarray, family: FamilyCurves, members: dict[str, float]) -> dict[str, float]:
     """ΔE2000 of each of ``members``' colour of ``sigma`` from their weighted mean's: were the swatch that member,
     the error of the answer ``sigma`` that the mean maps the capture to (the mean's colour of it is the capture's)."""
     sigma = np.asarray(sigma, float)
     centre = np.clip(family.mean_of(members)(sigma), 1e-9, None)
     return {m: round(float(delta_e2000(np.clip(family.members[m](sigma), 1e-9, None), centre)), 3) for m in members}
+
+
+def nuisance(sigma: np.ndarray, family: FamilyCurves) -> dict[str, float]:
+    """ΔE2000 of each member's colour of ``sigma`` from the family mean's (the structure left unknown)."""
+    return member_spreads(sigma, family, dict.fromkeys(family.members, 1.0))
 
 
 #: The structures the single-light frames choose among. Deposited and wavy swatches render alike at the
