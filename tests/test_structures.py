@@ -569,13 +569,14 @@ def test_a_clumped_swatch_outside_the_family_is_flagged_and_a_deposited_one_is_n
     """Through the simulated rig (the default mode): a swatch of clumped fibres, drawn outside the family, fits no
     member's per-light tables at the rig's region and is flagged with the wider interval; a deposited one is not.
     (An all-hair crop of the clumped swatch's centre reads as deposited, misfit 0.011: the rig's whole region, its
-    clumps and the gaps between them, is what no member fits.)"""
+    clumps and the gaps between them, is what no member fits.) On platinum hair the clumps' gaps read as a third
+    grey to the texture model (fitted on the layered swatch): the record keeps no grey share and says why."""
     from hairdigi.app.session.rig_session import RigSession
     from hairdigi.render.domain.params import HairParams
     from hairdigi.render.domain.records import WarningKind
 
-    def record(model: str):
-        session = RigSession.simulated_rig(tmp_path / model, hidden=HairParams((190, 80, 40), 0.5, 0.5, 0.6), spp=16,
+    def record(model: str, hair: HairParams = HairParams((190, 80, 40), 0.5, 0.5, 0.6)):
+        session = RigSession.simulated_rig(tmp_path / f"{model}-{hair.melanin_concentration}", hidden=hair, spp=16,
                                            swatch_model=model)
         try:
             session.calibrate()
@@ -587,5 +588,9 @@ def test_a_clumped_swatch_outside_the_family_is_flagged_and_a_deposited_one_is_n
     flagged = [w.message for w in clumped.warnings if w.kind is WarningKind.STRUCTURE]
     assert flagged and "no swatch structure hairdigi draws" in flagged[0], [w.message for w in clumped.warnings]
     assert clumped.uncertainty.mean_colour_de2000_p95 >= 4.7
+    platinum = record("clumped", HairParams((245, 240, 225), 0.15, 0.04, 0.2)).appearance
+    assert platinum.value.grey_fraction == 0.0 and "grey_fraction" not in platinum.measured
+    assert platinum.method["grey_fraction"].startswith("not read: the texture tells greys only on the layered "
+                                                       "swatch"), platinum.method
     assert not [w for w in deposited.warnings if w.kind is WarningKind.STRUCTURE], deposited.warnings
     assert deposited.uncertainty.mean_colour_de2000_p95 < 2.0
