@@ -213,10 +213,11 @@ def test_evaluate_dye_takes_size_and_spp_and_judges_no_goal_on_a_few(monkeypatch
                                                          "median <= 1.0, p95 <= 2.0: met)"]}
 
     monkeypatch.setattr(dye_evaluation, "evaluate_dye", fake)
-    monkeypatch.setattr("hairdigi.inference.encoder.Encoder", lambda model: None)
+    monkeypatch.setattr(modes, "Encoder", lambda model: None)
     args = argparse.Namespace(n=1, size=32, spp=8, model=None, out="x", rig=False)
-    assert modes.dye(args) == 0
+    result = modes.dye(args)      # a results.Result: the registry prints it
     assert (seen["config"].size, seen["config"].spp, seen["config"].dyes) == (32, 8, 1)
+    result.print()
     out = capsys.readouterr().out
     assert "met)" not in out and "too few" in out
 

@@ -2,11 +2,15 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
+import signal
 import sys
+import traceback
 from pathlib import Path
 
 from hairdigi.render.domain.errors import HairdigiError
+from hairdigi.render.domain.interrupt import stop_among
 from hairdigi.render.domain.threads import start_up
 from hairdigi.render.domain.version import version
 
@@ -24,8 +28,6 @@ def interrupted_at_start(signum, frame) -> None:
 
 
 if Path((sys.argv or [""])[0]).name == "hairdigi":   # a program, not a library import (-m: __main__.py)
-    import signal
-
     signal.signal(signal.SIGINT, interrupted_at_start)
 
 
@@ -47,8 +49,6 @@ COMMANDS = ("render", "demo", "dataset", "train", "export_onnx", "estimate", "ev
 
 def build_parser() -> argparse.ArgumentParser:
     """The whole parser: each command's module adds its subparser (importing none of the science)."""
-    import importlib
-
     parser = _Parser(prog="hairdigi", description=__doc__)
     parser.add_argument("--version", action="version", version=f"hairdigi {version()}")
     parser.add_argument("--debug", action="store_true",
@@ -67,6 +67,7 @@ def _prog(argv: list[str]) -> str:
 
 def _error_line(exc: BaseException) -> str:
     """What went wrong, on one line, for an expected failure."""
+    # deferred: the commands' modules (validation: 12 ms) load with the parser, not before --version's instant answer
     from hairdigi.app.cli.validation import describe_os_error, one_line
 
     if isinstance(exc, MemoryError):
@@ -95,8 +96,6 @@ def _missing_extra(exc: BaseException) -> str | None:
 
 def _caused_by_interrupt(exc: BaseException) -> bool:
     """Whether a KeyboardInterrupt is among the causes of ``exc``."""
-    from hairdigi.render.domain.interrupt import stop_among
-
     return stop_among(exc, (KeyboardInterrupt,)) is not None
 
 
@@ -104,9 +103,6 @@ def main(argv: list[str] | None = None) -> int:
     """Run one command. An expected failure (bad input, a file that cannot be read or written) is one
     line on stderr and exit status 2; Ctrl-C at any moment is one line and 130; a bug keeps its
     traceback. ``--debug`` anywhere on the line shows the traceback of expected failures too."""
-    import signal
-    import traceback
-
     # Run as a program, Ctrl-C while starting (native libraries load) ends at once, with one line;
     # once the command runs it raises KeyboardInterrupt, so that files and devices are closed.
     program = signal.getsignal(signal.SIGINT) is interrupted_at_start
@@ -120,9 +116,11 @@ def main(argv: list[str] | None = None) -> int:
     prog = _prog(argv)
     try:
         args = build_parser().parse_args(argv)
+        # deferred: the commands' modules load with the parser (above), not before --version's instant answer
         from hairdigi.app.cli.validation import check_args
 
         if getattr(args, "model", "unset") is None:
+            # deferred: loads OpenCV and colour-science (the encoder); the parser must not (hairdigi --help in 0.2 s)
             from hairdigi.inference.encoder import DEFAULT_MODEL
             args.model = DEFAULT_MODEL
         check_args(args)
@@ -137,6 +135,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:
+        # deferred: the commands' modules load with the parser, not before --version's instant answer
         from hairdigi.app.cli.validation import is_expected
 
         if _caused_by_interrupt(exc):   # native code (Mitsuba, drjit) wraps a Ctrl-C in its own error

@@ -4,6 +4,8 @@ from __future__ import annotations
 import argparse
 
 from hairdigi.app.cli.arguments import add_spectra_arguments, add_structure_argument
+from hairdigi.app.cli.display import display_problem
+from hairdigi.app.cli.validation import ArgumentError
 
 
 def add_parser(sub) -> None:
@@ -18,15 +20,13 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hairdigi.app.cli.display import display_problem
-    from hairdigi.app.cli.validation import ArgumentError
-
     if args.session is not None and not str(args.session).strip():
         raise ArgumentError("--session '': an empty session folder would put captures/ in the current folder; "
                             "name the session folder, or leave --session out for the settings' one")
     problem = display_problem()   # before Qt: a display that is not X aborts it or hangs it
     if problem is not None:
         raise ArgumentError(problem)
+    # deferred: loads Qt (PySide6), Mitsuba, OpenCV and colour-science; the parser must not (hairdigi --help in 0.2 s)
     from hairdigi.app.gui.main import run_app
 
     camera = None if args.genicam is None else f"genicam:{args.genicam}"

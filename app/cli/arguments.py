@@ -2,7 +2,9 @@
 from __future__ import annotations
 
 from hairdigi.app.cli import validation as v
-from hairdigi.render.domain.bounds import MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH, MIN_SIZE
+from hairdigi.render.domain.bounds import (DEFAULT_STRUCTURE, MAX_DEPTH, MAX_SIZE, MAX_SPP, MAX_STRANDS, MIN_DEPTH,
+                                          MIN_SIZE, STRUCTURE_MODES)
+from hairdigi.render.instrument_geometry import APERTURE_RANGE_MM, DEFAULT_APERTURE_MM
 
 SIZE, SPP = v.int_in(MIN_SIZE, MAX_SIZE), v.int_in(1, MAX_SPP)
 SEED, WORKERS = v.int_in(0, v.MAX_SEED), v.int_in(1, v.MAX_WORKERS)
@@ -13,6 +15,7 @@ VARIANT_HELP = "Mitsuba variant (auto: cuda_ad_rgb when Mitsuba finds a GPU, els
 def use_variant(name: str | None) -> str:
     """Switch Mitsuba to ``--variant`` (``auto``: the GPU when there is one), loading it: the parser
     loads no Mitsuba, so this runs in the command, before any scene is loaded."""
+    # deferred: loads Mitsuba and Dr.Jit; the parser must not (hairdigi --help in 0.2 s)
     from hairdigi.render.variant import select_variant
 
     return select_variant(name)
@@ -35,8 +38,6 @@ def add_spectra_arguments(p) -> None:
 
 def add_structure_argument(p, what: str = "the swatch's") -> None:
     """``--structure``: how an estimate treats the swatch's physical structure (``estimate``, ``rig``, ``app``)."""
-    from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, STRUCTURE_MODES
-
     p.add_argument("--structure", choices=STRUCTURE_MODES, default=None,
                    help=f"{what} physical structure (default {DEFAULT_STRUCTURE}, or the session's rig profile's): "
                    "'family', for a lab's swatch, built another way than hairdigi's: the texture's streaks leave the "
@@ -56,9 +57,6 @@ def add_declare_argument(p) -> None:
 
 def add_instrument_arguments(p) -> None:
     """``--observer`` and ``--aperture``: how the record's instrument readings are stated (``estimate``, ``rig``)."""
-    from hairdigi.app.cli import validation as v
-    from hairdigi.render.instrument_geometry import APERTURE_RANGE_MM, DEFAULT_APERTURE_MM
-
     p.add_argument("--observer", choices=("10", "2"), default="10",
                    help="the record's instrument readings (d/8 SCI, d/8 SCE, 45/0; D65) for the CIE 1964 10° observer "
                         "(default) or the CIE 1931 2°")

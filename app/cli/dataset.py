@@ -7,11 +7,11 @@ from pathlib import Path
 from hairdigi.app.cli import CliError
 from hairdigi.app.cli import validation as v
 from hairdigi.app.cli.arguments import DEPTH, SEED, SIZE, SPP, STRANDS, VARIANT_HELP, WORKERS
+from hairdigi.render.domain.bounds import VARIANT_CHOICES
+from hairdigi.render.domain.files import cache_dir
 
 
 def add_parser(sub) -> None:
-    from hairdigi.render.domain.bounds import VARIANT_CHOICES
-
     p = sub.add_parser("dataset", help="render the synthetic swatch dataset (resumable)")
     p.add_argument("--n", type=v.int_in(1, v.MAX_DATASET_N), default=4000)
     p.add_argument("--size", type=SIZE, default=64)
@@ -40,8 +40,9 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # deferred: training is a developer install, left out of the desktop build (hairdigi.inference.training)
     from hairdigi.inference.training.dataset import DatasetConfig, generate
-    from hairdigi.render.domain.files import cache_dir
+    # deferred: loads Mitsuba and colour-science; the parser must not (hairdigi --help in 0.2 s)
     from hairdigi.render.renderer import defaults_for
 
     # record the resolved strand count and depth, so the manifest stays true if the defaults change

@@ -4,6 +4,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from hairdigi.app.cli.rig import run_chain
+from hairdigi.render.domain.params import HairParams
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser("demo", help="headless demo: render the sample swatch and hairstyles")
@@ -20,7 +23,7 @@ def run(args: argparse.Namespace) -> int:
 def run_demo(out: Path, quick: bool = False) -> list[Path]:
     """Lights, exposure, calibration and a capture on the simulated rig; estimate; render the
     estimate as a rig swatch and two hairstyles. Returns the written images."""
-    from hairdigi.app.cli.rig import run_chain
+    # deferred: load Mitsuba, OpenCV and colour-science; the parser must not (hairdigi --help in 0.2 s)
     from hairdigi.app.session.rig_session import RigSession
     from hairdigi.render.camera_model import CameraModel
     from hairdigi.render.io.images import save_png
@@ -35,7 +38,6 @@ def run_demo(out: Path, quick: bool = False) -> list[Path]:
     finally:
         session.close()
     if "params" in figures:
-        from hairdigi.render.domain.params import HairParams
         params, source = HairParams.from_dict(figures["params"]), "the estimate"
     else:
         params, source = hidden, "the simulated swatch's hidden parameters (no estimate was made)"

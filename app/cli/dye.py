@@ -8,6 +8,9 @@ import sys
 from pathlib import Path
 
 from hairdigi.app.cli import validation as v
+from hairdigi.render.domain.files import atomic_paths, write_json_atomic
+from hairdigi.render.domain.records import read_record, record_sha256, write_record
+from hairdigi.render.strands import HAIRSTYLES
 
 HAIRSTYLE_SIZE, HAIRSTYLE_SPP = 384, 16
 MAX_NAME = 200
@@ -26,8 +29,6 @@ def dye_name(text: str) -> str:
 
 def add_parser(sub) -> None:
     """Register ``hairdigi dye`` and its four actions on the main parser's subparsers."""
-    from hairdigi.render.strands import HAIRSTYLES
-
     p = sub.add_parser("dye", help="hair-dye development: characterise a dye, predict it on any hair, shade card")
     acts = p.add_subparsers(dest="dye_action", required=True)
 
@@ -98,9 +99,7 @@ def _check(args: argparse.Namespace) -> None:
 
 
 def _read_dye(path: str):
-    from hairdigi.render.domain.dye_record import DyeRecord
-    from hairdigi.render.domain.records import read_record, record_sha256
-
+    from hairdigi.render.domain.dye_record import DyeRecord  # deferred: 3 ms to import; the parser must not pay it
     return read_record(path, DyeRecord), record_sha256(path)
 
 
@@ -110,8 +109,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _characterise(args: argparse.Namespace) -> int:
-    from hairdigi.inference.dye import characterise, load_sample
-    from hairdigi.render.domain.records import write_record
+    from hairdigi.inference.dye import characterise, load_sample  # deferred: loads colour-science; the parser must not
 
     pairs = [(load_sample(base), load_sample(dyed)) for base, dyed in args.pair]
     dye = characterise(pairs, args.name, allow_mixed=args.allow_mixed_calibrations)
@@ -129,8 +127,7 @@ def _characterise(args: argparse.Namespace) -> int:
 
 
 def _apply(args: argparse.Namespace) -> int:
-    from hairdigi.inference.dye import apply, describe_colour, load_sample
-    from hairdigi.render.domain.files import atomic_paths
+    from hairdigi.inference.dye import apply, describe_colour, load_sample  # deferred: loads colour-science
 
     dye, sha = _read_dye(args.dye)
     base = load_sample(args.base)
@@ -138,7 +135,7 @@ def _apply(args: argparse.Namespace) -> int:
     renders = _render_prediction(pred.sigma_a, Path(args.render), args.scene) if args.render else []
     # the prediction and its renders are published together: a failed render leaves no prediction behind
     with atomic_paths(args.out, *(path for path, _ in renders)) as (record_tmp, *image_tmps):
-        from hairdigi.render.io.images import save_png
+        from hairdigi.render.io.images import save_png  # deferred: loads OpenCV; the parser must not
 
         record_tmp.write_text(json.dumps(pred.record.to_json(), indent=2) + "\n", encoding="utf-8")
         for tmp, (_, srgb) in zip(image_tmps, renders):
@@ -158,6 +155,7 @@ def _apply(args: argparse.Namespace) -> int:
 
 def _render_prediction(sigma, path: Path, scenes: list[str]) -> list[tuple[Path, object]]:
     """The predicted swatch and each hairstyle, rendered (not yet written): ``[(path, srgb), ...]``."""
+    # deferred: loads Mitsuba and colour-science; the parser must not (hairdigi --help in 0.2 s)
     from hairdigi.render.renderer import SceneSpec, default_renderer
 
     renderer = default_renderer()
@@ -172,8 +170,8 @@ def _render_prediction(sigma, path: Path, scenes: list[str]) -> list[tuple[Path,
 
 
 def _dose(args: argparse.Namespace) -> int:
+    # deferred: loads colour-science; the parser must not (hairdigi --help in 0.2 s)
     from hairdigi.inference.dye import describe_colour, dose, load_sample, target_colour
-    from hairdigi.render.domain.files import write_json_atomic
 
     dye, _ = _read_dye(args.dye)
     base = load_sample(args.base)
@@ -193,7 +191,7 @@ def _dose(args: argparse.Namespace) -> int:
 
 
 def _card(args: argparse.Namespace) -> int:
-    from hairdigi.inference.dye_card import shade_card
+    from hairdigi.inference.dye_card import shade_card  # deferred: loads colour-science; the parser must not
 
     dye, _ = _read_dye(args.dye)
     png, pdf, table, rows = shade_card(dye, args.out, args.dose, args.size, args.spp)

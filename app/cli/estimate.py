@@ -3,14 +3,20 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from hairdigi.app.cli import validation as v
+from hairdigi.app.cli.arguments import add_instrument_arguments, add_structure_argument, instrument_options
+from hairdigi.app.cli.rig import appearance_lines, say_instrument, say_spectral
+from hairdigi.app.session.declared_spectra import rig_spectra, spectra_problem
+from hairdigi.app.session.profile import merged, profile_path, read_profile
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE
+from hairdigi.render.domain.records import write_record
+from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose
+from hairdigi.render.domain.session_folder import SessionFolder
 
 
 def add_parser(sub) -> None:
-    from hairdigi.app.cli.arguments import add_instrument_arguments, add_structure_argument
-
     p = sub.add_parser("estimate", help="estimate hair parameters from an image")
     p.add_argument("image")
     p.add_argument("--roi", help="swatch area x,y,w,h in pixels (default: found automatically)")
@@ -40,13 +46,11 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # deferred: load OpenCV and colour-science (the encoder); the parser must not (hairdigi --help in 0.2 s)
     from hairdigi.inference.encoder import Encoder
     from hairdigi.inference.estimate import estimate_file
-    from hairdigi.app.cli.arguments import instrument_options
     from hairdigi.inference.instrument_reading import with_instrument
     from hairdigi.inference.preprocess import Roi
-    from hairdigi.render.domain.records import write_record
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose
 
     session_profile(args)
     encoder = Encoder(args.model)
@@ -72,8 +76,6 @@ def run(args: argparse.Namespace) -> int:
            else "encoder alone")
     print(f"dye rgb {tuple(round(v) for v in p.dye_rgb)} at {p.dye_concentration:.2f}, melanin "
           f"{p.melanin_concentration:.2f} (ratio {p.melanin_ratio:.2f}); {how}; wrote {args.out}")
-    from hairdigi.app.cli.rig import appearance_lines, say_instrument, say_spectral
-
     if record.appearance is not None:
         print("appearance: " + "; ".join(appearance_lines(record.appearance)))
     say_spectral(record)
@@ -81,6 +83,7 @@ def run(args: argparse.Namespace) -> int:
     for warning in record.warnings:
         print(f"warning: {warning.message}", file=sys.stderr)
     if args.render:
+        # deferred: load OpenCV, Mitsuba and colour-science; the parser must not (hairdigi --help in 0.2 s)
         from hairdigi.render.io.images import save_png
         from hairdigi.render.renderer import SceneSpec, render
 
@@ -93,8 +96,7 @@ def run(args: argparse.Namespace) -> int:
 def say_pose_tables(camera) -> None:
     """A pose the shipped pose tables do not answer renders its curves first (about a minute on 2 cores): say so
     before the wait."""
-    from hairdigi.inference.atlas import POSE_POLARS, load_poses
-
+    from hairdigi.inference.atlas import POSE_POLARS, load_poses  # deferred: 7 ms to import; the parser must not pay it
     tables = load_poses()
     if tables is None or tables.curve(camera, "layered", 0) is None:
         print(f"camera {camera.polar_deg:g}°, {camera.azimuth_deg:g}°: the shipped pose tables do not reach it (up to "
@@ -106,9 +108,8 @@ def in_spectral_world(record, estimate, calibration: str, led: str | None, senso
     """A calibrated photo's record in the spectral world (``inference.spectral_reading.spectral_record``): read in the
     camera's RGB where ``led`` and ``sensor`` declare its light and camera, else its colour interval widened
     as an undeclared camera's."""
-    from hairdigi.app.session.declared_spectra import rig_spectra
-    from hairdigi.inference.calibration import load_profile
-    from hairdigi.inference.spectral_reading import spectral_record
+    from hairdigi.inference.calibration import load_profile  # deferred: loads OpenCV and colour-science
+    from hairdigi.inference.spectral_reading import spectral_record  # deferred: 7 ms to import; the parser must not
 
     profile = load_profile(calibration)
     spectra = rig_spectra(False, False, led, sensor)[1]
@@ -121,12 +122,6 @@ def session_profile(args: argparse.Namespace) -> None:
     (``app.session.profile``): its LEDs, camera and structure mode stand where ``--led``, ``--sensor`` and
     ``--structure`` are not given; each flag that overrides it says so on stderr. "read" without ``--lights``
     (the single-light frames it reads) is read with family, and says so."""
-    from pathlib import Path
-
-    from hairdigi.app.session.profile import merged, profile_path, read_profile
-    from hairdigi.app.session.declared_spectra import spectra_problem
-    from hairdigi.render.domain.session_folder import SessionFolder
-
     if not args.calibration:
         return
     folder = Path(args.calibration).parent

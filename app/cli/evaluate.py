@@ -7,12 +7,11 @@ import argparse
 from hairdigi.app.cli import validation as v
 from hairdigi.app.cli.arguments import SIZE, SPP, VARIANT_HELP, WORKERS, add_structure_argument, use_variant
 from hairdigi.app.evaluation.registry import EVALUATIONS, chosen_evaluation
+from hairdigi.render.domain.bounds import MAX_SPP, VARIANT_CHOICES
 
 
 def _add_modes(p: argparse.ArgumentParser, *names: str) -> None:
     """The flags of these modes, ``--NAME`` with the registry's help: on or off (``--convergence`` takes spps)."""
-    from hairdigi.render.domain.bounds import MAX_SPP
-
     arguments = {"convergence": {"metavar": "SPP,SPP,...", "type": v.int_list_in(1, MAX_SPP)}}
     for name in names:
         flag = "--" + name.replace("_", "-")
@@ -20,8 +19,6 @@ def _add_modes(p: argparse.ArgumentParser, *names: str) -> None:
 
 
 def add_parser(sub) -> None:
-    from hairdigi.render.domain.bounds import VARIANT_CHOICES
-
     p = sub.add_parser("evaluate", help="the estimate on clean held-out swatches, judged against the truth")
     p.add_argument("--n", type=v.int_in(1, v.MAX_DATASET_N), default=300)
     p.add_argument("--size", type=SIZE, default=64, help="held-out render side in pixels")

@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from hairdigi.app.cli import validation as v
 from hairdigi.app.library.renderer_export import export_record
 from hairdigi.render.interchange import FORMATS
 
@@ -13,8 +14,6 @@ SUFFIXES = {"materialx": ".mtlx", "blender": ".py"}
 def check_export_look(args: argparse.Namespace) -> str:
     """The record is a readable file; the outputs have their format's extension and are none of the inputs
     nor a session's, library's or the package's files (checked before anything is written). The output."""
-    from hairdigi.app.cli import validation as v
-
     v.check_input_file(args.record, "record")
     out = args.out or str(Path(args.record).with_suffix("").with_suffix(SUFFIXES[args.format]))
     inputs = {"record": args.record}

@@ -12,6 +12,7 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # deferred: loads OpenCV and colour-science; training is left out of the desktop build (hairdigi.inference.training)
     from hairdigi.inference.training.onnx_export import export_onnx, parity
     from hairdigi.inference.training.train import load_trained
 

@@ -11,8 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.app.cli import validation as v
-from hairdigi.app.library.store import Library, LibraryError, Swatch, open_library, redact
+from hairdigi.app.library.importing import first_run, import_paths, record_row
+from hairdigi.app.library.store import Library, LibraryError, Swatch, is_url, location, open_library, redact
 from hairdigi.app.library.swatch_colour import COLOURS, ILLUMINANTS, INSTRUMENT, hex_lab, lab_hex
+from hairdigi.render.domain.files import atomic_paths
 
 #: An instrument geometry's prefix in the export's columns.
 INSTRUMENT_COLUMNS = {"d/8 SCI": "sci", "d/8 SCE": "sce", "45/0": "g45_0"}
@@ -25,8 +27,6 @@ EXPORT_COLUMNS = ("id", "kind", "session", "capture_id", "captured", "imported",
 
 def _open(progress=None) -> Library:
     """The library, with sessions written before it imported on its first open."""
-    from hairdigi.app.library.importing import first_run
-
     library = open_library()
     first_run(library, progress or (lambda line: print(line, file=sys.stderr)))
     return library
@@ -51,8 +51,6 @@ def query_lab(near: str, under: str) -> np.ndarray:
     if text.startswith("#") or (len(text) == 6 and all(c in "0123456789abcdefABCDEF" for c in text)
                                 and not Path(text).exists()):
         return hex_lab(text)
-    from hairdigi.app.library.importing import record_row
-
     row = record_row(text)
     if not row.labs:
         raise LibraryError(f"{text}: the record has no estimate, so no colour to search near")
@@ -133,9 +131,6 @@ def _xlsx_cell(value, row: dict, column: str):
 
 def check_export_paths(csv_path: str | None, xlsx_path: str | None, library_where: str | None = None) -> None:
     """Both outputs have their extension, differ, and are none of the library's, a session's or the package's files."""
-    from hairdigi.app.cli import validation as v
-    from hairdigi.app.library.store import is_url
-
     inputs = {"library": library_where} if library_where and not is_url(library_where) else {}
     v.check_distinct({"--csv": csv_path, "--xlsx": xlsx_path})
     if csv_path:
@@ -147,12 +142,10 @@ def check_export_paths(csv_path: str | None, xlsx_path: str | None, library_wher
 def write_export(library: Library, csv_path: str | None = None, xlsx_path: str | None = None) -> list[Path]:
     """The library as CSV and/or XLSX, both published together; cells that a spreadsheet would run as a
     formula are neutralised (a leading ``'``)."""
-    from hairdigi.render.domain.files import atomic_paths
-
     rows = [{k: neutral_cell(v) for k, v in row.items()} for row in export_rows(library)]
     book = None
     if xlsx_path:
-        from openpyxl import Workbook
+        from openpyxl import Workbook  # deferred: openpyxl takes 0.1 s to load; only --xlsx needs it
 
         book = Workbook()
         sheet = book.active
@@ -176,8 +169,6 @@ def write_export(library: Library, csv_path: str | None = None, xlsx_path: str |
 
 # --- commands --------------------------------------------------------------------------------------
 def run(args: argparse.Namespace) -> int:
-    from hairdigi.app.library.store import location
-
     if args.library_command == "export":   # the outputs are checked before the library is opened
         if not args.csv and not args.xlsx:
             raise LibraryError("give --csv FILE, --xlsx FILE or both")
@@ -187,8 +178,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _import(library: Library, args) -> int:
-    from hairdigi.app.library.importing import import_paths
-
     n = import_paths(library, args.paths, progress=lambda line: print(line, flush=True))
     print(f"imported {n} swatches; the library at {redact(library.where)} holds {library.count()}")
     return 0
@@ -229,6 +218,7 @@ def _export(library: Library, args) -> int:
 
 
 def _readings(library: Library, args) -> int:
+    # deferred: 3 ms to import, for library readings only; the parser must not pay it (hairdigi --help in 0.2 s)
     from hairdigi.app.library.lab_readings import import_readings, parse_columns
 
     start = time.perf_counter()

@@ -2,6 +2,9 @@
 from __future__ import annotations
 
 import argparse
+import csv
+import json
+import shutil
 from pathlib import Path
 
 
@@ -20,10 +23,7 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import csv
-    import json
-    import shutil
-
+    # deferred: loads colour-science; training is left out of the desktop build (hairdigi.inference.training)
     from hairdigi.inference.training.report import model_card
 
     def table(path):

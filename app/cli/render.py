@@ -3,15 +3,19 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 
 from hairdigi.app.cli import validation as v
 from hairdigi.app.cli.arguments import DEPTH, SEED, SIZE, SPP, STRANDS, VARIANT_HELP, use_variant
+from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, AppearanceError, AppearanceEstimate
+from hairdigi.render.domain.bounds import ENVIRONMENTS, SCENE_NAMES, VARIANT_CHOICES, SceneKind
+from hairdigi.render.domain.bounds import ILLUMINANTS as ILLUMINANT_NAMES
+from hairdigi.render.domain.files import atomic_paths, read_json
+from hairdigi.render.domain.params import HairParamsError, load_params
+from hairdigi.render.domain.rig_geometry import CAMERA_DISTANCE, CameraPose
 
 
 def add_parser(sub) -> None:
-    from hairdigi.render.domain.bounds import ENVIRONMENTS, SCENE_NAMES, VARIANT_CHOICES
-    from hairdigi.render.domain.bounds import ILLUMINANTS as ILLUMINANT_NAMES
-
     p = sub.add_parser("render", help="render hair parameters in the swatch rig or a hairstyle")
     p.add_argument("--params", required=True, help="hair parameter JSON (top level or under 'hair')")
     p.add_argument("--scene", default="swatch", type=v.scene_name(SCENE_NAMES),
@@ -38,12 +42,10 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # deferred: load OpenCV, Mitsuba and colour-science; the parser must not (hairdigi --help in 0.2 s)
     from hairdigi.render.io.images import save_exr, save_png
-    from hairdigi.render.domain.bounds import SceneKind
-    from hairdigi.render.domain.params import load_params
     from hairdigi.render.renderer import SceneSpec, render
     from hairdigi.render.scenes import PORTRAIT_CAMERA
-    from hairdigi.render.domain.rig_geometry import CAMERA_DISTANCE, CameraPose
 
     use_variant(args.variant)
     params = load_params(args.params)
@@ -54,17 +56,15 @@ def run(args: argparse.Namespace) -> int:
                      appearance=measured_appearance(args.params))
     result = render(params, spec, args.size, args.spp, args.seed)
     if args.illuminant is not None and args.balance == "light":
-        from hairdigi.render.spectra import balanced
-        from hairdigi.render.srgb import linear_to_srgb8
+        from hairdigi.render.spectra import balanced  # deferred: 3 ms to import; the parser must not pay it
+        from hairdigi.render.srgb import linear_to_srgb8  # deferred: loads colour-science; the parser must not
 
         result.linear = balanced(result.linear, args.illuminant)
         result.srgb = linear_to_srgb8(result.linear)
     if spec.hair_file is not None:
-        from hairdigi.render.hairfile import model_summary
+        from hairdigi.render.hairfile import model_summary  # deferred: 3 ms to import; the parser must not pay it
 
         print(model_summary(spec.hair_file, spec.n_strands))
-    from hairdigi.render.domain.files import atomic_paths
-
     with atomic_paths(args.out, args.exr) as (png, exr):   # both written, then both published: a failed
         save_png(png, result.srgb)                         # EXR leaves the old PNG in place
         if exr is not None:
@@ -82,12 +82,6 @@ def run(args: argparse.Namespace) -> int:
 def measured_appearance(path: str):
     """What a parameter file's ``appearance`` block measured (an estimate record's shine and grey share, as
     ``export`` and the app's previews render them; a hidden swatch's block whole), or None: the default look."""
-    from dataclasses import replace
-
-    from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE, AppearanceError, AppearanceEstimate
-    from hairdigi.render.domain.files import read_json
-    from hairdigi.render.domain.params import HairParamsError
-
     data = read_json(path, HairParamsError, "no such parameter file", "not valid JSON ({exc})")
     block = data.get("appearance") if isinstance(data, dict) else None
     if block is None:

@@ -11,11 +11,16 @@ from typing import TYPE_CHECKING
 from hairdigi.app.cli import validation as v
 from hairdigi.app.cli.arguments import (SPP, add_declare_argument, add_instrument_arguments, add_spectra_arguments,
                                        add_structure_argument, instrument_options)
-from hairdigi.app.session.profile import RigProfile, merged, profile_path, read_profile, write_profile
-from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
-from hairdigi.render.swatch_family import STRUCTURES
 from hairdigi.app.session.blockers import messages
-from hairdigi.render.domain.rig_geometry import N_LIGHTS
+from hairdigi.app.session.declared_spectra import SIM_LED, SIM_SENSOR, rig_spectra, spectra_problem
+from hairdigi.app.session.profile import RigProfile, merged, profile_path, read_profile, write_profile
+from hairdigi.render.domain.appearance import Appearance, AppearanceError
+from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE, StructureMode
+from hairdigi.render.domain.files import read_json
+from hairdigi.render.domain.params import HairParamsError, load_params
+from hairdigi.render.domain.records import CaptureRecord, read_record
+from hairdigi.render.domain.rig_geometry import LIGHT_POSITIONS, N_LIGHTS
+from hairdigi.render.swatch_family import STRUCTURES
 
 if TYPE_CHECKING:
     from hairdigi.app.session.rig_session import RigSession
@@ -23,8 +28,6 @@ if TYPE_CHECKING:
 
 def check_dead_lights(dead) -> set[int]:
     """The simulated dead lights as a set of light numbers; ValueError naming ``--dead`` for any other."""
-    from hairdigi.render.domain.rig_geometry import LIGHT_POSITIONS
-
     n = len(LIGHT_POSITIONS)
     wrong = [d for d in (dead or ()) if isinstance(d, bool) or not isinstance(d, int) or not 0 <= d < n]
     if wrong:
@@ -34,18 +37,16 @@ def check_dead_lights(dead) -> set[int]:
 
 def open_session(args) -> RigSession:
     """The simulated rig with ``--sim``, else the camera and the light board (``--port``, or found)."""
+    # deferred: loads OpenCV and colour-science; the parser must not (hairdigi --help in 0.2 s)
     from hairdigi.app.session.rig_session import open_rig
-    from hairdigi.app.session.declared_spectra import rig_spectra
 
     simulated = {}
     if args.sim:
-        from hairdigi.render.camera_model import CameraModel
+        from hairdigi.render.camera_model import CameraModel  # deferred: loads colour-science; the parser must not
 
         simulated = {"camera_model": CameraModel(exposure_ev=args.exposure, cast=tuple(args.cast)),
                      "dead": check_dead_lights(args.dead), "spp": args.spp}
         if getattr(args, "hidden", None):
-            from hairdigi.render.domain.params import load_params
-
             simulated["hidden"] = load_params(args.hidden)
             simulated["appearance"] = hidden_appearance(args.hidden)
         if getattr(args, "hidden_structure", None):
@@ -61,10 +62,6 @@ def open_session(args) -> RigSession:
 
 def hidden_appearance(path):
     """The ``appearance`` block of a hidden swatch's JSON (shine, fibre spread, greys), or None."""
-    from hairdigi.render.domain.appearance import Appearance, AppearanceError
-    from hairdigi.render.domain.files import read_json
-    from hairdigi.render.domain.params import HairParamsError
-
     data = read_json(path, HairParamsError, "no such parameter file", "not valid JSON ({exc})")
     if not isinstance(data, dict) or data.get("appearance") is None:
         return None
@@ -131,6 +128,7 @@ def _judge_hidden(session: RigSession, result, out: dict, say) -> None:
     if hidden is None:
         return
     if getattr(session.camera, "illuminant", None) is not None:
+        # deferred: loads colour-science; the parser must not (hairdigi --help in 0.2 s)
         from hairdigi.app.evaluation.spectral_evaluation import LIGHTS, judge_record
 
         where = judge_record(hidden, result.record, session.profile, session.camera.illuminant,
@@ -148,10 +146,11 @@ def _judge_hidden(session: RigSession, result, out: dict, say) -> None:
     structure = getattr(session.camera, "swatch_model", None)
     say(f"hidden truth of the simulated swatch:  {hair_line(hidden)}"
         + (f" (a {structure} swatch, judged on its strands)" if structure else ""))
-    from hairdigi.render.judge import judge, judge_scene
+    from hairdigi.render.judge import judge, judge_scene  # deferred: loads colour-science; the parser must not
 
     look = session.camera.appearance
     if result.record.appearance is not None:
+        # deferred: loads colour-science; the parser must not (hairdigi --help in 0.2 s)
         from hairdigi.app.evaluation.appearance_evaluation import judge_everywhere
 
         read = result.record.appearance.value
@@ -250,8 +249,6 @@ def rig_profile(args, still: bool, say=None) -> RigProfile:
     """The rig this command works with: the session's profile (``app.session.profile``) with the flags given in
     its place, each override said on stderr; ``args``' ``led``, ``sensor``, ``structure`` (and ``spectral`` on the
     simulated rig) are set from it. A live rig's profile, simulated spectra filled in, is what the session keeps."""
-    from hairdigi.app.session.declared_spectra import SIM_LED, SIM_SENSOR, spectra_problem
-
     say = say or (lambda line: print(line, file=sys.stderr))
     kept = read_profile(args.session)
     profile, notices = merged(kept, {"sensitivities": args.sensor, "led": args.led, "structure": args.structure})
@@ -290,11 +287,10 @@ def _given(value, default) -> bool:
 def still_spectra(led: str | None, sensor: str | None):
     """A still camera's declared LEDs and sensitivities (``--led``/``--sensor``) as ``import_still``'s
     ``in_spectral_world``: its record read in the camera's RGB as a declared rig's; None where none is declared."""
-    from hairdigi.app.session.declared_spectra import rig_spectra
-
     spectra = rig_spectra(False, False, led, sensor)[1]
     if spectra is None:
         return None
+    # deferred: 7 ms to import, for a declared camera only; the parser must not pay it (hairdigi --help in 0.2 s)
     from hairdigi.inference.spectral_reading import spectral_record
 
     return lambda record, profile, curve: spectral_record(record, spectra, profile, curve)
@@ -305,6 +301,7 @@ def report_still(session_folder: str | Path, still: str | Path, say=print, struc
     """``hairdigi rig --still``: import a RAW still into the session, estimate it (``structure``: ``--structure``;
     ``led`` and ``sensor``, the declared spectra it is read under), and say what came out. No rig is opened, so the
     still's structure is not read from the rig's frames."""
+    # deferred: load OpenCV and colour-science (the encoder); the parser must not (hairdigi --help in 0.2 s)
     from hairdigi.app.session.rig_session import import_still
     from hairdigi.inference.encoder import Encoder, ModelError
 
@@ -317,8 +314,6 @@ def report_still(session_folder: str | Path, still: str | Path, say=print, struc
     result = import_still(session_folder, still, encoder, still_spectra(led, sensor), structure=structure,
                           instrument=instrument)
     say(f"still: {result.image_path} (+ {result.meta_path.name}), copied before processing")
-    from hairdigi.render.domain.records import CaptureRecord, read_record
-
     profile = read_record(result.meta_path, CaptureRecord).calibration
     if profile is not None:
         say(f"calibrated on the still's own chart: ΔE2000 mean {profile.delta_e2000['before']['mean']:.2f} "
@@ -383,8 +378,9 @@ def run(args: argparse.Namespace) -> int:
         raise v.ArgumentError("--session '': an empty session folder would put captures/ in the current folder; "
                               "name the session folder (default out/session)")
     if args.list_ports:
-        from hairdigi.hardware.lights import discover
+        # deferred: pyserial and the light board's driver, 6 ms to import, for --list-ports only; the parser must not
         import serial.tools.list_ports
+        from hairdigi.hardware.lights import discover
 
         ports = list(serial.tools.list_ports.comports())
         print(f"{len(ports)} serial port(s): " + ", ".join(p.device for p in ports))

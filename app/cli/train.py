@@ -29,6 +29,7 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # deferred: loads torch (the train extra); training is left out of the desktop build (hairdigi.inference.training)
     from hairdigi.inference.training.model import EncoderConfig
     from hairdigi.inference.training.train import TrainConfig, train
 

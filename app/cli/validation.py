@@ -17,15 +17,27 @@ written and reviewed beside the rules and every other command's use of them.
 from __future__ import annotations
 
 import argparse
+import csv
+import errno
 import math
 import os
+import re
 import shutil
+import socket
+import sys
 from pathlib import Path
 from typing import Callable, Iterable
 
 from hairdigi.app.evaluation.registry import EVALUATIONS
+from hairdigi.app.session.declared_spectra import SIM_LED, SIM_SENSOR, spectra_problem
+from hairdigi.render.domain.bounds import (CAMERAS, ILLUMINANTS, BoundsError, SceneKind, check_camera, check_size_spp,
+                                          defaults_for)
 from hairdigi.render.domain.errors import HairdigiError
-from hairdigi.render.domain.files import cache_dir
+from hairdigi.render.domain.files import (ProtectedFileError, _checkout_protected, _within, cache_dir, package_folders,
+                                         read_json, refuse_protected)
+from hairdigi.render.domain.rig_geometry import CAMERA_DISTANCE, CameraPose, GeometryError
+from hairdigi.render.domain.session_folder import SessionFolder
+from hairdigi.resources import MODELS
 
 #: Bounds of the numbers the commands take (render bounds live in ``render.domain.bounds``).
 MAX_SEED = 2 ** 32 - 1           # Mitsuba's and NumPy's seeds are unsigned 32-bit
@@ -45,8 +57,6 @@ MIN_FREE_BYTES = 1 << 20         # an output folder on a disk with less than thi
 
 def _models_folder() -> str:
     """The shipped model's folder: ``export-onnx`` and ``model-card`` may replace the files there."""
-    from hairdigi.resources import MODELS
-
     return str(MODELS)
 
 
@@ -182,8 +192,6 @@ def check_output_file(path: str | os.PathLike, flag: str, suffixes: Iterable[str
 def check_not_protected(path: str | os.PathLike, flag: str, allow: tuple = ()) -> None:
     """``path`` must not be a file hairdigi reads back: a session's, a dataset's or the package's, or a
     record, a dye or a library of any name (the one guard: ``render.domain.files.refuse_protected``)."""
-    from hairdigi.render.domain.files import ProtectedFileError, refuse_protected
-
     try:
         refuse_protected((path,), allow)
     except ProtectedFileError as exc:
@@ -226,9 +234,6 @@ def check_output_dir(path: str | os.PathLike, flag: str,
 
 def _not_a_protected_folder(p: Path, flag: str, dataset_ok: bool) -> None:
     """An output folder must not be the package's, a session's captures, or (but for ``dataset``) a dataset."""
-    from hairdigi.render.domain.files import _checkout_protected, _within, package_folders
-    from hairdigi.render.domain.session_folder import SessionFolder
-
     real = p.resolve()
     folders = package_folders()
     if any(_within(real, f) for f in folders + _checkout_protected(folders)[0]):
@@ -264,8 +269,6 @@ def scene_name(names) -> Callable[[str], str]:
 
 def illuminant(text: str) -> str:
     """An argparse type: a named light (``render.domain.bounds.ILLUMINANTS``) or a CSV's path (read later)."""
-    from hairdigi.render.domain.bounds import ILLUMINANTS
-
     if text in ILLUMINANTS or text.lower().endswith((".csv", ".txt")):
         return text
     raise argparse.ArgumentTypeError(f"{text!r} is not a light: choose one of {', '.join(ILLUMINANTS)}, "
@@ -274,14 +277,12 @@ def illuminant(text: str) -> str:
 
 def check_render(args: argparse.Namespace) -> None:
     """``hairdigi render``: the parameter file, the outputs, and size x spp, depth and camera together."""
-    from hairdigi.render.domain.bounds import BoundsError, SceneKind, check_camera, check_size_spp, defaults_for
-    from hairdigi.render.scenes import PORTRAIT_CAMERA
-    from hairdigi.render.domain.rig_geometry import CAMERA_DISTANCE, CameraPose, GeometryError
+    from hairdigi.render.scenes import PORTRAIT_CAMERA  # deferred: loads Mitsuba; the parser must not (--help in 0.2 s)
 
     check_input_file(args.params, "--params")
     inputs = {"--params": args.params}
     if args.scene.lower().endswith(".hair"):
-        from hairdigi.render.hairfile import HairFileError, read_hair_file
+        from hairdigi.render.hairfile import HairFileError, read_hair_file  # deferred: 3 ms; the parser must not pay it
 
         check_input_file(args.scene, "--scene")
         inputs["--scene"] = args.scene
@@ -313,6 +314,7 @@ def check_estimate(args: argparse.Namespace) -> None:
     check_input_file(args.image, "image")
     inputs = {"image": args.image, "--calibration": args.calibration, "--model": args.model}
     if args.calibration:
+        # deferred: loads OpenCV and colour-science; the parser must not (hairdigi --help in 0.2 s)
         from hairdigi.inference.calibration import load_profile
 
         check_input_file(args.calibration, "--calibration")
@@ -322,8 +324,6 @@ def check_estimate(args: argparse.Namespace) -> None:
         raise ArgumentError("--led and --sensor read the estimate in the camera's RGB through its chart correction: "
                             "add --calibration (the photo's calibration profile)")
     if led or sensor:
-        from hairdigi.app.session.declared_spectra import spectra_problem
-
         problem = spectra_problem(led, sensor)
         if problem is not None:
             raise ArgumentError(problem)
@@ -351,8 +351,6 @@ def check_dataset_folder(path: str | os.PathLike) -> None:
     manifest = Path(path) / "manifest.json"
     if not manifest.exists():
         return
-    from hairdigi.render.domain.files import read_json
-
     data = read_json(manifest, ArgumentError, "no manifest", "not a hairdigi dataset manifest ({exc})")
     if not isinstance(data, dict) or not isinstance(data.get("config"), dict):
         raise ArgumentError(f"{manifest}: not a hairdigi dataset manifest (no \"config\" object); choose "
@@ -368,8 +366,6 @@ def check_dataset(args: argparse.Namespace) -> None:
 
 def camera_sensitivities(text: str) -> str:
     """An argparse type: a named camera (``render.domain.bounds.CAMERAS``), ``cie``, or a CSV's path (read later)."""
-    from hairdigi.render.domain.bounds import CAMERAS
-
     if text in CAMERAS or text == "cie" or text.lower().endswith((".csv", ".txt")):
         return text
     raise argparse.ArgumentTypeError(f"{text!r} is not a camera: choose one of {', '.join(CAMERAS)}, cie, "
@@ -383,6 +379,7 @@ def check_rig(args: argparse.Namespace) -> None:
     if args.roi:
         _parse_roi(args.roi, "--roi")
     if getattr(args, "still", None):
+        # deferred: loads OpenCV and colour-science; the parser must not (hairdigi --help in 0.2 s)
         from hairdigi.hardware.cameras import RAW_EXTENSIONS
 
         still = check_input_file(args.still, "--still")
@@ -402,8 +399,6 @@ def check_spectra(args: argparse.Namespace) -> None:
                                 f"--{flag} out")
     if args.sim and not args.spectral:
         return
-    from hairdigi.app.session.declared_spectra import SIM_LED, SIM_SENSOR, spectra_problem
-
     declared = (args.led or SIM_LED, args.sensor or SIM_SENSOR) if args.sim else (args.led, args.sensor)
     problem = spectra_problem(*declared)
     if problem is not None:
@@ -413,8 +408,6 @@ def check_spectra(args: argparse.Namespace) -> None:
 def check_session_folder(path: str | os.PathLike, flag: str) -> Path:
     """A session folder: usable as an output folder, its ``captures`` a folder and its calibration a file."""
     p = check_output_dir(path, flag)
-    from hairdigi.render.domain.session_folder import SessionFolder
-
     captures, calibration = SessionFolder(p).captures, SessionFolder(p).calibration
     if captures.exists() and not captures.is_dir():
         raise ArgumentError(f"{flag} {p}: {captures} is a file, where the session keeps its captures folder; "
@@ -441,8 +434,6 @@ def check_display() -> None:
     Wayland socket must exist; ``DISPLAY`` must be ``[host]:number[.screen]``, a local one must have its
     socket, a remote one (``localhost:10.0`` of an ssh -X session, ``remotehost:0``) must answer on its
     TCP port within ``DISPLAY_TIMEOUT_S``."""
-    import sys
-
     platform = os.environ.get("QT_QPA_PLATFORM", "")
     if not sys.platform.startswith("linux") or platform.split(":")[0] in ("offscreen", "minimal", "vnc", "eglfs",
                                                                          "linuxfb"):
@@ -476,9 +467,6 @@ def _wayland_problem(name: str) -> str | None:
 
 def _x_display_problem(display: str) -> str | None:
     """Why ``DISPLAY`` names no X server this process can reach, or None."""
-    import re
-    import socket
-
     shown = "".join(c if 32 <= ord(c) < 127 else "?" for c in display[:60])   # no escape reaches the terminal
     match = re.fullmatch(r"(?:(?P<proto>[A-Za-z]+)/)?(?P<host>[^:]*):(?P<number>\d+)(?:\.\d+)?", display)
     if not match:
@@ -592,8 +580,6 @@ def check_model_card(args: argparse.Namespace) -> None:
 
 def _json_object(path: str | os.PathLike, flag: str, what: str) -> dict:
     """A JSON file holding an object, or an ArgumentError naming ``flag`` and the file."""
-    from hairdigi.render.domain.files import read_json
-
     data = read_json(path, ArgumentError, f"no such file; give {what} as {flag}",
                      f"not JSON ({{exc}}); give {what} as {flag}")
     if not isinstance(data, dict):
@@ -603,8 +589,6 @@ def _json_object(path: str | os.PathLike, flag: str, what: str) -> dict:
 
 def _check_number_table(path: str | os.PathLike, flag: str) -> None:
     """A CSV table whose cells are numbers, but for its ``model`` column (as ``model-card`` reads it)."""
-    import csv
-
     line = 1
     try:
         with open(path, newline="", encoding="utf-8") as f:
@@ -660,8 +644,6 @@ def one_line(text: str) -> str:
 
 def describe_os_error(exc: OSError) -> str:
     """An OSError as ``path: reason; fix``."""
-    import errno
-
     fixes = {errno.ENOSPC: "free some space or write to another disk",
              errno.EDQUOT: "free some space or write to another disk",
              errno.EACCES: "check its permissions or choose another path",

@@ -26,15 +26,23 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
 from hairdigi.app.session.blockers import capture_as_told, messages
+from hairdigi.app.session.rig_session import RigSession
+from hairdigi.inference import appearance_reading
+from hairdigi.inference.encoder import Encoder
+from hairdigi.inference.refine import RefineSettings, scene_for
 from hairdigi.render.domain.appearance import APPEARANCE_DRAW, DEFAULT_APPEARANCE, FIELDS, Appearance
+from hairdigi.render.domain.bounds import Environment
 from hairdigi.render.domain.files import write_json_atomic
-from hairdigi.render.io.figures import save_table
 from hairdigi.render.domain.params import HairParams, sample_params
 from hairdigi.render.domain.rig_geometry import N_LIGHTS, TRANSFER_POSE
-from hairdigi.render.metrics import error_stats
+from hairdigi.render.io.figures import save_figure, save_table
+from hairdigi.render.judge import JUDGE_SEED, judge_mean
+from hairdigi.render.metrics import delta_e2000, error_stats
 
 SEED = 2_026_118
 JUDGE_SIZE, JUDGE_SPP = 64, 32
@@ -68,8 +76,7 @@ def hidden_set(config: AppearanceSet) -> list[tuple[str, HairParams, Appearance,
 
 def _scenes(view) -> dict:
     """The judge's scenes: the rig's swatch area (all lights, each light), and the transfer."""
-    from hairdigi.inference.refine import RefineSettings, scene_for
-    from hairdigi.render.domain.bounds import Environment
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import SceneSpec
 
     rig, film = scene_for(view, RefineSettings(size=JUDGE_SIZE, spp=JUDGE_SPP))
@@ -84,9 +91,6 @@ def _scenes(view) -> dict:
 def judge_everywhere(truth: tuple, estimate: tuple, view, swatch_model: str | None = None) -> dict:
     """ΔE2000 of ``estimate`` against ``truth`` (each (hair or sigma_a, Appearance)) in every judge scene, on
     the strands of ``swatch_model`` (``render.swatch_family``; None: the default, layered)."""
-    from hairdigi.render.judge import JUDGE_SEED, judge_mean
-    from hairdigi.render.metrics import delta_e2000
-
     out = {}
     for name, (spec, size) in _scenes(view).items():
         means = []
@@ -99,8 +103,6 @@ def judge_everywhere(truth: tuple, estimate: tuple, view, swatch_model: str | No
 
 
 def _one(name: str, hidden: HairParams, look: Appearance, layout: int, folder: Path, spp: int, encoder) -> list[dict]:
-    from hairdigi.app.session.rig_session import RigSession
-
     session = RigSession.simulated_rig(folder, hidden=hidden, spp=spp, encoder=encoder, appearance=look,
                                        strand_seed=layout)
     rows = []
@@ -138,13 +140,7 @@ def evaluate_appearance(out_dir: str | os.PathLike, config: AppearanceSet = Appe
                         progress: bool = True) -> dict:
     """Capture, estimate and judge every hidden swatch; resumable (each swatch's rows are kept in
     ``out_dir/rows/``); writes the table, the summary and the plot."""
-    from tqdm import tqdm
-
-    from hairdigi.inference.encoder import Encoder
-
-    from hairdigi.inference import appearance_reading as appearance
-
-    appearance.READ_VARIATION = config.variation
+    appearance_reading.READ_VARIATION = config.variation
     out = Path(out_dir)
     (out / "rows").mkdir(parents=True, exist_ok=True)
     encoder = Encoder()
@@ -202,10 +198,6 @@ def summarise(rows: list[dict]) -> dict:
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     judges = ["fit", "light0", "light1", "light2", "transfer"]
     fig, ax = plt.subplots(figsize=(8, 4))
     for m, (mode, colour, label) in enumerate((("read", "C0", "with the single-light frames (shine read)"),

@@ -5,11 +5,37 @@ then the files written. The work is in ``app/evaluation/bench_*.py``; it may use
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
+import numpy as np
+
+from hairdigi.app.evaluation.bench_atlas import HAIRS as ATLAS_HAIRS
+from hairdigi.app.evaluation.bench_atlas import atlas_bench
+from hairdigi.app.evaluation.bench_dataset import run_dataset_bench
+from hairdigi.app.evaluation.bench_fibres import run as run_fibres
+from hairdigi.app.evaluation.bench_previews import CLEAN_DE, cheapest_clean, run_previews_bench
+from hairdigi.app.evaluation.bench_refine import CHECK_SETTINGS
+from hairdigi.app.evaluation.bench_refine import bench_check_spp as run_check_spp
+from hairdigi.app.evaluation.bench_refine import bench_layouts as run_layouts
+from hairdigi.app.evaluation.bench_refine import bench_refine as run_refine
+from hairdigi.app.evaluation.bench_render import run_render_bench
+from hairdigi.app.evaluation.bench_rig import detection_sweep
+from hairdigi.app.evaluation.bench_shine import run_shine_bench, run_spread_bench
+from hairdigi.app.evaluation.bench_spectral import run as run_spectral
+from hairdigi.app.evaluation.bench_streaks import streaks_bench
+from hairdigi.app.evaluation.bench_structure import FAMILY_HAIRS, family, renderers
+from hairdigi.app.evaluation.bench_structure import run as run_structure
 from hairdigi.app.evaluation.registry import BENCH_OUT
 from hairdigi.app.evaluation.results import Result
+from hairdigi.app.review.previews import PreviewSettings, twin_view
+from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SIM_SIZE
+from hairdigi.inference.encoder import Encoder
+from hairdigi.inference.training.report import bench_encoders
+from hairdigi.render.blender_run import BlenderError, probe_blender
 from hairdigi.render.domain.errors import EvaluationError
+from hairdigi.render.domain.files import cache_dir
+from hairdigi.render.domain.rig_geometry import swatch_roi
 
 
 def _files(out: Path, *names: str) -> list[Path]:
@@ -18,8 +44,6 @@ def _files(out: Path, *names: str) -> list[Path]:
 
 def bench_render(args: argparse.Namespace) -> Result:
     """Renderer defaults: strands, spp and depth against error and time."""
-    from hairdigi.app.evaluation.bench_render import run_render_bench
-
     out = Path(args.out)
     rows = run_render_bench(out, quick=args.quick)
     return Result("render_bench", rows, files=_files(out, "render_bench.csv", "render_bench.png"),
@@ -28,10 +52,6 @@ def bench_render(args: argparse.Namespace) -> Result:
 
 def bench_rig(args: argparse.Namespace) -> Result:
     """Chart detection and ΔE2000 over simulated poses, noise and casts."""
-    import numpy as np
-
-    from hairdigi.app.evaluation.bench_rig import detection_sweep
-
     out = Path(args.out)
     rows = detection_sweep(out)
     found = [r for r in rows if r["detected"]]
@@ -42,8 +62,6 @@ def bench_rig(args: argparse.Namespace) -> Result:
 
 def bench_encoder(args: argparse.Namespace) -> Result:
     """ONNX encoders side by side: latency and error on held-out swatches."""
-    from hairdigi.inference.training.report import bench_encoders
-
     if not args.models:
         raise EvaluationError("bench encoder needs --models A.onnx B.onnx ...")
     out = Path(args.out)
@@ -55,13 +73,9 @@ def bench_encoder(args: argparse.Namespace) -> Result:
 
 def bench_refine(args: argparse.Namespace) -> Result:
     """Refinement by synthesis: render size, spp and iterations against error and time."""
-    from hairdigi.app.evaluation.bench_refine import bench_refine as run
-    from hairdigi.inference.encoder import Encoder
-    from hairdigi.render.domain.files import cache_dir
-
     out = Path(args.out)
     data = Path(args.data) if args.data else cache_dir() / "datasets" / "heldout-s1000003-64px-64spp-linear16"
-    rows = run(Encoder(args.model), data, out, count=args.n or 10)
+    rows = run_refine(Encoder(args.model), data, out, count=args.n or 10)
     return Result("refine_bench", rows, files=_files(out, "refine_bench.csv", "refine_bench.png"), text=[
         f"{r['size']:3d}² {r['spp']:3d} spp, {r['iterations']} iteration(s): ΔE2000 median "
         f"{r['de_median']:.2f} (p95 {r['de_p95']:.2f}); curve {r['curve_s']:.2f} s + {r['polish_s']:.2f} s"
@@ -70,10 +84,8 @@ def bench_refine(args: argparse.Namespace) -> Result:
 
 def bench_layouts(args: argparse.Namespace) -> Result:
     """The refinement's check renders averaged over strand layouts: how far a new layout moves the answer."""
-    from hairdigi.app.evaluation.bench_refine import bench_layouts as run
-
     out = Path("packaging/bench/layouts") if args.out == BENCH_OUT else Path(args.out)
-    rows = run(out)
+    rows = run_layouts(out)
     return Result("layouts_bench", rows, files=_files(out, "layouts_bench.csv", "layouts_bench.png"), text=[
         f"{r['hair']:15s} {r['check_layouts']} layouts: two layouts' answers {r['nuisance_de2000']:.2f} "
         f"apart (the truth's own colour {r['truth_spread_de2000']:.2f}, "
@@ -83,12 +95,8 @@ def bench_layouts(args: argparse.Namespace) -> Result:
 
 def bench_check_spp(args: argparse.Namespace) -> Result:
     """The refinement's check renders at the rig's swatch area: their spp against the error they leave."""
-    import numpy as np
-
-    from hairdigi.app.evaluation.bench_refine import CHECK_SETTINGS, bench_check_spp as run
-
     out = Path("packaging/bench/check-spp") if args.out == BENCH_OUT else Path(args.out)
-    rows = run(out)
+    rows = run_check_spp(out)
     result = Result("check_spp_bench", rows, files=_files(out, "check_spp_bench.csv"))
     for label, _ in CHECK_SETTINGS:
         sel = [r for r in rows if r["setting"] == label]
@@ -100,8 +108,6 @@ def bench_check_spp(args: argparse.Namespace) -> Result:
 
 def bench_dataset(args: argparse.Namespace) -> Result:
     """Dataset rendering: the local pool and a local Ray instance, swatches per second."""
-    from hairdigi.app.evaluation.bench_dataset import run_dataset_bench
-
     out = Path(args.out)
     rows = run_dataset_bench(out, quick=args.quick, n=args.n)
     result = Result("dataset_bench", rows, files=_files(out, "dataset_bench.csv", "dataset_bench.png"))
@@ -124,12 +130,6 @@ def previews_lines(out_dir: str | Path, quick: bool = False) -> list[str]:
     """``hairdigi bench previews``: app/evaluation/bench_previews.py on the simulated rig's twin view (at the
     scales the app renders it) and the hairstyle; the summary lines say each default's measured error
     and the cheapest clean setting."""
-    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN, SIM_SIZE
-    from hairdigi.render.domain.rig_geometry import swatch_roi
-    from hairdigi.app.evaluation.bench_previews import CLEAN_DE, cheapest_clean, run_previews_bench
-
-    from hairdigi.app.review.previews import PreviewSettings, twin_view
-
     s = PreviewSettings()
     roi = swatch_roi(SIM_SIZE)
     twins = {scale: twin_view(roi, SIM_SIZE, True, scale) for scale, _ in s.twin_passes}
@@ -158,10 +158,6 @@ def previews_lines(out_dir: str | Path, quick: bool = False) -> list[str]:
 
 def bench_shine(args: argparse.Namespace) -> Result:
     """Shine (longitudinal roughness) read from the rig's lights one at a time, and what it buys elsewhere."""
-    import numpy as np
-
-    from hairdigi.app.evaluation.bench_shine import run_shine_bench
-
     out = Path(args.out)
     rows = run_shine_bench(out, quick=args.quick)
     err = np.array([r["beta_error"] for r in rows])
@@ -180,8 +176,6 @@ CAPTURE_SHINE_MISFIT = 0.025
 
 def bench_spread(args: argparse.Namespace) -> Result:
     """Fibre spread against uniform fibres, as the three single-light means see them (no render once the tables exist)."""
-    from hairdigi.app.evaluation.bench_shine import run_spread_bench
-
     out = Path("packaging/bench/spread") if args.out == BENCH_OUT else Path(args.out)
     rows = run_spread_bench(out, CAPTURE_SHINE_MISFIT)
     top = [r for r in rows if r["spread"] == 0.5]
@@ -193,10 +187,8 @@ def bench_spread(args: argparse.Namespace) -> Result:
 
 def bench_structure(args: argparse.Namespace) -> Result:
     """The swatch's fibre structure: today's interpenetrating swatch against a layered one, fibre counts, lights."""
-    from hairdigi.app.evaluation.bench_structure import run
-
     out = Path("packaging/bench/structure") if args.out == BENCH_OUT else Path(args.out)
-    rows = run(out, quick=args.quick)
+    rows = run_structure(out, quick=args.quick)
     layered = [r for r in rows if r["model"] == "layered" and r["strands"] == 2000 and r["lights"] == "all"]
     return Result("structure", rows, files=_files(out, "structure.csv", "structure.json", "structure.png"), text=[
         "layered 2000 against today's swatch at equal sigma_a (all lights): "
@@ -205,14 +197,12 @@ def bench_structure(args: argparse.Namespace) -> Result:
 
 def bench_atlas(args: argparse.Namespace) -> Result:
     """The shipped atlas against rendering each region's tables: cost and colour apart, by region and hair."""
-    from hairdigi.app.evaluation.bench_atlas import HAIRS, atlas_bench
-
     out = Path("packaging/bench/atlas") if args.out == BENCH_OUT else Path(args.out)
     summary = atlas_bench(out, end_to_end_too=not args.quick)
     result = Result("atlas", summary["tables"], summary, files=_files(out, "atlas.csv", "atlas.json", "atlas.png"))
     for r in summary["tables"]:
         result.text.append(f"{r['region']:28s} "
-                           + ", ".join(f"{h} {r[f'{h}_de2000']:.2f}" for h in HAIRS if f"{h}_de2000" in r))
+                           + ", ".join(f"{h} {r[f'{h}_de2000']:.2f}" for h in ATLAS_HAIRS if f"{h}_de2000" in r))
     for r in summary.get("end_to_end", []):
         result.text.append("first capture, fresh session: " + ", ".join(f"{k} {v}" for k, v in r.items()))
     for r in summary.get("poses_end_to_end", []):
@@ -222,8 +212,6 @@ def bench_atlas(args: argparse.Namespace) -> Result:
 
 def bench_family(args: argparse.Namespace) -> Result:
     """Every physical swatch structure at equal sigma_a, against the layered swatch."""
-    from hairdigi.app.evaluation.bench_structure import FAMILY_HAIRS, family
-
     out = Path("packaging/bench/family") if args.out == BENCH_OUT else Path(args.out)
     rows = family(out)
     return Result("family", rows, files=_files(out, "family.csv", "family.png"), text=[
@@ -233,8 +221,6 @@ def bench_family(args: argparse.Namespace) -> Result:
 
 def bench_streaks(args: argparse.Namespace) -> Result:
     """The swatch area's texture by physical structure: what ``inference.structure.read_texture`` reads."""
-    from hairdigi.app.evaluation.bench_streaks import streaks_bench
-
     out = Path("packaging/bench/streaks") if args.out == BENCH_OUT else Path(args.out)
     if args.quick:   # the demo's copper, layered and deposited, live and RAW: the rig's own cached renders
         summary = streaks_bench(out, n=0, members=("layered", "deposited"), tilted=False, hairs=1)
@@ -247,11 +233,6 @@ def bench_streaks(args: argparse.Namespace) -> Result:
 
 def bench_renderers(args: argparse.Namespace) -> Result | int:
     """Every family structure at equal sigma_a in Mitsuba and in Blender Cycles (HAIRDIGI_BLENDER)."""
-    import sys
-
-    from hairdigi.app.evaluation.bench_structure import renderers
-    from hairdigi.render.blender_run import BlenderError, probe_blender
-
     try:
         probe_blender()   # no Blender, or one that does not run, stops here with how to get one
     except BlenderError as exc:
@@ -268,10 +249,8 @@ def bench_renderers(args: argparse.Namespace) -> Result | int:
 
 def bench_fibres(args: argparse.Namespace) -> Result:
     """Fibre groups of a varied swatch: render time and colour against the finest split."""
-    from hairdigi.app.evaluation.bench_fibres import run
-
     out = Path("packaging/bench/fibres") if args.out == BENCH_OUT else Path(args.out)
-    result = run(out, quick=args.quick)       # saved: fibres_bench.csv and .png
+    result = run_fibres(out, quick=args.quick)       # saved: fibres_bench.csv and .png
     result.text = [f"{r['hair']:9s} {r['groups']:2d} groups: {r['seconds']:.2f} s, ΔE2000 {r['de2000_vs_finest']:.2f} "
                    f"against the finest" for r in result.rows]
     return result
@@ -279,10 +258,8 @@ def bench_fibres(args: argparse.Namespace) -> Result:
 
 def bench_spectral(args: argparse.Namespace) -> Result:
     """The RGB fast path against the spectral render, under daylight, tungsten and shop lights."""
-    from hairdigi.app.evaluation.bench_spectral import run
-
     out = Path("packaging/bench/spectral") if args.out == BENCH_OUT else Path(args.out)
-    result = run(out, quick=args.quick)       # saved: spectral_bench.csv and .png
+    result = run_spectral(out, quick=args.quick)       # saved: spectral_bench.csv and .png
     for r in result.rows:
         table1 = "  -  " if r["table1_de2000"] is None else f"{r['table1_de2000']:5.2f}"
         result.text.append(f"{r['hair']:10s} {r['light']:8s}: ΔE2000 against spectral, Table 1 RGB {table1}, "

@@ -15,13 +15,30 @@ pose tables and without them, against the truth.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
+import tempfile
 import time
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
+from hairdigi.app.evaluation.rig import HARD_CASES
+from hairdigi.app.session.rig_session import RigSession
+from hairdigi.inference.atlas import load_poses
+from hairdigi.inference.encoder import Encoder
+from hairdigi.inference.estimate import estimate_image
+from hairdigi.inference.refine import RefineSettings, ResponseCurve, response_curve
+from hairdigi.inference.shine import shine_tables
+from hairdigi.inference.structure import (FAMILY, LAYOUTS, READ_MEMBERS, FamilyCurves, _averaged, family_curves,
+                                          family_view, to_family)
 from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
+from hairdigi.render.domain.rig_geometry import CameraPose, RigRegion
+from hairdigi.render.judge import judge
+from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.renderer import SceneSpec, render
 
 #: The regions (frame size, x, y, w, h): the simulated rig's own, its RAW still, a thick swatch's core (the
 #: finder's ``hair_core``), an off-centre swatch and a short one, and a 16:9 camera's frame of the rig's.
@@ -52,8 +69,6 @@ def fresh_session(cache: Path, atlas: str):
 
 
 def _compare(atlas_curve, rendered) -> dict:
-    from hairdigi.render.metrics import delta_e2000
-
     row = {}
     for name, sigma in HAIRS.items():
         sigma = np.asarray(sigma, float)
@@ -66,12 +81,6 @@ def _compare(atlas_curve, rendered) -> dict:
 
 def tables_bench(regions: dict = REGIONS) -> list[dict]:
     """Per region: the atlas's curve and shine tables (layered) against rendering them now, and their costs."""
-    from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.inference.shine import shine_tables
-    from hairdigi.inference.structure import FAMILY, LAYOUTS, READ_MEMBERS, family_curves, family_view, to_family
-    from hairdigi.render.domain.rig_geometry import RigRegion
-    from hairdigi.render.metrics import delta_e2000
-
     rows = []
     for name, (frame, roi) in regions.items():
         view = RigRegion(frame, roi)
@@ -130,10 +139,6 @@ def end_to_end(out: Path, without: int = 1, atlas_path: str = "") -> list[dict]:
     """Each hard case's (``app.evaluation.rig.HARD_CASES``) first capture in a fresh session (a fresh cache: nothing
     rendered before), a deposited swatch, estimated with the atlas (``atlas_path``; "": the shipped one); the first
     ``without`` of them also without it (every table rendered)."""
-    from hairdigi.app.evaluation.rig import HARD_CASES
-    from hairdigi.app.session.rig_session import RigSession
-    from hairdigi.render.judge import judge
-
     rows = []
     for k, (hair, hidden) in enumerate(HARD_CASES.items()):
         answers = {}
@@ -168,10 +173,6 @@ POSES = {"pose 37.5°, 22.5° (between)": (37.5, 22.5), "pose 52.5°, -67.5° (b
 
 def _pose_family(pose, settings):
     """The family's curves at ``pose`` as the pose tables give them (interpolated)."""
-    from hairdigi.inference.atlas import load_poses
-    from hairdigi.inference.refine import ResponseCurve
-    from hairdigi.inference.structure import FAMILY, LAYOUTS, FamilyCurves, _averaged
-
     tables, levels = load_poses(), np.asarray(settings.levels, float)
     members = {m: _averaged([ResponseCurve(levels.copy(), tables.curve(pose, m, s)) for s in range(LAYOUTS)])
                for m in FAMILY}
@@ -180,11 +181,6 @@ def _pose_family(pose, settings):
 
 def poses_bench(poses: dict = POSES) -> list[dict]:
     """Per pose off the grid: the pose tables' curve and family map against rendering them there, and their costs."""
-    from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.inference.structure import family_curves, to_family
-    from hairdigi.render.domain.rig_geometry import CameraPose
-    from hairdigi.render.metrics import delta_e2000
-
     rows = []
     for name, (polar, azimuth) in poses.items():
         pose, settings = CameraPose(polar, azimuth), RefineSettings()
@@ -215,13 +211,6 @@ POSES_END_TO_END = ((37.5, 22.5), (40.0, 30.0))
 def poses_end_to_end(out: Path, pose: tuple[float, float] = POSES_END_TO_END[0], without: int = 1) -> list[dict]:
     """Each hard case's all-hair crop of a deposited swatch seen from ``pose``, estimated in a fresh session (a fresh
     cache) with the pose tables; the first ``without`` also without them (every curve rendered): time and truth."""
-    from hairdigi.app.evaluation.rig import HARD_CASES
-    from hairdigi.inference.encoder import Encoder
-    from hairdigi.inference.estimate import estimate_image
-    from hairdigi.render.domain.rig_geometry import CameraPose
-    from hairdigi.render.judge import judge
-    from hairdigi.render.renderer import SceneSpec, render
-
     camera, encoder, rows = CameraPose(*pose), Encoder(), []
     for k, (hair, hidden) in enumerate(HARD_CASES.items()):
         image = render(hidden, SceneSpec("swatch", camera=camera, framing="crop", swatch_model="deposited"),
@@ -243,10 +232,7 @@ def poses_end_to_end(out: Path, pose: tuple[float, float] = POSES_END_TO_END[0],
 
 
 def plot(rows: list[dict], path: Path) -> None:
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     table = [r for r in rows if r.get("render_s_one_curve")]
     fig, ax = plt.subplots(figsize=(8, 4.5))
@@ -270,13 +256,9 @@ def atlas_bench(out: Path, end_to_end_too: bool = False) -> dict:
     write_csv_atomic(out / "atlas.csv", rows)
     summary = {"tables": rows}
     if not end_to_end_too and (out / "atlas.json").exists():   # --quick: the last full run's end to end is kept
-        import json
-
         last = json.loads((out / "atlas.json").read_text())
         summary.update({k: last[k] for k in ("end_to_end", "poses_end_to_end") if k in last})
     if end_to_end_too:      # its sessions and fresh caches go to a temporary folder, not beside the table
-        import tempfile
-
         with tempfile.TemporaryDirectory(prefix="hairdigi-bench-atlas-") as work:
             summary["end_to_end"] = end_to_end(Path(work))
             summary["poses_end_to_end"] = [row for pose in POSES_END_TO_END

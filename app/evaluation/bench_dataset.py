@@ -14,12 +14,19 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 import time
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 
+from hairdigi.inference.training.cluster import ClusterError, require_ray
 from hairdigi.inference.training.dataset import DatasetConfig, generate, shard_path
+from hairdigi.render.domain.bounds import defaults_for
+from hairdigi.render.domain.files import write_csv_atomic
+from hairdigi.render.io.figures import save_figure
+from hairdigi.render.variant import select_variant
 
 #: (backend, workers): workers are pool processes (local) or the local Ray instance's CPUs (ray).
 CASES = (("local", 1), ("local", 2), ("ray", 1), ("ray", 2))
@@ -31,7 +38,6 @@ def bench_config(quick: bool = False, n: int | None = None) -> DatasetConfig:
     n = n if n is not None else (4 if quick else 16)
     if n < 1:
         raise ValueError(f"bench dataset --n must be at least 1, got {n}")
-    from hairdigi.render.domain.bounds import defaults_for
 
     return DatasetConfig(n=n, size=16 if quick else 64, spp=1 if quick else 4, seed=7,
                          strands=150 if quick else defaults_for("swatch").strands,
@@ -52,16 +58,10 @@ def run_dataset_bench(out_dir: str | os.PathLike, quick: bool = False, n: int | 
 
     Without Ray installed, the Ray cases are left out (with a note on stderr).
     """
-    import sys
-
-    from hairdigi.render.domain.files import write_csv_atomic
-    from hairdigi.render.variant import select_variant
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     config = bench_config(quick, n)
     variant = select_variant()
-    from hairdigi.inference.training.cluster import ClusterError, require_ray
 
     try:
         require_ray()
@@ -95,10 +95,6 @@ def run_dataset_bench(out_dir: str | os.PathLike, quick: bool = False, n: int | 
 
 def plot_dataset_bench(rows: list[dict], path: Path) -> Path:
     """Bars of swatches per second, one per case."""
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     fig, ax = plt.subplots(figsize=(6, 4))
     labels = [f"{r['backend']}\n{r['workers']} {'worker' if r['backend'] == 'local' else 'CPU'}"
               f"{'s' if r['workers'] > 1 else ''}" for r in rows]

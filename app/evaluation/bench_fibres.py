@@ -11,11 +11,15 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 
 from hairdigi.app.evaluation.results import Result
 from hairdigi.render.domain.appearance import Appearance
 from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
+from hairdigi.render.io.figures import save_figure
+from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.renderer import Renderer, SceneSpec
 
 HAIRS = {"platinum": (0.05, 0.08, 0.15), "brown": (0.35, 0.6, 1.2), "dark": (2.0, 3.0, 5.0)}
 GROUPS = (1, 2, 4, 6, 8, 12, 16, 32)
@@ -24,9 +28,6 @@ LOOK = Appearance(0.3, 0.5, 0.2)
 
 def run(out: Path, quick: bool = False) -> Result:
     """Render each hair at each group count; save ``fibres_bench.csv`` and ``.png``; return the result."""
-    from hairdigi.render.metrics import delta_e2000
-    from hairdigi.render.renderer import Renderer, SceneSpec
-
     frame = (400, 300)
     region = RigRegion(frame, swatch_roi(frame))
     film, crop, _ = region.render_plan(64 * 64)
@@ -52,10 +53,6 @@ def run(out: Path, quick: bool = False) -> Result:
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     fig, (a, b) = plt.subplots(1, 2, figsize=(8, 3.2))
     for hair in HAIRS:
         r = [x for x in rows if x["hair"] == hair]

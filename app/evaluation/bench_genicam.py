@@ -17,7 +17,14 @@ import tempfile
 import time
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
+
+from hairdigi.app.session.rig_session import RigSession
+from hairdigi.hardware.bayer import demosaic, srgb8, unpack
+from hairdigi.hardware.genicam import FAKE_ID, GenICamCamera, GenICamSettings, discover
+from hairdigi.render.domain.files import write_json_atomic
+from hairdigi.render.io.figures import save_figure, save_table
 
 #: The GigE Vision fake's serial while the bench runs.
 GV_SERIAL = "HDBENCH"
@@ -40,8 +47,6 @@ def _frames(camera, n: int) -> dict:
 
 def _decoding(camera, n: int) -> dict:
     """The host's share of a read: a frame's mosaic unpacked, demosaiced and encoded, ``n`` times."""
-    from hairdigi.hardware.bayer import demosaic, srgb8, unpack
-
     mosaic, fmt = camera.read().mosaic, camera.format
     data = mosaic.astype(np.uint8).tobytes() if fmt.bits == 8 else mosaic.astype("<u2").tobytes()
     latencies = []
@@ -69,8 +74,6 @@ def _captures(session, n: int) -> dict:
 
 def _gv_case(n: int) -> dict | None:
     """The GigE Vision fake process over the loopback, or None where it is not installed."""
-    from hairdigi.hardware.genicam import GenICamCamera, discover
-
     tool = shutil.which("arv-fake-gv-camera-0.8")
     if tool is None:
         return None
@@ -93,11 +96,6 @@ def _gv_case(n: int) -> dict | None:
 
 def run_genicam_bench(out: Path, quick: bool = False) -> list[dict]:
     """Every case's frame rate and latency; writes ``genicam_bench.csv``, ``.json`` and ``.png``."""
-    from hairdigi.app.session.rig_session import RigSession
-    from hairdigi.hardware.genicam import FAKE_ID, GenICamCamera, GenICamSettings
-    from hairdigi.render.domain.files import write_json_atomic
-    from hairdigi.render.io.figures import save_table
-
     n, captures = (10, 2) if quick else (60, 8)
     rows = []
     camera = GenICamCamera(FAKE_ID, GenICamSettings())
@@ -131,9 +129,6 @@ def run_genicam_bench(out: Path, quick: bool = False) -> list[dict]:
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    from hairdigi.render.io.figures import save_figure  # noqa: I001  (selects the headless backend first)
-    import matplotlib.pyplot as plt
-
     fig, ax = plt.subplots(figsize=(10.5, 3.8))
     y = np.arange(len(rows))
     ax.barh(y, [r["latency_ms_median"] for r in rows], color="#4a7ab5",

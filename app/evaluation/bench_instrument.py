@@ -12,32 +12,37 @@
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
+from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
+from colour_cxf import cxf3, write_cxf
 
+from hairdigi.app.evaluation.rig import HARD_CASES
+from hairdigi.app.library.lab_readings import import_readings
+from hairdigi.app.library.store import Library, SwatchRow
+from hairdigi.inference.instrument_reading import BuildSettings, load_curves, member_ladder, read_instrument
+from hairdigi.inference.refine import SIGMA_LEVELS, ResponseCurve
+from hairdigi.inference.structure import family_curves
+from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
+from hairdigi.render.instrument_geometry import lab_of_reflectance, reflectance_ladder
 from hairdigi.render.io.figures import save_table
 from hairdigi.render.metrics import delta_e2000_lab
+from hairdigi.render.spectra import hair_sigma_a_spectrum
+from hairdigi.render.swatch_family import structure_strands
 
 MEMBERS = ("layered", "deposited")
 
 
 def _lab(ladder: np.ndarray, hair) -> np.ndarray:
-    from hairdigi.inference.refine import SIGMA_LEVELS, ResponseCurve
-    from hairdigi.render.instrument_geometry import lab_of_reflectance
-    from hairdigi.render.spectra import hair_sigma_a_spectrum
-
     return lab_of_reflectance(ResponseCurve(np.asarray(SIGMA_LEVELS, float), np.asarray(ladder, float))(
         hair_sigma_a_spectrum(hair)))
 
 
 def bench_instrument(args: argparse.Namespace) -> int:
-    from hairdigi.app.evaluation.rig import HARD_CASES
-    from hairdigi.inference.instrument_reading import BuildSettings, member_ladder
-    from hairdigi.inference.refine import SIGMA_LEVELS
-    from hairdigi.render.instrument_geometry import reflectance_ladder
-    from hairdigi.render.swatch_family import structure_strands
-
     quick = getattr(args, "quick", False)
     levels = np.asarray(SIGMA_LEVELS, float)
     rows = []
@@ -76,10 +81,6 @@ def bench_instrument(args: argparse.Namespace) -> int:
 
 
 def _reading_cost(hairs: dict) -> list[dict]:
-    from hairdigi.inference.instrument_reading import load_curves, read_instrument
-    from hairdigi.inference.structure import family_curves
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
-
     curves = load_curves()
     if curves is None:
         return []
@@ -102,14 +103,6 @@ IMPORT_TRESSES = 100
 def _import_cost() -> list[dict]:
     """``hairdigi library readings`` of a CSV and a CxF3 file of ``IMPORT_TRESSES`` tresses, 6 readings each,
     into a library of as many swatches (tagged with the tress ids)."""
-    import tempfile
-    from pathlib import Path
-
-    from colour_cxf import cxf3, write_cxf
-
-    from hairdigi.app.library.lab_readings import import_readings
-    from hairdigi.app.library.store import Library, SwatchRow
-
     rng = np.random.default_rng(3)
     ids = [f"T-{i:04d}" for i in range(IMPORT_TRESSES)]
     out = []
@@ -138,10 +131,7 @@ def _import_cost() -> list[dict]:
 
 
 def _plot(rows: list[dict], path) -> None:
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     ladders = [r for r in rows if "ladder" in r]
     fig, ax = plt.subplots(figsize=(8, 4))

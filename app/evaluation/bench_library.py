@@ -9,18 +9,17 @@ from pathlib import Path
 
 import numpy as np
 
-from hairdigi.app.library.store import Library
-from hairdigi.app.library.swatch_colour import ILLUMINANTS, hex_lab
 from hairdigi.app.evaluation.registry import BENCH_OUT
+from hairdigi.app.library.importing import _with_colours
+from hairdigi.app.library.store import Library, SwatchRecord, SwatchRow
+from hairdigi.app.library.swatch_colour import ILLUMINANTS, hex_lab
+from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
+from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.records import EstimateRecord
 
 
 def synthetic_rows(n: int, seed: int = 0) -> list:
     """``n`` swatches of uniformly drawn Table 1 parameters, coloured as an import colours them."""
-    from hairdigi.app.library.store import SwatchRecord, SwatchRow
-    from hairdigi.app.library.importing import _with_colours
-    from hairdigi.render.domain.params import HairParams
-    from hairdigi.render.domain.records import EstimateRecord
-
     rng = np.random.default_rng(seed)
     rows = []
     for i in range(n):
@@ -33,8 +32,6 @@ def synthetic_rows(n: int, seed: int = 0) -> list:
 
 def bench_library(args: argparse.Namespace) -> int:
     """Time ``find`` (k = 10) on a library of ``--n`` swatches (10,000), SQLite and (``HAIRDIGI_BENCH_POSTGRES``) PostgreSQL."""
-    from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
-
     n = args.n or 10_000
     out = Path("packaging/bench/library") if args.out == BENCH_OUT else Path(args.out)
     start = time.perf_counter()

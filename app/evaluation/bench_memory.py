@@ -20,7 +20,19 @@ import sys
 import tempfile
 from pathlib import Path
 
+import cv2
+import matplotlib.pyplot as plt
 import numpy as np
+import tifffile
+
+from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
+from hairdigi.render.chart import colorchecker_reflectances
+from hairdigi.render.domain import rig_geometry
+from hairdigi.render.domain.files import write_json_atomic
+from hairdigi.render.hairfile import _HEADER, HAS_POINTS, HAS_SEGMENTS, MAX_FILE_POINTS
+from hairdigi.render.io.figures import save_figure, save_table
+from hairdigi.render.renderer import Renderer, SceneSpec
+from hairdigi.resources import SAMPLE_PARAMS
 
 MAX_PEAK_GB = 2.5
 MAX_SECONDS = 60.0
@@ -50,8 +62,6 @@ def _texture(height: int, width: int, seed: int = 0) -> np.ndarray:
 
 def write_large_png(path: Path, width: int = 8000, height: int = 8000) -> Path:
     """An all-hair-like PNG of ``width`` x ``height`` (a small texture scaled up: a small file)."""
-    import cv2
-
     small = _texture(height // 16, width // 16)
     big = cv2.resize(small, (width, height), interpolation=cv2.INTER_NEAREST)
     cv2.imwrite(str(path), big[..., ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 1])
@@ -64,11 +74,6 @@ WHITE = 4095
 
 def rig_still_linear(size: tuple[int, int] = (400, 300)) -> np.ndarray:
     """The simulated rig's view (swatch and ColorChecker on the holder), linear RGB scaled to the sensor."""
-    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
-    from hairdigi.render.domain import rig_geometry
-    from hairdigi.render.chart import colorchecker_reflectances
-    from hairdigi.render.renderer import Renderer, SceneSpec
-
     spec = SceneSpec("swatch", framing="rig", chart=tuple(map(tuple, colorchecker_reflectances())),
                      target=rig_geometry.RIG_TARGET, half_width=rig_geometry.RIG_HALF_WIDTH, strands=1000)
     linear = Renderer(max_cached=1).render(DEFAULT_HIDDEN, spec, size, 8, seed=1).linear
@@ -78,9 +83,6 @@ def rig_still_linear(size: tuple[int, int] = (400, 300)) -> np.ndarray:
 def write_large_dng(path: Path, width: int = 8000, height: int = 6000, small: np.ndarray | None = None) -> Path:
     """A 12-bit RGGB DNG of ``width`` x ``height`` showing ``small`` (linear RGB in [0, 1]; default: the hair
     texture) scaled up."""
-    import cv2
-    import tifffile
-
     if small is None:
         small = _texture(height // 16, width // 16).astype(np.float32) / 255.0
     counts = cv2.resize((small * WHITE).astype(np.uint16), (width, height), interpolation=cv2.INTER_NEAREST)
@@ -102,8 +104,6 @@ def write_large_dng(path: Path, width: int = 8000, height: int = 6000, small: np
 
 def write_large_hair(path: Path, points: int | None = None, per_strand: int = 80) -> Path:
     """A ``.hair`` model of ``points`` points (default: the bound), strands of ``per_strand`` hanging down."""
-    from hairdigi.render.hairfile import _HEADER, HAS_POINTS, HAS_SEGMENTS, MAX_FILE_POINTS
-
     n_strands = (points or MAX_FILE_POINTS) // per_strand
     rng = np.random.default_rng(0)
     roots = rng.normal(0, 1, (n_strands, 3)).astype(np.float32)
@@ -127,8 +127,6 @@ def run_cases(out_dir: Path, quick: bool = False) -> list[dict]:
         scale = 4 if quick else 1
         image = write_large_png(work / "large.png", 8000 // scale, 8000 // scale)
         still = write_large_dng(work / "large.dng", 8000 // scale, 6000 // scale, rig_still_linear())
-        from hairdigi.render.hairfile import MAX_FILE_POINTS
-
         hair = write_large_hair(work / "large.hair", MAX_FILE_POINTS // scale ** 2)
         cases = [
             ("image", f"estimate of a {8000 // scale}x{8000 // scale} PNG",
@@ -151,16 +149,10 @@ def run_cases(out_dir: Path, quick: bool = False) -> list[dict]:
 
 
 def _sample_params() -> Path:
-    from hairdigi.resources import SAMPLE_PARAMS
-
     return Path(str(SAMPLE_PARAMS))
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     fig, axes = plt.subplots(1, 2, figsize=(8, 3))
     names = [r["case"] for r in rows]
     axes[0].bar(names, [r["peak_rss_gb"] for r in rows], color="#8a5a3c")
@@ -176,9 +168,6 @@ def _plot(rows: list[dict], path: Path) -> None:
 
 def bench_memory(args: argparse.Namespace) -> int:
     """``hairdigi bench memory``: run the cases, write the table, the JSON and the plot."""
-    from hairdigi.render.domain.files import write_json_atomic
-    from hairdigi.render.io.figures import save_table
-
     out = Path(args.out)
     out = out / "memory" if str(args.out) == "out/bench" else out
     rows = run_cases(out, quick=args.quick)

@@ -18,14 +18,18 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 from tqdm import tqdm
 
 from hairdigi.render import denoise as dn
-from hairdigi.render.io.figures import save_figure, save_table
+from hairdigi.render import head, scene_kinds, scenes, strands
+from hairdigi.render import renderer as renderer_module
+from hairdigi.render.domain import absorption
 from hairdigi.render.domain.files import atomic_path
-from hairdigi.render.metrics import delta_e2000, mean_colour_delta_e, pixel_delta_e
 from hairdigi.render.domain.params import HairParams
+from hairdigi.render.io.figures import save_figure, save_table
+from hairdigi.render.metrics import delta_e2000, mean_colour_delta_e, pixel_delta_e
 from hairdigi.render.renderer import Renderer, SceneSpec
 
 #: The app's denoise modes: none, colour alone, colour with albedo and normal guides.
@@ -66,11 +70,8 @@ def _aux_images(renderer: Renderer, hair: HairParams, spec: SceneSpec, size, spp
 
 def _scene_code() -> str:
     """A digest of the modules that make the scenes: a reference is stale once they change."""
-    from hairdigi.render import head, renderer, scene_kinds, scenes, strands
-    from hairdigi.render.domain import absorption
-
     digest = hashlib.sha256()
-    for module in (absorption, head, renderer, scene_kinds, scenes, strands):
+    for module in (absorption, head, renderer_module, scene_kinds, scenes, strands):
         digest.update(Path(module.__file__).read_bytes())
     return digest.hexdigest()[:16]
 
@@ -148,8 +149,6 @@ def cheapest_clean(rows: list[dict], view: str, width: int, mode: str | None = N
 
 def plot_previews(rows: list[dict], path: Path) -> Path:
     """Seconds against mean per-pixel ΔE2000, one panel per view, one line per denoise mode."""
-    import matplotlib.pyplot as plt
-
     views = sorted({(r["view"], r["width"], r["height"]) for r in rows})
     fig, axes = plt.subplots(1, len(views), figsize=(5.5 * len(views), 4.6), squeeze=False)
     for ax, (name, w, h) in zip(axes[0], views):

@@ -9,26 +9,30 @@ whole cost). Writes ``refine_bench.csv`` and ``refine_bench.png``.
 from __future__ import annotations
 
 import os
+import time
 from dataclasses import replace
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
+from hairdigi.inference.preprocess import Roi
+from hairdigi.inference.refine import RefineSettings, mean_linear, refine, response_curve, scene_for
 from hairdigi.inference.training.dataset import DatasetConfig, load, sample_spec
 from hairdigi.inference.training.evaluate import JUDGE, Judge, capture, judge_file, judge_render
-from hairdigi.inference.refine import RefineSettings, mean_linear, refine
-from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.domain.absorption import hair_sigma_a
+from hairdigi.render.domain.files import write_csv_atomic
 from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
+from hairdigi.render.io.figures import save_figure, save_table
+from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.renderer import default_renderer
 
 
 def bench_refine(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLike,
                  sizes=(32, 48, 64), spps=(8, 16, 32), iterations=(0, 1, 2), count: int = 10,
                  judge: Judge = JUDGE, progress: bool = True) -> list[dict]:
-    from tqdm import tqdm
-
-    from hairdigi.inference.preprocess import Roi
-    from hairdigi.render.io.figures import save_table
-
     images, vectors, _, manifest = load(data_root)
     config = DatasetConfig(**manifest["config"])
     cached = judge_file(data_root, judge)
@@ -64,9 +68,6 @@ def bench_refine(encoder, data_root: str | os.PathLike, out_dir: str | os.PathLi
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    from hairdigi.render.io.figures import save_figure  # noqa: I001  (selects the headless backend first)
-    import matplotlib.pyplot as plt
-
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     for k in sorted({r["iterations"] for r in rows}):
         rs = [r for r in rows if r["iterations"] == k]
@@ -95,16 +96,6 @@ def bench_check_spp(out_dir: str | os.PathLike, progress: bool = True) -> list[d
     check render matches the capture, so it inherits that render's noise. Each hair's truth, rendered at
     ``CHECK_JUDGE_SPP`` with another seed, is the capture; each setting's answer is rendered the same way
     and judged against it (mean-colour ΔE2000). Writes ``check_spp_bench.csv``."""
-    import time
-
-    from tqdm import tqdm
-
-    from hairdigi.inference.refine import response_curve, scene_for
-    from hairdigi.render.domain.absorption import hair_sigma_a
-    from hairdigi.render.domain.files import write_csv_atomic
-    from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
-    from hairdigi.render.renderer import default_renderer
-
     renderer = default_renderer()
     frame = (400, 300)
     view = RigRegion(frame, swatch_roi(frame))
@@ -150,16 +141,6 @@ def bench_layouts(out_dir: str | os.PathLike, progress: bool = True) -> list[dic
     against the truth on its own layout, and the **truth's spread** the largest ΔE2000 between the
     truth's own captures (the floor of any answer read from one capture), and again on a swatch of
     ``LAYOUT_FINE_STRANDS`` finer fibres. Writes ``layouts_bench.csv`` and ``layouts_bench.png``."""
-    import time
-
-    from tqdm import tqdm
-
-    from hairdigi.inference.refine import response_curve, scene_for
-    from hairdigi.render.domain.absorption import hair_sigma_a
-    from hairdigi.render.domain.files import write_csv_atomic
-    from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
-    from hairdigi.render.renderer import default_renderer
-
     renderer = default_renderer()
     frame = (400, 300)
     view = RigRegion(frame, swatch_roi(frame))
@@ -202,10 +183,6 @@ def bench_layouts(out_dir: str | os.PathLike, progress: bool = True) -> list[dic
 
 
 def _plot_layouts(rows: list[dict], path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     fig, ax = plt.subplots(figsize=(6, 3.5))
     for name in dict.fromkeys(r["hair"] for r in rows):
         sel = [r for r in rows if r["hair"] == name]

@@ -12,15 +12,15 @@ import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
-
 from tqdm import tqdm
 
-from hairdigi.render.io.figures import save_figure
 from hairdigi.render.domain.bounds import defaults_for
 from hairdigi.render.domain.files import write_csv_atomic
-from hairdigi.render.metrics import mean_colour_delta_e, rmse
 from hairdigi.render.domain.params import HairParams
+from hairdigi.render.io.figures import save_figure
+from hairdigi.render.metrics import mean_colour_delta_e, rmse
 from hairdigi.render.renderer import Renderer, SceneSpec
 
 
@@ -115,8 +115,6 @@ def run_render_bench(out_dir: str | os.PathLike, quick: bool = False, repeats: i
 
 def plot_speed_vs_error(rows: list[dict], path: Path) -> Path:
     """Two panels, seconds against RMSE and against mean-colour ΔE2000, one series per sweep."""
-    import matplotlib.pyplot as plt
-
     fig, axes = plt.subplots(1, 2, figsize=(12, 5))
     groups: dict[tuple, list[dict]] = {}
     for r in rows:

@@ -15,10 +15,19 @@ import tempfile
 import time
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
+from hairdigi.app.evaluation.rig import HARD_CASES
+from hairdigi.app.session.rig_session import RigSession
+from hairdigi.inference.encoder import Encoder
+from hairdigi.render.camera_model import CameraModel
+from hairdigi.render.instrument_geometry import lab_of_tristimulus, spectral_tristimulus
 from hairdigi.render.io.figures import save_table
 from hairdigi.render.metrics import delta_e2000_lab
+from hairdigi.render.spectra import hair_sigma_a_spectrum
+from hairdigi.render.swatch_family import structure_strands
 
 #: The hairs laid down again: the rig evaluation's hard cases that span the lightness range, and a dye.
 HAIRS = ("copper (the demo)", "black", "platinum", "saturated blue")
@@ -38,12 +47,6 @@ def spread(labs: list[np.ndarray]) -> dict:
 
 
 def bench_repeatability(args: argparse.Namespace) -> int:
-    from hairdigi.app.evaluation.instrument_evaluation import truth_readings
-    from hairdigi.app.evaluation.rig import HARD_CASES
-    from hairdigi.app.session.rig_session import RigSession
-    from hairdigi.inference.encoder import Encoder
-    from hairdigi.render.camera_model import CameraModel
-
     quick = getattr(args, "quick", False)
     hairs = HAIRS[:2] if quick else HAIRS
     placements = 3 if quick else PLACEMENTS
@@ -101,20 +104,13 @@ def bench_repeatability(args: argparse.Namespace) -> int:
 
 def _placed_truth(params, seed: int, geometries) -> dict[str, np.ndarray]:
     """The virtual instrument's reading of one placement's spot (its own fibre layout)."""
-    from hairdigi.render.instrument_geometry import lab_of_tristimulus, spectral_tristimulus
-    from hairdigi.render.spectra import hair_sigma_a_spectrum
-    from hairdigi.render.swatch_family import structure_strands
-
     strands = structure_strands("deposited", 8000, seed=seed)
     sigma = hair_sigma_a_spectrum(params)
     return {g: lab_of_tristimulus(spectral_tristimulus(strands, sigma, g, spp=128, size=48)) for g in geometries}
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     hairs = list(dict.fromkeys(r["hair"] for r in rows))
     sci = [r for r in rows if r["geometry"] == "d/8 SCI"]

@@ -4,19 +4,19 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
+
+from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
+from hairdigi.inference.calibration import CalibrationError, calibrate
+from hairdigi.render.camera_model import CameraModel, sensor_response
+from hairdigi.render.chart import colorchecker_reflectances
+from hairdigi.render.domain import rig_geometry
+from hairdigi.render.domain.files import write_csv_atomic
+from hairdigi.render.renderer import Renderer, SceneSpec
 
 
 def detection_sweep(out_dir: str | Path, size=(400, 300), spp: int = 16) -> list[dict]:
     """``hairdigi bench rig``: chart detection and CCM ΔE over camera poses x noise x casts, and feed fps."""
-    from hairdigi.hardware.sim_rig import DEFAULT_HIDDEN
-    from hairdigi.render.camera_model import CameraModel, sensor_response
-    from hairdigi.inference.calibration import CalibrationError, calibrate
-    from hairdigi.render.domain import rig_geometry
-    from hairdigi.render.domain.files import write_csv_atomic
-    from hairdigi.render.chart import colorchecker_reflectances
-    from hairdigi.render.renderer import Renderer, SceneSpec
-    from tqdm import tqdm
-
     renderer = Renderer(max_cached=1)
     chart = tuple(map(tuple, colorchecker_reflectances()))
     rows = []

@@ -14,11 +14,22 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
+from scipy.optimize import least_squares
 
+from hairdigi.inference.refine import RefineSettings, response_curve, scene_for
+from hairdigi.inference.shine import estimate_shine, shine_tables
+from hairdigi.render.domain.absorption import LONGITUDINAL_ROUGHNESS, hair_sigma_a
 from hairdigi.render.domain.appearance import Appearance
 from hairdigi.render.domain.files import write_csv_atomic
 from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.rig_geometry import N_LIGHTS, CameraPose, RigRegion, swatch_roi
+from hairdigi.render.fibres import FIBRE_GROUPS, group_z
+from hairdigi.render.io.figures import save_figure
+from hairdigi.render.judge import judge_mean
+from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.renderer import SceneSpec, default_renderer
 
 #: Held-out shine values (the tables' grid is 0.1-0.6) and colours (copper, platinum, dark brown).
 BETAS = (0.12, 0.22, 0.35, 0.5)
@@ -28,14 +39,6 @@ CAPTURE_SPP, CAPTURE_SEED, CAPTURE_STRANDS = 64, 99, 3
 
 
 def run_shine_bench(out_dir: str | os.PathLike, quick: bool = False) -> list[dict]:
-    from hairdigi.inference.refine import RefineSettings, response_curve, scene_for
-    from hairdigi.inference.shine import estimate_shine, shine_tables
-    from hairdigi.render.domain.absorption import LONGITUDINAL_ROUGHNESS, hair_sigma_a
-    from hairdigi.render.domain.rig_geometry import N_LIGHTS, CameraPose, RigRegion, swatch_roi
-    from hairdigi.render.judge import judge_mean
-    from hairdigi.render.metrics import delta_e2000
-    from hairdigi.render.renderer import SceneSpec, default_renderer
-
     size = (400, 300)
     view = RigRegion(size, swatch_roi(size))
     settings = RefineSettings()
@@ -84,10 +87,6 @@ def run_shine_bench(out_dir: str | os.PathLike, quick: bool = False) -> list[dic
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3.6))
     for name in sorted({r["hair"] for r in rows}):
         mine = [r for r in rows if r["hair"] == name]
@@ -117,10 +116,6 @@ def spread_from_means(tables) -> list[dict]:
     ``refine.varied_curve`` mixes them) are fitted by uniform fibres (sigma_a and shine free, least
     squares in log, as ``estimate_shine``); the rms log misfit left is what a reading could use.
     Pure arithmetic on ``tables`` (``inference.shine.ShineTables``)."""
-    from scipy.optimize import least_squares
-
-    from hairdigi.render.fibres import FIBRE_GROUPS, group_z
-
     z = group_z(FIBRE_GROUPS)
     rows = []
     for name, sigma in SPREAD_HAIRS.items():
@@ -144,19 +139,11 @@ def spread_from_means(tables) -> list[dict]:
 def run_spread_bench(out_dir: str | os.PathLike, capture_misfit: float | None = None) -> list[dict]:
     """``spread_from_means`` at the bench camera's swatch area (the tables rendered or loaded), written
     with a plot against ``capture_misfit`` (a real capture's shine misfit, for scale)."""
-    from hairdigi.inference.refine import RefineSettings
-    from hairdigi.inference.shine import shine_tables
-    from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
-
     size = (400, 300)
     rows = spread_from_means(shine_tables(RigRegion(size, swatch_roi(size)), RefineSettings()))
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     write_csv_atomic(out / "spread_bench.csv", rows)
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     fig, ax = plt.subplots(figsize=(6, 3.6))
     for name in SPREAD_HAIRS:
         for beta, style in zip(SPREAD_BETAS, ("-", "--")):

@@ -24,10 +24,17 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 
 from hairdigi.app.evaluation.results import Result
+from hairdigi.render.domain.absorption import hair_sigma_a
 from hairdigi.render.domain.params import HairParams
+from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
+from hairdigi.render.io.figures import save_figure
+from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.renderer import Renderer, SceneSpec
+from hairdigi.render.spectra import band_dye, hair_sigma_a_spectrum, illuminant_whitepoint, light_rgb
 
 LIGHTS = ("D65", "A", "shop-led", "FL11")
 BLONDE = HairParams(melanin_concentration=0.15, melanin_ratio=0.7, dye_concentration=0.0)
@@ -35,8 +42,6 @@ BLONDE = HairParams(melanin_concentration=0.15, melanin_ratio=0.7, dye_concentra
 
 def hairs() -> dict[str, HairParams | np.ndarray]:
     """The bench's hairs: Table 1 parameters, or an absorption spectrum (a banded dye on blonde)."""
-    from hairdigi.render.spectra import band_dye, hair_sigma_a_spectrum
-
     blonde = hair_sigma_a_spectrum(BLONDE)
     return {
         "platinum": HairParams(melanin_concentration=0.0, dye_concentration=0.0),
@@ -64,12 +69,6 @@ def matched_sigma(colour: np.ndarray, curve: np.ndarray) -> np.ndarray:
 
 def run(out: Path, quick: bool = False) -> Result:
     """Render each hair in RGB and under each light; save ``spectral_bench.csv`` and ``.png``; return the result."""
-    from hairdigi.render.domain.absorption import hair_sigma_a
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
-    from hairdigi.render.metrics import delta_e2000
-    from hairdigi.render.renderer import Renderer, SceneSpec
-    from hairdigi.render.spectra import illuminant_whitepoint, light_rgb
-
     size, spp = (24, 32) if quick else (48, 128)
     lights = LIGHTS[:2] if quick else LIGHTS   # D65 first: the matched stand-in is read under it
     renderer = Renderer(max_cached=2)
@@ -107,10 +106,6 @@ def run(out: Path, quick: bool = False) -> Result:
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     names = list(dict.fromkeys(r["hair"] for r in rows))
     lights = list(dict.fromkeys(r["light"] for r in rows))
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.6), sharey=True)

@@ -19,7 +19,24 @@ import tempfile
 from collections import Counter, defaultdict
 from pathlib import Path
 
+import cv2
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
+
+from hairdigi.app.evaluation.rig import POSE_HALF_WIDTH, POSES, RigSet, hidden_set, hidden_structure
+from hairdigi.hardware.cameras import read_raw
+from hairdigi.hardware.sim_rig import render_light_images
+from hairdigi.hardware.sim_still import write_raw_still
+from hairdigi.inference.preprocess import to_linear
+from hairdigi.inference.refine import fitted_pixels
+from hairdigi.inference.structure import STREAK_FREE_ORDER, STREAKED, read_texture
+from hairdigi.render.camera_model import NOMINAL_EXPOSURE, CameraModel, sensor_response
+from hairdigi.render.domain.params import sample_params
+from hairdigi.render.domain.rig_geometry import CameraPose, RigRegion, swatch_roi
+from hairdigi.render.io.figures import save_table
+from hairdigi.render.swatch_family import FAMILY
 
 SEED = 2026_1127
 NOISE_SEEDS = (0, 1)
@@ -29,9 +46,6 @@ DRAWN = ("deposited", "tilted", "spread", "wavy", "loose", "deposited-coarse")
 
 def _hairs(n: int) -> list[tuple[str, object, int, bool]]:
     """(name, Table 1 parameters, layout, an evaluation hair) of every hidden hair."""
-    from hairdigi.app.evaluation.rig import RigSet, hidden_set
-    from hairdigi.render.domain.params import sample_params
-
     rng = np.random.default_rng(SEED)
     return ([(name, p, 0, True) for name, p in hidden_set(RigSet())]
             + [(f"draw {i}", sample_params(rng), 1, False) for i in range(n)])
@@ -39,16 +53,6 @@ def _hairs(n: int) -> list[tuple[str, object, int, bool]]:
 
 def _captures(params, member: str, layout: int, k: int, evaluated: bool, folder: Path, tilted: bool = True):
     """(source, RigRegion, linear swatch frame) of one hidden swatch, as the rig evaluation captures it."""
-    import cv2
-
-    from hairdigi.app.evaluation.rig import POSE_HALF_WIDTH, POSES
-    from hairdigi.hardware.cameras import read_raw
-    from hairdigi.hardware.sim_rig import render_light_images
-    from hairdigi.hardware.sim_still import write_raw_still
-    from hairdigi.inference.preprocess import to_linear
-    from hairdigi.render.camera_model import NOMINAL_EXPOSURE, CameraModel, sensor_response
-    from hairdigi.render.domain.rig_geometry import CameraPose, RigRegion, swatch_roi
-
     model = None if member == "layered" else member
     images, _ = render_light_images(params, strand_seed=layout, swatch_model=model)
     radiance = images.sum(0) * NOMINAL_EXPOSURE
@@ -75,14 +79,6 @@ def streaks_bench(out: str | Path, n: int = 8, members: tuple[str, ...] | None =
                   hairs: int | None = None, progress: bool = True) -> dict:
     """Every member's streak statistics over the hidden hairs (``tilted``: with the tilted cameras' captures;
     ``hairs``: only the first so many); writes streaks.csv/.json/.png."""
-    from tqdm import tqdm
-
-    from hairdigi.app.evaluation.rig import RigSet, hidden_structure
-    from hairdigi.inference.refine import fitted_pixels
-    from hairdigi.inference.structure import read_texture
-    from hairdigi.render.io.figures import save_table
-    from hairdigi.render.swatch_family import FAMILY
-
     members = members or FAMILY
     drawn = RigSet(hidden_structures=DRAWN)
     jobs = [(k, hair, member) for k, hair in enumerate(_hairs(n)[:hairs]) for member in members
@@ -112,12 +108,7 @@ def _shares(rows: list[dict]) -> dict:
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from hairdigi.inference.structure import STREAK_FREE_ORDER, STREAKED
 
     fig, ax = plt.subplots(figsize=(8, 6))
     marks = {"live": "o", "raw still": "s", "tilted camera": "^"}

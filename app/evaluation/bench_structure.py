@@ -13,17 +13,24 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import tempfile
 import time
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
+from hairdigi.app.evaluation.structures_evaluation import StructureSet, _Cycles, _Mitsuba
+from hairdigi.inference.refine import RefineSettings, response_curve, scene_for
+from hairdigi.render.domain.bounds import defaults_for
 from hairdigi.render.domain.files import write_csv_atomic
 from hairdigi.render.domain.rig_geometry import RigRegion, swatch_roi
 from hairdigi.render.io.figures import save_figure, save_table
 from hairdigi.render.metrics import delta_e2000, linear_rgb_to_lab
 from hairdigi.render.renderer import Renderer, SceneSpec, strands_for
 from hairdigi.render.strands import Strands
+from hairdigi.render.swatch_family import FAMILY, STRUCTURES, inside_share, structure_strands
 
 #: The hairs measured: sigma_a per fibre radius.
 HAIRS = {"platinum": (0.05, 0.08, 0.15), "brown": (0.35, 0.6, 1.2), "dark": (2.0, 3.0, 5.0)}
@@ -39,8 +46,6 @@ RENDER_SEED = 11   # a strand seed s renders with RENDER_SEED + s: seed-to-seed 
 
 def rig_spec(size: int = SIZE) -> tuple[SceneSpec, tuple[int, int]]:
     """The scene and film size of the refinement at the bench camera's swatch region."""
-    from hairdigi.inference.refine import RefineSettings, scene_for
-
     return scene_for(RigRegion(FRAME, swatch_roi(FRAME)), RefineSettings(size=size, spp=SPP))
 
 
@@ -192,8 +197,6 @@ def _timing(renderer: Renderer, model: str, n: int, size: int = 64, spp: int = 6
 
 def plot_structure(rows: list[dict], path: Path) -> Path:
     """L* against fibre count (all lights) per hair, today's as lines; ΔE2000 to today's; render time."""
-    import matplotlib.pyplot as plt
-
     fig, axes = plt.subplots(1, 3, figsize=(13, 4))
     colours = {"platinum": "goldenrod", "brown": "saddlebrown", "dark": "black"}
     for hair, colour in colours.items():
@@ -239,9 +242,6 @@ def family(out_dir: str | os.PathLike) -> list[dict]:
     """Every structure of ``render.swatch_family`` at equal sigma_a: its response curve at the rig's swatch
     area (the refinement's default settings: 48², 32 spp, 12 levels; cached), per layout, and each hair's
     ΔE2000 against the layered swatch's layout 0. Writes ``family.csv`` and ``family.png``."""
-    from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.render.swatch_family import STRUCTURES
-
     view = RigRegion(FRAME, swatch_roi(FRAME))
     settings = RefineSettings()
     curves = {(m, s): response_curve(view, dataclasses.replace(settings, strand_seed=s), swatch_model=m)
@@ -270,8 +270,6 @@ def _plot_family(rows: list[dict], path: Path) -> None:
 def _grouped_bars(path: Path, models: list[str], groups: list[str], value, ylabel: str, title: str,
                   labels: list[str] | None = None) -> None:
     """A bar per (model, group): ``value(model, group)``, the groups side by side over each model."""
-    import matplotlib.pyplot as plt
-
     fig, ax = plt.subplots(figsize=(8, 3.5))
     x = np.arange(len(models))
     width = 0.8 / max(1, len(groups))
@@ -297,14 +295,6 @@ def renderers(out_dir: str | os.PathLike, structures: tuple[str, ...] | None = N
     of ``size``², ``spp``, layout 0, one shine): the two mean colours' ΔE2000, their ratio per channel,
     each renderer's seconds, and the share of the drawn fibres inside another fibre
     (``swatch_family.inside_share``). Writes ``renderers.csv`` and ``renderers.png``."""
-    import tempfile
-
-    from tqdm import tqdm
-
-    from hairdigi.app.evaluation.structures_evaluation import StructureSet, _Cycles, _Mitsuba
-    from hairdigi.render.swatch_family import FAMILY, inside_share, structure_strands
-    from hairdigi.render.domain.bounds import defaults_for
-
     names = tuple(structures or FAMILY)
     config = StructureSet(size=size, spp=spp, blender=True)
     mitsuba = _Mitsuba(config)

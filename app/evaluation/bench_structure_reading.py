@@ -19,9 +19,25 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
+from scipy.optimize import minimize
 
+from hairdigi.app.evaluation.bench_atlas import HAIRS
+from hairdigi.app.evaluation.registry import BENCH_OUT
+from hairdigi.inference.atlas import CURVE_CELL, SHINE_CELL, cells
+from hairdigi.inference.atlas import load as load_atlas
+from hairdigi.inference.atlas_build import _render_ladder, box_view
+from hairdigi.inference.refine import RefineSettings, ResponseCurve
+from hairdigi.inference.shine import ShineTables, estimate_shine
+from hairdigi.inference.structure import READ_MEMBERS, _averaged
+from hairdigi.render.domain.appearance import Appearance
 from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
+from hairdigi.render.domain.rig_geometry import N_LIGHTS, Framing
+from hairdigi.render.metrics import delta_e2000
+from hairdigi.render.renderer import SceneSpec, default_renderer
+from hairdigi.render.swatch_family import FAMILY
 
 #: Structures outside the family the readings are tried on (``render.swatch_family.STRUCTURES``).
 OUTSIDERS = ("clumped", "thin", "wavy")
@@ -34,12 +50,6 @@ READINGS = ("family", "best", "mixture", "soft")
 
 def _outsider_tables(member: str, levels: np.ndarray, betas: np.ndarray, spp: int) -> tuple[np.ndarray, np.ndarray]:
     """(K,) curve and (L, B, K) shine tables of ``member`` over the swatch region, rendered over the atlas's cells."""
-    from hairdigi.inference.atlas import CURVE_CELL, SHINE_CELL, cells
-    from hairdigi.inference.atlas_build import _render_ladder, box_view
-    from hairdigi.render.domain.appearance import Appearance
-    from hairdigi.render.domain.rig_geometry import N_LIGHTS, Framing
-    from hairdigi.render.renderer import SceneSpec, default_renderer
-
     renderer, (region, film, crop) = default_renderer(), box_view()
     spec = SceneSpec("swatch", camera=region.pose, framing=Framing.RIG, target=region.target,
                      half_width=region.half_width, crop=crop, strand_seed=0, swatch_model=member)
@@ -56,10 +66,6 @@ def _outsider_tables(member: str, levels: np.ndarray, betas: np.ndarray, spp: in
 
 def _fit_mixture(single: np.ndarray, members: list[str], shine: dict, betas: np.ndarray, levels: np.ndarray):
     """Simplex weights of ``members`` whose geometric mixture of tables fits ``single`` best, and its misfit."""
-    from scipy.optimize import minimize
-
-    from hairdigi.inference.shine import ShineTables, estimate_shine
-
     logs = [np.log(np.clip(shine[m].means, 1e-12, None)) for m in members]
 
     def weights(z):
@@ -78,15 +84,7 @@ def _fit_mixture(single: np.ndarray, members: list[str], shine: dict, betas: np.
 
 def replay(outsiders: tuple[str, ...] = OUTSIDERS, spp: int = 64, say=print) -> list[dict]:
     """One row per (structure, hair): each reading's error against the truth, and the misfits."""
-    from hairdigi.app.evaluation.bench_atlas import HAIRS
-    from hairdigi.inference.atlas import load
-    from hairdigi.inference.refine import RefineSettings, ResponseCurve
-    from hairdigi.inference.shine import ShineTables, estimate_shine
-    from hairdigi.inference.structure import READ_MEMBERS, _averaged
-    from hairdigi.render.metrics import delta_e2000
-    from hairdigi.render.swatch_family import FAMILY
-
-    atlas, levels = load(), np.asarray(RefineSettings().levels, float)
+    atlas, levels = load_atlas(), np.asarray(RefineSettings().levels, float)
     betas = atlas.betas
     curve = {m: _averaged([ResponseCurve(levels.copy(), atlas.curves[(m, s)][:, CURVE_CELLS[0], CURVE_CELLS[1]]
                                          .mean(axis=(1, 2))) for s in (0, 1)]) for m in FAMILY}
@@ -136,10 +134,7 @@ def summary(rows: list[dict]) -> dict:
 
 
 def plot(rows: list[dict], path: Path) -> None:
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
     for ax, outside in zip(axes, (False, True)):
@@ -155,8 +150,6 @@ def plot(rows: list[dict], path: Path) -> None:
 
 def bench_structure_reading(args: argparse.Namespace) -> int:
     """The family's mean against continuous readings of the structure, on structures the reading does not know."""
-    from hairdigi.app.evaluation.registry import BENCH_OUT
-
     out = Path("packaging/bench/structure-reading") if args.out == BENCH_OUT else Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = replay(OUTSIDERS[:1] if args.quick else OUTSIDERS, spp=16 if args.quick else 64)

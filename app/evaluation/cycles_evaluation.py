@@ -36,11 +36,24 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
+from hairdigi.inference.encoder import Encoder
+from hairdigi.inference.estimate import estimate_image
+from hairdigi.inference.preprocess import to_linear
+from hairdigi.inference.training.evaluate import capture
+from hairdigi.render.blender_run import render_cycles, rig_for_blender
+from hairdigi.render.domain.absorption import LONGITUDINAL_ROUGHNESS, hair_sigma_a
+from hairdigi.render.domain.appearance import APPEARANCE_DRAW, DEFAULT_SHINE
 from hairdigi.render.domain.bounds import Environment
+from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
 from hairdigi.render.domain.params import HairParams, sample_params
 from hairdigi.render.domain.rig_geometry import N_LIGHTS, RIG_SWATCH_POSE, TRANSFER_POSE
+from hairdigi.render.interchange import HairLook
+from hairdigi.render.io.figures import save_figure
+from hairdigi.render.metrics import delta_e2000, error_stats
 from hairdigi.render.strands import SWATCH_LENGTH, SWATCH_WIDTH, Strands
 
 SEED = 2_026_125
@@ -101,8 +114,6 @@ def other_swatch(seed: int) -> tuple[Strands, dict]:
 def hidden_set(config: CyclesSet) -> list[tuple[str, HairParams, float, int]]:
     """(name, Table 1, shine, strand layout) of each hidden swatch; without ``config.shine`` every shine is
     the default."""
-    from hairdigi.render.domain.appearance import APPEARANCE_DRAW, DEFAULT_SHINE
-
     rng = np.random.default_rng(SEED)
     named = [(n, h, b, 301 + i) for i, (n, (h, b)) in enumerate(CASES.items())]
     drawn = [(f"random {i}", sample_params(rng), round(float(rng.uniform(*APPEARANCE_DRAW["longitudinal_roughness"])), 3),
@@ -120,10 +131,6 @@ def cycles_render(sigma_a, strands: Strands, scene: str, config: CyclesSet, seed
     (``blender_run.render_cycles``, the one Cycles path). ``bspline``: ``strands`` are Mitsuba's B-spline
     control points (``render.swatch_family``'s), drawn as Mitsuba draws them; else polylines as they are
     (this evaluation's own generator)."""
-    from hairdigi.render.domain.absorption import LONGITUDINAL_ROUGHNESS
-    from hairdigi.render.blender_run import render_cycles, rig_for_blender
-    from hairdigi.render.interchange import HairLook
-
     look = HairLook("hidden", tuple(float(v) for v in sigma_a),
                     longitudinal_roughness=LONGITUDINAL_ROUGHNESS if shine is None else float(shine))
     if scene == "rig":
@@ -147,12 +154,6 @@ def _relative_error(sigma, truth) -> float:
 def _one(name: str, hidden: HairParams, shine: float, layout: int, config: CyclesSet, encoder, folder: Path) -> dict:
     """One hidden swatch: rendered in Cycles, estimated (with and without its single-light frames),
     each estimate rendered back in Cycles and judged against the truth."""
-    from hairdigi.inference.estimate import estimate_image
-    from hairdigi.inference.preprocess import to_linear
-    from hairdigi.inference.training.evaluate import capture
-    from hairdigi.render.domain.absorption import hair_sigma_a
-    from hairdigi.render.metrics import delta_e2000
-
     def de(a, b) -> float:
         return round(float(delta_e2000(np.clip(np.asarray(a), 1e-9, None), np.clip(np.asarray(b), 1e-9, None))), 3)
 
@@ -197,11 +198,6 @@ def _one(name: str, hidden: HairParams, shine: float, layout: int, config: Cycle
 
 def evaluate_cycles(out_dir: str | os.PathLike, config: CyclesSet = CyclesSet(), progress: bool = True) -> dict:
     """Every hidden swatch rendered in Cycles, estimated, rendered back in Cycles; table, summary, plot."""
-    from tqdm import tqdm
-
-    from hairdigi.inference.encoder import Encoder
-    from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
-
     encoder = Encoder()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -224,8 +220,6 @@ def evaluate_cycles(out_dir: str | os.PathLike, config: CyclesSet = CyclesSet(),
 
 def summarise(rows: list[dict], config: CyclesSet) -> dict:
     """Median / p95 / worst of the fit and the transfer in Cycles, the σa's error and the costs."""
-    from hairdigi.render.metrics import error_stats
-
     done = [r for r in rows if "transfer" in r]
     out = {"swatches": len(rows), "judged": len(done),
            "errors": [f"{r['hidden']}: {r['error']}" for r in rows if r.get("error")],
@@ -243,10 +237,6 @@ def summarise(rows: list[dict], config: CyclesSet) -> dict:
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     done = [r for r in rows if "transfer" in r]
     fig, ax = plt.subplots(figsize=(8, 4))
     x = np.arange(len(done))

@@ -30,14 +30,22 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Callable
 
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
 from hairdigi.inference.dye import apply, characterise, colour_of, dose, lifted_melanin, load_sample, rig_curve
+from hairdigi.inference.dye_card import shade_card
+from hairdigi.inference.estimate import estimate_image, record
 from hairdigi.inference.levels import EVALUATION_LEVELS, natural_base
+from hairdigi.inference.preprocess import Roi
+from hairdigi.render.camera_model import CameraModel, sensor_response
 from hairdigi.render.domain.absorption import dye_sigma_a, hair_sigma_a
+from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
 from hairdigi.render.domain.params import HairParams
-from hairdigi.render.domain.files import write_json_atomic
 from hairdigi.render.domain.records import EstimateRecord, write_record
+from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
+from hairdigi.render.io.figures import save_figure
 from hairdigi.render.metrics import delta_e2000
 
 GOAL_MEDIAN, GOAL_P95 = 1.0, 2.0
@@ -72,8 +80,6 @@ def draw_dyes(config: DyeEvalConfig) -> list[dict]:
 
 
 def _capture(linear: np.ndarray, key: list[int]) -> np.ndarray:
-    from hairdigi.render.camera_model import CameraModel, sensor_response
-
     return sensor_response(np.asarray(linear, np.float32), CameraModel(), np.random.default_rng(key))
 
 
@@ -97,9 +103,7 @@ def dyed_hair(base: HairParams, dye: dict) -> HairParams:
 
 def _estimate_record(sigma: np.ndarray, index: int, encoder, config: DyeEvalConfig, path: Path) -> tuple[Path, float]:
     """Render ``sigma`` as a capture, estimate it with the real estimator, write its record."""
-    from hairdigi.inference.estimate import estimate_image, record
-    from hairdigi.inference.preprocess import Roi
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import SceneSpec, default_renderer
 
     spec = SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop", strand_seed=1000 + index)
@@ -117,7 +121,7 @@ def _estimate_record(sigma: np.ndarray, index: int, encoder, config: DyeEvalConf
 
 def _judge(sigma: np.ndarray, config: DyeEvalConfig) -> np.ndarray:
     """The mean linear colour of ``sigma`` rendered at the judge's layout and common seed."""
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import SceneSpec, default_renderer
 
     spec = SceneSpec("swatch", camera=RIG_SWATCH_POSE, framing="crop", strand_seed=config.judge_strands_seed)
@@ -137,8 +141,6 @@ def evaluate_dye(encoder, out_dir: str | os.PathLike, config: DyeEvalConfig = Dy
     """Run the protocol; write ``dye_eval.json``, ``dye_eval.csv``, ``dye_eval.png``; return the summary.
 
     ``capture`` makes each record (default: :func:`clean_capture`); ``inputs`` says what it is."""
-    from tqdm import tqdm
-
     t_all = time.perf_counter()
     out = Path(out_dir)
     (out / "records").mkdir(parents=True, exist_ok=True)
@@ -163,8 +165,6 @@ def evaluate_dye(encoder, out_dir: str | os.PathLike, config: DyeEvalConfig = Dy
 
 def _captures(dyes: list[dict], bases: dict, capture: Capture, records: Path, progress: bool):
     """Every base and dyed swatch captured and estimated: (samples by name, dyed truth by (dye, base), seconds)."""
-    from tqdm import tqdm
-
     jobs = [(f"base-{b}", natural_base(level)) for b, level in EVALUATION_LEVELS.items()]
     truth = {}
     for d in dyes:
@@ -233,8 +233,6 @@ def _one_pair_rows(d: dict, bases: dict, sample: dict, judge_truth: dict, curve,
 
 def _timed_card(bases: dict, sample: dict, curve, path: Path) -> float:
     """The seconds a shade card of dye 0 (fitted on every base) takes to make."""
-    from hairdigi.inference.dye_card import shade_card
-
     t0 = time.perf_counter()
     shade_card(characterise([(sample[f"base-{b}"], sample[f"dye00-{b}"]) for b in bases], "dye 0", curve),
                path, curve=curve)
@@ -268,8 +266,6 @@ def _summary(config: DyeEvalConfig, bases: dict, rows: list[dict], one_rows: lis
 
 def _write(out: Path, summary: dict, rows: list[dict], one_rows: list[dict]) -> None:
     """``dye_eval.json`` (the summary and every row), the two CSVs and the figure."""
-    from hairdigi.render.domain.files import write_csv_atomic
-
     write_json_atomic(out / "dye_eval.json", {**summary, "rows": rows, "one_pair_rows": one_rows})
     write_csv_atomic(out / "dye_eval.csv", [{k: (v if not isinstance(v, list) else " ".join(map(str, v)))
                                              for k, v in r.items()} for r in rows])
@@ -299,10 +295,6 @@ def _text(s: dict) -> list[str]:
 
 
 def _plot(rows: list[dict], one_rows: list[dict], path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
     held = sorted({r["held_out"] for r in rows})
     a.boxplot([[r["prediction_de2000"] for r in rows if r["held_out"] == h] for h in held])

@@ -9,7 +9,10 @@ import os
 import time
 from pathlib import Path
 
+from hairdigi.app.evaluation.dye_evaluation import evaluate_dye
 from hairdigi.app.session.blockers import messages
+from hairdigi.app.session.rig_session import RigSession
+from hairdigi.render.camera_model import CameraModel
 from hairdigi.render.domain.params import HairParams
 from hairdigi.render.domain.records import write_record
 
@@ -19,9 +22,6 @@ CAST, SPP = (1.1, 1.0, 0.9), 32
 
 def rig_capture(folder: str | os.PathLike, encoder, cast=CAST, spp: int = SPP):
     """A capture function for ``evaluate_dye``: the hidden hair under the simulated rig, captured."""
-    from hairdigi.app.session.rig_session import RigSession
-    from hairdigi.render.camera_model import CameraModel
-
     folder = Path(folder)
 
     def capture(hidden: HairParams, index: int, path: Path) -> float:
@@ -45,8 +45,6 @@ def rig_capture(folder: str | os.PathLike, encoder, cast=CAST, spp: int = SPP):
 
 def evaluate_dye_rig(encoder, out_dir: str | os.PathLike, config) -> dict:
     """The dye protocol on simulated-rig captures; the same outputs as the clean run."""
-    from hairdigi.app.evaluation.dye_evaluation import evaluate_dye
-
     out = Path(out_dir)
     return evaluate_dye(encoder, out, config, capture=rig_capture(out / "session", encoder),
                         inputs=f"simulated-rig captures (cast {CAST}, {SPP} spp light renders) through cv2.mcc and the CCM")

@@ -17,11 +17,23 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
 from hairdigi.app.evaluation.rig import CONDITIONS, hidden_set, RigSet
+from hairdigi.app.session.rig_session import RigSession
+from hairdigi.hardware.sim_still import write_raw_still
+from hairdigi.inference.encoder import Encoder
+from hairdigi.inference.instrument_reading import INSTRUMENT_UNCERTAINTY
+from hairdigi.render.camera_model import CameraModel
+from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
+from hairdigi.render.instrument_geometry import lab_of_tristimulus, spectral_tristimulus
 from hairdigi.render.io.figures import save_table
 from hairdigi.render.metrics import delta_e2000_lab, quantiles
+from hairdigi.render.spectra import hair_sigma_a_spectrum
+from hairdigi.render.swatch_family import structure_strands
 
 #: The virtual instrument reads each tress at this many places along its fibres and averages, as a lab does.
 SPOTS = 3
@@ -52,10 +64,6 @@ class InstrumentSet:
 def truth_readings(params, structure: str, geometries, spp: int, size: int,
                    layout: int = HIDDEN_LAYOUT) -> dict[str, np.ndarray]:
     """The virtual instrument's CIELAB of the hidden swatch (its fibres in ``layout``) in each geometry (D65, 10°)."""
-    from hairdigi.render.instrument_geometry import lab_of_tristimulus, spectral_tristimulus
-    from hairdigi.render.spectra import hair_sigma_a_spectrum
-    from hairdigi.render.swatch_family import structure_strands
-
     strands = structure_strands(structure, 8000, seed=layout)
     sigma = hair_sigma_a_spectrum(params)
     return {g: lab_of_tristimulus(spectral_tristimulus(strands, sigma, g, spp=spp, size=size, spots=SPOTS))
@@ -85,12 +93,6 @@ def evaluate_instrument(out_dir: str | os.PathLike, config: InstrumentSet = Inst
     """Capture, estimate and read every hidden swatch; judge each reading against the virtual instrument.
     ``lab_dir``: also keep the sessions there (``sessions/``) and write a simulated lab's instrument export
     of the same tresses (``readings.csv``, keyed by capture id) for ``hairdigi library readings``."""
-    from tqdm import tqdm
-
-    from hairdigi.app.session.rig_session import RigSession
-    from hairdigi.inference.encoder import Encoder
-    from hairdigi.render.camera_model import CameraModel
-
     encoder = Encoder()
     hidden = hidden_set(RigSet(random=config.random))
     rows: list[dict] = []
@@ -139,8 +141,6 @@ def evaluate_instrument(out_dir: str | os.PathLike, config: InstrumentSet = Inst
             bar.update()
     bar.close()
     if lab_dir is not None:
-        from hairdigi.render.domain.files import write_csv_atomic
-
         write_csv_atomic(Path(lab_dir) / "readings.csv", lab_rows)
     summary = summarise(rows, config)
     save_table(out_dir, "instrument_evaluation", rows, _plot, summary)
@@ -152,8 +152,6 @@ def evaluate_instrument(out_dir: str | os.PathLike, config: InstrumentSet = Inst
 def _still_of(session, path: Path) -> Path:
     """A still camera's RAW of the session's bench: twice the feed's resolution, its exposure 0.8 of the feed's
     (as ``hairdigi evaluate --rig`` takes its stills)."""
-    from hairdigi.hardware.sim_still import write_raw_still
-
     radiance = session.camera.radiance().repeat(2, axis=0).repeat(2, axis=1)
     return write_raw_still(path, radiance * 0.8)
 
@@ -193,9 +191,6 @@ def summarise(rows: list[dict], config: InstrumentSet) -> dict:
 
 def ship_intervals(summary: dict, path: str | os.PathLike | None = None) -> Path:
     """Write each geometry's measured 68% and 95% quantiles as the readings' interval."""
-    from hairdigi.inference.instrument_reading import INSTRUMENT_UNCERTAINTY
-    from hairdigi.render.domain.files import write_json_atomic
-
     structures = ", ".join(summary["settings"]["structures"])
     out = {g: {"p68": round(float(s["p68"]), 3), "p95": round(float(s["p95"]), 3), "n": s["n"],
                "source": f"hairdigi evaluate --instrument ({s['n']} hidden swatches of {structures} against a virtual "
@@ -205,11 +200,7 @@ def ship_intervals(summary: dict, path: str | os.PathLike | None = None) -> Path
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     ok = [r for r in rows if "de2000" in r]
     geometries = list(dict.fromkeys(r["geometry"] for r in ok))
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))

@@ -12,6 +12,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import matplotlib
+import matplotlib.pyplot as plt
 import numpy as np
 
 from hairdigi.app.library.store import Library
@@ -61,11 +63,7 @@ def compare_readings(library: Library, out_dir: str | os.PathLike) -> dict:
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib
-
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     geometries = list(dict.fromkeys(r["geometry"] for r in rows)) or ["none"]
     fig, axes = plt.subplots(len(geometries), 3, figsize=(12, 3.4 * len(geometries)), squeeze=False)
     for g, geom in enumerate(geometries):

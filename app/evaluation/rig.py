@@ -21,13 +21,21 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
 from hairdigi.app.session.blockers import messages
+from hairdigi.app.session.rig_session import RigSession
+from hairdigi.hardware.sim_still import write_raw_still
+from hairdigi.inference.encoder import Encoder
+from hairdigi.render.camera_model import CameraModel
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE
-from hairdigi.render.io.figures import save_table
 from hairdigi.render.domain.params import HairParams, sample_params
+from hairdigi.render.domain.rig_geometry import CameraPose
+from hairdigi.render.io.figures import save_figure, save_table
+from hairdigi.render.judge import judge, judge_scene
 from hairdigi.render.metrics import error_stats
 
 #: Named hard cases of the held-out hidden swatches (Table 1: dye RGB, dye conc., melanin conc., ratio).
@@ -88,8 +96,6 @@ def _capture(name: str, params: HairParams, source: str, cast, ev: float, take, 
 def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, seconds: float,
          structure: str | None = None) -> dict:
     """A capture's row, its estimate judged against the truth on the hidden swatch's own strands."""
-    from hairdigi.render.judge import judge, judge_scene
-
     row = {**_head(name, structure, source, cast, ev), "seconds": round(seconds, 2),
            "blocked": "; ".join(messages(result.blocked))}
     if result.record is None:
@@ -115,13 +121,6 @@ def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, se
 
 def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress: bool = True) -> dict:
     """Capture every hidden swatch through the simulated rig, estimate, judge; write the table and plot."""
-    from tqdm import tqdm
-
-    from hairdigi.app.session.rig_session import RigSession
-    from hairdigi.hardware.sim_still import write_raw_still
-    from hairdigi.inference.encoder import Encoder
-    from hairdigi.render.camera_model import CameraModel
-
     encoder = Encoder()
     rng = np.random.default_rng(SEED + 1)
     rows: list[dict] = []
@@ -144,8 +143,6 @@ def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress
                     session.close()
                 bar.update()
             if k % 2 == 0:        # a tilted camera
-                from hairdigi.render.domain.rig_geometry import CameraPose
-
                 pose = CameraPose(*POSES[(k // 2) % len(POSES)])
                 session = RigSession.simulated_rig(Path(tmp) / f"s{k}", hidden=params, spp=config.spp,
                                                    encoder=encoder, pose=pose, half_width=POSE_HALF_WIDTH, **swatch)
@@ -225,10 +222,6 @@ def summarise(rows: list[dict], hidden: list[tuple[str, HairParams]]) -> dict:
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    from hairdigi.render.io.figures import save_figure
-
-    import matplotlib.pyplot as plt
-
     done = [r for r in rows if "de2000" in r]
     cases = sorted({r["hidden"] for r in done})
     fig, ax = plt.subplots(figsize=(8, 4))

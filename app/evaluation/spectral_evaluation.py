@@ -25,12 +25,23 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
+from hairdigi.app.evaluation.rig import HARD_CASES
 from hairdigi.app.session.blockers import capture_as_told, messages
-from hairdigi.render.io.figures import save_table
-from hairdigi.render.domain.params import HairParams
-from hairdigi.render.metrics import error_stats
+from hairdigi.app.session.rig_session import RigSession
+from hairdigi.inference.encoder import Encoder
+from hairdigi.inference.refine import RefineSettings, response_curve
+from hairdigi.inference.spectral_reading import RigSpectra, spectral_answer, spectral_record
+from hairdigi.render.domain.absorption import hair_sigma_a
+from hairdigi.render.domain.params import HairParams, sample_params
+from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose
+from hairdigi.render.io.figures import save_figure, save_table
+from hairdigi.render.judge import judge_mean
+from hairdigi.render.metrics import delta_e2000, error_stats
+from hairdigi.render.spectra import band_dye, hair_sigma_a_spectrum, illuminant_whitepoint, light_rgb
 
 #: The worlds: (camera sensitivities, the rig's LEDs: CIE LED series phosphor LEDs, LED-B4 5109 K and
 #: LED-B5 6598 K); None is the CIE observer (an ideal camera).
@@ -55,10 +66,6 @@ def hidden_hairs(config: SpectralSet = SpectralSet()) -> list[tuple[str, HairPar
     """The hidden hairs: Table 1 hard cases, and absorption spectra of banded dyes on blonde; held out
     (``config.seed``), ``config.random`` hairs drawn in turn: a Table 1 hair, a natural one (melanins
     alone), and a band dye (centre 430-660 nm) on a natural base."""
-    from hairdigi.app.evaluation.rig import HARD_CASES
-    from hairdigi.render.domain.params import sample_params
-    from hairdigi.render.spectra import band_dye, hair_sigma_a_spectrum
-
     if config.seed is not None:
         rng = np.random.default_rng(config.seed)
         hairs: list = []
@@ -81,7 +88,7 @@ def hidden_hairs(config: SpectralSet = SpectralSet()) -> list[tuple[str, HairPar
 
 
 def _scene(view: str, light: str | None):
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE, CameraPose
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import SceneSpec
 
     if view == "rig":
@@ -91,17 +98,12 @@ def _scene(view: str, light: str | None):
 
 
 def _mean(hair, scene, config: SpectralSet) -> np.ndarray:
-    from hairdigi.render.judge import judge_mean
-
     return judge_mean(hair, scene, config.judge_size, config.judge_spp, JUDGE_SEED)[0]
 
 
 def _judge(hidden, found: dict, config: SpectralSet) -> dict:
     """ΔE2000 of each answer against the truth, by view and light (an observer adapted to the light): the
     ``rgb`` answer rendered in RGB times the light's RGB colour, the others rendered spectrally."""
-    from hairdigi.render.metrics import delta_e2000
-    from hairdigi.render.spectra import illuminant_whitepoint, light_rgb
-
     out = {}
     for view in VIEWS:
         rgb_white = _mean(found["rgb"], _scene(view, None), config)
@@ -127,11 +129,6 @@ def answers(record, profile=None, led: str | None = None, sensitivities: str | N
     spectral world (``inference.spectral_reading.spectral_answer``); with the calibration ``profile`` and the
     rig's ``led`` and camera ``sensitivities`` known, ``camera``, read in the camera's own RGB
     (``inference.spectral_reading.spectral_record``, as a capture of a declared rig is). ``*_residual``: each refit's colour residual."""
-    from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.inference.spectral_reading import RigSpectra, spectral_answer, spectral_record
-    from hairdigi.render.domain.absorption import hair_sigma_a
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
-
     curve = curve or response_curve(RIG_SWATCH_POSE, RefineSettings())
     rgb_sigma = np.asarray(record.refinement.sigma_a if record.refinement.sigma_a else hair_sigma_a(record.hair))
     out: dict = {"rgb": rgb_sigma}
@@ -153,13 +150,6 @@ def judge_record(hidden, record, profile=None, led=None, sensitivities=None,
 
 def evaluate_spectral(out_dir: str | os.PathLike, config: SpectralSet = SpectralSet(), progress: bool = True) -> dict:
     """Capture every hidden hair in every world, estimate, refit, judge; write the table and plot."""
-    from tqdm import tqdm
-
-    from hairdigi.app.session.rig_session import RigSession
-    from hairdigi.inference.encoder import Encoder
-    from hairdigi.inference.refine import RefineSettings, response_curve
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
-
     encoder = Encoder()
     curve = response_curve(RIG_SWATCH_POSE, RefineSettings())
     hidden = hidden_hairs(config)
@@ -272,10 +262,6 @@ def interval_table(done: list[dict]) -> dict:
 
 
 def _plot(rows: list[dict], path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     done = [r for r in rows if "rgb_rig_D65" in r]
     cases = list(dict.fromkeys(r["hidden"] for r in done))
     fig, axes = plt.subplots(1, len(LIGHTS), figsize=(13, 4), sharey=True)

@@ -31,12 +31,27 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
 
+from hairdigi.app.evaluation.cycles_evaluation import (CASES as CYCLES_CASES, LIGHT_EV, CyclesSet, _relative_error,
+                                                       cycles_render)
+from hairdigi.inference.encoder import Encoder
+from hairdigi.inference.estimate import estimate_image
+from hairdigi.inference.preprocess import to_linear
+from hairdigi.inference.refine import RefineSettings, mean_linear
+from hairdigi.inference.structure import DECISIVE, family_curves, nuisance, read_structure
+from hairdigi.inference.training.evaluate import capture
+from hairdigi.render.domain.absorption import hair_sigma_a
+from hairdigi.render.domain.appearance import APPEARANCE_DRAW, Appearance
+from hairdigi.render.domain.bounds import Environment, defaults_for
+from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
 from hairdigi.render.domain.params import HairParams, sample_params
-from hairdigi.app.evaluation.cycles_evaluation import CASES as CYCLES_CASES, LIGHT_EV, _relative_error
-from hairdigi.render.domain.bounds import Environment
 from hairdigi.render.domain.rig_geometry import N_LIGHTS, RIG_SWATCH_POSE, TRANSFER_POSE
+from hairdigi.render.io.figures import save_figure
+from hairdigi.render.metrics import delta_e2000, error_stats
+from hairdigi.render.swatch_family import structure_strands
 
 SEED = 2_026_1126
 #: The hard cases: ``evaluate --cycles``'s (Table 1 and the shine), platinum at shine 0.18 (the figures
@@ -71,8 +86,6 @@ DARK_MELANIN = (0.95, 1.0)
 def hidden_hairs(config: StructureSet) -> list[tuple[str, HairParams, float]]:
     """(name, Table 1, shine) of each hidden hair: the named cases and ``random`` uniform Table 1 draws or,
     held out (``seed``), ``random`` uniform draws and as many dark ones."""
-    from hairdigi.render.domain.appearance import APPEARANCE_DRAW
-
     rng = np.random.default_rng(SEED if config.seed is None else config.seed)
 
     def shine() -> float:
@@ -92,12 +105,13 @@ class _Mitsuba:
     """Renders the hidden swatch's scenes in Mitsuba."""
 
     def __init__(self, config: StructureSet) -> None:
+        # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
         from hairdigi.render.renderer import default_renderer
 
         self.config, self.renderer = config, default_renderer()
 
     def mean(self, sigma, structure: str, layout: int, scene: str, shine: float, pixels: bool = False):
-        from hairdigi.render.domain.appearance import Appearance
+        # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
         from hairdigi.render.renderer import SceneSpec
 
         look = Appearance(longitudinal_roughness=float(shine))
@@ -117,16 +131,10 @@ class _Cycles:
     """Renders the hidden swatch's scenes in Blender Cycles (``cycles_evaluation.cycles_render``)."""
 
     def __init__(self, config: StructureSet, folder: Path) -> None:
-        from hairdigi.app.evaluation.cycles_evaluation import CyclesSet
-
         self.cycles = CyclesSet(size=config.size, spp=config.spp)
         self.folder = folder
 
     def mean(self, sigma, structure: str, layout: int, scene: str, shine: float, pixels: bool = False):
-        from hairdigi.app.evaluation.cycles_evaluation import cycles_render
-        from hairdigi.render.swatch_family import structure_strands
-        from hairdigi.render.domain.bounds import defaults_for
-
         strands = structure_strands(structure, defaults_for("swatch").strands, layout)   # kept: built once
         out = cycles_render(sigma, strands, scene, self.cycles, layout, self.folder, pixels=pixels, shine=shine,
                             bspline=True)     # the family's strands are B-spline control points, as Mitsuba draws them
@@ -134,20 +142,12 @@ class _Cycles:
 
 
 def _de(a, b) -> float:
-    from hairdigi.render.metrics import delta_e2000
-
     return round(float(delta_e2000(np.clip(np.asarray(a), 1e-9, None), np.clip(np.asarray(b), 1e-9, None))), 3)
 
 
 def _estimate(render, truth, structure: str, layout: int, shine: float, encoder, index: int):
     """The hidden swatch's capture and single-light frames, estimated in every mode: ({mode: result},
     {mode: sigma_a}, every member's misfit)."""
-    from hairdigi.inference.estimate import estimate_image
-    from hairdigi.inference.preprocess import to_linear
-    from hairdigi.inference.refine import mean_linear
-    from hairdigi.inference.structure import read_structure
-    from hairdigi.inference.training.evaluate import capture
-
     frame = capture(render.mean(truth, structure, layout, "rig", shine, pixels=True).astype(np.float32), index)
     lights = [to_linear(capture(render.mean(truth, structure, layout, f"light{i}", shine, pixels=True)
                                 .astype(np.float32) * np.float32(2.0 ** LIGHT_EV), index + 7 * (i + 1)))
@@ -166,9 +166,6 @@ def _shine(result, default: float) -> float:
 
 def _one(name: str, hidden: HairParams, shine: float, structure: str, layout: int, render, encoder, family,
          index: int) -> dict:
-    from hairdigi.inference.structure import nuisance
-    from hairdigi.render.domain.absorption import hair_sigma_a
-
     truth = hair_sigma_a(hidden)
     row = {"hidden": name, "structure": structure, "layout": layout, "true_shine": shine,
            "true_sigma_a": [round(float(v), 5) for v in truth]}
@@ -199,8 +196,6 @@ def _one(name: str, hidden: HairParams, shine: float, structure: str, layout: in
 
 def _layout_row(name: str, hidden: HairParams, shine: float, render, encoder, family, index: int) -> dict:
     """One hair hidden in two layouts of ``LAYOUT_STRUCTURE``: its two answers rendered on the first."""
-    from hairdigi.render.domain.absorption import hair_sigma_a
-
     truth = hair_sigma_a(hidden)
     a, b = (_estimate(render, truth, LAYOUT_STRUCTURE, s, shine, encoder, index + k)
             for k, s in enumerate(LAYOUT_SEEDS))
@@ -214,13 +209,6 @@ def _layout_row(name: str, hidden: HairParams, shine: float, render, encoder, fa
 
 def evaluate_structures(out_dir: str | os.PathLike, config: StructureSet = StructureSet(), progress: bool = True) -> dict:
     """Every hidden hair in every structure, estimated and judged on its own strands; table, summary, plot."""
-    from tqdm import tqdm
-
-    from hairdigi.inference.encoder import Encoder
-    from hairdigi.inference.refine import RefineSettings
-    from hairdigi.inference.structure import family_curves
-    from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
-
     encoder = Encoder()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -230,8 +218,6 @@ def evaluate_structures(out_dir: str | os.PathLike, config: StructureSet = Struc
     hairs = hidden_hairs(config)
     # hair by hair, every structure in turn: a run cut short has judged every structure alike
     jobs = [(h, s, 501 + k) for h in hairs for k, s in enumerate(config.structures)]
-    from hairdigi.inference.structure import DECISIVE
-
     settings = {"size": config.size, "spp": config.spp, "blender": config.blender, "seed": config.seed,
                 "random": config.random, "decisive": DECISIVE,
                 "modes": list(MODES)}   # rows of another family rule, or without a mode's columns, are not resumed
@@ -276,8 +262,6 @@ def _resumed(path: Path, settings: dict) -> list[dict]:
 
 def summarise(rows: list[dict], layout_rows: list[dict], config: StructureSet, family_s: float = 0.0) -> dict:
     """Median / p95 / worst by mode, by structure (own against others), the layout nuisance and costs."""
-    from hairdigi.render.metrics import error_stats
-
     done = [r for r in rows if "shipped_fit" in r]
     out = {"swatches": len(rows), "judged": len(done), "renderer": "cycles" if config.blender else "mitsuba",
            "errors": [f"{r['hidden']} ({r['structure']}): {r['error']}" for r in rows if r.get("error")],
@@ -318,10 +302,6 @@ def interval_table(done: list[dict], config: StructureSet) -> dict:
 
 
 def _plot(rows: list[dict], path: Path, config: StructureSet) -> None:
-    import matplotlib.pyplot as plt
-
-    from hairdigi.render.io.figures import save_figure
-
     done = [r for r in rows if "shipped_fit" in r]
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
     for ax, key in zip(axes, ("fit", "transfer")):

@@ -14,11 +14,18 @@ import argparse
 import json
 import time
 
+import cv2
 import numpy as np
 
+from hairdigi.inference.encoder import Encoder
+from hairdigi.inference.estimate import estimate_image
+from hairdigi.inference.preprocess import MIN_SIDE, ROI_CENTRAL, ImageError, find_swatch
+from hairdigi.inference.view_check import outline_tilt, view_warning
 from hairdigi.render.domain.params import HairParams
-from hairdigi.render.domain.rig_geometry import (FRAMING_HALF_WIDTH, SWATCH_HALF, SWATCH_VISIBLE_HALF_LENGTH,
-                                                 CameraPose, Framing, project)
+from hairdigi.render.domain.records import EstimateWarning, WarningKind
+from hairdigi.render.domain.rig_geometry import (FRAMING_HALF_WIDTH, RIG_SWATCH_POSE, SWATCH_HALF,
+                                                 SWATCH_VISIBLE_HALF_LENGTH, CameraPose, Framing, project)
+from hairdigi.render.judge import judge
 
 #: Hidden hairs: the hard cases of ``hairdigi evaluate --rig`` (black, platinum, a saturated red, copper)
 #: and a mid brown.
@@ -38,8 +45,6 @@ def swatch_outline(pose: CameraPose, size: int = SIZE) -> np.ndarray:
 
 def share_on_swatch(box: tuple[int, int, int, int], outline: np.ndarray, size: int = SIZE) -> float:
     """Share of the pixels of ``box`` (x, y, w, h) inside the swatch's ``outline``."""
-    import cv2
-
     inside = np.zeros((size, size), np.uint8)
     cv2.fillConvexPoly(inside, np.round(outline).astype(np.int32), 1)
     x, y, w, h = box
@@ -48,8 +53,6 @@ def share_on_swatch(box: tuple[int, int, int, int], outline: np.ndarray, size: i
 
 def crop_box(roi, size: int = SIZE) -> tuple[int, int, int, int]:
     """The encoder's crop of ``roi`` (``preprocess.swatch_crop``'s central square), as x, y, w, h."""
-    from hairdigi.inference.preprocess import MIN_SIDE, ROI_CENTRAL
-
     share = 1.0 if (roi.w, roi.h) == (size, size) else ROI_CENTRAL
     side = max(MIN_SIDE // 2, int(round(min(roi.w, roi.h) * share)))
     return roi.x + (roi.w - side) // 2, roi.y + (roi.h - side) // 2, side, side
@@ -57,6 +60,7 @@ def crop_box(roi, size: int = SIZE) -> tuple[int, int, int, int]:
 
 def view_image(name: str, pose: CameraPose, renderer) -> np.ndarray:
     """The hidden hair ``name`` on its holder seen from ``pose`` (rig framing, no chart), 8-bit sRGB."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import SceneSpec
 
     return renderer.render(HAIRS[name], SceneSpec("swatch", camera=pose, framing="rig"), SIZE, SPP, seed=SEED).srgb
@@ -64,13 +68,6 @@ def view_image(name: str, pose: CameraPose, renderer) -> np.ndarray:
 
 def view_row(name: str, hair: HairParams, pose: CameraPose, encoder, renderer, camera_given: bool) -> dict:
     """One hidden hair from one pose: the render, the estimate (with or without the pose) and the verdict."""
-    from hairdigi.inference.estimate import estimate_image
-    from hairdigi.inference.preprocess import ImageError, find_swatch
-    from hairdigi.inference.view_check import outline_tilt, view_warning
-    from hairdigi.render.domain.records import EstimateWarning, WarningKind
-    from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
-    from hairdigi.render.judge import judge
-
     image = view_image(name, pose, renderer)
     row = {"hair": name, "polar_deg": pose.polar_deg, "azimuth_deg": pose.azimuth_deg, "camera_given": camera_given}
     try:
@@ -104,7 +101,7 @@ def summarise_views(rows: list[dict], warn_above: float = 2.0) -> dict:
 
 def evaluate_views(polars, azimuths, hairs=tuple(HAIRS), camera_given: bool = True, progress: bool = True) -> dict:
     """Every hair in ``hairs`` from every (polar, azimuth): rows and their summary."""
-    from hairdigi.inference.encoder import Encoder
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import Renderer
 
     encoder, renderer, rows = Encoder(), Renderer(max_cached=2), []
@@ -120,6 +117,7 @@ def evaluate_views(polars, azimuths, hairs=tuple(HAIRS), camera_given: bool = Tr
 
 
 def main(argv: list[str] | None = None) -> int:
+    # deferred: loads Mitsuba; this entry point chooses the variant (below), not an import
     from hairdigi.render.variant import select_variant
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])

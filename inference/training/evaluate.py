@@ -26,9 +26,17 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from hairdigi.inference.training.dataset import DatasetConfig, generate, load, sample_spec, scene_of
+from hairdigi.inference.domain_checks import domain_stats, domain_warnings
+from hairdigi.inference.encoder import median_latency_ms
+from hairdigi.inference.preprocess import ImageError, Roi, encode
 from hairdigi.inference.refine import RefineSettings, mean_linear, refine
+from hairdigi.inference.uncertainty import coverage_of, fit_intervals
+from hairdigi.render.camera_model import CameraModel, sensor_response
+from hairdigi.render.domain.bounds import defaults_for
+from hairdigi.render.srgb import linear_to_srgb8
 from hairdigi.render.metrics import delta_e2000, l1_255, ms_ssim
 from hairdigi.render.domain.params import VECTOR_FIELDS, HairParams
 from hairdigi.render.domain.errors import EvaluationError
@@ -42,7 +50,6 @@ NAMES = [name for name, _, _ in VECTOR_FIELDS]
 @dataclass(frozen=True)
 class Judge:
     """How estimates are judged: renders of truth and estimate with one common sampler seed."""
-
     size: int = 64
     spp: int = 16
     seed: int = 424_242
@@ -67,8 +74,6 @@ def buckets(params: HairParams, polar_deg: float) -> list[str]:
 
 
 def heldout_config(n: int, size: int = 64, spp: int = 64) -> DatasetConfig:
-    from hairdigi.render.domain.bounds import defaults_for
-
     sw = defaults_for("swatch")
     # today's world: uniform hair of shine 0.3 (evaluate --appearance judges shine and variation)
     return DatasetConfig(n=n, size=size, spp=spp, seed=EVAL_SEED, strands=sw.strands, max_depth=sw.max_depth,
@@ -77,6 +82,7 @@ def heldout_config(n: int, size: int = 64, spp: int = 64) -> DatasetConfig:
 
 def judge_render(config: DatasetConfig, index: int, hair, judge: Judge = JUDGE):
     """Sample ``index``'s scene with other hair (``HairParams`` or ``sigma_a``), at the judge's settings."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
     from hairdigi.render.renderer import default_renderer
 
     return default_renderer().render(hair, scene_of(config, index), judge.size, judge.spp, judge.seed)
@@ -84,16 +90,12 @@ def judge_render(config: DatasetConfig, index: int, hair, judge: Judge = JUDGE):
 
 def capture(linear: np.ndarray, index: int) -> np.ndarray:
     """The 8-bit frame a calibrated camera would give of a linear render (fixed noise seed per sample)."""
-    from hairdigi.render.camera_model import CameraModel, sensor_response
-
     return sensor_response(np.asarray(linear, np.float32), CameraModel(), np.random.default_rng([EVAL_SEED, index]))
 
 
 def prepare_heldout(root: str | os.PathLike, n: int = 300, size: int = 64, spp: int = 64, workers: int = 2,
                     judge: Judge = JUDGE, progress: bool = True) -> Path:
     """Render the held-out swatches and the truth's judge renders (model-independent; resumable)."""
-    from tqdm import tqdm
-
     root = Path(root)
     config = heldout_config(n, size, spp)
     generate(config, root, workers=workers, progress=progress)
@@ -124,8 +126,6 @@ def _save_npz(path: Path, arrays: dict) -> None:
 def _image_row(prefix: str, rendered: np.ndarray, truth_judge: np.ndarray | None, input_srgb: np.ndarray) -> dict:
     """The paper's image metrics of a judge render against the input, and its mean colour against the
     truth's judge render (skipped when ``truth_judge`` is None)."""
-    from hairdigi.render.srgb import linear_to_srgb8
-
     srgb = linear_to_srgb8(rendered)
     row = {f"{prefix}_l1": l1_255(input_srgb, srgb)}
     if truth_judge is not None:
@@ -141,12 +141,6 @@ def evaluate(encoder, out_dir: str | os.PathLike, n: int = 300, size: int = 64, 
              settings: RefineSettings = RefineSettings(), refine_colour: bool = True,
              judge: Judge = JUDGE, progress: bool = True) -> dict:
     """Run the protocol; write ``evaluation.json``, ``samples.json``, ``uncertainty.json``; return the summary."""
-    from tqdm import tqdm
-
-    from hairdigi.inference.domain_checks import domain_stats, domain_warnings
-    from hairdigi.inference.preprocess import ImageError, Roi
-    from hairdigi.inference.uncertainty import coverage_of, fit_intervals
-
     if judge.size != size:
         raise EvaluationError(f"the judge renders at {judge.size}² but the held-out swatches are {size}²; the "
                               "paper's image metrics compare the two pixel for pixel: use one size")
@@ -225,9 +219,6 @@ def _named(params: HairParams) -> dict[str, float]:
 
 def _latency(encoder, frame: np.ndarray, repeats: int = 200) -> float:
     """Median milliseconds of one encoder call (one view, batch 1) on preprocessed input."""
-    from hairdigi.inference.encoder import median_latency_ms
-    from hairdigi.inference.preprocess import encode
-
     return median_latency_ms(encoder, encode(frame, encoder.input_size)[None], repeats)
 
 
