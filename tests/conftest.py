@@ -82,7 +82,7 @@ def tiny_dataset(tmp_path_factory):
 def tiny_model(tiny_dataset, tmp_path_factory):
     """A 2-epoch encoder trained here and exported to ONNX: (run folder, onnx path, parity)."""
     from hairdigi.inference.training.onnx_export import export_onnx, parity
-    from hairdigi.inference.training.model import EncoderConfig
+    from hairdigi.inference.training.network import EncoderConfig
     from hairdigi.inference.training.train import TrainConfig, load_trained, train
 
     run = tmp_path_factory.mktemp("run")

@@ -150,7 +150,7 @@ def test_datasets_are_joined_for_training_and_sizes_must_agree(tiny_dataset, tmp
 
 
 def test_training_resumes_and_onnx_matches_torch(tiny_dataset, tiny_model, tmp_path):
-    from hairdigi.inference.training.model import EncoderConfig
+    from hairdigi.inference.training.network import EncoderConfig
     from hairdigi.inference.training.train import TrainConfig, train
 
     run, onnx_path, diff = tiny_model

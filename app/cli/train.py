@@ -30,7 +30,7 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     # deferred: loads torch (the train extra); training is left out of the desktop build (hairdigi.inference.training)
-    from hairdigi.inference.training.model import EncoderConfig
+    from hairdigi.inference.training.network import EncoderConfig
     from hairdigi.inference.training.train import TrainConfig, train
 
     config = TrainConfig(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, threads=args.threads,

@@ -118,7 +118,7 @@ def train(dataset_dir, out_dir: str | os.PathLike, encoder_config=None,
     # deferred: torch and onnx are the optional [train] extra
     import torch
 
-    from hairdigi.inference.training.model import EncoderConfig, HairEncoder, parameter_count
+    from hairdigi.inference.training.network import EncoderConfig, HairEncoder, parameter_count
 
     encoder_config = encoder_config or EncoderConfig()
     out = Path(out_dir)
@@ -246,7 +246,7 @@ def _load_checkpoint(path: Path) -> dict:
 def load_trained(out_dir: str | os.PathLike):
     """The model from a training folder's checkpoint, in eval mode."""
     # deferred: torch and onnx are the optional [train] extra
-    from hairdigi.inference.training.model import EncoderConfig, HairEncoder
+    from hairdigi.inference.training.network import EncoderConfig, HairEncoder
 
     state = _load_checkpoint(Path(out_dir) / "checkpoint.pt")
     model = HairEncoder(EncoderConfig(**state["encoder"]))
