@@ -20,6 +20,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 
+from hairdigi.app.evaluation.results import Result
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.hardware.bayer import demosaic, srgb8, unpack
 from hairdigi.hardware.genicam import FAKE_ID, GenICamCamera, GenICamSettings, discover
@@ -145,11 +146,11 @@ def _plot(rows: list[dict], path: Path) -> None:
     save_figure(fig, path)
 
 
-def bench_genicam(args: argparse.Namespace) -> int:
-    """``hairdigi bench genicam``: prints each case and writes the table, JSON and plot."""
+def bench_genicam(args: argparse.Namespace) -> Result:
+    """``hairdigi bench genicam``: each case's frame rate and latency; writes the table, JSON and plot."""
     out = Path(args.out)
-    for r in run_genicam_bench(out, quick=args.quick):
-        print(f"{r['case']}: {r['fps']:.1f} frames/s, latency median {r['latency_ms_median']:.1f} ms "
-              f"(p95 {r['latency_ms_p95']:.1f})")
-    print(f"wrote {out / 'genicam_bench.csv'}, .json and .png")
-    return 0
+    rows = run_genicam_bench(out, quick=args.quick)
+    return Result("genicam_bench", rows, files=[out / "genicam_bench.csv", out / "genicam_bench.json",
+                                                out / "genicam_bench.png"], text=[
+        f"{r['case']}: {r['fps']:.1f} frames/s, latency median {r['latency_ms_median']:.1f} ms "
+        f"(p95 {r['latency_ms_p95']:.1f})" for r in rows])

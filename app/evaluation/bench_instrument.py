@@ -21,6 +21,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from colour_cxf import cxf3, write_cxf
 
+from hairdigi.app.evaluation.results import Result
 from hairdigi.app.evaluation.rig import HARD_CASES
 from hairdigi.app.library.lab_readings import import_readings
 from hairdigi.app.library.store import Library, SwatchRow
@@ -29,7 +30,6 @@ from hairdigi.inference.refine import SIGMA_LEVELS, ResponseCurve
 from hairdigi.inference.structure import family_curves
 from hairdigi.render.domain.rig_geometry import RIG_SWATCH_POSE
 from hairdigi.render.instrument_geometry import lab_of_reflectance, reflectance_ladder
-from hairdigi.render.io.figures import save_table
 from hairdigi.render.metrics import delta_e2000_lab
 from hairdigi.render.spectra import hair_sigma_a_spectrum
 from hairdigi.render.swatch_family import structure_strands
@@ -42,7 +42,9 @@ def _lab(ladder: np.ndarray, hair) -> np.ndarray:
         hair_sigma_a_spectrum(hair)))
 
 
-def bench_instrument(args: argparse.Namespace) -> int:
+def bench_instrument(args: argparse.Namespace) -> Result:
+    """The ladders' noise and aperture against a 1024-spp reference, a reading's cost and an import's; writes
+    ``instrument.csv``, ``.json`` and ``.png``."""
     quick = getattr(args, "quick", False)
     levels = np.asarray(SIGMA_LEVELS, float)
     rows = []
@@ -67,17 +69,19 @@ def bench_instrument(args: argparse.Namespace) -> int:
                          "median_de2000": round(float(np.median(errors)), 3), "worst_de2000": round(max(errors), 3)})
     rows += _reading_cost(HARD_CASES)
     rows += _import_cost()
-    save_table(args.out, "instrument", rows, _plot, {"rows": len(rows)})
+    result = Result("instrument", rows, {"rows": len(rows)}, compact=True, plot=_plot).save(args.out)
     for r in rows:
         if "ladder" in r:
-            print(f"{r['member']:10s} {r['ladder']:26s} against 1024 spp: median {r['median_de2000']:.2f}, worst "
-                  f"{r['worst_de2000']:.2f} ΔE2000 ({r['seconds']:.1f} s)")
+            result.text.append(f"{r['member']:10s} {r['ladder']:26s} against 1024 spp: median "
+                               f"{r['median_de2000']:.2f}, worst {r['worst_de2000']:.2f} ΔE2000 "
+                               f"({r['seconds']:.1f} s)")
         elif "reading" in r:
-            print(f"a reading ({r['reading']}): {r['ms_median']:.1f} ms median, {r['ms_worst']:.1f} ms worst")
+            result.text.append(f"a reading ({r['reading']}): {r['ms_median']:.1f} ms median, "
+                               f"{r['ms_worst']:.1f} ms worst")
         else:
-            print(f"import of {r['readings']} readings of {r['tresses']} tresses ({r['file']}): {r['seconds']:.3f} s")
-    print(f"instrument.csv, .json and .png in {args.out}")
-    return 0
+            result.text.append(f"import of {r['readings']} readings of {r['tresses']} tresses ({r['file']}): "
+                               f"{r['seconds']:.3f} s")
+    return result
 
 
 def _reading_cost(hairs: dict) -> list[dict]:

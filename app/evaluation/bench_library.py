@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from hairdigi.app.evaluation.registry import BENCH_OUT
+from hairdigi.app.evaluation.results import Result
 from hairdigi.app.library.importing import _with_colours
 from hairdigi.app.library.store import Library, SwatchRecord, SwatchRow
 from hairdigi.app.library.swatch_colour import ILLUMINANTS, hex_lab
@@ -30,8 +31,9 @@ def synthetic_rows(n: int, seed: int = 0) -> list:
     return _with_colours(rows)
 
 
-def bench_library(args: argparse.Namespace) -> int:
-    """Time ``find`` (k = 10) on a library of ``--n`` swatches (10,000), SQLite and (``HAIRDIGI_BENCH_POSTGRES``) PostgreSQL."""
+def bench_library(args: argparse.Namespace) -> Result:
+    """Time ``find`` (k = 10) on a library of ``--n`` swatches (10,000), SQLite and (``HAIRDIGI_BENCH_POSTGRES``)
+    PostgreSQL; write ``library_bench.csv`` and ``.json``."""
     n = args.n or 10_000
     out = Path("packaging/bench/library") if args.out == BENCH_OUT else Path(args.out)
     start = time.perf_counter()
@@ -40,7 +42,7 @@ def bench_library(args: argparse.Namespace) -> int:
     backends = [("sqlite", None)]
     if os.environ.get("HAIRDIGI_BENCH_POSTGRES"):
         backends.append(("postgresql", os.environ["HAIRDIGI_BENCH_POSTGRES"]))
-    results = []
+    results, text = [], []
     rng = np.random.default_rng(1)
     queries = [f"#{int(v):06x}" for v in rng.integers(0, 0xFFFFFF, 50)]
     with tempfile.TemporaryDirectory(prefix="hairdigi-bench-") as tmp:
@@ -69,15 +71,15 @@ def bench_library(args: argparse.Namespace) -> int:
                                     "write_s": round(import_s, 3), "colour_s": round(colour_s, 3),
                                     "load_1min": round(os.getloadavg()[0], 2)})
                     r = results[-1]
-                    print(f"{backend}: find near {kind} among {r['swatches']} swatches under {under}: median "
-                          f"{r['find_ms_median']} ms, p95 {r['find_ms_p95']} ms (load {r['load_1min']})")
+                    text.append(f"{backend}: find near {kind} among {r['swatches']} swatches under {under}: median "
+                                f"{r['find_ms_median']} ms, p95 {r['find_ms_p95']} ms (load {r['load_1min']})")
             if url:
                 with library.db.transaction():
                     library.db.execute("DELETE FROM swatches WHERE id LIKE ?", ("b%",))
             library.close()
-    write_csv_atomic(out / "library_bench.csv", results)
-    write_json_atomic(out / "library_bench.json", {"results": results, "command": "hairdigi bench library",
-                                                   "cpu_count": os.cpu_count(), "time": time.strftime("%Y-%m-%dT%H:%M:%S%z")})
-    print(f"wrote {out / 'library_bench.csv'} and {out / 'library_bench.json'}")
-    return 0
+    files = [write_csv_atomic(out / "library_bench.csv", results),
+             write_json_atomic(out / "library_bench.json", {"results": results, "command": "hairdigi bench library",
+                                                            "cpu_count": os.cpu_count(),
+                                                            "time": time.strftime("%Y-%m-%dT%H:%M:%S%z")})]
+    return Result("library_bench", results, text=text, files=files)
 

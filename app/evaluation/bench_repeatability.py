@@ -19,12 +19,12 @@ import matplotlib
 import matplotlib.pyplot as plt
 import numpy as np
 
+from hairdigi.app.evaluation.results import Result
 from hairdigi.app.evaluation.rig import HARD_CASES
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.inference.encoder import Encoder
 from hairdigi.render.camera_model import CameraModel
 from hairdigi.render.instrument_geometry import lab_of_tristimulus, spectral_tristimulus
-from hairdigi.render.io.figures import save_table
 from hairdigi.render.metrics import delta_e2000_lab
 from hairdigi.render.spectra import hair_sigma_a_spectrum
 from hairdigi.render.swatch_family import structure_strands
@@ -46,7 +46,9 @@ def spread(labs: list[np.ndarray]) -> dict:
             "worst_pair": round(max(pairs, default=0.0), 3), "L_sd": round(float(np.std([v[0] for v in labs], ddof=1)), 3)}
 
 
-def bench_repeatability(args: argparse.Namespace) -> int:
+def bench_repeatability(args: argparse.Namespace) -> Result:
+    """Each hair laid down ``PLACEMENTS`` times (``--quick``: two hairs, three): the spread of hairdigi's
+    readings beside an 8 mm instrument spot's; writes ``repeatability.csv``, ``.json`` and ``.png``."""
     quick = getattr(args, "quick", False)
     hairs = HAIRS[:2] if quick else HAIRS
     placements = 3 if quick else PLACEMENTS
@@ -90,16 +92,16 @@ def bench_repeatability(args: argparse.Namespace) -> int:
         summary["spreads"].append({"hair": name, "geometry": geom,
                                    "hairdigi": spread(slot["hairdigi"]) if len(slot["hairdigi"]) > 1 else None,
                                    "instrument_spot": spread(slot["instrument"])})
-    save_table(args.out, "repeatability", rows, _plot, summary)
-    print(f"{placements} placements of each hair (a new layout of its fibres and ±{EXPOSURE_JITTER_EV} EV each), "
-          f"deposited swatches; ΔE2000 of a placement's reading from their mean (mean / worst):")
+    result = Result("repeatability", rows, summary, compact=True, plot=_plot).save(args.out)
+    result.text.append(f"{placements} placements of each hair (a new layout of its fibres and "
+                       f"±{EXPOSURE_JITTER_EV} EV each), deposited swatches; ΔE2000 of a placement's reading from "
+                       f"their mean (mean / worst):")
     for s in summary["spreads"]:
         h, i = s["hairdigi"], s["instrument_spot"]
         ours = f"{h['mean_from_mean']:.2f} / {h['worst_from_mean']:.2f} (L* SD {h['L_sd']:.2f})" if h else "not read"
-        print(f"  {s['hair']:18s} {s['geometry']}: hairdigi {ours}; an 8 mm instrument spot "
-              f"{i['mean_from_mean']:.2f} / {i['worst_from_mean']:.2f} (L* SD {i['L_sd']:.2f})")
-    print(f"repeatability.csv, .json and .png in {args.out}")
-    return 0
+        result.text.append(f"  {s['hair']:18s} {s['geometry']}: hairdigi {ours}; an 8 mm instrument spot "
+                           f"{i['mean_from_mean']:.2f} / {i['worst_from_mean']:.2f} (L* SD {i['L_sd']:.2f})")
+    return result
 
 
 def _placed_truth(params, seed: int, geometries) -> dict[str, np.ndarray]:

@@ -26,6 +26,7 @@ from scipy.optimize import minimize
 
 from hairdigi.app.evaluation.bench_atlas import HAIRS
 from hairdigi.app.evaluation.registry import BENCH_OUT
+from hairdigi.app.evaluation.results import Result
 from hairdigi.inference.atlas import CURVE_CELL, SHINE_CELL, cells
 from hairdigi.inference.atlas import load as load_atlas
 from hairdigi.inference.atlas_build import _render_ladder, box_view
@@ -33,7 +34,6 @@ from hairdigi.inference.refine import RefineSettings, ResponseCurve
 from hairdigi.inference.shine import ShineTables, estimate_shine
 from hairdigi.inference.structure import READ_MEMBERS, _averaged
 from hairdigi.render.domain.appearance import Appearance
-from hairdigi.render.domain.files import write_csv_atomic, write_json_atomic
 from hairdigi.render.domain.rig_geometry import N_LIGHTS, Framing
 from hairdigi.render.metrics import delta_e2000
 from hairdigi.render.renderer import SceneSpec, default_renderer
@@ -148,16 +148,13 @@ def plot(rows: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def bench_structure_reading(args: argparse.Namespace) -> int:
-    """The family's mean against continuous readings of the structure, on structures the reading does not know."""
+def bench_structure_reading(args: argparse.Namespace) -> Result:
+    """The family's mean against continuous readings of the structure, on structures the reading does not know;
+    writes ``structure_reading.csv``, ``.json`` and ``.png``."""
     out = Path("packaging/bench/structure-reading") if args.out == BENCH_OUT else Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(parents=True, exist_ok=True)     # before the replay's minutes: a folder it cannot write stops it now
     rows = replay(OUTSIDERS[:1] if args.quick else OUTSIDERS, spp=16 if args.quick else 64)
     s = summary(rows)
-    write_csv_atomic(out / "structure_reading.csv", rows)
-    write_json_atomic(out / "structure_reading.json", {"summary": s, "rows": rows})
-    plot(rows, out / "structure_reading.png")
-    for group, readings in s.items():
-        print(f"{group}: " + ", ".join(f"{k} {v['median']:.2f} / {v['p90']:.2f}" for k, v in readings.items()))
-    print(f"wrote {out / 'structure_reading.csv'}, .json and .png")
-    return 0
+    return Result("structure_reading", rows, s, plot=plot, text=[
+        f"{group}: " + ", ".join(f"{k} {v['median']:.2f} / {v['p90']:.2f}" for k, v in readings.items())
+        for group, readings in s.items()]).save(out)
