@@ -231,6 +231,15 @@ STREAKED = (0.01, 0.55)
 #: answers came out dark (1.03 median, 0.49 with the whole family;
 #: ``packaging/evaluation/rig-drawn-texture-streaked``).
 TEXTURE_MEMBERS = {"streak-free": {"layered": 1.0, "tilted": 1.0, "loose": 0.85}}
+#: The streaks along the fibres (``TextureReading.along``) over which the texture is no structure of the family's:
+#: swatches of fibres gathered into clumps with gaps between them. The family's own rig frames read at most 0.287
+#: (``hairdigi bench streaks``: a coarse deposit, live; RAW stills at most 0.184, tilted cameras 0.089; in
+#: ``hairdigi evaluate --rig``'s 303 captures of six members at most 0.135). The clumped swatch read 0.350-0.478
+#: (``packaging/evaluation/rig-default-clumped``), platinum the least: the captures whose frames fit a member
+#: (misfit 0.033-0.046, under ``UNMODELLED_MISFIT``), 3.0-4.3 off the truth with the family's interval (95%
+#: 1.38). Set above the family's largest, knowing clumped's; an estimate over it is flagged as a structure none
+#: of the family fits and states that interval.
+UNMODELLED_STREAKS = 0.3
 
 
 @dataclass(frozen=True)
@@ -246,6 +255,11 @@ class TextureReading:
     def weights(self) -> dict[str, float] | None:
         """The members the texture leaves, weighted (None: every member: undecided, or streaked)."""
         return TEXTURE_MEMBERS.get(self.kind) if self.kind else None
+
+    @property
+    def unmodelled(self) -> bool:
+        """Streaks stronger than any structure of the family shows (``UNMODELLED_STREAKS``)."""
+        return self.along > UNMODELLED_STREAKS
 
     def describe(self) -> str:
         """One line for the record."""

@@ -525,6 +525,10 @@ def test_the_texture_weights_the_family_mean_and_its_record_says_so() -> None:
     streaked = TextureReading("streaked", 0.1, 0.9)
     assert streaked.weights is None and np.allclose(to_family(answer, family, weights=streaked.weights), whole)
     assert streaked.describe().endswith("every member kept"), streaked.describe()
+    # streaks beyond any member's (the family's rig frames at most 0.287, a coarse deposit) are no structure of
+    # the family's: the estimate flags them (the clumped swatch read 0.350-0.478)
+    assert not streaked.unmodelled and not TextureReading("streaked", 0.287, 0.99).unmodelled
+    assert TextureReading("streaked", 0.35, 0.99).unmodelled
 
 
 @pytest.mark.slow
@@ -569,7 +573,8 @@ def test_a_clumped_swatch_outside_the_family_is_flagged_and_a_deposited_one_is_n
     """Through the simulated rig (the default mode): a swatch of clumped fibres, drawn outside the family, fits no
     member's per-light tables at the rig's region and is flagged with the wider interval; a deposited one is not.
     (An all-hair crop of the clumped swatch's centre reads as deposited, misfit 0.011: the rig's whole region, its
-    clumps and the gaps between them, is what no member fits.) On platinum hair the clumps' gaps read as a third
+    clumps and the gaps between them, is what no member fits.) On platinum hair the frames fit a member, but the
+    texture's streaks are stronger than any member's, so it is flagged too; and the clumps' gaps read as a third
     grey to the texture model (fitted on the layered swatch): the record keeps no grey share and says why."""
     from hairdigi.app.session.rig_session import RigSession
     from hairdigi.render.domain.params import HairParams
@@ -588,9 +593,15 @@ def test_a_clumped_swatch_outside_the_family_is_flagged_and_a_deposited_one_is_n
     flagged = [w.message for w in clumped.warnings if w.kind is WarningKind.STRUCTURE]
     assert flagged and "no swatch structure hairdigi draws" in flagged[0], [w.message for w in clumped.warnings]
     assert clumped.uncertainty.mean_colour_de2000_p95 >= 4.7
-    platinum = record("clumped", HairParams((245, 240, 225), 0.15, 0.04, 0.2)).appearance
-    assert platinum.value.grey_fraction == 0.0 and "grey_fraction" not in platinum.measured
-    assert platinum.method["grey_fraction"].startswith("not read: the texture tells greys only on the layered "
-                                                       "swatch"), platinum.method
+    platinum = record("clumped", HairParams((245, 240, 225), 0.15, 0.04, 0.2))
+    appearance = platinum.appearance
+    assert appearance.value.grey_fraction == 0.0 and "grey_fraction" not in appearance.measured
+    assert appearance.method["grey_fraction"].startswith("not read: the texture tells greys only on the layered "
+                                                         "swatch"), appearance.method
+    # its frames fit a member (light hair's frames misfit every structure less), but its texture's streaks
+    # are stronger than any member's: flagged all the same, with the wider interval
+    flagged = [w.message for w in platinum.warnings if w.kind is WarningKind.STRUCTURE]
+    assert flagged and "the swatch's texture shows streaks along the fibres" in flagged[0], platinum.warnings
+    assert platinum.uncertainty.mean_colour_de2000_p95 >= 4.7
     assert not [w for w in deposited.warnings if w.kind is WarningKind.STRUCTURE], deposited.warnings
     assert deposited.uncertainty.mean_colour_de2000_p95 < 2.0
