@@ -124,6 +124,15 @@ def rig(args: argparse.Namespace) -> Result | int:
     if hidden:
         for name, st in s["by_structure"].items():
             say(f"  {name} swatches: median {st['median']:.2f}, p95 {st['p95']:.2f}, worst {st['worst']:.2f} ({st['n']})")
+    twin, took = s["residual"], s["estimate_seconds"]
+    if twin.get("n") and took.get("n"):
+        say(f"the twin against the capture: median {twin['median']:.2f}, p95 {twin['p95']:.2f}; each estimate, from "
+            f"the image to the record: median {took['median']:.1f} s, p95 {took['p95']:.1f} s, worst "
+            f"{took['worst']:.1f} s")
+    held = s.get("stated_intervals_held")
+    if held:
+        say(f"the intervals the records stated held for {held['p68']:.0%} (68%) and {held['p95']:.0%} (95%) of the "
+            f"captures")
     c = s["coverage_held_out"]
     say(f"colour interval fitted on half the hidden swatches holds on the other half: 68% -> {c['p68']:.0%}, "
         f"95% -> {c['p95']:.0%}")

@@ -107,6 +107,7 @@ def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, se
     encoder = judge(hidden, rec.encoder.hair, scene)
     row.update(de2000=refined.de2000, encoder_de2000=encoder.de2000,
                residual_de2000=rec.refinement.residual_de2000, refine_seconds=rec.refinement.seconds,
+               estimate_seconds=rec.provenance.seconds,
                stated_p68=rec.uncertainty.mean_colour_de2000_p68,
                stated_p95=rec.uncertainty.mean_colour_de2000_p95,
                warnings=" | ".join(w.kind.value for w in rec.warnings),
@@ -189,7 +190,9 @@ def summarise(rows: list[dict], hidden: list[tuple[str, HairParams]]) -> dict:
                "refined": error_stats(r["de2000"] for r in done),
                "encoder_alone": error_stats(r["encoder_de2000"] for r in done),
                "residual": error_stats(r["residual_de2000"] for r in done),
-               "seconds": error_stats(r["seconds"] for r in done)}
+               "seconds": error_stats(r["seconds"] for r in done),
+               "estimate_seconds": error_stats(r["estimate_seconds"] for r in done
+                                               if r.get("estimate_seconds") is not None)}
     sources = sorted({r["source"] for r in done}, key=lambda s: (s != "live", s))
     summary["by_source"] = {s: error_stats(r["de2000"] for r in done if r["source"] == s) for s in sources}
     summary["by_case"] = {n: error_stats(r["de2000"] for r in done if r["hidden"] == n) for n, _ in hidden}
