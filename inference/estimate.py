@@ -28,9 +28,9 @@ from hairdigi.inference.preprocess import (Roi, crop_of, find_swatch, find_swatc
                                            to_linear)
 from hairdigi.inference.refine import (Refinement, RefineSettings, View, curve_reach, fitted_pixels, mean_linear, refine,
                                       response_curve)
-from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABLE, UNMODELLED_MISFIT, TextureReading,
-                                          decisive, read_texture, toward_family, unmodelled, with_structure,
-                                          UNMODELLED_STREAKS)
+from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABLE, UNMODELLED_MISFIT,
+                                          UNMODELLED_STREAKS, TextureReading, decisive, read_texture, toward_family,
+                                          unmodelled, with_structure)
 from hairdigi.inference.uncertainty import intervals, load_table
 from hairdigi.inference.view_check import view_warning, widened
 from hairdigi.inference.views import swatch_view
