@@ -28,9 +28,9 @@ from hairdigi.inference.preprocess import (Roi, crop_of, find_swatch, find_swatc
                                            to_linear)
 from hairdigi.inference.refine import (Refinement, RefineSettings, View, curve_reach, fitted_pixels, mean_linear, refine,
                                       response_curve)
-from hairdigi.inference.structure import (DECISIVE, READ_MEMBERS, STRUCTURE_TABLE, UNMODELLED_MISFIT,
-                                          UNMODELLED_STREAKS, TextureReading, decisive, read_texture, toward_family,
-                                          unmodelled, with_structure)
+from hairdigi.inference.structure import (DECISIVE, FAMILY_MOST_MISFIT, FAMILY_MOST_STREAKS, READ_MEMBERS,
+                                          STRUCTURE_TABLE, UNMODELLED_MISFIT, UNMODELLED_STREAKS, TextureReading,
+                                          decisive, read_texture, toward_family, unmodelled, with_structure)
 from hairdigi.inference.uncertainty import intervals, load_table
 from hairdigi.inference.view_check import view_warning, widened
 from hairdigi.inference.views import swatch_view
@@ -255,14 +255,14 @@ def _refined(fit: _Fit, structure: StructureMode, borrowed: RigReading | None = 
     if worst is not None:
         warnings += _warn(WarningKind.STRUCTURE, [
             f"structure: no swatch structure hairdigi draws fits the single-light frames (the best misfit {worst:.3f}, "
-            f"over {UNMODELLED_MISFIT:g}; the family's own swatches read at most 0.036): the swatch is built another "
-            f"way, and its colour interval is what such a structure measured"])
+            f"over {UNMODELLED_MISFIT:g}; the family's own swatches read at most {FAMILY_MOST_MISFIT:g}): the swatch "
+            f"is built another way, and its colour interval is what such a structure measured"])
     elif texture is not None and texture.unmodelled:
         warnings += _warn(WarningKind.STRUCTURE, [
             f"structure: the swatch's texture shows streaks along the fibres ({texture.along:.3f}, over "
-            f"{UNMODELLED_STREAKS:g}; the family's own swatches read at most 0.29) that no swatch structure hairdigi "
-            f"draws shows, as fibres gathered in clumps with gaps between them: the swatch is built another way, and "
-            f"its colour interval is what such a structure measured"])
+            f"{UNMODELLED_STREAKS:g}; the family's own swatches read at most {FAMILY_MOST_STREAKS:g}) that no swatch "
+            f"structure hairdigi draws shows, as fibres gathered in clumps with gaps between them: the swatch is built "
+            f"another way, and its colour interval is what such a structure measured"])
     appearance = reading.estimate
     # the colour checks the texture's reading: if hair of the read variation renders the capture's colour
     # worse than the chain's precision, and uniform fibres render it better, the reading is wrong for this

@@ -167,6 +167,8 @@ DECISIVE = 2.0
 #: seen (``clumped``), read 0.074-0.147 in every capture and was 2.68 / 4.73 ΔE2000 off the truth
 #: (``packaging/evaluation/rig-default-clumped``). Such an estimate is flagged, and states that measured error.
 UNMODELLED_MISFIT = 0.05
+#: The largest best-member misfit the family's own swatches read through the rig (the figure above).
+FAMILY_MOST_MISFIT = 0.036
 
 
 def unmodelled(misfits: dict[str, float] | None, limit: float = UNMODELLED_MISFIT) -> float | None:
@@ -240,6 +242,8 @@ TEXTURE_MEMBERS = {"streak-free": {"layered": 1.0, "tilted": 1.0, "loose": 0.85}
 #: 1.38). Set above the family's largest, knowing clumped's; an estimate over it is flagged as a structure none
 #: of the family fits and states that interval.
 UNMODELLED_STREAKS = 0.3
+#: The strongest streaks the family's own rig frames read (the figure above).
+FAMILY_MOST_STREAKS = 0.287
 
 
 @dataclass(frozen=True)

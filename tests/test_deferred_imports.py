@@ -43,12 +43,13 @@ def undeclared(path: Path) -> list[str]:
             continue
         bodies = [n for n in ast.walk(fn) if hasattr(n, "body") and isinstance(n.body, list)]
         for holder in bodies:
-            for block in ("body", "orelse", "finalbody", "handlers"):
+            for block in ("body", "orelse", "finalbody"):      # an except clause is walked as its own body
                 for run in _runs([s for s in getattr(holder, block, []) if isinstance(s, ast.stmt)]):
                     said = REASON in _comment_above(lines, run[0].lineno)
                     for node in run:
                         if not (said or REASON in lines[node.lineno - 1]):
-                            found.append(f"{path.relative_to(ROOT if ROOT in path.parents else path.parents[1])}:{node.lineno}")
+                            where = path.relative_to(ROOT if ROOT in path.parents else path.parents[1])
+                            found.append(f"{where}:{node.lineno}")
     return sorted(set(found))
 
 

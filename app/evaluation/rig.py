@@ -191,8 +191,7 @@ def summarise(rows: list[dict], hidden: list[tuple[str, HairParams]]) -> dict:
                "encoder_alone": error_stats(r["encoder_de2000"] for r in done),
                "residual": error_stats(r["residual_de2000"] for r in done),
                "seconds": error_stats(r["seconds"] for r in done),
-               "estimate_seconds": error_stats(r["estimate_seconds"] for r in done
-                                               if r.get("estimate_seconds") is not None)}
+               "estimate_seconds": error_stats(r.get("estimate_seconds") for r in done)}
     sources = sorted({r["source"] for r in done}, key=lambda s: (s != "live", s))
     summary["by_source"] = {s: error_stats(r["de2000"] for r in done if r["source"] == s) for s in sources}
     summary["by_case"] = {n: error_stats(r["de2000"] for r in done if r["hidden"] == n) for n, _ in hidden}
