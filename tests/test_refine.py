@@ -139,3 +139,24 @@ def test_a_variation_whose_curve_cannot_reach_the_colour_says_how_far_it_falls_s
     darkest = curve(np.full(3, sigma[-1]))
     assert curve_reach(curve, uniform, darkest) < 0.05
     assert curve_reach(curve, greys, darkest) > 2.0         # no hair with a fifth of greys is that dark
+
+
+def test_the_unrendered_last_step_gives_the_answer_the_rendered_one_gives(tmp_path, monkeypatch):
+    """``check_last`` off: the last corrected sigma_a is not rendered. The answer is the one the refinement that
+    renders it gives (that render only measures its residual), from one check render instead of two; the residual
+    said is the check's colour moved along the curve."""
+    from dataclasses import replace
+
+    monkeypatch.setenv("HAIRDIGI_CACHE", str(tmp_path))
+    renderer = Renderer(max_cached=2)
+    pose = CameraPose(25, 140)
+    capture = SceneSpec("swatch", camera=pose, strand_seed=11)
+    target = mean_linear(renderer.render(HairParams((200, 60, 40), 0.7, 0.3, 0.4), capture, 32, 32, seed=1).linear)
+    prior = HairParams((120, 120, 120), 0.5, 0.5, 0.5)
+    rendered = refine(prior, target, pose, replace(SMALL, iterations=2, check_last=True, tolerance_de=0.0), renderer)
+    predicted = refine(prior, target, pose, replace(SMALL, iterations=2, check_last=False, tolerance_de=0.0), renderer)
+    assert (rendered.iterations, predicted.iterations) == (2, 1)
+    assert predicted.params == rendered.params and np.array_equal(predicted.sigma_a, rendered.sigma_a)
+    assert predicted.history == rendered.history[:1]
+    assert predicted.residual_de2000 == pytest.approx(float(delta_e2000(predicted.rendered, target)), abs=1e-9)
+    assert not np.allclose(predicted.rendered, rendered.rendered)   # said from the curve, not measured
