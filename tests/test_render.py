@@ -156,6 +156,26 @@ def test_updating_a_loaded_scene_matches_a_fresh_one():
     assert np.abs(updated - Renderer().render(second, wrong, SIZE, SPP, 3).linear).max() > 1e-2
 
 
+def test_strands_set_in_memory_render_what_a_curve_file_renders(monkeypatch):
+    """A JIT variant's scene is loaded from a one-strand curve file and its strands set through mi.traverse
+    (``render.renderer._set_strands``): the image is the one a scene read whole from its curve file gives, bit
+    for bit, on a swatch, a swatch of fibre groups (greys) and a hairstyle under its environment."""
+    import hairdigi.render.renderer as renderer_module
+    from hairdigi.render.domain.appearance import Appearance
+    from hairdigi.render.variant import is_jit
+
+    if not is_jit():
+        pytest.skip("scalar_rgb reads its strands from the curve file only")
+    p = HairParams((180, 90, 40), 0.5, 0.3, 0.6)
+    specs = (swatch(), swatch(appearance=Appearance(fibre_spread=0.3, grey_fraction=0.2)),
+             SceneSpec("bob", strands=100, env="soft"))
+    in_memory = [Renderer().render(p, spec, SIZE, SPP, 1).linear for spec in specs]
+    monkeypatch.setattr(renderer_module, "is_jit", lambda: False)     # the whole curve file, as scalar_rgb reads it
+    from_file = [Renderer().render(p, spec, SIZE, SPP, 1).linear for spec in specs]
+    for spec, a, b in zip(specs, in_memory, from_file):
+        assert np.array_equal(a, b), spec.name
+
+
 def test_lights_scale_the_image(renderer):
     p = HairParams((255, 255, 255), 0, 0.3, 0.5)
     full = mean_rgb(renderer.render(p, swatch(), SIZE, 16, 0)).mean()
