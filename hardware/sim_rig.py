@@ -36,6 +36,26 @@ CACHE_VERSION = 5  # bumped when the absorption mapping or the light images chan
 #                   5: the layered swatch, render.renderer.DEFAULT_SWATCH_MODEL)
 
 
+def light_images_path(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int = 32, strand_seed: int = 0,
+                      pose: rig_geometry.CameraPose = rig_geometry.CameraPose(),
+                      half_width: float = rig_geometry.RIG_HALF_WIDTH, appearance: Appearance = DEFAULT_APPEARANCE,
+                      illuminant: str | None = None, sensitivities: str | None = None,
+                      swatch_model: str | None = None) -> Path:
+    """Where ``render_light_images`` caches the light images of these settings (it may not exist yet)."""
+    view = [] if pose == rig_geometry.CameraPose() and half_width == rig_geometry.RIG_HALF_WIDTH else \
+        [pose.polar_deg, pose.azimuth_deg, pose.distance, half_width]
+    look = [] if appearance == DEFAULT_APPEARANCE else [appearance.to_dict()]
+    if illuminant is not None:   # a CSV is keyed by its content, so an edited file renders again
+        look += [{"illuminant": _content_key(illuminant), "sensitivities": _content_key(sensitivities),
+                  "chart": 2}]   # 2: the chart's spectra bent to its reference colours (render.chart)
+    if swatch_model not in (None, DEFAULT_SWATCH_MODEL.value):   # with its geometry's revision
+        look += [{"swatch_model": swatch_model, "revision": REVISIONS.get(swatch_model, 1)}]
+    hair = hidden.to_dict() if isinstance(hidden, HairParams) else [round(float(v), 6) for v in np.ravel(hidden)]
+    key = hashlib.sha256(json.dumps([CACHE_VERSION, hair, list(size), spp, strand_seed, *view, *look],
+                                    sort_keys=True).encode()).hexdigest()[:16]
+    return cache_dir() / "sim-rig" / f"lights-{key}.npz"
+
+
 def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int = 32, strand_seed: int = 0,
                         cache: bool = True, pose: rig_geometry.CameraPose = rig_geometry.CameraPose(),
                         half_width: float = rig_geometry.RIG_HALF_WIDTH,
@@ -50,18 +70,8 @@ def render_light_images(hidden: HairParams | np.ndarray, size=SIM_SIZE, spp: int
     spectrally, the chart with its measured spectra, seen by the CIE observer or by a camera's
     ``sensitivities`` (its raw RGB): ``render.renderer.SceneSpec``. ``swatch_model``: the hidden swatch's
     physical structure (``render.swatch_family``; None: hairdigi's own, layered)."""
-    view = [] if pose == rig_geometry.CameraPose() and half_width == rig_geometry.RIG_HALF_WIDTH else \
-        [pose.polar_deg, pose.azimuth_deg, pose.distance, half_width]
-    look = [] if appearance == DEFAULT_APPEARANCE else [appearance.to_dict()]
-    if illuminant is not None:   # a CSV is keyed by its content, so an edited file renders again
-        look += [{"illuminant": _content_key(illuminant), "sensitivities": _content_key(sensitivities),
-                  "chart": 2}]   # 2: the chart's spectra bent to its reference colours (render.chart)
-    if swatch_model not in (None, DEFAULT_SWATCH_MODEL.value):   # with its geometry's revision
-        look += [{"swatch_model": swatch_model, "revision": REVISIONS.get(swatch_model, 1)}]
-    hair = hidden.to_dict() if isinstance(hidden, HairParams) else [round(float(v), 6) for v in np.ravel(hidden)]
-    key = hashlib.sha256(json.dumps([CACHE_VERSION, hair, list(size), spp, strand_seed, *view, *look],
-                                    sort_keys=True).encode()).hexdigest()[:16]
-    path = cache_dir() / "sim-rig" / f"lights-{key}.npz"
+    path = light_images_path(hidden, size, spp, strand_seed, pose, half_width, appearance, illuminant,
+                             sensitivities, swatch_model)
     if cache and path.exists():
         with np.load(path) as data:
             return data["images"], int(data["nonfinite"])

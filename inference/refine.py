@@ -84,9 +84,9 @@ class RefineSettings:
     spp: int = 32                   # the response curve's and the shine tables' renders (cached per view)
     iterations: int = 2
     #: The check renders' samples. The result is the sigma_a whose fixed-seed check render matches the
-    #: capture, so it inherits that render's noise offset: on the layered swatch (8000 thin fibres, sparse
-    #: glints), 4 hairs at the bench camera's swatch area against a 384-spp judge, 32 spp left median
-    #: 0.49 ΔE2000, 64 spp 0.17, 128 spp 0.15 (``hairdigi bench check-spp``; ``resources/models/encoder.md``).
+    #: capture, so it inherits that render's noise offset: 4 hairs at the bench camera's swatch area against a
+    #: 384-spp judge, on the layered swatch / the spread member, 32 spp left median 0.32 / 0.23 ΔE2000, 64 spp
+    #: 0.16 / 0.15, 128 spp 0.17 / 0.12 at twice the time (``hairdigi bench check-spp``; ``resources/models/encoder.md``).
     check_spp: int = 64
     #: Strand layouts the check renders average over, ``check_spp / check_layouts`` samples each (the same
     #: samples). One: ``hairdigi bench layouts`` (5 hairs, each hidden in 4 layouts at the rig's swatch

@@ -97,12 +97,13 @@ def bench_check_spp(args: argparse.Namespace) -> Result:
     """The refinement's check renders at the rig's swatch area: their spp against the error they leave."""
     out = Path("packaging/bench/check-spp") if args.out == BENCH_OUT else Path(args.out)
     rows = run_check_spp(out)
-    result = Result("check_spp_bench", rows, files=_files(out, "check_spp_bench.csv"))
-    for label, _ in CHECK_SETTINGS:
-        sel = [r for r in rows if r["setting"] == label]
-        result.text.append(f"{label}: ΔE2000 median {np.median([r['de2000'] for r in sel]):.2f}, worst "
-                           f"{max(r['de2000'] for r in sel):.2f}; polish "
-                           f"{np.median([r['polish_s'] for r in sel]):.2f} s")
+    result = Result("check_spp_bench", rows, files=_files(out, "check_spp_bench.csv", "check_spp_bench.png"))
+    for member in dict.fromkeys(r["structure"] for r in rows):
+        for label, _ in CHECK_SETTINGS:
+            sel = [r for r in rows if r["setting"] == label and r["structure"] == member]
+            result.text.append(f"{member}, {label}: ΔE2000 median {np.median([r['de2000'] for r in sel]):.2f}, "
+                               f"worst {max(r['de2000'] for r in sel):.2f}; polish "
+                               f"{np.median([r['polish_s'] for r in sel]):.2f} s")
     return result
 
 

@@ -85,40 +85,69 @@ def _plot(rows: list[dict], path: Path) -> None:
 #: The check-spp bench's hairs (Table 1) at the bench camera's swatch area, and the settings it compares.
 CHECK_HAIRS = {"copper": HairParams((190, 80, 40), 0.5, 0.5, 0.6), "platinum": HairParams((245, 240, 225), 0.15, 0.04, 0.2),
                "dark brown": HairParams((60, 40, 30), 0.2, 0.8, 0.9), "saturated blue": HairParams((30, 60, 230), 0.9, 0.1, 0.5)}
-CHECK_SETTINGS = (("check 32 spp, 2 iterations", {"check_spp": 32}), ("check 64 spp, 2 iterations", {"check_spp": 64}),
-                  ("check 128 spp, 2 iterations", {"check_spp": 128}),
+CHECK_SETTINGS = (("check 32 spp", {"check_spp": 32}),
+                  ("check 64 spp, the corrected answer rendered too (before 0.15)", {"check_spp": 64, "check_last": True}),
+                  ("check 64 spp (the default)", {"check_spp": 64}),
+                  ("check 128 spp", {"check_spp": 128}),
                   ("no check: the curve at 256 spp", {"spp": 256, "iterations": 0}))
 CHECK_JUDGE_SPP, CHECK_JUDGE_SEED = 384, 11
+#: The swatch structures the check-spp bench hides its hairs in: hairdigi's layered swatch (None) and the family
+#: member whose check renders cost the most (``render.swatch_family``: its crossing fibres).
+CHECK_MEMBERS = (None, "spread")
 
 
 def bench_check_spp(out_dir: str | os.PathLike, progress: bool = True) -> list[dict]:
     """The refinement's check renders at the rig's swatch area: its result is the sigma_a whose fixed-seed
     check render matches the capture, so it inherits that render's noise. Each hair's truth, rendered at
-    ``CHECK_JUDGE_SPP`` with another seed, is the capture; each setting's answer is rendered the same way
-    and judged against it (mean-colour ΔE2000). Writes ``check_spp_bench.csv``."""
+    ``CHECK_JUDGE_SPP`` with another seed on each of ``CHECK_MEMBERS``, is the capture; each setting's answer,
+    refined on that structure, is rendered the same way and judged against it (mean-colour ΔE2000). Writes
+    ``check_spp_bench.csv``."""
     renderer = default_renderer()
     frame = (400, 300)
     view = RigRegion(frame, swatch_roi(frame))
-    spec, film = scene_for(view, RefineSettings())
-
-    def judged(sigma) -> np.ndarray:
-        return renderer.render(np.asarray(sigma, float), spec, film, CHECK_JUDGE_SPP, CHECK_JUDGE_SEED).linear.reshape(-1, 3).mean(0)
-
     rows = []
-    for name, hair in tqdm(CHECK_HAIRS.items(), desc="check spp", unit="hair", disable=not progress):
+    cases = [(name, hair, member) for member in CHECK_MEMBERS for name, hair in CHECK_HAIRS.items()]
+    for name, hair, member in tqdm(cases, desc="check spp", unit="hair", disable=not progress):
+        spec, film = scene_for(view, RefineSettings(), swatch_model=member)
+
+        def judged(sigma) -> np.ndarray:
+            return renderer.render(np.asarray(sigma, float), spec, film, CHECK_JUDGE_SPP,
+                                   CHECK_JUDGE_SEED).linear.reshape(-1, 3).mean(0)
+
         target = judged(hair_sigma_a(hair))
         for label, change in CHECK_SETTINGS:
             settings = replace(RefineSettings(), **change)
-            curve = response_curve(view, settings, renderer)          # rendered once per setting, cached
+            curve = response_curve(view, settings, renderer, swatch_model=member)   # rendered once, cached
             start = time.perf_counter()
-            r = refine(hair, target, view, settings, renderer, curve=curve)
+            r = refine(hair, target, view, settings, renderer, curve=curve, swatch_model=member)
             seconds = time.perf_counter() - start
-            rows.append({"hair": name, "setting": label, "de2000": round(float(delta_e2000(judged(r.sigma_a), target)), 3),
-                         "residual_de2000": round(r.residual_de2000, 3), "polish_s": round(seconds, 2)})
+            rows.append({"hair": name, "structure": member or "layered", "setting": label,
+                         "de2000": round(float(delta_e2000(judged(r.sigma_a), target)), 3),
+                         "residual_de2000": round(r.residual_de2000, 3), "check_renders": len(r.history),
+                         "polish_s": round(seconds, 2)})
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     write_csv_atomic(out / "check_spp_bench.csv", rows)
+    _plot_check(rows, out / "check_spp_bench.png")
     return rows
+
+
+def _plot_check(rows: list[dict], path: Path) -> None:
+    """Each setting's median error against its median polish time, one marker per structure."""
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    for marker, member in zip("os^", dict.fromkeys(r["structure"] for r in rows)):
+        for k, (label, _) in enumerate(CHECK_SETTINGS):
+            sel = [r for r in rows if r["setting"] == label and r["structure"] == member]
+            if sel:
+                ax.plot(np.median([r["polish_s"] for r in sel]), np.median([r["de2000"] for r in sel]), marker,
+                        color=f"C{k}", label=label if member == rows[0]["structure"] else None)
+        ax.plot([], [], marker, color="grey", label=member)
+    ax.set_xlabel("polish seconds (median)")
+    ax.set_ylabel("ΔE2000 against the truth (median)")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    save_figure(fig, path)
 
 
 #: The layouts bench: hidden layouts of one swatch (seeds no refinement renders) and the settings tried.

@@ -124,7 +124,7 @@ def rig(args: argparse.Namespace) -> Result | int:
     if hidden:
         for name, st in s["by_structure"].items():
             say(f"  {name} swatches: median {st['median']:.2f}, p95 {st['p95']:.2f}, worst {st['worst']:.2f} ({st['n']})")
-    twin, took = s["residual"], s["estimate_seconds"]
+    twin, took = s.get("twin") or {}, s["estimate_seconds"]
     if twin.get("n") and took.get("n"):
         say(f"the twin against the capture: median {twin['median']:.2f}, p95 {twin['p95']:.2f}; each estimate, from "
             f"the image to the record: median {took['median']:.1f} s, p95 {took['p95']:.1f} s, worst "

@@ -93,6 +93,9 @@ BENCHES: dict[str, Entry] = _modes(
           f"{_BENCH}:bench_refine"),
     Entry("check-spp", "the refinement's check renders at the rig's swatch area: their spp against the error left",
           f"{_BENCH}:bench_check_spp"),
+    Entry("estimate-speed", "each estimate's time in a fresh process: the first of a session and the later ones "
+                            "(--quick: one case, two captures)",
+          "hairdigi.app.evaluation.bench_estimate_speed:bench_estimate_speed"),
     Entry("layouts", "the check renders over strand layouts: how far a new layout moves the answer",
           f"{_BENCH}:bench_layouts"),
     Entry("dataset", "dataset rendering, the local pool and a local Ray instance: swatches per second",

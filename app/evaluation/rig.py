@@ -29,6 +29,7 @@ from hairdigi.app.session.blockers import messages
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.hardware.sim_still import write_raw_still
 from hairdigi.inference.encoder import Encoder
+from hairdigi.inference.refine import RefineSettings, scene_for
 from hairdigi.render.camera_model import CameraModel
 from hairdigi.render.domain.appearance import DEFAULT_APPEARANCE
 from hairdigi.render.domain.bounds import DEFAULT_STRUCTURE
@@ -36,7 +37,7 @@ from hairdigi.render.domain.params import HairParams, sample_params
 from hairdigi.render.domain.rig_geometry import CameraPose
 from hairdigi.render.io.figures import save_figure, save_table
 from hairdigi.render.judge import judge, judge_scene
-from hairdigi.render.metrics import error_stats
+from hairdigi.render.metrics import delta_e2000, error_stats
 
 #: Named hard cases of the held-out hidden swatches (Table 1: dye RGB, dye conc., melanin conc., ratio).
 HARD_CASES = {
@@ -105,7 +106,7 @@ def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, se
     scene = judge_scene(structure)
     refined = judge(hidden, rec.refinement.sigma_a if rec.refinement.sigma_a else rec.hair, scene, looks=(None, look))
     encoder = judge(hidden, rec.encoder.hair, scene)
-    row.update(de2000=refined.de2000, encoder_de2000=encoder.de2000,
+    row.update(de2000=refined.de2000, encoder_de2000=encoder.de2000, twin_de2000=twin_distance(rec, look),
                residual_de2000=rec.refinement.residual_de2000, refine_seconds=rec.refinement.seconds,
                estimate_seconds=rec.provenance.seconds,
                stated_p68=rec.uncertainty.mean_colour_de2000_p68,
@@ -118,6 +119,30 @@ def _row(name: str, hidden: HairParams, source: str, cast, ev: float, result, se
                structure_spreads=" ".join(f"{m} {v:.2f}" for m, v in (rec.refinement.region.spreads or {}).items()),
                nonfinite=refined.nonfinite + encoder.nonfinite + rec.refinement.nonfinite)
     return row
+
+
+#: The twin's render in the evaluation: the check renders' samples, another seed than theirs (the app's twin is its
+#: own render, not the refinement's).
+TWIN_SPP, TWIN_SEED = 64, 11
+
+
+def twin_distance(record, look) -> float | None:
+    """ΔE2000 between the capture's fitted colour and the twin the app shows beside it: the answer (the sigma_a
+    fitted on the structure it was read on, where it was mapped to another's) rendered over the capture's region, on
+    that structure, with the estimate's appearance ``look``. None where the record has no rig region."""
+    # deferred: loads Mitsuba; the entry point chooses the variant, not an import (render.variant)
+    from hairdigi.render.renderer import default_renderer
+
+    refinement = record.refinement
+    region = refinement.region.rig if refinement.region is not None else None
+    if region is None or not refinement.target_linear_rgb:
+        return None
+    spec, size = scene_for(region, RefineSettings(), look, refinement.region.swatch_model)
+    sigma = refinement.fitted_sigma_a or refinement.sigma_a
+    shown = default_renderer().render(np.asarray(sigma, float), spec, size, TWIN_SPP, TWIN_SEED)
+    target = np.asarray(refinement.target_linear_rgb, float)
+    return round(float(delta_e2000(np.clip(shown.linear.reshape(-1, 3).mean(0), 1e-9, None),
+                                   np.clip(target, 1e-9, None))), 4)
 
 
 def evaluate_rig(out_dir: str | os.PathLike, config: RigSet = RigSet(), progress: bool = True) -> dict:
@@ -190,6 +215,7 @@ def summarise(rows: list[dict], hidden: list[tuple[str, HairParams]]) -> dict:
                "refined": error_stats(r["de2000"] for r in done),
                "encoder_alone": error_stats(r["encoder_de2000"] for r in done),
                "residual": error_stats(r["residual_de2000"] for r in done),
+               "twin": error_stats(r.get("twin_de2000") for r in done),
                "seconds": error_stats(r["seconds"] for r in done),
                "estimate_seconds": error_stats(r.get("estimate_seconds") for r in done)}
     sources = sorted({r["source"] for r in done}, key=lambda s: (s != "live", s))
