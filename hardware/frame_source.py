@@ -4,8 +4,9 @@ Camera drivers are not thread-safe (``cv2.VideoCapture`` is not; the simulated r
 random generator), yet the live feed, capture, calibration and the light check all want frames.
 The source serialises every read under one lock and publishes each frame to its subscribers (the
 window's feed). While someone subscribes, its thread reads at ``fps`` and ``next_frame`` waits for
-the next frame from that thread; with no subscriber (the command line), ``next_frame`` reads on the
-caller's thread. Either way a frame handed out by ``next_frame`` was exposed after the call began, so
+the next frame from that thread, which it wakes to read at once (a capture's four frames do not wait out
+the feed's period: 1.0 s of the app's capture at the busy feed's 4 frames a second); with no subscriber (the
+command line), ``next_frame`` reads on the caller's thread. Either way a frame handed out by ``next_frame`` was exposed after the call began, so
 a capture taken just after switching a light sees the light. A camera that fails stops the feed,
 unless it can reopen itself (a GenICam camera's ``reconnect``): then the feed waits for it to come back.
 """
@@ -34,6 +35,7 @@ class FrameSource:
         self._error_subscribers: list[Callable[[str], None]] = []
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
+        self._wake = threading.Event()              # set by a reader waiting for a fresh frame, and to stop
         self.error: str | None = None               # why the feed stopped, if it did
         self.frames_read = 0
 
@@ -57,6 +59,7 @@ class FrameSource:
         if not self.running:
             return self._read()
         deadline = asked + timeout
+        self._wake.set()                             # the feed reads now rather than when its period ends
         with self._published:
             while self._latest_started < asked:
                 if self.error is not None:
@@ -130,7 +133,8 @@ class FrameSource:
                 if not self._await_camera():
                     return
                 continue
-            self._stop.wait(max(0.0, self.period - (time.perf_counter() - start)))
+            self._wake.wait(max(0.0, self.period - (time.perf_counter() - start)))
+            self._wake.clear()
 
     def _await_camera(self, poll_s: float = 1.0) -> bool:
         """After a failure, wait for a camera that can reopen itself (``reconnect``) to come back, while the
@@ -150,6 +154,7 @@ class FrameSource:
 
     def _halt(self) -> None:
         self._stop.set()
+        self._wake.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=5.0)
         self._thread = None

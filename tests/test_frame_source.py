@@ -68,6 +68,25 @@ def test_the_feed_and_three_workers_never_read_the_camera_at_once(video):
     source.close()
 
 
+def test_a_reader_does_not_wait_out_a_slow_feeds_period(video):
+    """With the feed at one frame in 20 s, four fresh frames (a capture's single-light frames and its frame) come
+    at once: the waiting reader wakes the feed, which then keeps its own pace."""
+    camera = WatchedCamera(video)
+    source = FrameSource(camera, fps=0.05)
+    seen = []
+    unsubscribe = source.subscribe(seen.append)
+    try:
+        start = time.monotonic()
+        frames = [source.next_frame(timeout=30) for _ in range(4)]
+        took = time.monotonic() - start
+        assert took < 10.0, took                       # one period alone would be 20 s; four, 80 s
+        assert [f.meta["frame"] for f in frames] == sorted({f.meta["frame"] for f in frames})   # four fresh frames
+        assert camera.most_inside == 1 and source.running
+    finally:
+        unsubscribe()
+        source.close()
+
+
 def test_without_a_feed_next_frame_reads_on_the_callers_thread(video):
     source = FrameSource(WatchedCamera(video))
     first, second = source.next_frame(), source.next_frame()
