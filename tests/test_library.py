@@ -1,6 +1,7 @@
 """The swatch library on real SQLite files (and a real PostgreSQL server where this machine can start one):
 migrations, import, find, tag, note, export, first run, a SIGKILL mid-import, and two writing processes."""
 import csv
+import json
 import glob
 import hashlib
 import logging
@@ -199,6 +200,27 @@ def test_lone_estimates_and_dye_predictions_are_swatches_too(tmp_path, lib_env):
         assert kinds == {str(estimate.resolve()): "estimate", str(prediction.resolve()): "dye"}
         dye = next(s for s in lib.all() if s.kind == "dye")
         assert dye.sigma_a == (0.2, 0.5, 0.1)          # the prediction's sigma_a, not Table 1's mapping
+
+
+def test_two_captures_of_one_image_are_one_swatch_and_import(tmp_path, lib_env):
+    """A session where two captures hold the same image (a still imported twice; the simulated rig's first frame in
+    two app runs) imports as one swatch, the later capture's, where it failed on the colours' unique key."""
+    from hairdigi.app.library.importing import import_paths
+
+    folder = tmp_path / "session"
+    make_session(folder, 2)
+    captures = folder / "captures"
+    first, second = sorted(captures.glob("*.png"))
+    shutil.copyfile(first, second)                       # the second capture's image is the first's, byte for byte
+    record = CaptureRecord.from_json(json.loads((captures / f"{second.stem}.json").read_text()))
+    write_record(captures / f"{second.stem}.json", CaptureRecord(
+        id=record.id, image=record.image, image_sha256=hashlib.sha256(first.read_bytes()).hexdigest(),
+        captured=record.captured))
+    with Library() as lib:
+        assert import_paths(lib, [folder], progress=lambda line: None) == 1
+        (swatch,) = lib.all()
+        assert swatch.capture_id == second.stem                      # the later capture's record stands
+        assert import_paths(lib, [folder], progress=lambda line: None) == 1 and len(lib.all()) == 1
 
 
 def test_rows_are_typed_and_the_columns_keep_their_bytes(tmp_path, lib_env, caplog):

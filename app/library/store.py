@@ -590,7 +590,9 @@ class Library:
     # -- writes -----------------------------------------------------------------------------
     def add(self, rows: list[SwatchRow], session: str | None = None) -> int:
         """Write ``rows`` (new or replacing the same ids, keeping tags and notes) in one transaction;
-        ``session`` marks that folder imported in the same transaction."""
+        ``session`` marks that folder imported in the same transaction. Rows of one id are one swatch (two captures
+        of one image: a still imported twice); the last of them is written, as a later import's would be."""
+        rows = list({r.id: r for r in rows}.values())
         imported = _now()
         swatch_sql = ("INSERT INTO swatches (id, kind, session, capture_id, captured, imported, image_path, record_path, "
                       "record_sha256, reliable, hair, sigma_r, sigma_g, sigma_b, record) "
