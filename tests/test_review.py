@@ -98,6 +98,39 @@ def run_previews(model):
         run_now(work, model.apply)
 
 
+def test_the_clean_twin_lets_the_hairstyles_first_pass_go_first(calibrated):
+    """The twin's and the hairstyle's passes run side by side, as the window runs them: the hairstyle waits for a
+    clean twin, and the twin's further passes wait for the hairstyle's first, so that each preview is shown clean
+    before either is polished."""
+    import queue
+
+    model = review.ReviewModel(calibrated, dataclasses.replace(SMALL, warm=False))
+    run_now(model.capture_work(), model.apply)
+    assert model.shown.stage == Stage.REFINED
+    works = {"twin": model.twin_work(), "hairstyle": model.hairstyle_work()}
+    results: queue.Queue = queue.Queue()
+
+    def worker(name, work):                       # a worker thread: it yields, the model's thread applies
+        for p in work.run():
+            results.put((name, p))
+        results.put((name, None))
+    threads = [threading.Thread(target=worker, args=item) for item in works.items()]
+    for thread in threads:
+        thread.start()
+    order, ended = [], 0
+    while ended < len(works):
+        name, p = results.get(timeout=120)
+        if p is None:
+            ended += 1
+            works[name].ended()
+            continue
+        model.apply(p)
+        order.append((name, getattr(p, "scale", None), p.spp))
+    for thread in threads:
+        thread.join(10)
+    assert order.index(("twin", 0.5, 1)) < order.index(("hairstyle", None, 1)) < order.index(("twin", 1.0, 1)), order
+
+
 @pytest.mark.slow
 def test_a_new_capture_cancels_stale_renders(calibrated):
     model = review.ReviewModel(calibrated, dataclasses.replace(SMALL, hairstyle_passes=(1,) * 40, warm=False))

@@ -99,6 +99,9 @@ class ReviewModel(PanelModel):
         self._generation.update(dict.fromkeys(("twin", "hairstyle", "records", "select"), 0))
         self._twin_state = threading.Condition()
         self._twin_ready = 0                    # the twin generation that is clean (or done): the hairstyle waits for it
+        self._style_state = threading.Condition()
+        self._style_ready = 0                   # the hairstyle generation with a refined pass: the clean twin's next waits
+        self._style_wanted = 0                  # the hairstyle generation whose passes run
         self._capturing = False
         self._strand_cache: dict[tuple, object] = {}
         self._last_check = 0.0
@@ -116,10 +119,25 @@ class ReviewModel(PanelModel):
         with self._twin_state:
             self._twin_state.wait_for(lambda: self._twin_ready >= self._generation["twin"], timeout_s)
 
+    # -- then the hairstyle's first refined pass: the clean twin's further passes wait for it -----------
+    def _style_is_ready(self, generation: int) -> None:
+        with self._style_state:
+            self._style_ready = max(self._style_ready, generation)
+            self._style_state.notify_all()
+
+    def _wait_for_style(self, timeout_s: float = 10.0) -> None:
+        """Until the current hairstyle, where its passes run, has a refined pass (the clean twin's further
+        passes, 2-3 s each at full resolution, let its first one go: the tour's clean hairstyle came 4.3 s after the
+        clean twin)."""
+        with self._style_state:
+            self._style_state.wait_for(lambda: self._style_ready >= self._generation["hairstyle"]
+                                       or self._style_wanted < self._generation["hairstyle"], timeout_s)
+
     def stop(self) -> None:
-        """Make all running work stale (closing the window), and let no one wait for the twin."""
+        """Make all running work stale (closing the window), and let no one wait for the twin or the hairstyle."""
         super().stop()
         self._twin_is_ready(self._generation["twin"])
+        self._style_is_ready(self._generation["hairstyle"])
 
     # -- the live feed and the lights ----------------------------------------------------------
     def busy(self) -> bool:
@@ -375,7 +393,7 @@ class ReviewModel(PanelModel):
             view = lambda scale: twin_view(shown.roi, shown.frame_size, shown.simulated, scale,  # noqa: E731
                                            appearance, light, shown.swatch_model)
             yield from twin_passes(renderer, shown.twin_hair, real, view, settings.twin_passes, settings, on, tag,
-                                   self._stale("twin", generation))
+                                   self._stale("twin", generation), after_clean=self._wait_for_style)
         return Work("twin", run, ended=lambda: self._twin_done(generation))
 
     def _twin_done(self, generation: int) -> None:
@@ -392,9 +410,11 @@ class ReviewModel(PanelModel):
         renderer, settings, on = self.style_renderer, self.settings, self.show_denoised or self.settings.denoise
 
         def run():
+            with self._style_state:             # running: the clean twin's further passes wait for its first
+                self._style_wanted = max(self._style_wanted, generation)
             yield from hairstyle_passes(renderer, shown.params, spec, label, settings.hairstyle_passes, settings, on,
                                         tag, self._stale("hairstyle", generation), self._wait_for_twin)
-        return Work("hairstyle", run)
+        return Work("hairstyle", run, ended=lambda: self._style_is_ready(generation))
 
     def warm_view_work(self) -> Work:
         """Build the chosen hairstyle's scene before any capture needs it (a style picked before a capture)."""
@@ -470,6 +490,8 @@ class ReviewModel(PanelModel):
         if not self._shows(p, "hairstyle", self.hairstyle):
             return
         self.hairstyle = p
+        if p.stage == Stage.REFINED and self._current("hairstyle", p.generation):
+            self._style_is_ready(p.generation)   # the clean twin's further passes may go on
         if p.nonfinite:
             self._warn(nonfinite_warning("hairstyle", p.nonfinite))
         self.events.hairstyle.emit(p)

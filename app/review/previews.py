@@ -209,21 +209,29 @@ def scalp_linear(params: HairParams) -> tuple[float, float, float]:
 def twin_passes(renderer: Renderer, params: HairParams, real_srgb8: np.ndarray,
                 view: Callable[[float], tuple[SceneSpec, tuple[int, int]]], schedule: tuple[tuple[float, int], ...],
                 settings: PreviewSettings, denoise_on: bool, tag: PassTag,
-                cancelled: Cancelled = lambda: False) -> Iterator[TwinPreview]:
-    """The twin's passes over (scale, spp) steps; each run of one scale accumulates on its own."""
+                cancelled: Cancelled = lambda: False,
+                after_clean: Callable[[], None] | None = None) -> Iterator[TwinPreview]:
+    """The twin's passes over (scale, spp) steps; each run of one scale accumulates on its own. ``after_clean()``
+    runs before each pass once a pass was clean, and may wait (the hairstyle's first pass goes first)."""
     clean_at = dict(settings.twin_clean_spp)
     real_full = srgb8_to_linear(real_srgb8)
-    done = 0
+    done, clean = 0, False
+
+    def gate() -> None:
+        if clean and after_clean is not None:
+            after_clean()
+
     for scale, run in itertools.groupby(schedule, key=lambda p: p[0]):
         spec, size = view(scale)
         spps = [n for _, n in run]
         real = None
-        for i, result in enumerate(renderer.render_progressive(params, spec, size, spps, cancelled=cancelled),
-                                   done + 1):
+        for i, result in enumerate(renderer.render_progressive(params, spec, size, spps, cancelled=cancelled,
+                                                               gate=gate), done + 1):
             raw = result.linear
             if real is None:
                 real = real_full if raw.shape == real_full.shape else \
                     cv2.resize(real_full, (raw.shape[1], raw.shape[0]), interpolation=cv2.INTER_AREA)
+            clean = clean or result.spp >= clean_at.get(scale, result.spp + 1)
             yield TwinPreview(tag.generation, raw, denoised(raw, denoise_on), result.spp, i == len(schedule),
                               result.spp >= clean_at.get(scale, result.spp + 1), mean_colour_delta_e(real, raw),
                               delta_e_map(real, raw, settings.fibre_px * scale), raw.reshape(-1, 3).mean(0),
