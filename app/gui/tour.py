@@ -23,7 +23,7 @@ from hairdigi.render.domain.files import write_json_atomic
 TARGETS = {"capture_to_parameters_s": ("parameters", 1.0), "capture_to_refined_parameters_s": ("refined", None),
            "capture_to_first_twin_s": ("first_twin", 1.5), "capture_to_clean_twin_s": ("clean_twin", 5.0),
            "capture_to_first_hairstyle_s": ("first_hairstyle", 2.0),
-           "capture_to_clean_hairstyle_s": ("clean_hairstyle", 20.0)}
+           "capture_to_clean_hairstyle_s": ("clean_hairstyle", 8.0)}
 
 
 def run_tour(window, out_dir: str | Path, timeout_s: float = 600.0) -> None:
