@@ -5,9 +5,10 @@ random generator), yet the live feed, capture, calibration and the light check a
 The source serialises every read under one lock and publishes each frame to its subscribers (the
 window's feed). While someone subscribes, its thread reads at ``fps`` and ``next_frame`` waits for
 the next frame from that thread, which it wakes to read at once (a capture's four frames do not wait out
-the feed's period: 1.0 s of the app's capture at the busy feed's 4 frames a second); with no subscriber (the
-command line), ``next_frame`` reads on the caller's thread. Either way a frame handed out by ``next_frame`` was exposed after the call began, so
-a capture taken just after switching a light sees the light. A camera that fails stops the feed,
+the feed's period: 1.0 s of the app's capture at the busy feed's 4 frames a second); with no subscriber
+(the command line), ``next_frame`` reads on the caller's thread. Either way a frame handed out by
+``next_frame`` was exposed after the call began, so a capture taken just after switching a light sees the
+light. A camera that fails stops the feed,
 unless it can reopen itself (a GenICam camera's ``reconnect``): then the feed waits for it to come back.
 """
 from __future__ import annotations

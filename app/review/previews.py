@@ -231,9 +231,10 @@ def twin_passes(renderer: Renderer, params: HairParams, real_srgb8: np.ndarray,
             if real is None:
                 real = real_full if raw.shape == real_full.shape else \
                     cv2.resize(real_full, (raw.shape[1], raw.shape[0]), interpolation=cv2.INTER_AREA)
-            clean = clean or result.spp >= clean_at.get(scale, result.spp + 1)
+            is_clean = result.spp >= clean_at.get(scale, result.spp + 1)
+            clean = clean or is_clean
             yield TwinPreview(tag.generation, raw, denoised(raw, denoise_on), result.spp, i == len(schedule),
-                              result.spp >= clean_at.get(scale, result.spp + 1), mean_colour_delta_e(real, raw),
+                              is_clean, mean_colour_delta_e(real, raw),
                               delta_e_map(real, raw, settings.fibre_px * scale), raw.reshape(-1, 3).mean(0),
                               tag.stage, result.seconds, tag.key, scale, result.nonfinite, tag.light)
         done += len(spps)
