@@ -18,13 +18,13 @@ import tempfile
 from pathlib import Path
 
 import matplotlib.pyplot as plt
-import numpy as np
 
 from hairdigi.app.evaluation.results import Result
 from hairdigi.app.evaluation.rig import HARD_CASES
 from hairdigi.app.session.rig_session import RigSession
 from hairdigi.hardware.sim_rig import light_images_path
 from hairdigi.render.io.figures import save_figure
+from hairdigi.render.metrics import error_stats
 
 #: (hidden hard case, its swatch's structure): the family's members as ``evaluate --rig --hidden-structures
 #: layered,deposited,tilted,spread,wavy`` pairs them, and every hard case on ``clumped``, outside the family.
@@ -70,12 +70,6 @@ def _fresh(name: str, structure: str, captures: int) -> list[dict]:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def _stats(values: list[float]) -> dict:
-    v = np.asarray(values, float)
-    return {"n": int(v.size), "median": round(float(np.median(v)), 2), "p95": round(float(np.percentile(v, 95)), 2),
-            "worst": round(float(v.max()), 2)} if v.size else {"n": 0}
-
-
 def _plot(rows: list[dict], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(7, 3.8))
     labels = [f"{r['hair']} / {r['structure']}" for r in rows if r["first"]]
@@ -96,8 +90,8 @@ def bench_estimate_speed(args: argparse.Namespace) -> Result:
     """Every case's estimates in a fresh process (``--quick``: the demo's copper on the layered swatch, two captures)."""
     cases, captures = (CASES[:1], 2) if args.quick else (CASES, CAPTURES)
     rows = [row for name, structure in cases for row in _fresh(name, structure, captures)]
-    first = _stats([r["estimate_s"] for r in rows if r["first"]])
-    later = _stats([r["estimate_s"] for r in rows if not r["first"]])
+    first = error_stats(r["estimate_s"] for r in rows if r["first"])
+    later = error_stats(r["estimate_s"] for r in rows if not r["first"])
     result = Result("estimate_speed", rows, {"first": first, "later": later, "goal_s": GOAL_S,
                                             "captures_per_session": captures}, plot=_plot)
     result.save(args.out)
